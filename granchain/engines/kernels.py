@@ -1,0 +1,407 @@
+"""Numba kernels of the reference engine.
+
+State of one chain is a flat float64 vector laid out by ``engines.reference.Layout``:
+displacements x (from the initial, gapped positions), velocities v, and only when the
+scene enables them: spins omega, groove histories xi_g, contact histories xi_t, rolling
+histories psi, and one accumulated-work entry per dissipative effect. Effects are switched
+by runtime flags checked once per force call (not per particle), so a Hertz-only chain
+carries no rotational state and its force loop never touches friction code.
+
+One force routine, ``forces``, holds the physics of every effect; the three integrators
+call it:
+- ``rk4``: classical fixed-step RK4 on the full state (histories integrate xi' = slip,
+  held at the Coulomb cap while sliding), then the return mapping ``project``.
+- ``verlet``: velocity Verlet in LAMMPS's order (half kick, drift, forces at the
+  half-step velocities with the history update xi += slip*dt and return mapping inside
+  the force call, half kick; no history update at setup), like ``fix nve/sphere``.
+- ``dop853``: adaptive Dormand-Prince 8(5,3) with error control, stepping exactly onto
+  sample times, ``project`` after each accepted step. Serves as converged truth.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+from scipy.integrate._ivp import dop853_coefficients as _dc
+
+# parameter vector P
+P_N, P_R, P_M, P_I, P_K, P_S, P_FC, P_KG, P_T0, P_L, P_MU, P_KT, P_KR, P_GR, P_MUR, P_LEN = range(16)
+# flags FL
+F_ROT, F_GROOVE, F_DRAG, F_ODD, F_PP, F_MINDLIN, F_ROLL, F_LEN = range(8)
+# layout offsets LO (-1: absent)
+L_X, L_V, L_W, L_XG, L_XT, L_PS, L_WG, L_WD, L_WT, L_WR, L_NY, L_LEN = range(12)
+# methods
+M_RK4, M_VERLET, M_DOP853 = 0, 1, 2
+# sample columns of the energy array: kinetic translational, kinetic rotational, Hertz
+# potential, then the work done on the particles by groove, drag, contact friction, rolling
+E_KT, E_KR, E_H, E_WG, E_WD, E_WT, E_WR, E_LEN = range(8)
+# status
+S_RUNNING, S_DONE, S_PASSED, S_TIMEOUT, S_NONFINITE, S_STEPFAIL = 0, 1, 2, 3, 4, 5
+
+NST = _dc.N_STAGES
+DOP_A = np.ascontiguousarray(_dc.A[:NST, :NST])
+DOP_B = np.ascontiguousarray(_dc.B)
+DOP_C = np.ascontiguousarray(_dc.C[:NST])
+DOP_E3 = np.ascontiguousarray(_dc.E3)
+DOP_E5 = np.ascontiguousarray(_dc.E5)
+
+
+@njit(cache=True, inline="always")
+def _overlap(y, ox, gaps, k):
+    return y[ox + k] - y[ox + k + 1] - gaps[k]
+
+
+@njit(cache=True)
+def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
+    """Time derivative dy of state y; f receives the Hertz force of every contact.
+
+    With hist_dt > 0 (velocity Verlet), the friction histories in y are first advanced
+    by slip*hist_dt and return-mapped, as LAMMPS does inside its force call; with
+    hist_dt = 0 (RK4, DOP853, Verlet setup) y is not modified and dy carries the
+    history rates.
+    """
+    n = int(P[P_N])
+    R = P[P_R]
+    m = P[P_M]
+    K = P[P_K]
+    ox = LO[L_X]
+    ov = LO[L_V]
+    ow = LO[L_W]
+    rot = FL[F_ROT] != 0
+    for k in range(n - 1):
+        d = _overlap(y, ox, gaps, k)
+        f[k] = K * d * math.sqrt(d) if d > 0.0 else 0.0
+    for i in range(n):
+        fi = 0.0
+        if i > 0:
+            fi += f[i - 1]
+        if i < n - 1:
+            fi -= f[i]
+        dy[ox + i] = y[ov + i]
+        dy[ov + i] = fi / m
+        if rot:
+            dy[ow + i] = 0.0
+
+    if FL[F_DRAG] != 0:
+        T0 = P[P_T0]
+        L = P[P_L]
+        odd = FL[F_ODD] != 0
+        pw = 0.0
+        for i in range(n):
+            v = y[ov + i]
+            q = v * abs(v) if odd else v * v
+            F = -m * (v / T0 - q / L)
+            dy[ov + i] += F / m
+            pw += F * v
+        dy[LO[L_WD]] = pw
+
+    if FL[F_GROOVE] != 0:
+        sR = P[P_S] * R
+        Fc = P[P_FC]
+        kg = P[P_KG]
+        I = P[P_I]
+        og = LO[L_XG]
+        pw = 0.0
+        for i in range(n):
+            u = y[ov + i] - sR * y[ow + i] if rot else y[ov + i]
+            xi = y[og + i]
+            if hist_dt > 0.0:
+                xi += u * hist_dt
+                if kg * abs(xi) > Fc:
+                    xi = math.copysign(Fc / kg, xi)
+                y[og + i] = xi
+            F = -kg * xi
+            rate = u
+            if abs(F) >= Fc:
+                F = math.copysign(Fc, F)
+                if u * xi > 0.0:
+                    rate = 0.0
+            dy[og + i] = rate
+            dy[ov + i] += F / m
+            if rot:
+                dy[ow + i] += -sR * F / I
+            pw += F * u
+        dy[LO[L_WG]] = pw
+
+    if FL[F_PP] != 0:
+        mu = P[P_MU]
+        ktc = P[P_KT]
+        I = P[P_I]
+        mindlin = FL[F_MINDLIN] != 0
+        ot = LO[L_XT]
+        pw = 0.0
+        for k in range(n - 1):
+            fn = f[k]
+            if fn > 0.0:
+                d = _overlap(y, ox, gaps, k)
+                kt = ktc * math.sqrt(d) if mindlin else ktc
+                w = R * (y[ow + k] + y[ow + k + 1])
+                xi = y[ot + k]
+                cap = mu * fn
+                if hist_dt > 0.0:
+                    xi += w * hist_dt
+                    if kt * abs(xi) > cap:
+                        xi = math.copysign(cap / kt, xi)
+                    y[ot + k] = xi
+                T = -kt * xi
+                rate = w
+                if abs(T) >= cap:
+                    T = math.copysign(cap, T)
+                    if w * xi > 0.0:
+                        rate = 0.0
+                dy[ot + k] = rate
+                dy[ow + k] += R * T / I
+                dy[ow + k + 1] += R * T / I
+                pw += T * w
+            else:
+                if hist_dt > 0.0:
+                    y[ot + k] = 0.0
+                dy[ot + k] = 0.0
+        dy[LO[L_WT]] = pw
+
+
+@njit(cache=True)
+def project(y, gaps, P, FL, LO, f):
+    """Return mapping of the friction histories onto their Coulomb caps (after a step)."""
+    n = int(P[P_N])
+    if FL[F_GROOVE] != 0:
+        Fc = P[P_FC]
+        kg = P[P_KG]
+        og = LO[L_XG]
+        for i in range(n):
+            if kg * abs(y[og + i]) > Fc:
+                y[og + i] = math.copysign(Fc / kg, y[og + i])
+    if FL[F_PP] != 0:
+        ox = LO[L_X]
+        ot = LO[L_XT]
+        K = P[P_K]
+        mu = P[P_MU]
+        for k in range(n - 1):
+            d = _overlap(y, ox, gaps, k)
+            if d <= 0.0:
+                y[ot + k] = 0.0
+            else:
+                kt = P[P_KT] * math.sqrt(d) if FL[F_MINDLIN] != 0 else P[P_KT]
+                cap = mu * K * d * math.sqrt(d)
+                if kt * abs(y[ot + k]) > cap:
+                    y[ot + k] = math.copysign(cap / kt, y[ot + k])
+
+
+@njit(cache=True)
+def energies(y, gaps, P, FL, LO, out):
+    n = int(P[P_N])
+    ox = LO[L_X]
+    ov = LO[L_V]
+    m = P[P_M]
+    K = P[P_K]
+    ekt = 0.0
+    for i in range(n):
+        ekt += y[ov + i] * y[ov + i]
+    out[E_KT] = 0.5 * m * ekt
+    ekr = 0.0
+    if FL[F_ROT] != 0:
+        ow = LO[L_W]
+        for i in range(n):
+            ekr += y[ow + i] * y[ow + i]
+    out[E_KR] = 0.5 * P[P_I] * ekr
+    eh = 0.0
+    for k in range(n - 1):
+        d = _overlap(y, ox, gaps, k)
+        if d > 0.0:
+            eh += 0.4 * K * d * d * math.sqrt(d)
+    out[E_H] = eh
+    out[E_WG] = y[LO[L_WG]] if LO[L_WG] >= 0 else 0.0
+    out[E_WD] = y[LO[L_WD]] if LO[L_WD] >= 0 else 0.0
+    out[E_WT] = y[LO[L_WT]] if LO[L_WT] >= 0 else 0.0
+    out[E_WR] = y[LO[L_WR]] if LO[L_WR] >= 0 else 0.0
+
+
+@njit(cache=True)
+def rk4_step(y, h, gaps, P, FL, LO, k1, k2, k3, k4, tmp, f):
+    ny = y.shape[0]
+    forces(y, gaps, P, FL, LO, 0.0, k1, f)
+    for j in range(ny):
+        tmp[j] = y[j] + 0.5 * h * k1[j]
+    forces(tmp, gaps, P, FL, LO, 0.0, k2, f)
+    for j in range(ny):
+        tmp[j] = y[j] + 0.5 * h * k2[j]
+    forces(tmp, gaps, P, FL, LO, 0.0, k3, f)
+    for j in range(ny):
+        tmp[j] = y[j] + h * k3[j]
+    forces(tmp, gaps, P, FL, LO, 0.0, k4, f)
+    for j in range(ny):
+        y[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    project(y, gaps, P, FL, LO, f)
+
+
+@njit(cache=True)
+def verlet_step(y, acc, h, gaps, P, FL, LO, f):
+    """One LAMMPS-order velocity-Verlet step; acc holds the derivative of the last call."""
+    n = int(P[P_N])
+    ox = LO[L_X]
+    ov = LO[L_V]
+    ow = LO[L_W]
+    rot = FL[F_ROT] != 0
+    for i in range(n):
+        y[ov + i] += 0.5 * h * acc[ov + i]
+        if rot:
+            y[ow + i] += 0.5 * h * acc[ow + i]
+    for i in range(n):
+        y[ox + i] += h * y[ov + i]
+    forces(y, gaps, P, FL, LO, h, acc, f)
+    for c in (L_WG, L_WD, L_WT, L_WR):
+        if LO[c] >= 0:
+            y[LO[c]] += h * acc[LO[c]]
+    for i in range(n):
+        y[ov + i] += 0.5 * h * acc[ov + i]
+        if rot:
+            y[ow + i] += 0.5 * h * acc[ow + i]
+
+
+@njit(cache=True)
+def dop853_try(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol):
+    """One DOP853 trial step; returns the scaled error norm (accept if <= 1)."""
+    ny = y.shape[0]
+    forces(y, gaps, P, FL, LO, 0.0, K[0], f)
+    for s in range(1, NST):
+        for j in range(ny):
+            acc = 0.0
+            for q in range(s):
+                acc += DOP_A[s, q] * K[q, j]
+            tmp[j] = y[j] + h * acc
+        forces(tmp, gaps, P, FL, LO, 0.0, K[s], f)
+    for j in range(ny):
+        acc = 0.0
+        for q in range(NST):
+            acc += DOP_B[q] * K[q, j]
+        ynew[j] = y[j] + h * acc
+    forces(ynew, gaps, P, FL, LO, 0.0, K[NST], f)
+    e5 = 0.0
+    e3 = 0.0
+    for j in range(ny):
+        sc = rtol * scale_abs[j]
+        if rel[j] != 0:
+            sc += rtol * max(abs(y[j]), abs(ynew[j]))
+        if sc <= 0.0:
+            continue
+        a5 = 0.0
+        a3 = 0.0
+        for q in range(NST + 1):
+            a5 += DOP_E5[q] * K[q, j]
+            a3 += DOP_E3[q] * K[q, j]
+        e5 += (a5 / sc) ** 2
+        e3 += (a3 / sc) ** 2
+    if e5 == 0.0 and e3 == 0.0:
+        return 0.0
+    return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * ny)
+
+
+@njit(cache=True)
+def _finite(y, LO, n):
+    for j in range(LO[L_X], LO[L_V] + n):
+        if not math.isfinite(y[j]):
+            return False
+    return True
+
+
+@njit(parallel=True, cache=True)
+def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VRUN, VTHR, gaps, P, FL, LO,
+               scale_abs, rel, rtol, dt, every, sample_dt, NT, probe, Vout, Eout, counts):
+    """Advance every running chain by up to Vout.shape[1] samples.
+
+    Per chain b: Y[b] state, ACC[b] last derivative (Verlet), T[b] time, H[b] adaptive
+    step, NS[b] samples recorded so far, STEPS/REJ counters, STATUS[b] (S_*), VRUN[b]
+    running peak of the stop probe, VTHR[b] its threshold. A sample is taken every
+    ``every`` fixed steps (rk4, verlet) or exactly every ``sample_dt`` (dop853). A chain
+    stops after NT[b] samples, or (probe >= 0) once the probe's velocity has
+    fallen below half its running peak, that peak exceeding VTHR[b].
+    """
+    B = Y.shape[0]
+    W = Vout.shape[1]
+    n = int(P[P_N])
+    ny = Y.shape[1]
+    ov = LO[L_V]
+    for b in prange(B):
+        counts[b] = 0
+        if STATUS[b] != S_RUNNING:
+            continue
+        y = Y[b]
+        g = gaps[b]
+        f = np.zeros(max(n - 1, 1))
+        k1 = np.empty(ny)
+        k2 = np.empty(ny)
+        k3 = np.empty(ny)
+        k4 = np.empty(ny)
+        tmp = np.empty(ny)
+        Kst = np.empty((NST + 1, ny))
+        ynew = np.empty(ny)
+        ebuf = np.empty(E_LEN)
+        if NS[b] == 0:
+            if method == M_VERLET:
+                forces(y, g, P, FL, LO, 0.0, ACC[b], f)
+            for i in range(n):
+                Vout[b, 0, i] = y[ov + i]
+            energies(y, g, P, FL, LO, ebuf)
+            Eout[b, 0, :] = ebuf
+            counts[b] = 1
+            NS[b] = 1
+            if NT[b] <= 1:
+                STATUS[b] = S_DONE
+        while counts[b] < W and STATUS[b] == S_RUNNING:
+            if NS[b] >= NT[b]:
+                STATUS[b] = S_DONE
+                break
+            if method == M_RK4:
+                for _ in range(every):
+                    rk4_step(y, dt, g, P, FL, LO, k1, k2, k3, k4, tmp, f)
+                STEPS[b] += every
+                T[b] += every * dt
+            elif method == M_VERLET:
+                for _ in range(every):
+                    verlet_step(y, ACC[b], dt, g, P, FL, LO, f)
+                STEPS[b] += every
+                T[b] += every * dt
+            else:
+                t_target = NS[b] * sample_dt
+                while T[b] < t_target * (1.0 - 1e-14):
+                    h = min(H[b], t_target - T[b])
+                    clipped = h < H[b]
+                    err = dop853_try(y, h, g, P, FL, LO, Kst, ynew, tmp, f, scale_abs, rel, rtol)
+                    if err <= 1.0:
+                        for j in range(ny):
+                            y[j] = ynew[j]
+                        project(y, g, P, FL, LO, f)
+                        T[b] += h
+                        STEPS[b] += 1
+                        fac = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** (-1.0 / 8.0))
+                        if not clipped:
+                            H[b] = h * fac
+                    else:
+                        REJ[b] += 1
+                        H[b] = h * max(0.2, 0.9 * err ** (-1.0 / 8.0))
+                        if H[b] < 1e-22:
+                            STATUS[b] = S_STEPFAIL
+                            break
+                    if not math.isfinite(err):
+                        STATUS[b] = S_NONFINITE
+                        break
+                T[b] = t_target
+                if STATUS[b] != S_RUNNING:
+                    break
+            c = counts[b]
+            for i in range(n):
+                Vout[b, c, i] = y[ov + i]
+            energies(y, g, P, FL, LO, ebuf)
+            Eout[b, c, :] = ebuf
+            counts[b] = c + 1
+            NS[b] += 1
+            if not _finite(y, LO, n):
+                STATUS[b] = S_NONFINITE
+                break
+            if probe >= 0:
+                vp = y[ov + probe]
+                if vp > VRUN[b]:
+                    VRUN[b] = vp
+                if VRUN[b] > VTHR[b] and vp < 0.5 * VRUN[b]:
+                    STATUS[b] = S_PASSED

@@ -1,0 +1,257 @@
+"""The in-repo reference engine: batched numba integration of a scene.
+
+``run(scene, gaps, v_striker)`` integrates B chains (one row of ``gaps`` and one striker
+speed each) and yields a :class:`~granchain.trajectory.Trajectory` per chain, in order.
+Chains are processed in chunks (bounded memory) and, inside a chunk, in parallel over
+chains with numba's prange; each chain advances window by window of samples until it
+stops (t_end reached, or with t_end auto once the wave has passed the last probe).
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import analytic
+from ..effects import Terms, physics_terms
+from ..scene import Scene
+from ..trajectory import Trajectory
+from . import kernels as K
+
+METHOD_CODES = {"rk4": K.M_RK4, "verlet": K.M_VERLET, "adaptive": K.M_DOP853}
+STATUS_NAMES = {K.S_DONE: "done", K.S_PASSED: "passed", K.S_TIMEOUT: "timeout",
+                K.S_NONFINITE: "nonfinite", K.S_STEPFAIL: "stepfail", K.S_RUNNING: "timeout"}
+SAMPLES_PER_PULSE = 400          # default sampling: 400 samples per solitary-wave width
+WINDOW = 2048                    # samples per kernel call
+CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Offsets of each block of a chain's state vector (-1: block absent)."""
+    LO: np.ndarray
+    ny: int
+
+    @classmethod
+    def of(cls, terms: Terms) -> "Layout":
+        n = terms.n
+        off = 0
+        LO = np.full(K.L_LEN, -1, dtype=np.int64)
+
+        def take(slot, size):
+            nonlocal off
+            LO[slot] = off
+            off += size
+        take(K.L_X, n)
+        take(K.L_V, n)
+        if terms.rotation is not None:
+            take(K.L_W, n)
+        if terms.groove_friction is not None:
+            take(K.L_XG, n)
+        if terms.particle_friction is not None:
+            take(K.L_XT, n - 1)
+        if terms.groove_friction is not None:
+            take(K.L_WG, 1)
+        if terms.air_drag is not None:
+            take(K.L_WD, 1)
+        if terms.particle_friction is not None:
+            take(K.L_WT, 1)
+        LO[K.L_NY] = off
+        return cls(LO, off)
+
+
+def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
+    """Parameter vector P and flag vector FL of the kernels, from the effect definitions."""
+    if terms.rolling_friction is not None:
+        raise NotImplementedError("rolling_friction is not implemented in the reference engine yet")
+    P = np.zeros(K.P_LEN)
+    FL = np.zeros(K.F_LEN, dtype=np.int64)
+    P[K.P_N], P[K.P_R], P[K.P_M], P[K.P_K] = terms.n, terms.R, terms.m, terms.hertz.K
+    if terms.rotation is not None:
+        FL[K.F_ROT] = 1
+        P[K.P_I] = terms.rotation.inertia
+    if terms.air_drag is not None:
+        FL[K.F_DRAG] = 1
+        FL[K.F_ODD] = int(terms.air_drag.odd)
+        P[K.P_T0], P[K.P_L] = terms.air_drag.T0, terms.air_drag.L
+    if terms.groove_friction is not None:
+        g = terms.groove_friction
+        FL[K.F_GROOVE] = 1
+        P[K.P_S], P[K.P_FC], P[K.P_KG] = g.s, g.Fc, g.kt
+    if terms.particle_friction is not None:
+        pf = terms.particle_friction
+        FL[K.F_PP] = 1
+        FL[K.F_MINDLIN] = int(pf.model == "mindlin")
+        P[K.P_MU], P[K.P_KT] = pf.mu, pf.kt
+    return P, FL
+
+
+def sample_interval(scene: Scene, v_striker: float) -> float:
+    """Sampling interval: the scene's, or SAMPLES_PER_PULSE per solitary-wave width."""
+    if scene.sample_dt is not None:
+        return scene.sample_dt
+    v = max(v_striker, 1e-6)
+    width = analytic.pulse_width(scene.material, scene.radius, 0.64 * v)
+    return width / SAMPLES_PER_PULSE
+
+
+def auto_t_max(scene: Scene, gaps: np.ndarray, v_striker: float) -> float:
+    """Generous cap on the duration of a t_end: auto run (a run that hits it is flagged)."""
+    p = scene.probes[-1]
+    vs = analytic.nesterenko_speed(scene.material, 0.5 * v_striker)
+    travel = (p - 1) * 2.0 * scene.radius / vs
+    flight = float(np.sum(gaps[: p - 1])) / v_striker
+    return 20.0 * travel + 50.0 * flight + 10.0 * analytic.pulse_width(
+        scene.material, scene.radius, 0.5 * v_striker)
+
+
+def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | None = None,
+        dt: float | None = None, tolerance: float | None = None, progress: bool | None = None):
+    """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s."""
+    terms = physics_terms(scene)
+    gaps = np.ascontiguousarray(np.atleast_2d(np.asarray(gaps, dtype=float)))
+    vs = np.broadcast_to(np.asarray(v_striker, dtype=float), (gaps.shape[0],)).copy()
+    method = method or scene.method
+    if method == "auto":
+        from ..cost import choose_setting
+        method, dt, tolerance = choose_setting(scene)
+    dt = dt if dt is not None else scene.dt
+    rtol = tolerance if tolerance is not None else (scene.tolerance or 1e-8)
+    if progress is None:
+        progress = sys.stderr.isatty() and gaps.shape[0] > 1
+    # Chains with the same sampling run together; normally all of them.
+    keys = np.array([sample_interval(scene, v) for v in vs])
+    order = np.lexsort((np.arange(len(vs)), keys))
+    done_total = 0
+    out: dict[int, Trajectory] = {}
+    next_to_yield = 0
+    start = 0
+    while start < len(order):
+        key = keys[order[start]]
+        stop = start
+        while stop < len(order) and keys[order[stop]] == key:
+            stop += 1
+        group = order[start:stop]
+        for chunk in _chunks(group, scene, terms, key):
+            for idx, traj in zip(chunk, _run_chunk(scene, terms, gaps[chunk], vs[chunk], method,
+                                                    dt, rtol, key)):
+                out[int(idx)] = traj
+            done_total += len(chunk)
+            if progress:
+                print(f"\r[granchain] {scene.name}: {done_total}/{len(vs)} chains", end="",
+                      file=sys.stderr, flush=True)
+            while next_to_yield in out:
+                yield out.pop(next_to_yield)
+                next_to_yield += 1
+        start = stop
+    if progress:
+        print(file=sys.stderr)
+    while next_to_yield in out:
+        yield out.pop(next_to_yield)
+        next_to_yield += 1
+
+
+def _chunks(group, scene, terms, sample_dt):
+    """Split chains into chunks whose recorded samples fit in CHUNK_BYTES."""
+    p = scene.probes[-1]
+    if scene.t_end is not None:
+        t_est = scene.t_end
+    else:
+        v = max(float(np.min(scene.striker_velocities)), 1e-6)
+        t_est = (p - 1) * 2 * scene.radius / analytic.nesterenko_speed(scene.material, 0.5 * v)
+        if scene.gap_distribution != "none":
+            t_est += 4.0 * p * (scene.gap_mean or (scene.gap_extra_length or 0) / (scene.n - 1)
+                                or max(scene.gap_values or (0,))) / v
+    per_chain = (t_est / sample_dt + WINDOW) * (terms.n + K.E_LEN) * 8
+    size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, 128)))
+    for i in range(0, len(group), size):
+        yield group[i:i + size]
+
+
+def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt):
+    layout = Layout.of(terms)
+    P, FL = pack(terms)
+    B, n, ny = gaps.shape[0], terms.n, layout.ny
+    Y = np.zeros((B, ny))
+    Y[:, layout.LO[K.L_V]] = vs            # particle 1 (index 0) is the striker
+    ACC = np.zeros((B, ny))
+    T = np.zeros(B)
+    H = np.full(B, dt)
+    NS = np.zeros(B, dtype=np.int64)
+    STEPS = np.zeros(B, dtype=np.int64)
+    REJ = np.zeros(B, dtype=np.int64)
+    STATUS = np.zeros(B, dtype=np.int64)
+    VRUN = np.zeros(B)
+    VTHR = 1e-3 * vs
+    mcode = METHOD_CODES[method]
+    if mcode == K.M_DOP853:
+        every, sdt = 1, sample_dt
+    else:
+        every = max(1, int(round(sample_dt / dt)))
+        sdt = every * dt
+    probe = -1
+    if scene.t_end is not None:
+        NT = np.full(B, int(math.ceil(scene.t_end / sdt - 1e-9)) + 1, dtype=np.int64)
+    else:
+        probe = scene.probes[-1] - 1
+        # a chain at rest has no wave to wait for: its initial state is its whole record
+        NT = np.array([int(math.ceil(auto_t_max(scene, gaps[b], vs[b]) / sdt)) + 1
+                       if vs[b] > 0 else 1 for b in range(B)], dtype=np.int64)
+    scale_abs, rel = _error_scales(scene, terms, layout, max(float(vs.max()), 1e-9))
+    V_parts = [[] for _ in range(B)]
+    E_parts = [[] for _ in range(B)]
+    Vbuf = np.empty((B, WINDOW, n))
+    Ebuf = np.empty((B, WINDOW, K.E_LEN))
+    counts = np.zeros(B, dtype=np.int64)
+    t0 = time.perf_counter()
+    while np.any(STATUS == K.S_RUNNING):
+        K.run_window(mcode, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VRUN, VTHR, gaps, P, FL,
+                     layout.LO, scale_abs, rel, rtol, dt, every, sdt, NT, probe, Vbuf, Ebuf,
+                     counts)
+        for b in range(B):
+            c = counts[b]
+            if c:
+                V_parts[b].append(Vbuf[b, :c].copy())
+                E_parts[b].append(Ebuf[b, :c].copy())
+    wall = time.perf_counter() - t0
+    eff = tuple(sorted(scene.effects))
+    for b in range(B):
+        v = np.concatenate(V_parts[b])
+        e = np.concatenate(E_parts[b])
+        t = np.arange(v.shape[0]) * sdt
+        status = STATUS[b]
+        if probe >= 0 and status == K.S_DONE and vs[b] > 0:
+            status = K.S_TIMEOUT      # t_end auto hit its cap before the wave passed
+        yield Trajectory(t=t, v=v, energy=e, gaps=gaps[b].copy(), radius=scene.radius,
+                         v_striker=float(vs[b]), effects=eff, steps=int(STEPS[b]),
+                         rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
+                         wall_s=wall / B,
+                         meta={"method": method, "dt": dt, "rtol": rtol, "sample_dt": sdt})
+
+
+def _error_scales(scene, terms, layout, v):
+    """Absolute error scales per state component for the adaptive method."""
+    LO, n = layout.LO, terms.n
+    scale = np.zeros(layout.ny)
+    rel = np.ones(layout.ny, dtype=np.int64)
+    mu_red = terms.m / 2.0
+    delta = (5.0 * mu_red * v * v / (4.0 * terms.hertz.K)) ** 0.4
+    e0 = 0.5 * terms.m * v * v
+    # displacements: judged on the overlap scale only (their size grows in free flight)
+    scale[LO[K.L_X]:LO[K.L_X] + n] = delta
+    rel[LO[K.L_X]:LO[K.L_X] + n] = 0
+    scale[LO[K.L_V]:LO[K.L_V] + n] = v
+    if LO[K.L_W] >= 0:
+        scale[LO[K.L_W]:LO[K.L_W] + n] = v / terms.R
+    if LO[K.L_XG] >= 0:
+        g = terms.groove_friction
+        scale[LO[K.L_XG]:LO[K.L_XG] + n] = g.Fc / g.kt
+    if LO[K.L_XT] >= 0:
+        scale[LO[K.L_XT]:LO[K.L_XT] + n - 1] = delta
+    for c in (K.L_WG, K.L_WD, K.L_WT, K.L_WR):
+        if LO[c] >= 0:
+            scale[LO[c]] = e0
+    return scale, rel

@@ -1,0 +1,21 @@
+"""User-facing errors: one line, naming the field and the fix.
+
+Every error a user can cause by bad input is a :class:`GranchainError`. The CLI
+prints ``str(err)`` on one line and exits with status 2; it never shows a traceback
+for these.
+"""
+
+
+class GranchainError(Exception):
+    """An error caused by user input or the environment, with a one-line message."""
+
+
+class SceneError(GranchainError):
+    """A scene file (or an override) is invalid.
+
+    ``field`` is the dotted path of the offending key, ``fix`` says what to do.
+    """
+
+    def __init__(self, field: str, problem: str, fix: str):
+        self.field, self.problem, self.fix = field, problem, fix
+        super().__init__(f"scene field '{field}': {problem}; {fix}")

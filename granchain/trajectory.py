@@ -1,0 +1,37 @@
+"""The engine-neutral trajectory: what every engine produces and observables read."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# Names of the energy-ledger columns, in the order engines store them.
+ENERGY_COLUMNS = ("kinetic_translational", "kinetic_rotational", "hertz_potential",
+                  "work_groove_friction", "work_air_drag", "work_particle_friction",
+                  "work_rolling_friction")
+
+
+@dataclass
+class Trajectory:
+    """Sampled history of one chain.
+
+    t: (S,) s; v: (S, n) velocity along the chain, m/s; energy: (S, 7) J in the order of
+    ENERGY_COLUMNS (work = work done ON the particles by that effect, accumulated from
+    t = 0); gaps: (n-1,) m; radius: m; v_striker: m/s.
+    """
+    t: np.ndarray
+    v: np.ndarray
+    energy: np.ndarray
+    gaps: np.ndarray
+    radius: float
+    v_striker: float
+    effects: tuple[str, ...] = ()
+    steps: int = 0
+    rejected: int = 0
+    status: str = "done"
+    wall_s: float = 0.0
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return self.v.shape[1]
