@@ -23,8 +23,12 @@ air_drag
 groove_friction
     Coulomb friction of the groove walls, limit Fc = mu_pg m g / s, on the slip u
     (u = v if rotation is off: the sphere slides without rolling). Stick is an
-    elastic-plastic (Cundall-Strack) spring: F = -k_g xi with xi' = u, and when
-    |k_g xi| would exceed Fc the force is Fc and xi is held at Fc/k_g (return mapping).
+    elastic-plastic (Cundall-Strack) spring-dashpot: F = -k_g xi - gamma_g u with
+    xi' = u, and when |F| would exceed Fc the force is Fc sgn(F) and the history is
+    return-mapped to xi = -(F + gamma_g u)/k_g (as LAMMPS ``linear_history`` does).
+    gamma_g = 2 zeta sqrt(k_g m_u), zeta = groove.damping (default 1, critical), with
+    m_u = m / (1 + s^2 m R^2 / I) the mass the slip u sees: stick settles within one
+    period of the stick oscillator instead of ringing forever.
     No sgn() of a velocity is ever evaluated, so nothing chatters; a sphere at rest or
     rolling without slip feels exactly zero force. The chapter's F = -Fc sgn(u) is the
     limit k_g -> inf. Default k_g: Mindlin stiffness of the two wall contacts under the
@@ -90,6 +94,8 @@ class GrooveFriction:
     Fc: float         # Coulomb limit mu m g / s, N
     kt: float         # stick spring stiffness, N/m
     kt_source: str    # "mindlin" or "scene"
+    gamma: float      # stick dashpot, N s/m
+    damping: float    # its ratio to critical damping
 
 
 @dataclass(frozen=True)
@@ -157,8 +163,10 @@ def physics_terms(scene: Scene) -> Terms:
             kt, src = (groove_mindlin_stiffness(scene) if scene.gravity > 0 else 1.0), "mindlin"
         else:
             kt, src = scene.groove_kt, "scene"
+        m_u = m / (1.0 + scene.groove_s**2 * m * R * R / scene.inertia) if scene.has("rotation") else m
+        gamma = 2.0 * scene.groove_damping * math.sqrt(kt * m_u)
         kw["groove_friction"] = GrooveFriction(scene.groove_s, scene.groove_mu, scene.gravity,
-                                               Fc, kt, src)
+                                               Fc, kt, src, gamma, scene.groove_damping)
     if scene.has("rotation"):
         kw["rotation"] = Rotation(scene.inertia)
     if scene.has("particle_friction"):

@@ -40,7 +40,8 @@ DEFAULTS: dict[str, Any] = {
     "gaps": {"distribution": "none", "mean": None, "seed": 0, "values": None,
              "extra_length": None},
     "effects": ["hertz"],
-    "groove": {"s": None, "angle_deg": 90.0, "mu": 0.293, "g": 9.81, "kt": "mindlin"},
+    "groove": {"s": None, "angle_deg": 90.0, "mu": 0.293, "g": 9.81, "kt": "mindlin",
+               "damping": 1.0},
     "drag": {"T0": 0.052, "L": 2.5e-3, "form": "as_printed"},
     "contact": {"mu_pp": 1.4, "tangential": "mindlin", "kt": None},
     "rolling": {"k_roll": None, "gamma_roll": 0.0, "mu_roll": 0.01},
@@ -72,6 +73,7 @@ class Scene:
     groove_mu: float
     gravity: float
     groove_kt: float | None          # None: Mindlin stiffness from the material
+    groove_damping: float            # stick dashpot as a fraction of critical
     drag_T0: float
     drag_L: float
     drag_form: str
@@ -336,6 +338,8 @@ def scene_from_dict(raw: dict) -> Scene:
     groove_kt = None if kt == "mindlin" else _num(spec, "groove.kt", positive=True,
                                                   fix="give a stiffness in N/m or 'mindlin'")
 
+    groove_damping = _num(spec, "groove.damping", nonneg=True,
+                          fix="give the stick damping as a fraction of critical (default 1)")
     T0 = _num(spec, "drag.T0", positive=True)
     L = _num(spec, "drag.L", positive=True)
     form = spec["drag"]["form"]
@@ -407,6 +411,7 @@ def scene_from_dict(raw: dict) -> Scene:
         striker_velocities=tuple(velocities), gap_distribution=dist, gap_mean=gap_mean,
         gap_seed=seed, gap_values=gap_values, gap_extra_length=extra, effects=eff,
         groove_s=s, groove_mu=groove_mu, gravity=gravity, groove_kt=groove_kt,
+        groove_damping=groove_damping,
         drag_T0=T0, drag_L=L, drag_form=form, mu_pp=mu_pp, tangential=tangential,
         contact_kt=contact_kt, k_roll=k_roll, gamma_roll=gamma_roll, mu_roll=mu_roll,
         probes=tuple(pr), method=method, dt=dt, tolerance=tol, t_end=t_end,

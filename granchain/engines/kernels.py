@@ -26,7 +26,7 @@ from numba import njit, prange
 from scipy.integrate._ivp import dop853_coefficients as _dc
 
 # parameter vector P
-P_N, P_R, P_M, P_I, P_K, P_S, P_FC, P_KG, P_T0, P_L, P_MU, P_KT, P_KR, P_GR, P_MUR, P_LEN = range(16)
+P_N, P_R, P_M, P_I, P_K, P_S, P_FC, P_KG, P_T0, P_L, P_MU, P_KT, P_KR, P_GR, P_MUR, P_GG, P_LEN = range(17)
 # flags FL
 F_ROT, F_GROOVE, F_DRAG, F_ODD, F_PP, F_MINDLIN, F_ROLL, F_LEN = range(8)
 # layout offsets LO (-1: absent)
@@ -100,6 +100,7 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
         sR = P[P_S] * R
         Fc = P[P_FC]
         kg = P[P_KG]
+        gam = P[P_GG]
         I = P[P_I]
         og = LO[L_XG]
         pw = 0.0
@@ -108,10 +109,11 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
             xi = y[og + i]
             if hist_dt > 0.0:
                 xi += u * hist_dt
-                if kg * abs(xi) > Fc:
-                    xi = math.copysign(Fc / kg, xi)
+                Ft = -kg * xi - gam * u
+                if abs(Ft) > Fc:
+                    xi = -(math.copysign(Fc, Ft) + gam * u) / kg
                 y[og + i] = xi
-            F = -kg * xi
+            F = -kg * xi - gam * u
             rate = u
             if abs(F) >= Fc:
                 F = math.copysign(Fc, F)
@@ -168,10 +170,16 @@ def project(y, gaps, P, FL, LO, f):
     if FL[F_GROOVE] != 0:
         Fc = P[P_FC]
         kg = P[P_KG]
+        gam = P[P_GG]
+        sR = P[P_S] * P[P_R]
         og = LO[L_XG]
+        ov = LO[L_V]
+        ow = LO[L_W]
         for i in range(n):
-            if kg * abs(y[og + i]) > Fc:
-                y[og + i] = math.copysign(Fc / kg, y[og + i])
+            u = y[ov + i] - sR * y[ow + i] if FL[F_ROT] != 0 else y[ov + i]
+            Ft = -kg * y[og + i] - gam * u
+            if abs(Ft) > Fc:
+                y[og + i] = -(math.copysign(Fc, Ft) + gam * u) / kg
     if FL[F_PP] != 0:
         ox = LO[L_X]
         ot = LO[L_XT]

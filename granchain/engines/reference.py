@@ -80,7 +80,7 @@ def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
     if terms.groove_friction is not None:
         g = terms.groove_friction
         FL[K.F_GROOVE] = 1
-        P[K.P_S], P[K.P_FC], P[K.P_KG] = g.s, g.Fc, g.kt
+        P[K.P_S], P[K.P_FC], P[K.P_KG], P[K.P_GG] = g.s, g.Fc, g.kt, g.gamma
     if terms.particle_friction is not None:
         pf = terms.particle_friction
         FL[K.F_PP] = 1

@@ -1,0 +1,152 @@
+"""Command line: ``granchain validate|run|deck|compare SCENE.yaml``.
+
+Errors a user can cause print one line, ``granchain: error: ...``, and exit with 2.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from .errors import GranchainError
+from .scene import load_scene
+
+
+def _jsonable(obj):
+    if isinstance(obj, float):
+        return None if not math.isfinite(obj) else obj
+    if isinstance(obj, dict):
+        return {k: _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    return obj
+
+
+def _write_new(path: Path, text: str, force: bool) -> None:
+    """Write results without ever silently overwriting earlier ones."""
+    if path.exists() and not force:
+        raise GranchainError(f"--out: '{path}' exists; choose another path or pass --force to replace it")
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
+def _fmt(x, unit="", digits=4):
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "n/a"
+    return f"{x:.{digits}g}{unit}"
+
+
+def _print_human(scene, runs, out=sys.stdout):
+    print(f"scene {scene.name} ({scene.hash}): {scene.n} x {scene.material.name}, "
+          f"R = {scene.radius:g} m, effects: {', '.join(sorted(scene.effects))}", file=out)
+    p1, p2 = scene.probes[:2]
+    for r in runs:
+        vs = r["v_striker"]
+        head = f"v_s = {vs:g} m/s, realisation {r['realisation']}"
+        if not r["wave_arrived"]:
+            print(f"{head}: no wave arrived at particle {p2} (status {r['status']})", file=out)
+            continue
+        e = r["energy"]
+        print(f"{head}: v_max,1 = {_fmt(r['v_max_1'])} m/s ({_fmt(r['v_max_1'] / vs)} v_s) at particle {p1}; "
+              f"v_max,2 = {_fmt(r['v_max_2'])} m/s ({_fmt(r['v_max_2'] / vs)} v_s) at {p2}; "
+              f"dt = {_fmt(r['dt_peak'])} s; v_g = {_fmt(r['v_g'])} m/s "
+              f"(front: {_fmt(r['v_g_front'])}); energy balance error {_fmt(e['balance_error'], digits=2)}; "
+              f"{r['steps']} steps, {_fmt(r['wall_s'], ' s', 3)}", file=out)
+
+
+def cmd_validate(args) -> int:
+    scene = load_scene(args.scene, args.set)
+    print(f"{args.scene}: valid scene '{scene.name}' ({scene.hash}), {scene.n} particles, "
+          f"{len(scene.striker_velocities)} striker speed(s) x {scene.realisations} realisation(s), "
+          f"effects: {', '.join(sorted(scene.effects))}, integrator {scene.method}")
+    return 0
+
+
+def cmd_run(args) -> int:
+    from .simulate import run_scene
+    scene = load_scene(args.scene, args.set)
+    runs = run_scene(scene, engine=args.engine)
+    if args.json:
+        if len(runs) == 1:
+            doc = dict(runs[0], scene=scene.name, scene_hash=scene.hash)
+        else:
+            doc = {"scene": scene.name, "scene_hash": scene.hash, "runs": runs}
+        text = json.dumps(_jsonable(doc), indent=None if args.out is None else 1)
+        if args.out:
+            _write_new(Path(args.out), text + "\n", args.force)
+        else:
+            print(text)
+    else:
+        _print_human(scene, runs)
+        if args.out:
+            _write_new(Path(args.out), json.dumps(_jsonable({"scene": scene.name, "runs": runs}), indent=1) + "\n",
+                       args.force)
+    return 0
+
+
+def cmd_deck(args) -> int:
+    from .lammps.deck import write_deck
+    scene = load_scene(args.scene, args.set)
+    path = write_deck(scene, Path(args.output), force=args.force)
+    print(path)
+    return 0
+
+
+def cmd_compare(args) -> int:
+    from .compare import compare_scene, format_table
+    scene = load_scene(args.scene, args.set)
+    table = compare_scene(scene)
+    print(format_table(table))
+    return 0 if all(row["ok"] for row in table) else 1
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="granchain", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True)
+
+    def scene_args(sp):
+        sp.add_argument("scene", help="scene YAML file")
+        sp.add_argument("--set", action="append", default=[], metavar="KEY.SUB=VALUE",
+                        help="override a scene field (value parsed as YAML); repeatable")
+
+    sp = sub.add_parser("validate", help="check a scene file")
+    scene_args(sp)
+    sp.set_defaults(func=cmd_validate)
+
+    sp = sub.add_parser("run", help="simulate a scene and print its observables")
+    scene_args(sp)
+    sp.add_argument("--engine", default="reference", choices=["reference", "lammps"])
+    sp.add_argument("--json", action="store_true", help="print one JSON object")
+    sp.add_argument("--out", help="also write the JSON results to this new file")
+    sp.add_argument("--force", action="store_true", help="allow --out to replace an existing file")
+    sp.set_defaults(func=cmd_run)
+
+    sp = sub.add_parser("deck", help="write a LAMMPS input deck for a scene")
+    scene_args(sp)
+    sp.add_argument("-o", "--output", required=True, help="directory for the deck")
+    sp.add_argument("--force", action="store_true", help="replace an existing deck directory's files")
+    sp.set_defaults(func=cmd_deck)
+
+    sp = sub.add_parser("compare", help="run both engines and tabulate their differences")
+    scene_args(sp)
+    sp.set_defaults(func=cmd_compare)
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except GranchainError as exc:
+        print(f"granchain: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("granchain: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

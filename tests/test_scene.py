@@ -1,0 +1,89 @@
+"""Scene loading and validation: every bad field gets one line naming it and the fix."""
+import subprocess
+import sys
+
+import pytest
+
+from granchain.errors import SceneError
+from granchain.scene import load_scene
+
+from conftest import SCENES, packed
+
+
+@pytest.mark.parametrize("override, field, words", [
+    ("chain.radius=-1", "chain.radius", "must be > 0"),
+    ("chain.radius=.nan", "chain.radius", "not a finite number"),
+    ("chain.n=1", "chain.n", "at least 2"),
+    ("effects=[hertz,magic]", "effects", "unknown effect 'magic'"),
+    ("effects=[hertz,particle_friction]", "effects", "add rotation"),
+    ("effects=[air_drag]", "effects", "'hertz' is missing"),
+    ("probes=[2,16]", "probes[1]", "outside the chain of 15"),
+    ("probes=[0,13]", "probes[0]", "outside the chain"),
+    ("probes=[13,2]", "probes", "not after the first"),
+    ("gaps={distribution: list, values: [1.0e-9]}", "gaps.values", "has 1 entries"),
+    ("gaps={distribution: uniform}", "gaps.mean", "missing"),
+    ("gaps={distribution: gaussian, mean: 1.0e-9}", "gaps.distribution", "unknown distribution"),
+    ("gaps={distribution: fixed, mean: -1.0e-9}", "gaps.mean", ">= 0"),
+    ("striker.velocity=.nan", "striker.velocity", "not a finite number"),
+    ("striker.velocity=-0.1", "striker.velocity", ">= 0"),
+    ("integrator.dt=1e-7", "integrator.dt", "too large"),
+    ("integrator.method=euler", "integrator.method", "unknown method"),
+    ("material=unobtainium", "material", "unknown material"),
+    ("material={E: 200e9, nu: 0.7, rho: 7800}", "material.nu", "above"),
+    ("gap.mean=1", "gap", "did you mean 'gaps'"),
+    ("drag.form=even", "drag.form", "as_printed or odd"),
+    ("output.sample_dt=1e-12", "output.sample_dt", "shorter than the step"),
+])
+def test_validation_errors_name_field_and_fix(override, field, words):
+    with pytest.raises(SceneError) as err:
+        load_scene(SCENES / "packed-440c.yaml", [override])
+    msg = str(err.value)
+    assert err.value.field == field
+    assert msg.startswith(f"scene field '{field}'")
+    assert words in msg
+    assert "\n" not in msg and ";" in msg      # problem; fix
+
+
+def test_gap_list_of_right_length_is_accepted():
+    s = load_scene(SCENES / "packed-440c.yaml", ["gaps={distribution: list, values: %s}" % ([1e-9] * 14)])
+    assert s.gap_values == tuple([1e-9] * 14)
+
+
+def test_groove_angle_sets_s():
+    s = load_scene(SCENES / "packed-440c.yaml", ["groove.angle_deg=60"])
+    assert s.groove_s == pytest.approx(0.5)
+
+
+def test_cli_error_is_one_line_without_traceback(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("chain: {n: 15, radius: -1}\n")
+    p = subprocess.run([sys.executable, "-m", "granchain.cli", "run", str(bad)],
+                       capture_output=True, text=True)
+    assert p.returncode == 2
+    assert p.stderr.strip().count("\n") == 0
+    assert "chain.radius" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_cli_refuses_to_overwrite_results(tmp_path):
+    out = tmp_path / "r.json"
+    out.write_text("precious")
+    p = subprocess.run([sys.executable, "-m", "granchain.cli", "run", str(SCENES / "packed-440c.yaml"),
+                        "--set", "effects=[hertz]", "--json", "--out", str(out)],
+                       capture_output=True, text=True)
+    assert p.returncode == 2 and "--force" in p.stderr
+    assert out.read_text() == "precious"
+
+
+def test_zero_striker_is_valid_and_reports_no_wave():
+    from granchain.simulate import run_scene
+    r = run_scene(packed(**{"striker.velocity": 0.0}))[0]
+    assert r["wave_arrived"] is False
+    assert all(v == 0.0 for v in r["v_max"])
+    assert r["v_g"] != r["v_g"]        # NaN: no group velocity without a wave
+
+
+def test_yaml_syntax_error_is_one_line(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("chain: {n: 15\n")
+    with pytest.raises(SceneError, match="not valid YAML at line"):
+        load_scene(bad)
