@@ -100,7 +100,11 @@ foreign_daemons() {
         if [[ $name == slurmctld ]]; then ours=$(pid_alive "$CTLD_PID" slurmctld || true)
         else ours=$(pid_alive "$SLURMD_PID" slurmd || true); fi
         for pid in $(pgrep -x "$name" || true); do
-            [[ $pid == "$ours" ]] || echo "$name:$pid"
+            [[ $pid == "$ours" ]] && continue
+            # Skip zombies: the daemons' double-fork leaves short-lived ones when
+            # pid 1 is slow to reap them (seen in containers).
+            [[ $(awk '{print $3}' "/proc/$pid/stat" 2>/dev/null) == Z ]] && continue
+            [[ -d /proc/$pid ]] && echo "$name:$pid"
         done
     done
 }

@@ -109,6 +109,8 @@ def slurm_cluster() -> Iterator[SlurmCluster]:
             f"slurm_cluster.sh up failed (exit {up.returncode}):\n"
             f"--- stdout ---\n{_tail(up.stdout)}\n--- stderr ---\n{_tail(up.stderr)}"
         )
+    # e.g. "slurm_cluster: up in 9s: node vm idle in partition granchain (...)" (seen with -s)
+    print((up.stderr.strip().splitlines() or [""])[-1])
     try:
         yield cluster
     finally:
