@@ -225,6 +225,15 @@ def _num(spec: dict, dotted: str, *, positive=False, nonneg=False, integer=False
     return int(value) if integer else value
 
 
+def _choice(value, field, options, what):
+    """A value that must be one of ``options``, with a 'did you mean' on a typo."""
+    if value in options:
+        return value
+    close = difflib.get_close_matches(str(value), options, n=1)
+    hint = f"did you mean '{close[0]}'?" if close else f"use one of {', '.join(options)}"
+    raise SceneError(field, f"unknown {what} '{value}'", hint)
+
+
 def _get(spec, dotted):
     node = spec
     for p in dotted.split("."):
@@ -283,10 +292,7 @@ def scene_from_dict(raw: dict) -> Scene:
     if not isinstance(effects, list):
         raise SceneError("effects", f"expected a list, got {effects!r}", "write effects: [hertz, ...]")
     for e in effects:
-        if e not in EFFECTS:
-            close = difflib.get_close_matches(str(e), EFFECTS, n=1)
-            hint = f"did you mean '{close[0]}'?" if close else f"choose from {', '.join(EFFECTS)}"
-            raise SceneError("effects", f"unknown effect '{e}'", hint)
+        _choice(e, "effects", EFFECTS, "effect")
     eff = frozenset(effects)
     if "hertz" not in eff:
         raise SceneError("effects", "'hertz' is missing", "every chain needs hertz contacts: add hertz")
@@ -296,10 +302,8 @@ def scene_from_dict(raw: dict) -> Scene:
                              "add rotation to effects")
 
     # gaps
-    dist = spec["gaps"]["distribution"]
-    if dist not in GAP_DISTRIBUTIONS:
-        raise SceneError("gaps.distribution", f"unknown distribution '{dist}'",
-                         f"choose from {', '.join(GAP_DISTRIBUTIONS)}")
+    dist = _choice(spec["gaps"]["distribution"], "gaps.distribution", GAP_DISTRIBUTIONS,
+                   "distribution")
     gap_mean = gap_values = extra = None
     if dist in ("fixed", "uniform", "exponential"):
         if spec["gaps"]["mean"] is None:
@@ -342,15 +346,11 @@ def scene_from_dict(raw: dict) -> Scene:
                           fix="give the stick damping as a fraction of critical (default 1)")
     T0 = _num(spec, "drag.T0", positive=True)
     L = _num(spec, "drag.L", positive=True)
-    form = spec["drag"]["form"]
-    if form not in ("as_printed", "odd"):
-        raise SceneError("drag.form", f"unknown form '{form}'", "use as_printed or odd")
+    form = _choice(spec["drag"]["form"], "drag.form", ("as_printed", "odd"), "form")
 
     mu_pp = _num(spec, "contact.mu_pp", nonneg=True)
-    tangential = spec["contact"]["tangential"]
-    if tangential not in TANGENTIAL_MODELS:
-        raise SceneError("contact.tangential", f"unknown model '{tangential}'",
-                         f"use one of {', '.join(TANGENTIAL_MODELS)}")
+    tangential = _choice(spec["contact"]["tangential"], "contact.tangential", TANGENTIAL_MODELS,
+                         "model")
     contact_kt = _num(spec, "contact.kt", positive=True, allow_none=True,
                       fix="give the tangential stiffness in N/m")
     if tangential == "linear_history" and contact_kt is None and "particle_friction" in eff:
@@ -382,10 +382,7 @@ def scene_from_dict(raw: dict) -> Scene:
                          "list probes in the direction the wave travels")
 
     # integrator
-    method = spec["integrator"]["method"]
-    if method not in METHODS:
-        raise SceneError("integrator.method", f"unknown method '{method}'",
-                         f"use one of {', '.join(METHODS)}")
+    method = _choice(spec["integrator"]["method"], "integrator.method", METHODS, "method")
     dt = _num(spec, "integrator.dt", positive=True, fix="give the time step in seconds, e.g. 1e-9")
     tol = _num(spec, "integrator.tolerance", positive=True, allow_none=True, hi=0.1,
                fix="give a relative tolerance such as 1e-6")

@@ -31,7 +31,7 @@ from conftest import SCENES, packed
     ("material=unobtainium", "material", "unknown material"),
     ("material={E: 200e9, nu: 0.7, rho: 7800}", "material.nu", "above"),
     ("gap.mean=1", "gap", "did you mean 'gaps'"),
-    ("drag.form=even", "drag.form", "as_printed or odd"),
+    ("drag.form=even", "drag.form", "unknown form"),
     ("output.sample_dt=1e-12", "output.sample_dt", "shorter than the step"),
 ])
 def test_validation_errors_name_field_and_fix(override, field, words):

@@ -52,6 +52,28 @@ def _overlap(y, ox, gaps, k):
     return y[ox + k] - y[ox + k + 1] - gaps[k]
 
 
+@njit(cache=True, inline="always")
+def _groove_slip(y, ov, ow, i, sR, rot):
+    return y[ov + i] - sR * y[ow + i] if rot else y[ov + i]
+
+
+@njit(cache=True, inline="always")
+def _groove_map(xi, u, kg, gam, Fc):
+    """Return mapping of a groove history onto the Coulomb cap |kg xi + gam u| <= Fc."""
+    Ft = -kg * xi - gam * u
+    if abs(Ft) > Fc:
+        return -(math.copysign(Fc, Ft) + gam * u) / kg
+    return xi
+
+
+@njit(cache=True, inline="always")
+def _contact_map(xi, kt, cap):
+    """Return mapping of a contact history onto the Coulomb cap |kt xi| <= cap."""
+    if kt * abs(xi) > cap:
+        return math.copysign(cap / kt, xi)
+    return xi
+
+
 @njit(cache=True)
 def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
     """Time derivative dy of state y; f receives the Hertz force of every contact.
@@ -105,13 +127,10 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
         og = LO[L_XG]
         pw = 0.0
         for i in range(n):
-            u = y[ov + i] - sR * y[ow + i] if rot else y[ov + i]
+            u = _groove_slip(y, ov, ow, i, sR, rot)
             xi = y[og + i]
             if hist_dt > 0.0:
-                xi += u * hist_dt
-                Ft = -kg * xi - gam * u
-                if abs(Ft) > Fc:
-                    xi = -(math.copysign(Fc, Ft) + gam * u) / kg
+                xi = _groove_map(xi + u * hist_dt, u, kg, gam, Fc)
                 y[og + i] = xi
             F = -kg * xi - gam * u
             rate = u
@@ -142,9 +161,7 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
                 xi = y[ot + k]
                 cap = mu * fn
                 if hist_dt > 0.0:
-                    xi += w * hist_dt
-                    if kt * abs(xi) > cap:
-                        xi = math.copysign(cap / kt, xi)
+                    xi = _contact_map(xi + w * hist_dt, kt, cap)
                     y[ot + k] = xi
                 T = -kt * xi
                 rate = w
@@ -176,10 +193,8 @@ def project(y, gaps, P, FL, LO, f):
         ov = LO[L_V]
         ow = LO[L_W]
         for i in range(n):
-            u = y[ov + i] - sR * y[ow + i] if FL[F_ROT] != 0 else y[ov + i]
-            Ft = -kg * y[og + i] - gam * u
-            if abs(Ft) > Fc:
-                y[og + i] = -(math.copysign(Fc, Ft) + gam * u) / kg
+            u = _groove_slip(y, ov, ow, i, sR, FL[F_ROT] != 0)
+            y[og + i] = _groove_map(y[og + i], u, kg, gam, Fc)
     if FL[F_PP] != 0:
         ox = LO[L_X]
         ot = LO[L_XT]
@@ -191,9 +206,7 @@ def project(y, gaps, P, FL, LO, f):
                 y[ot + k] = 0.0
             else:
                 kt = P[P_KT] * math.sqrt(d) if FL[F_MINDLIN] != 0 else P[P_KT]
-                cap = mu * K * d * math.sqrt(d)
-                if kt * abs(y[ot + k]) > cap:
-                    y[ot + k] = math.copysign(cap / kt, y[ot + k])
+                y[ot + k] = _contact_map(y[ot + k], kt, mu * K * d * math.sqrt(d))
 
 
 @njit(cache=True)
