@@ -26,7 +26,7 @@ from .materials import Material, library
 EFFECTS = ("hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
            "rolling_friction")
 GAP_DISTRIBUTIONS = ("none", "fixed", "uniform", "exponential", "list", "from_length")
-METHODS = ("rk4", "verlet", "adaptive", "auto")
+METHODS = ("rk4", "verlet", "adaptive")
 TANGENTIAL_MODELS = ("mindlin", "linear_history")
 
 # Default scene: the chapter's packed 440C chain (15 spheres, R = 150 um, v_s = 0.1 m/s,
@@ -386,8 +386,8 @@ def scene_from_dict(raw: dict) -> Scene:
     dt = _num(spec, "integrator.dt", positive=True, fix="give the time step in seconds, e.g. 1e-9")
     tol = _num(spec, "integrator.tolerance", positive=True, allow_none=True, hi=0.1,
                fix="give a relative tolerance such as 1e-6")
-    if method in ("adaptive", "auto") and tol is None:
-        tol = 1e-8 if method == "adaptive" else 1e-4
+    if method == "adaptive" and tol is None:
+        tol = 1e-8
         spec["integrator"]["tolerance"] = tol
 
     t_end_raw = spec["t_end"]

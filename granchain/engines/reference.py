@@ -115,9 +115,6 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
     gaps = np.ascontiguousarray(np.atleast_2d(np.asarray(gaps, dtype=float)))
     vs = np.broadcast_to(np.asarray(v_striker, dtype=float), (gaps.shape[0],)).copy()
     method = method or scene.method
-    if method == "auto":
-        from ..cost import choose_setting
-        method, dt, tolerance = choose_setting(scene)
     dt = dt if dt is not None else scene.dt
     rtol = tolerance if tolerance is not None else (scene.tolerance or 1e-8)
     if progress is None:
