@@ -42,8 +42,10 @@ particle_friction
     tangential history spring exactly as LAMMPS ``tangential mindlin`` (k_t = 8 G_eff a,
     a = sqrt(R* delta), G_eff = G/(2(2-nu))) or ``linear_history`` (constant k_t):
     T = -k_t xi, xi' = w, |T| <= mu_pp f, history rescaled to the cap when exceeded and
-    erased when the contact opens. Torque R T on both spheres, so both particle-particle
-    terms of Eq. 5.1 carry a minus sign (friction opposes slip on both sides).
+    erased when the contact opens. Torque (R - delta/2) T on both spheres (LAMMPS's lever
+    arm to the contact point; the slip w uses full radii, as LAMMPS does), so both
+    particle-particle terms of Eq. 5.1 carry a minus sign (friction opposes slip on both
+    sides).
 rolling_friction
     LAMMPS ``rolling sds``: a spring-dashpot-slider on the relative rolling displacement.
 """

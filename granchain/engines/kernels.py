@@ -170,9 +170,12 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
                     if w * xi > 0.0:
                         rate = 0.0
                 dy[ot + k] = rate
-                dy[ow + k] += R * T / I
-                dy[ow + k + 1] += R * T / I
-                pw += T * w
+                # LAMMPS applies the tangential force at the contact point: lever arm
+                # R - delta/2 (the slip above uses full radii, as LAMMPS does)
+                arm = R - 0.5 * d
+                dy[ow + k] += arm * T / I
+                dy[ow + k + 1] += arm * T / I
+                pw += T * arm * (y[ow + k] + y[ow + k + 1])
             else:
                 if hist_dt > 0.0:
                     y[ot + k] = 0.0
