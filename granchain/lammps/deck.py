@@ -1,0 +1,305 @@
+"""LAMMPS deck generator: a scene (and its members) -> ``deck.lmp`` + ``chain.data``.
+
+``write_deck(scene, outdir)`` fills the one template ``lammps_inputs/templates/
+chain.lmp.in`` (``string.Template``; LAMMPS' own ``$``-syntax is escaped there as
+``$$``) and writes the initial configuration to ``chain.data``. The deck runs with the
+plain wheel, from its directory: ``lmp -in deck.lmp``.
+
+Choices (also stated in the deck's comments):
+
+* Physics comes only from :func:`granchain.effects.physics_terms` (SI), converted once by
+  :func:`to_micro` (``units micro``, docs/lammps_laws.md section 1).
+* Ensembles: chain b (one member = one gap realisation x striker speed) lies on the line
+  y = b * spacing, atom ids b*n + 1 ... b*n + n (particle 1 = striker). spacing = 4R >
+  2R + skin, so no two chains ever share a neighbour-list pair.
+* Positions: x_1 = 0, x_{i+1} = x_i + 2R + g_i in um, evaluated left to right in
+  floating point from R and g converted by :func:`to_micro`; written with ``repr``.
+* Rotation off: ``fix nve`` (omega is never integrated and stays exactly 0); the
+  tangential law is then ``linear_history 0.0 0.0 0.0`` (k_t = 0, mu = 0: the force
+  -k_t xi is exactly zero, and the cap test 0 > 0 never fires, so no division by k_t).
+  Rotation on: ``fix nve/sphere``.
+* Run length: ``scene.t_end``, else the reference engine's ``auto_t_max`` of the slowest
+  member (the largest cap over all members); rounded up to whole samples as the
+  reference engine does, so the last sample falls at the same time.
+* Cadence: every = round(sample_interval / dt) (as the reference engine), from the
+  member with the finest sampling.
+* The energy ledger (``energy.txt``) holds sums over all chains: kinetic translational
+  (``compute ke``), rotational (``compute erotate/sphere``, rotation only) and the
+  cumulative works of ``fix groove/drag`` (groove, drag). Pair granular tallies no
+  Hertz energy: compute it from the positions.
+"""
+from __future__ import annotations
+
+import math
+import os
+from decimal import Decimal
+from pathlib import Path
+from string import Template
+
+import numpy as np
+
+from granchain.effects import physics_terms
+from granchain.errors import GranchainError
+from granchain.scene import Scene
+
+__all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "write_deck",
+           "DECK_NAME", "DATA_NAME"]
+
+DECK_NAME = "deck.lmp"
+DATA_NAME = "chain.data"
+
+# SI value * 10**e = value in LAMMPS 'units micro' (docs/lammps_laws.md section 1).
+MICRO_EXPONENT = {
+    "length": 6,          # m -> um
+    "time": 6,            # s -> us
+    "velocity": 0,        # m/s -> um/us
+    "acceleration": -6,   # m/s^2 -> um/us^2            (g = 9.81 -> 9.81e-6)
+    "mass": 15,           # kg -> pg
+    "force": 9,           # N -> 1e-9 N
+    "energy": 15,         # J -> 1e-15 J
+    "stiffness": 3,       # N/m -> 1e-3 N/m
+    "damping": 9,         # kg/s (N s/m) -> 1e-9 kg/s = pg/us
+    "pressure": -3,       # Pa -> 1e3 Pa                (E = 200e9 -> 2e8)
+    "density": -3,        # kg/m^3 -> 1e3 kg/m^3         (7800 -> 7.8)
+}
+
+
+def to_micro(value: float, quantity: str) -> float:
+    """Convert an SI value to micro units by shifting the decimal exponent of its repr.
+
+    The shift is exact in decimal and rounded once, so 150e-6 m -> 150.0 um and
+    1e-9 s -> 0.001 us (multiplying by 1e6 in binary may be off by one ulp).
+    """
+    e = MICRO_EXPONENT[quantity]
+    return float(Decimal(repr(float(value))).scaleb(e))
+
+
+def template_path() -> Path:
+    return Path(__file__).resolve().parents[2] / "lammps_inputs" / "templates" / "chain.lmp.in"
+
+
+def _r(x: float) -> str:
+    """A float with repr precision (shortest string that round-trips)."""
+    return repr(float(x))
+
+
+def chain_positions(scene: Scene, gaps) -> np.ndarray:
+    """x (um) of the n spheres of one chain: x_1 = 0, x_{i+1} = x_i + 2R + g_i."""
+    R = to_micro(scene.radius, "length")
+    x = [0.0]
+    for g in np.asarray(gaps, dtype=float):
+        x.append(x[-1] + 2.0 * R + to_micro(float(g), "length"))
+    return np.array(x)
+
+
+def _members(scene: Scene, gaps, v_striker):
+    if gaps is None and v_striker is None:
+        from granchain.simulate import member_gaps, members
+        mem = members(scene)
+        return member_gaps(scene, mem), np.array([m.v_striker for m in mem], dtype=float)
+    if gaps is None:
+        v = np.atleast_1d(np.asarray(v_striker, dtype=float))
+        from granchain.gaps import realise
+        gaps = np.stack([realise(scene, 0)] * len(v))
+    gaps = np.atleast_2d(np.asarray(gaps, dtype=float))
+    if v_striker is None:
+        if len(scene.striker_velocities) != 1:
+            raise GranchainError("write_deck: give v_striker with gaps for a scene with several "
+                                 "striker speeds")
+        v_striker = np.full(gaps.shape[0], scene.striker_velocities[0])
+    v = np.broadcast_to(np.asarray(v_striker, dtype=float), (gaps.shape[0],)).copy()
+    if gaps.shape[1] != scene.n - 1:
+        raise GranchainError(f"write_deck: gaps has {gaps.shape[1]} columns; the chain has "
+                             f"n-1 = {scene.n - 1} contacts")
+    if not (np.all(np.isfinite(gaps)) and np.all(gaps >= 0)):
+        raise GranchainError("write_deck: gaps must be finite and >= 0 (m)")
+    if not (np.all(np.isfinite(v)) and np.all(v >= 0)):
+        raise GranchainError("write_deck: striker speeds must be finite and >= 0 (m/s)")
+    return gaps, v
+
+
+def _plugin_path() -> str:
+    from granchain.lammps.plugin import build_plugin
+    return str(build_plugin())
+
+
+def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None) -> tuple[str, str]:
+    """The texts of deck.lmp and chain.data (no files written)."""
+    from granchain.engines.reference import auto_t_max, sample_interval
+
+    terms = physics_terms(scene)
+    gaps, vs = _members(scene, gaps, v_striker)
+    B, n = gaps.shape[0], scene.n
+
+    L = lambda v: to_micro(v, "length")  # noqa: E731
+    R = L(terms.R)
+    D = 2.0 * R
+    rho = to_micro(scene.material.rho, "density")
+    dt = to_micro(scene.dt, "time")
+    skin = 0.1 * R
+    spacing = 4.0 * R
+    assert spacing > D + skin
+
+    # ---- run length and cadence (as the reference engine) ---------------------------
+    sdts = [sample_interval(scene, float(v)) for v in vs]
+    sample_si = min(sdts)
+    every = max(1, int(round(sample_si / scene.dt)))
+    sdt = every * scene.dt
+    if scene.t_end is not None:
+        t_si, t_note = scene.t_end, "scene t_end"
+    else:
+        caps = [auto_t_max(scene, gaps[b], float(vs[b])) for b in range(B) if vs[b] > 0]
+        t_si = max(caps) if caps else 0.0
+        t_note = ("t_end auto: the reference engine's auto_t_max cap of the slowest member"
+                  if caps else "t_end auto: no striker moves")
+    nsamples = int(math.ceil(t_si / sdt - 1e-9)) if t_si > 0 else 0
+    nsteps = nsamples * every
+    t_run_us = nsteps * dt
+
+    # ---- positions, velocities, box --------------------------------------------------
+    xs = [chain_positions(scene, gaps[b]) for b in range(B)]
+    vmax = float(vs.max()) if B else 0.0
+    margin = 2.0 * vmax * t_run_us + 2.0 * D
+    xlo = -R - margin
+    xhi = max(float(x[-1]) for x in xs) + R + margin
+    ylo, yhi = -spacing, B * spacing
+    zlo, zhi = -D, D
+
+    data = [f"granchain chain.data: scene '{scene.name}' ({scene.hash}), {B} chain(s) x {n} "
+            "spheres; atom-ID type diameter density x y z (micro units)",
+            "",
+            f"{B * n} atoms",
+            "1 atom types",
+            "",
+            f"{_r(xlo)} {_r(xhi)} xlo xhi",
+            f"{_r(ylo)} {_r(yhi)} ylo yhi",
+            f"{_r(zlo)} {_r(zhi)} zlo zhi",
+            "",
+            "Atoms # sphere",
+            ""]
+    for b in range(B):
+        y = b * spacing
+        for i in range(n):
+            data.append(f"{b * n + i + 1} 1 {_r(D)} {_r(rho)} {_r(xs[b][i])} {_r(y)} 0.0")
+    data += ["", "Velocities", ""]
+    for b in range(B):
+        for i in range(n):
+            vx = to_micro(float(vs[b]), "velocity") if i == 0 else 0.0
+            data.append(f"{b * n + i + 1} {_r(vx)} 0.0 0.0 0.0 0.0 0.0")
+    data_text = "\n".join(data) + "\n"
+
+    # ---- physics from the terms ------------------------------------------------------
+    h = terms.hertz
+    E = to_micro(h.E, "pressure")
+    parts = [f"pair_coeff      * * hertz/material {_r(E)} 0.0 {_r(h.nu)} damping viscoelastic"]
+    pf = terms.particle_friction
+    if pf is None:
+        parts.append("tangential linear_history 0.0 0.0 0.0")
+    elif pf.model == "mindlin":
+        parts.append(f"tangential mindlin NULL 0.0 {_r(pf.mu)}")
+    else:
+        parts.append(f"tangential linear_history {_r(to_micro(pf.kt, 'stiffness'))} 0.0 {_r(pf.mu)}")
+    rf = terms.rolling_friction
+    if rf is not None:
+        parts.append(f"rolling sds {_r(to_micro(rf.k_roll, 'stiffness'))} "
+                     f"{_r(to_micro(rf.gamma_roll, 'damping'))} {_r(rf.mu_roll)}")
+    pair_comment = ["# pair_coeff: hertz/material E eta_n0 nu (eta_n0 = 0: no damping; 'damping "
+                    "viscoelastic' is then exactly zero)"]
+    if pf is None:
+        pair_comment.append("# tangential: particle_friction off -> linear_history k_t = 0, "
+                            "mu = 0: zero tangential force")
+    else:
+        pair_comment.append(f"# tangential: particle_friction on, {pf.model} (mu_pp = {_r(pf.mu)})")
+    if rf is not None:
+        pair_comment.append("# rolling sds k_roll gamma_roll mu_roll: rolling_friction on")
+    pair_coeff = "\n".join(pair_comment) + "\n" + " &\n                ".join(parts)
+
+    rot = terms.rotation is not None
+    gf, ad = terms.groove_friction, terms.air_drag
+    need_plugin = gf is not None or ad is not None
+    if need_plugin:
+        if plugin is None:
+            plugin = _plugin_path()
+        plugin_variable = ("# path of the fix groove/drag plugin (cached build); 'index' style, so\n"
+                           "# 'lmp -var plugin PATH -in deck.lmp' overrides it\n"
+                           f"variable        plugin index {plugin}")
+        args = []
+        notes = []
+        if gf is not None:
+            args.append(f"groove s {_r(gf.s)} mu {_r(gf.mu)} g {_r(to_micro(gf.g, 'acceleration'))} "
+                        f"kt {_r(to_micro(gf.kt, 'stiffness'))} gamma {_r(to_micro(gf.gamma, 'damping'))}")
+            notes.append(f"# groove: Coulomb limit mu m g / s, stick spring kt ({gf.kt_source}) + "
+                         f"dashpot gamma ({_r(gf.damping)} x critical)")
+        if ad is not None:
+            args.append(f"drag T0 {_r(to_micro(ad.T0, 'time'))} L {_r(to_micro(ad.L, 'length'))} "
+                        f"form {'odd' if ad.odd else 'as_printed'}")
+            notes.append("# drag: F = -m (v/T0 - v^2/L)" + (" with v|v| (odd)" if ad.odd else
+                                                             " (as printed)"))
+        args.append(f"rotation {'yes' if rot else 'no'}")
+        groove_fix = ("\n# groove friction / air drag: fix groove/drag (granchain plugin, "
+                      "lammps_inputs/plugin/fix_groove_drag.md)\n"
+                      "plugin          load ${plugin}\n" + "\n".join(notes) + "\n"
+                      "fix             gd all groove/drag " + " &\n                ".join(args) + "\n")
+    else:
+        plugin_variable = "# (this scene needs no LAMMPS plugin)"
+        groove_fix = ""
+
+    if rot:
+        integrator = ("# rotation on: translation and rotation about y (I = 0.4 m R^2)\n"
+                      "fix             nve all nve/sphere")
+    else:
+        integrator = ("# rotation off: fix nve integrates translation only, omega stays exactly 0\n"
+                      "fix             nve all nve")
+
+    dump_cols = "id x y z vx vy vz" + (" omegay" if rot else "")
+    computes = ["compute         ke all ke"]
+    values = ["c_ke"]
+    ledger_note = ""
+    if rot:
+        computes.append("compute         erot all erotate/sphere")
+        values.append("c_erot")
+        ledger_note += ", rotational kinetic"
+    if need_plugin:
+        values += ["f_gd[1]", "f_gd[2]"]
+        ledger_note += ", cumulative work of the groove friction and of the air drag"
+    ledger_note += " (energy 1e-15 J)"
+
+    mass_expected = to_micro(scene.mass, "mass")
+    subs = dict(
+        name=scene.name, scene_hash=scene.hash, n_chains=B, n=n, spacing=_r(spacing),
+        min_spacing=_r(D + skin), effects=", ".join(sorted(scene.effects)),
+        plugin_variable=plugin_variable, diameter=_r(D), density=_r(rho), skin=_r(skin),
+        mass_expected=f"{mass_expected:.17g}", pair_coeff=pair_coeff, groove_fix=groove_fix,
+        integrator=integrator, timestep=_r(dt), nsteps=nsteps, t_run=_r(t_run_us),
+        t_run_note=t_note, every=every, sample_us=f"{every * dt:.15g}",
+        sample_note="round(sample_interval/dt) of the reference engine, finest member",
+        dump_columns=dump_cols, ledger_note=ledger_note, energy_computes="\n".join(computes),
+        energy_values=" ".join(values), thermo_values=" ".join(values),
+        thermo_every=max(1, nsteps // 10),
+    )
+    deck_text = Template(template_path().read_text()).substitute(subs)
+    return deck_text, data_text
+
+
+def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, force: bool = False,
+               plugin: str | None = None) -> Path:
+    """Write ``deck.lmp`` and ``chain.data`` into ``outdir``; return the path of deck.lmp.
+
+    gaps: (B, n-1) in m and v_striker: (B,) in m/s, one chain each; default: every member
+    of the scene (``granchain.simulate.members``). Refuses to replace existing files
+    unless ``force``. ``plugin``: path of the groove/drag plugin (default: built/cached).
+    """
+    outdir = Path(outdir)
+    targets = [outdir / DECK_NAME, outdir / DATA_NAME]
+    if not force:
+        for t in targets:
+            if t.exists():
+                raise GranchainError(f"deck: '{t}' exists; choose another directory or pass "
+                                     "--force to replace it")
+    deck_text, data_text = render(scene, gaps=gaps, v_striker=v_striker, plugin=plugin)
+    outdir.mkdir(parents=True, exist_ok=True)
+    for t, text in zip(targets[::-1], (data_text, deck_text)):
+        tmp = t.with_name(f".{t.name}.tmp{os.getpid()}")
+        tmp.write_text(text)
+        tmp.replace(t)
+    return targets[0]
