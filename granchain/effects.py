@@ -25,7 +25,10 @@ groove_friction
     (u = v if rotation is off: the sphere slides without rolling). Stick is an
     elastic-plastic (Cundall-Strack) spring-dashpot: F = -k_g xi - gamma_g u with
     xi' = u, and when |F| would exceed Fc the force is Fc sgn(F) and the history is
-    return-mapped to xi = -(F + gamma_g u)/k_g (as LAMMPS ``linear_history`` does).
+    return-mapped to xi = -F/k_g: the spring alone holds the cap and the dashpot is not
+    stored (unlike LAMMPS ``linear_history``, whose xi = -(F + gamma u)/k winds up a
+    history during fast slides that later cancels the friction while still sliding;
+    sliding friction here is exactly Fc, tested against -Fc * sum |slip| ).
     gamma_g = 2 zeta sqrt(k_g m_u), zeta = groove.damping (default 1, critical), with
     m_u = m / (1 + s^2 m R^2 / I) the mass the slip u sees: stick settles within one
     period of the stick oscillator instead of ringing forever.

@@ -59,10 +59,13 @@ def _groove_slip(y, ov, ow, i, sR, rot):
 
 @njit(cache=True, inline="always")
 def _groove_map(xi, u, kg, gam, Fc):
-    """Return mapping of a groove history onto the Coulomb cap |kg xi + gam u| <= Fc."""
+    """Return mapping of a groove history when the trial force -kg xi - gam u exceeds
+    the Coulomb cap: the spring alone holds the cap (xi = Fc sgn / kg). The dashpot is
+    not stored in the history, so a fast slide (gam u >> Fc) cannot wind up a history
+    that would later cancel the friction; sliding friction is exactly Fc."""
     Ft = -kg * xi - gam * u
     if abs(Ft) > Fc:
-        return -(math.copysign(Fc, Ft) + gam * u) / kg
+        return -math.copysign(Fc, Ft) / kg
     return xi
 
 
@@ -133,12 +136,8 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
                 xi = _groove_map(xi + u * hist_dt, u, kg, gam, Fc)
                 y[og + i] = xi
             F = -kg * xi - gam * u
-            rate = u
             if abs(F) >= Fc:
                 F = math.copysign(Fc, F)
-                if u * xi > 0.0:
-                    rate = 0.0
-            dy[og + i] = rate
             dy[ov + i] += F / m
             if rot:
                 dy[ow + i] += -sR * F / I
@@ -181,6 +180,19 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
                     y[ot + k] = 0.0
                 dy[ot + k] = 0.0
         dy[LO[L_WT]] = pw
+
+    if FL[F_GROOVE] != 0:
+        # History rates: xi' = u in stick; held while sliding at the cap (the trial
+        # force beyond the cap and opposing the slip).
+        sR = P[P_S] * R
+        kg = P[P_KG]
+        gam = P[P_GG]
+        Fc = P[P_FC]
+        og = LO[L_XG]
+        for i in range(n):
+            u = _groove_slip(y, ov, ow, i, sR, rot)
+            Ft = -kg * y[og + i] - gam * u
+            dy[og + i] = 0.0 if (abs(Ft) >= Fc and Ft * u < 0.0) else u
 
 
 @njit(cache=True)

@@ -15,7 +15,8 @@
        every time step (post_force):
          xi += u*dt
          F   = -kt*xi - gamma*u
-         if |F| > Fc:  F = Fc*sign(F),  xi = -(F + gamma*u)/kt   (return mapping)
+         if |F| > Fc:  F = Fc*sign(F),  xi = -F/kt   (return mapping: the spring alone
+                      holds the cap; the dashpot is not stored in the history)
        at setup (step 0 of every run): F = -kt*xi - gamma*u, capped at Fc,
          xi is NOT changed (no spurious history from the setup call)
      f_x += F;  torque_y += -s*R*F  (rotation yes)
@@ -290,9 +291,11 @@ void FixGrooveDrag::apply(int increment)
       const double fc = mu * m * gravity / sfac;
       if (std::fabs(fg) > fc) {
         fg = std::copysign(fc, fg);    // sign of the trial force, not of a velocity
-        // return mapping: the spring takes the part of the capped force
-        // that the dashpot does not carry
-        if (increment) xi[i] = -(fg + gamma * u) / kt;
+        // return mapping: the spring alone holds the cap. Unlike LAMMPS's
+        // linear_history we do not store the dashpot in the history: with
+        // gamma*u >> Fc (fast slides) that would wind up a history which later
+        // cancels the friction while the sphere still slides.
+        if (increment) xi[i] = -fg / kt;
       }
 
       f[i][0] += fg;
