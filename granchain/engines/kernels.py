@@ -136,6 +136,8 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
                 xi = _groove_map(xi + u * hist_dt, u, kg, gam, Fc)
                 y[og + i] = xi
             F = -kg * xi - gam * u
+            # history rate: xi' = u in stick; held while sliding at the cap
+            dy[og + i] = 0.0 if (abs(F) >= Fc and F * u < 0.0) else u
             if abs(F) >= Fc:
                 F = math.copysign(Fc, F)
             dy[ov + i] += F / m
@@ -180,19 +182,6 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
                     y[ot + k] = 0.0
                 dy[ot + k] = 0.0
         dy[LO[L_WT]] = pw
-
-    if FL[F_GROOVE] != 0:
-        # History rates: xi' = u in stick; held while sliding at the cap (the trial
-        # force beyond the cap and opposing the slip).
-        sR = P[P_S] * R
-        kg = P[P_KG]
-        gam = P[P_GG]
-        Fc = P[P_FC]
-        og = LO[L_XG]
-        for i in range(n):
-            u = _groove_slip(y, ov, ow, i, sR, rot)
-            Ft = -kg * y[og + i] - gam * u
-            dy[og + i] = 0.0 if (abs(Ft) >= Fc and Ft * u < 0.0) else u
 
 
 @njit(cache=True)
