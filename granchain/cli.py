@@ -1,4 +1,4 @@
-"""Command line: ``granchain validate|run|deck|compare SCENE.yaml``.
+"""Command line: ``granchain validate|run|deck SCENE.yaml``.
 
 Errors a user can cause print one line, ``granchain: error: ...``, and exit with 2.
 """
@@ -95,14 +95,6 @@ def cmd_deck(args) -> int:
     return 0
 
 
-def cmd_compare(args) -> int:
-    from .compare import compare_scene, format_table
-    scene = load_scene(args.scene, args.set)
-    table = compare_scene(scene)
-    print(format_table(table))
-    return 0 if all(row["ok"] for row in table) else 1
-
-
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="granchain", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -130,9 +122,6 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--force", action="store_true", help="replace an existing deck directory's files")
     sp.set_defaults(func=cmd_deck)
 
-    sp = sub.add_parser("compare", help="run both engines and tabulate their differences")
-    scene_args(sp)
-    sp.set_defaults(func=cmd_compare)
     return p
 
 
