@@ -24,10 +24,14 @@ def _jsonable(obj):
     return obj
 
 
-def _write_new(path: Path, text: str, force: bool) -> None:
-    """Write results without ever silently overwriting earlier ones."""
+def _check_new(path: Path, force: bool) -> None:
     if path.exists() and not force:
         raise GranchainError(f"--out: '{path}' exists; choose another path or pass --force to replace it")
+
+
+def _write_new(path: Path, text: str, force: bool) -> None:
+    """Write results without ever silently overwriting earlier ones."""
+    _check_new(path, force)
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(text)
     tmp.replace(path)
@@ -68,22 +72,19 @@ def cmd_validate(args) -> int:
 def cmd_run(args) -> int:
     from .simulate import run_scene
     scene = load_scene(args.scene, args.set)
+    if args.out:
+        _check_new(Path(args.out), args.force)     # refuse before spending the compute
     runs = run_scene(scene, engine=args.engine)
-    if args.json:
-        if len(runs) == 1:
-            doc = dict(runs[0], scene=scene.name, scene_hash=scene.hash)
-        else:
-            doc = {"scene": scene.name, "scene_hash": scene.hash, "runs": runs}
-        text = json.dumps(_jsonable(doc), indent=None if args.out is None else 1)
-        if args.out:
-            _write_new(Path(args.out), text + "\n", args.force)
-        else:
-            print(text)
+    if len(runs) == 1:
+        doc = dict(runs[0], scene=scene.name, scene_hash=scene.hash)
     else:
+        doc = {"scene": scene.name, "scene_hash": scene.hash, "runs": runs}
+    if not args.json:
         _print_human(scene, runs)
-        if args.out:
-            _write_new(Path(args.out), json.dumps(_jsonable({"scene": scene.name, "runs": runs}), indent=1) + "\n",
-                       args.force)
+    elif not args.out:
+        print(json.dumps(_jsonable(doc)))
+    if args.out:
+        _write_new(Path(args.out), json.dumps(_jsonable(doc), indent=1) + "\n", args.force)
     return 0
 
 
