@@ -3,14 +3,15 @@
 State of one chain is a flat float64 vector laid out by ``engines.reference.Layout``:
 displacements x (from the initial, gapped positions), velocities v, and only when the
 scene enables them: spins omega, groove histories xi_g, contact histories xi_t, rolling
-histories psi, and one accumulated-work entry per dissipative effect. Effects are switched
+histories rho, and one accumulated-work entry per dissipative effect. Effects are switched
 by runtime flags checked once per force call (not per particle), so a Hertz-only chain
 carries no rotational state and its force loop never touches friction code.
 
 One force routine, ``forces``, holds the physics of every effect; the three integrators
 call it:
 - ``rk4``: classical fixed-step RK4 on the full state (histories integrate xi' = slip,
-  held at the Coulomb cap while sliding), then the return mapping ``project``.
+  held at the Coulomb cap while sliding; the rolling history is not held, see
+  ``forces``), then the return mapping ``project``.
 - ``verlet``: velocity Verlet in LAMMPS's order (half kick, drift, forces at the
   half-step velocities with the history update xi += slip*dt and return mapping inside
   the force call, half kick; no history update at setup), like ``fix nve/sphere``.
@@ -75,6 +76,18 @@ def _contact_map(xi, kt, cap):
     if kt * abs(xi) > cap:
         return math.copysign(cap / kt, xi)
     return xi
+
+
+@njit(cache=True, inline="always")
+def _rolling_map(rho, vr, kr, gr, cap):
+    """LAMMPS ``rolling sds`` return mapping: when the trial moment -kr rho - gr vr
+    exceeds the cap, the moment is the cap and the history is mapped so that spring and
+    dashpot together hold it, rho = -(cap sgn + gr vr)/kr (LAMMPS stores the dashpot in
+    the rolling history; docs/lammps_laws.md section 5)."""
+    M = -kr * rho - gr * vr
+    if abs(M) > cap:
+        return -(math.copysign(cap, M) + gr * vr) / kr
+    return rho
 
 
 @njit(cache=True)
@@ -183,6 +196,56 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
                 dy[ot + k] = 0.0
         dy[LO[L_WT]] = pw
 
+    if FL[F_ROLL] != 0:
+        # LAMMPS rolling sds on the 1D line (docs/lammps_laws.md sections 5 and 8):
+        # v_roll = Reff (omega_k - omega_{k+1}), rho' = v_roll, moment
+        # M = -k_roll rho - gamma_roll v_roll capped at mu_roll Fn, torque +Reff M on the
+        # left sphere and -Reff M on the right one.
+        kr = P[P_KR]
+        gr = P[P_GR]
+        mur = P[P_MUR]
+        I = P[P_I]
+        Reff = 0.5 * R
+        op = LO[L_PS]
+        pw = 0.0
+        for k in range(n - 1):
+            fn = f[k]
+            if fn > 0.0:
+                vr = Reff * (y[ow + k] - y[ow + k + 1])
+                rho = y[op + k]
+                cap = mur * fn
+                if hist_dt > 0.0:
+                    # LAMMPS order: history += dt v_roll (half-step spins), trial moment,
+                    # strict cap test, return map with the dashpot stored in the history
+                    rho += vr * hist_dt
+                    M = -kr * rho - gr * vr
+                    if abs(M) > cap:
+                        if rho != 0.0:
+                            rho = _rolling_map(rho, vr, kr, gr, cap)
+                            M = math.copysign(cap, M)
+                        else:
+                            M = 0.0          # LAMMPS zeroes the moment of a zero history
+                    y[op + k] = rho
+                else:
+                    # continuous law (RK4, DOP853): rho' = v_roll, the moment clipped to
+                    # the cap inside the step, project() return-maps rho after the step
+                    # (catch-up). Not held at the cap: the cap mu_roll Fn(t) and the
+                    # dashpot part move during a slide, and a held history lags them
+                    # (first order in dt, 1e-5 at 1 ns; this way 2e-10, tests/test_rolling.py)
+                    M = -kr * rho - gr * vr
+                    if abs(M) > cap:
+                        M = math.copysign(cap, M)
+                dy[op + k] = vr
+                tq = Reff * M / I
+                dy[ow + k] += tq
+                dy[ow + k + 1] -= tq
+                pw += M * vr
+            else:
+                if hist_dt > 0.0:
+                    y[op + k] = 0.0
+                dy[op + k] = 0.0
+        dy[LO[L_WR]] = pw
+
 
 @njit(cache=True)
 def project(y, gaps, P, FL, LO, f):
@@ -211,6 +274,20 @@ def project(y, gaps, P, FL, LO, f):
             else:
                 kt = P[P_KT] * math.sqrt(d) if FL[F_MINDLIN] != 0 else P[P_KT]
                 y[ot + k] = _contact_map(y[ot + k], kt, mu * K * d * math.sqrt(d))
+    if FL[F_ROLL] != 0:
+        ox = LO[L_X]
+        ow = LO[L_W]
+        op = LO[L_PS]
+        K = P[P_K]
+        Reff = 0.5 * P[P_R]
+        for k in range(n - 1):
+            d = _overlap(y, ox, gaps, k)
+            if d <= 0.0:
+                y[op + k] = 0.0
+            else:
+                vr = Reff * (y[ow + k] - y[ow + k + 1])
+                y[op + k] = _rolling_map(y[op + k], vr, P[P_KR], P[P_GR],
+                                         P[P_MUR] * K * d * math.sqrt(d))
 
 
 @njit(cache=True)

@@ -53,20 +53,22 @@ class Layout:
             take(K.L_XG, n)
         if terms.particle_friction is not None:
             take(K.L_XT, n - 1)
+        if terms.rolling_friction is not None:
+            take(K.L_PS, n - 1)
         if terms.groove_friction is not None:
             take(K.L_WG, 1)
         if terms.air_drag is not None:
             take(K.L_WD, 1)
         if terms.particle_friction is not None:
             take(K.L_WT, 1)
+        if terms.rolling_friction is not None:
+            take(K.L_WR, 1)
         LO[K.L_NY] = off
         return cls(LO, off)
 
 
 def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
     """Parameter vector P and flag vector FL of the kernels, from the effect definitions."""
-    if terms.rolling_friction is not None:
-        raise NotImplementedError("rolling_friction is not implemented in the reference engine yet")
     P = np.zeros(K.P_LEN)
     FL = np.zeros(K.F_LEN, dtype=np.int64)
     P[K.P_N], P[K.P_R], P[K.P_M], P[K.P_K] = terms.n, terms.R, terms.m, terms.hertz.K
@@ -86,6 +88,10 @@ def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
         FL[K.F_PP] = 1
         FL[K.F_MINDLIN] = int(pf.model == "mindlin")
         P[K.P_MU], P[K.P_KT] = pf.mu, pf.kt
+    if terms.rolling_friction is not None:
+        rf = terms.rolling_friction
+        FL[K.F_ROLL] = 1
+        P[K.P_KR], P[K.P_GR], P[K.P_MUR] = rf.k_roll, rf.gamma_roll, rf.mu_roll
     return P, FL
 
 
@@ -248,6 +254,11 @@ def _error_scales(scene, terms, layout, v):
         scale[LO[K.L_XG]:LO[K.L_XG] + n] = g.Fc / g.kt
     if LO[K.L_XT] >= 0:
         scale[LO[K.L_XT]:LO[K.L_XT] + n - 1] = delta
+    if LO[K.L_PS] >= 0:
+        # rolling history: judged on its value at the cap, mu_roll Fn / k_roll
+        rf = terms.rolling_friction
+        rho_cap = rf.mu_roll * terms.hertz.K * delta**1.5 / rf.k_roll
+        scale[LO[K.L_PS]:LO[K.L_PS] + n - 1] = min(delta, rho_cap) if rho_cap > 0 else delta
     for c in (K.L_WG, K.L_WD, K.L_WT, K.L_WR):
         if LO[c] >= 0:
             scale[LO[c]] = e0
