@@ -117,7 +117,7 @@ fix sf all setforce NULL 0.0 0.0
 fix g all groove/drag {fix_args}
 fix n all nve/sphere
 timestep {dt!r}
-dump d all custom 1 d.dump id x vx omegay fx tqy f_g mass
+dump d all custom 1 d.dump id x vx omegay fx tqy f_g[1] mass
 dump_modify d format float %.17g
 thermo_style custom step f_g f_g[1] f_g[2]
 thermo_modify format float %.17g
@@ -201,7 +201,7 @@ def test_slip_regime_force_and_torque(plugin, tmp_path, vx, wy):
     m = d[0]["mass"][0]
     assert m == pytest.approx(sphere_mass(r), rel=1e-14)
     # step 0 (setup): spring unloaded -> no groove force, no torque
-    assert d[0]["fx"][0] == 0.0 and d[0]["tqy"][0] == 0.0 and d[0]["f_g"][0] == 0.0
+    assert d[0]["fx"][0] == 0.0 and d[0]["tqy"][0] == 0.0 and d[0]["f_g[1]"][0] == 0.0
     u = vx - S * r * wy  # v and omega unchanged by the half kick (zero force at setup)
     fc = coulomb(m)
     assert kt * abs(u) * dt > fc  # slip regime
@@ -209,7 +209,7 @@ def test_slip_regime_force_and_torque(plugin, tmp_path, vx, wy):
     assert d[1]["fx"][0] == pytest.approx(f_expected, rel=1e-12)
     assert d[1]["tqy"][0] == pytest.approx(-S * r * f_expected, rel=1e-12)
     # return mapping: history sits exactly on the Coulomb limit
-    assert d[1]["f_g"][0] == pytest.approx(-f_expected / kt, rel=1e-12)
+    assert d[1]["f_g[1]"][0] == pytest.approx(-f_expected / kt, rel=1e-12)
 
 
 def test_elastic_spring_branch(plugin, tmp_path):
@@ -221,7 +221,7 @@ def test_elastic_spring_branch(plugin, tmp_path):
     m = d[0]["mass"][0]
     assert kt * vx * dt < coulomb(m)
     xi1 = vx * dt
-    assert d[1]["f_g"][0] == pytest.approx(xi1, rel=1e-13)
+    assert d[1]["f_g[1]"][0] == pytest.approx(xi1, rel=1e-13)
     assert d[1]["fx"][0] == pytest.approx(-kt * xi1, rel=1e-13)
     assert d[1]["tqy"][0] == pytest.approx(S * r * kt * xi1, rel=1e-13)
     # second step: history accumulates with the half-step slip velocity
@@ -229,7 +229,7 @@ def test_elastic_spring_branch(plugin, tmp_path):
     v_half = vx + dt * (-kt * xi1) / m
     w_half = dt * (S * r * kt * xi1) / (0.4 * r * r * m)
     u = v_half - S * r * w_half
-    assert d[2]["f_g"][0] == pytest.approx(xi1 + u * dt, rel=1e-12)
+    assert d[2]["f_g[1]"][0] == pytest.approx(xi1 + u * dt, rel=1e-12)
 
 
 def test_groove_dashpot_elastic_branch(plugin, tmp_path):
@@ -242,10 +242,10 @@ def test_groove_dashpot_elastic_branch(plugin, tmp_path):
     m = d[0]["mass"][0]
     f0 = -gam * vx
     assert abs(f0) < coulomb(m)
-    assert d[0]["fx"][0] == pytest.approx(f0, rel=1e-13) and d[0]["f_g"][0] == 0.0
+    assert d[0]["fx"][0] == pytest.approx(f0, rel=1e-13) and d[0]["f_g[1]"][0] == 0.0
     v_half = vx + 0.5 * dt * f0 / m
     xi1 = v_half * dt
-    assert d[1]["f_g"][0] == pytest.approx(xi1, rel=1e-13)
+    assert d[1]["f_g[1]"][0] == pytest.approx(xi1, rel=1e-13)
     assert d[1]["fx"][0] == pytest.approx(-kt * xi1 - gam * v_half, rel=1e-13)
 
 
@@ -261,10 +261,10 @@ def test_groove_dashpot_return_mapping(plugin, tmp_path):
     fc = coulomb(m)
     assert gam * vx > fc
     assert d[0]["fx"][0] == pytest.approx(-fc, rel=1e-13)  # setup: capped, history untouched
-    assert d[0]["f_g"][0] == 0.0
+    assert d[0]["f_g[1]"][0] == 0.0
     v_half = vx - 0.5 * dt * fc / m
     assert d[1]["fx"][0] == pytest.approx(-fc, rel=1e-13)
-    assert d[1]["f_g"][0] == pytest.approx(fc / kt, rel=1e-12)
+    assert d[1]["f_g[1]"][0] == pytest.approx(fc / kt, rel=1e-12)
 
 
 def test_rolling_without_slip_feels_no_groove_force(plugin, tmp_path):
@@ -285,7 +285,7 @@ def test_sphere_at_rest_stays_exactly_at_rest(plugin, tmp_path):
     args = groove_args(1e6, f"drag T0 {T0!r} L {LEN!r}")
     run_deck(tmp_path, single_sphere_deck(plugin, fix_args=args, vx=0.0, wy=0.0, steps=300))
     d = read_dump(tmp_path / "d.dump")
-    for q in ("x", "vx", "omegay", "fx", "tqy", "f_g"):
+    for q in ("x", "vx", "omegay", "fx", "tqy", "f_g[1]"):
         assert d[300][q][0] == 0.0, q
 
 
@@ -467,7 +467,7 @@ timestep 0.5
 thermo_style custom step f_g f_g[1] f_g[2]
 thermo_modify format float %.17g
 thermo 100
-dump d all custom {steps} d.dump id x vx omegay fx tqy f_g
+dump d all custom {steps} d.dump id x vx omegay fx tqy f_g[1] f_g[2] f_g[3]
 dump_modify d format float %.17g
 run {steps}
 {extra}
@@ -488,8 +488,8 @@ def test_mpirun_two_procs_gives_same_forces_and_migrates_history(plugin, tmp_pat
     d0 = read_dump(one / "d.dump")[0]
     # atoms crossed the processor boundary at x = 0 during the run
     assert (d0["x"] < 0).all() and (d1["x"] > 0).any()
-    assert (np.abs(d1["f_g"]) > 0).all()  # history loaded on every atom
-    for q in ("x", "vx", "omegay", "fx", "tqy", "f_g"):
+    assert (np.abs(d1["f_g[1]"]) > 0).all()  # history loaded on every atom
+    for q in ("x", "vx", "omegay", "fx", "tqy", "f_g[1]", "f_g[2]", "f_g[3]"):
         np.testing.assert_allclose(d2[q], d1[q], rtol=1e-9, atol=1e-12 * np.abs(d1[q]).max(),
                                    err_msg=q)
     t1, t2 = thermo_last(r1.log), thermo_last(r2.log)
@@ -520,7 +520,7 @@ fix n all nve/sphere
 timestep 0.5
 thermo_style custom step f_g f_g[1] f_g[2]
 thermo_modify format float %.17g
-dump d all custom 400 d2.dump id x vx omegay fx tqy f_g
+dump d all custom 400 d2.dump id x vx omegay fx tqy f_g[1] f_g[2] f_g[3]
 dump_modify d format float %.17g
 run 400
 """,
@@ -528,7 +528,7 @@ run 400
     )
     a = read_dump(full / "d.dump")[800]
     b = read_dump(part / "d2.dump")[800]
-    for q in ("x", "vx", "omegay", "fx", "tqy", "f_g"):
+    for q in ("x", "vx", "omegay", "fx", "tqy", "f_g[1]", "f_g[2]", "f_g[3]"):
         np.testing.assert_allclose(b[q], a[q], rtol=1e-12, atol=1e-14, err_msg=q)
     ta, tb = thermo_last(rf.log), thermo_last(part / "log.lammps")
     assert tb["f_g[1]"] == pytest.approx(ta["f_g[1]"], rel=1e-12)
@@ -569,7 +569,7 @@ fix sf all setforce NULL 0.0 0.0
 fix g all groove/drag {groove_args(ktg)} drag T0 {T0!r} L {LEN!r} form odd
 fix n all nve/sphere
 timestep {dt!r}
-dump d all custom 1 d.dump id x vx omegay fx tqy f_g
+dump d all custom 1 d.dump id x vx omegay fx tqy f_g[1]
 dump_modify d format float %.17g
 run {steps}
 """,
@@ -635,7 +635,7 @@ run {steps}
         return f, tq
 
     def check(step):
-        for q, val in (("x", x), ("vx", v), ("omegay", w), ("fx", f), ("tqy", tq), ("f_g", xig)):
+        for q, val in (("x", x), ("vx", v), ("omegay", w), ("fx", f), ("tqy", tq), ("f_g[1]", xig)):
             np.testing.assert_allclose(val, ref[step][q], rtol=1e-8, atol=1e-9 * np.abs(ref[step][q]).max() + 1e-300,
                                        err_msg=f"{q} at step {step}")
 

@@ -36,7 +36,11 @@
      [1] air drag         sum_steps sum_atoms F_d*v_x*dt
      using the (half-step) velocities seen at post_force; setup adds none.
    global scalar = [0] + [1]
-   per-atom vector = xi (distance units)
+   per-atom array (3 columns, f_ID[1..3]):
+     [1] xi (distance units)
+     [2] cumulative work done ON this atom by the groove friction, sum F*u*dt
+     [3] cumulative work done ON this atom by the air drag, sum F_d*v_x*dt
+     (so the sum of column [2] (or [3]) over all atoms equals vector [0] (or [1]))
 ------------------------------------------------------------------------- */
 
 #include "fix_groove_drag.h"
@@ -58,7 +62,7 @@ using namespace FixConst;
 /* ---------------------------------------------------------------------- */
 
 FixGrooveDrag::FixGrooveDrag(LAMMPS *lmp, int narg, char **arg) :
-    Fix(lmp, narg, arg), xi(nullptr)
+    Fix(lmp, narg, arg), peratom(nullptr)
 {
   groove_flag = drag_flag = 0;
   rotation = 1;
@@ -160,21 +164,22 @@ FixGrooveDrag::FixGrooveDrag(LAMMPS *lmp, int narg, char **arg) :
   extvector = 1;
 
   peratom_flag = 1;
-  size_peratom_cols = 0;
+  size_peratom_cols = NPERATOM;
   peratom_freq = 1;
 
   restart_global = 1;
   restart_peratom = 1;
   create_attribute = 1;
   dynamic_group_allow = 1;
-  maxexchange = 1;
+  maxexchange = NPERATOM;
 
-  // per-atom history: allocate, register for growth/migration/restart, zero
+  // per-atom history and works: allocate, register for growth/migration/restart, zero
 
   FixGrooveDrag::grow_arrays(atom->nmax);
   atom->add_callback(Atom::GROW);
   atom->add_callback(Atom::RESTART);
-  for (int i = 0; i < atom->nmax; i++) xi[i] = 0.0;
+  for (int i = 0; i < atom->nmax; i++)
+    for (int k = 0; k < NPERATOM; k++) peratom[i][k] = 0.0;
 }
 
 /* ---------------------------------------------------------------------- */
@@ -184,7 +189,7 @@ FixGrooveDrag::~FixGrooveDrag()
   if (copymode) return;
   atom->delete_callback(id, Atom::GROW);
   atom->delete_callback(id, Atom::RESTART);
-  memory->destroy(xi);
+  memory->destroy(peratom);
 }
 
 /* ---------------------------------------------------------------------- */
@@ -285,9 +290,10 @@ void FixGrooveDrag::apply(int increment)
       const double lever = use_rot ? sfac * radius[i] : 0.0;
       const double u = use_rot ? vx - lever * omega[i][1] : vx;
 
-      if (increment) xi[i] += u * dt;
+      double &xi = peratom[i][0];
+      if (increment) xi += u * dt;
 
-      double fg = -kt * xi[i] - gamma * u;
+      double fg = -kt * xi - gamma * u;
       const double fc = mu * m * gravity / sfac;
       if (std::fabs(fg) > fc) {
         fg = std::copysign(fc, fg);    // sign of the trial force, not of a velocity
@@ -295,19 +301,27 @@ void FixGrooveDrag::apply(int increment)
         // linear_history we do not store the dashpot in the history: with
         // gamma*u >> Fc (fast slides) that would wind up a history which later
         // cancels the friction while the sphere still slides.
-        if (increment) xi[i] = -fg / kt;
+        if (increment) xi = -fg / kt;
       }
 
       f[i][0] += fg;
       if (use_rot) torque[i][1] -= lever * fg;
-      if (increment) work_local[0] += fg * u * dt;
+      if (increment) {
+        const double w = fg * u * dt;
+        work_local[0] += w;
+        peratom[i][1] += w;
+      }
     }
 
     if (drag_flag) {
       const double quad = (drag_form == DRAG_ODD) ? vx * std::fabs(vx) : vx * vx;
       const double fd = -m * (vx / t0 - quad / lenL);
       f[i][0] += fd;
-      if (increment) work_local[1] += fd * vx * dt;
+      if (increment) {
+        const double w = fd * vx * dt;
+        work_local[1] += w;
+        peratom[i][2] += w;
+      }
     }
   }
 }
@@ -332,58 +346,58 @@ double FixGrooveDrag::compute_vector(int n)
 
 double FixGrooveDrag::memory_usage()
 {
-  return (double) atom->nmax * sizeof(double);
+  return (double) atom->nmax * NPERATOM * sizeof(double);
 }
 
 /* ---------------------------------------------------------------------- */
 
 void FixGrooveDrag::grow_arrays(int nmax)
 {
-  memory->grow(xi, nmax, "groove/drag:xi");
-  vector_atom = xi;
+  memory->grow(peratom, nmax, NPERATOM, "groove/drag:peratom");
+  array_atom = peratom;
 }
 
 /* ---------------------------------------------------------------------- */
 
 void FixGrooveDrag::copy_arrays(int i, int j, int /*delflag*/)
 {
-  xi[j] = xi[i];
+  for (int k = 0; k < NPERATOM; k++) peratom[j][k] = peratom[i][k];
 }
 
 /* ----------------------------------------------------------------------
-   atoms created during a run start with an unloaded spring
+   atoms created during a run start with an unloaded spring and no work
 ------------------------------------------------------------------------- */
 
 void FixGrooveDrag::set_arrays(int i)
 {
-  xi[i] = 0.0;
+  for (int k = 0; k < NPERATOM; k++) peratom[i][k] = 0.0;
 }
 
 /* ---------------------------------------------------------------------- */
 
 int FixGrooveDrag::pack_exchange(int i, double *buf)
 {
-  buf[0] = xi[i];
-  return 1;
+  for (int k = 0; k < NPERATOM; k++) buf[k] = peratom[i][k];
+  return NPERATOM;
 }
 
 /* ---------------------------------------------------------------------- */
 
 int FixGrooveDrag::unpack_exchange(int nlocal, double *buf)
 {
-  xi[nlocal] = buf[0];
-  return 1;
+  for (int k = 0; k < NPERATOM; k++) peratom[nlocal][k] = buf[k];
+  return NPERATOM;
 }
 
 /* ----------------------------------------------------------------------
-   per-atom restart: [count, xi]
+   per-atom restart: [count, xi, groove work, drag work]
 ------------------------------------------------------------------------- */
 
 int FixGrooveDrag::pack_restart(int i, double *buf)
 {
-  buf[0] = 2;    // LAMMPS convention: first value = number of values incl. itself
-  buf[1] = xi[i];
-  return 2;
+  buf[0] = NPERATOM + 1;    // LAMMPS convention: first value = number of values incl. itself
+  for (int k = 0; k < NPERATOM; k++) buf[k + 1] = peratom[i][k];
+  return NPERATOM + 1;
 }
 
 /* ---------------------------------------------------------------------- */
@@ -396,21 +410,21 @@ void FixGrooveDrag::unpack_restart(int nlocal, int nth)
   int m = 0;
   for (int i = 0; i < nth; i++) m += static_cast<int>(extra[nlocal][m]);
   m++;
-  xi[nlocal] = extra[nlocal][m];
+  for (int k = 0; k < NPERATOM; k++) peratom[nlocal][k] = extra[nlocal][m + k];
 }
 
 /* ---------------------------------------------------------------------- */
 
 int FixGrooveDrag::size_restart(int /*nlocal*/)
 {
-  return 2;
+  return NPERATOM + 1;
 }
 
 /* ---------------------------------------------------------------------- */
 
 int FixGrooveDrag::maxsize_restart()
 {
-  return 2;
+  return NPERATOM + 1;
 }
 
 /* ----------------------------------------------------------------------

@@ -31,7 +31,7 @@ class FixGrooveDrag : public Fix {
   double compute_vector(int) override;
   double memory_usage() override;
 
-  // per-atom history xi: must follow atoms through migration and restarts
+  // per-atom history xi and works: must follow atoms through migration and restarts
   void grow_arrays(int) override;
   void copy_arrays(int, int, int) override;
   void set_arrays(int) override;
@@ -48,6 +48,7 @@ class FixGrooveDrag : public Fix {
 
  private:
   enum { DRAG_AS_PRINTED = 0, DRAG_ODD = 1 };
+  enum { NPERATOM = 3 };    // columns of the per-atom array
 
   int groove_flag;    // 1 if groove Coulomb friction is on
   int drag_flag;      // 1 if air drag is on
@@ -62,7 +63,10 @@ class FixGrooveDrag : public Fix {
   double t0;          // drag time constant T0
   double lenL;        // drag length L
 
-  double *xi;         // per-atom spring elongation (distance units)
+  // per-atom array, 3 columns: [0] spring elongation xi (distance units),
+  // [1] cumulative work done ON the atom by the groove friction, [2] the same for the
+  // air drag (energy units); all three follow their atom (migration, restart)
+  double **peratom;
 
   // cumulative work done ON the particles (this proc's atoms),
   // [0] groove friction, [1] air drag

@@ -31,7 +31,7 @@ extern "C" void lammpsplugin_init(void *lmp, void *handle, void *regfunc)
   plugin.version = GRANCHAIN_LAMMPS_VERSION;
   plugin.style = "fix";
   plugin.name = "groove/drag";
-  plugin.info = "granchain groove Coulomb friction + air drag for 1D sphere chains v1.0";
+  plugin.info = "granchain groove Coulomb friction + air drag for 1D sphere chains v1.1";
   plugin.author = "granchain";
   plugin.creator.v2 = (lammpsplugin_factory2 *) &groove_drag_creator;
   plugin.handle = handle;
