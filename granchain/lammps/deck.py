@@ -20,18 +20,29 @@ Choices (also stated in the deck's comments):
   Rotation on: ``fix nve/sphere``.
 * Run length: ``scene.t_end``, else the reference engine's ``auto_t_max`` of the slowest
   member (the largest cap over all members); rounded up to whole samples as the
-  reference engine does, so the last sample falls at the same time.
+  reference engine does, so the last sample falls at the same time. With t_end auto
+  the run also stops (``fix halt``) at the first sample at which the last probe of
+  every moving chain has seen the wave pass (its velocity fell below half its running
+  peak, the peak above 1e-3 of the slowest striker speed): the reference engine's stop
+  rule, applied to the whole batch. ``granchain.engines.lammps`` then cuts each chain's
+  record where the reference engine would have stopped that chain.
 * Cadence: every = round(sample_interval / dt) (as the reference engine), from the
   member with the finest sampling.
-* The energy ledger (``energy.txt``) holds sums over all chains: kinetic translational
-  (``compute ke``), rotational (``compute erotate/sphere``, rotation only) and the
-  cumulative works of ``fix groove/drag`` (groove, drag). Pair granular tallies no
-  Hertz energy: compute it from the positions.
+* Dump (``traj.dump``, every sample, sorted by id, ``%.17g``): id x y z vx vy vz, plus
+  omegay (rotation on) and the per-atom cumulative works of ``fix groove/drag``
+  (``f_gd[2]`` groove, ``f_gd[3]`` drag, when that effect is on). The engine reads it
+  with MDAnalysis and builds every chain's energy ledger from these columns.
+* The global energy ledger (``energy.txt``) holds sums over all chains: kinetic
+  translational (``compute ke``), rotational (``compute erotate/sphere``, rotation
+  only) and the cumulative works of ``fix groove/drag`` (groove, drag); a cross-check
+  of the per-atom sums. Pair granular tallies no Hertz energy (computed from the
+  positions), nor the work of the tangential and rolling contact friction.
 """
 from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass
 from decimal import Decimal
 from pathlib import Path
 from string import Template
@@ -43,10 +54,21 @@ from granchain.errors import GranchainError
 from granchain.scene import Scene
 
 __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "write_deck",
-           "DECK_NAME", "DATA_NAME"]
+           "plan", "DeckPlan", "DECK_NAME", "DATA_NAME", "DUMP_NAME", "ENERGY_NAME",
+           "WORK_COLUMNS", "STOP_FRACTION", "STOP_THRESHOLD"]
 
 DECK_NAME = "deck.lmp"
 DATA_NAME = "chain.data"
+DUMP_NAME = "traj.dump"
+ENERGY_NAME = "energy.txt"
+# dump columns of the per-atom cumulative works of fix groove/drag (per-atom array
+# columns 2 and 3; column 1 is the spring history)
+WORK_COLUMNS = {"groove_friction": "f_gd[2]", "air_drag": "f_gd[3]"}
+# t_end auto stop rule of the reference engine (engines/kernels.py run_window): a chain
+# has passed once its last probe's velocity falls below STOP_FRACTION of its running
+# peak, that peak exceeding STOP_THRESHOLD * v_striker
+STOP_FRACTION = 0.5
+STOP_THRESHOLD = 1e-3
 
 # SI value * 10**e = value in LAMMPS 'units micro' (docs/lammps_laws.md section 1).
 MICRO_EXPONENT = {
@@ -118,6 +140,89 @@ def _members(scene: Scene, gaps, v_striker):
     return gaps, v
 
 
+@dataclass(frozen=True)
+class DeckPlan:
+    """Run length, cadence and layout of a deck (what the engine needs to read it back)."""
+    n_chains: int
+    n: int
+    every: int                 # steps between samples
+    nsteps: int                # steps of the run (the cap, with t_end auto)
+    sample_dt: float           # s, = every * dt
+    dt: float                  # s
+    t_run: float               # s, = nsteps * dt
+    auto: bool                 # t_end auto: fix halt stops the run when every chain passed
+    t_note: str
+    dump_columns: tuple[str, ...]
+    gaps: np.ndarray           # (B, n-1) m
+    v_striker: np.ndarray      # (B,) m/s
+
+    @property
+    def nsamples(self) -> int:
+        """Samples of a run that is not halted early (including t = 0)."""
+        return self.nsteps // self.every + 1
+
+
+def plan(scene: Scene, *, gaps=None, v_striker=None) -> DeckPlan:
+    """Run length and cadence of the deck for these members (as the reference engine)."""
+    from granchain.engines.reference import auto_t_max, sample_interval
+
+    gaps, vs = _members(scene, gaps, v_striker)
+    B = gaps.shape[0]
+    sdts = [sample_interval(scene, float(v)) for v in vs]
+    sample_si = min(sdts) if sdts else sample_interval(scene, 0.0)
+    every = max(1, int(round(sample_si / scene.dt)))
+    sdt = every * scene.dt
+    auto = scene.t_end is None
+    if not auto:
+        t_si, t_note = scene.t_end, "scene t_end"
+    else:
+        caps = [auto_t_max(scene, gaps[b], float(vs[b])) for b in range(B) if vs[b] > 0]
+        t_si = max(caps) if caps else 0.0
+        t_note = ("t_end auto: the reference engine's auto_t_max cap of the slowest member; "
+                  "fix halt stops earlier once the wave has passed every chain's last probe"
+                  if caps else "t_end auto: no striker moves")
+    nsamples = int(math.ceil(t_si / sdt - 1e-9)) if t_si > 0 else 0
+    nsteps = nsamples * every
+    cols = ["id", "x", "y", "z", "vx", "vy", "vz"]
+    if scene.has("rotation"):
+        cols.append("omegay")
+    for eff, col in WORK_COLUMNS.items():
+        if scene.has(eff):
+            cols.append(col)
+    return DeckPlan(n_chains=B, n=scene.n, every=every, nsteps=nsteps, sample_dt=sdt,
+                    dt=scene.dt, t_run=nsteps * scene.dt, auto=auto and nsteps > 0,
+                    t_note=t_note, dump_columns=tuple(cols), gaps=gaps, v_striker=vs)
+
+
+def _id_ranges(ids) -> str:
+    """LAMMPS id list with stride ranges: [13, 28, 43, 73] -> '13:43:15 73'."""
+    ids = list(ids)
+    out = []
+    i = 0
+    while i < len(ids):
+        j = i
+        if i + 1 < len(ids):
+            step = ids[i + 1] - ids[i]
+            while j + 1 < len(ids) and ids[j + 1] - ids[j] == step:
+                j += 1
+        if j > i:
+            out.append(f"{ids[i]}:{ids[j]}:{ids[i + 1] - ids[i]}")
+        else:
+            out.append(str(ids[i]))
+        i = j + 1
+    return " ".join(out)
+
+
+def _dump_note(cols) -> str:
+    notes = {"omegay": "omegay: spin about y, rad/us (rotation on)",
+             WORK_COLUMNS["groove_friction"]: f"{WORK_COLUMNS['groove_friction']}: cumulative work "
+                                              "of the groove friction on the atom, 1e-15 J",
+             WORK_COLUMNS["air_drag"]: f"{WORK_COLUMNS['air_drag']}: cumulative work of the air "
+                                       "drag on the atom, 1e-15 J"}
+    extra = [notes[c] for c in cols if c in notes]
+    return "".join(f"\n# {e}" for e in extra)
+
+
 def _plugin_path() -> str:
     from granchain.lammps.plugin import build_plugin
     return str(build_plugin())
@@ -125,10 +230,9 @@ def _plugin_path() -> str:
 
 def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None) -> tuple[str, str]:
     """The texts of deck.lmp and chain.data (no files written)."""
-    from granchain.engines.reference import auto_t_max, sample_interval
-
     terms = physics_terms(scene)
-    gaps, vs = _members(scene, gaps, v_striker)
+    pl = plan(scene, gaps=gaps, v_striker=v_striker)
+    gaps, vs = pl.gaps, pl.v_striker
     B, n = gaps.shape[0], scene.n
 
     L = lambda v: to_micro(v, "length")  # noqa: E731
@@ -141,19 +245,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
     assert spacing > D + skin
 
     # ---- run length and cadence (as the reference engine) ---------------------------
-    sdts = [sample_interval(scene, float(v)) for v in vs]
-    sample_si = min(sdts)
-    every = max(1, int(round(sample_si / scene.dt)))
-    sdt = every * scene.dt
-    if scene.t_end is not None:
-        t_si, t_note = scene.t_end, "scene t_end"
-    else:
-        caps = [auto_t_max(scene, gaps[b], float(vs[b])) for b in range(B) if vs[b] > 0]
-        t_si = max(caps) if caps else 0.0
-        t_note = ("t_end auto: the reference engine's auto_t_max cap of the slowest member"
-                  if caps else "t_end auto: no striker moves")
-    nsamples = int(math.ceil(t_si / sdt - 1e-9)) if t_si > 0 else 0
-    nsteps = nsamples * every
+    every, nsteps, t_note = pl.every, pl.nsteps, pl.t_note
     t_run_us = nsteps * dt
 
     # ---- positions, velocities, box --------------------------------------------------
@@ -251,7 +343,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
         integrator = ("# rotation off: fix nve integrates translation only, omega stays exactly 0\n"
                       "fix             nve all nve")
 
-    dump_cols = "id x y z vx vy vz" + (" omegay" if rot else "")
+    dump_cols = " ".join(pl.dump_columns)
     computes = ["compute         ke all ke"]
     values = ["c_ke"]
     ledger_note = ""
@@ -264,6 +356,27 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
         ledger_note += ", cumulative work of the groove friction and of the air drag"
     ledger_note += " (energy 1e-15 J)"
 
+    if pl.auto:
+        p = scene.probes[-1]
+        moving = [b * n + p for b in range(B) if vs[b] > 0]
+        thr = STOP_THRESHOLD * float(vs[vs > 0].min())
+        halt = "\n".join([
+            "# t_end auto: stop at the first sample at which the wave has passed the last probe",
+            f"# (particle {p}) of every moving chain: its velocity fell below {STOP_FRACTION} x its",
+            f"# running peak, the peak above {STOP_THRESHOLD:g} x the slowest striker speed (the reference",
+            "# engine's stop rule). f_vpeak: running peak of vx, updated every sample.",
+            f"group           lastprobe id {_id_ranges(moving)}",
+            'variable        vpeak atom "vx*(vx>f_vpeak)+f_vpeak*(vx<=f_vpeak)"',
+            f"fix             vpeak lastprobe store/state {every} v_vpeak",
+            f'variable        waiting atom "!((f_vpeak>{_r(to_micro(thr, "velocity"))})&&'
+            f'(vx<{_r(STOP_FRACTION)}*f_vpeak))"',
+            "compute         nwaiting lastprobe reduce sum v_waiting",
+            "variable        nwaiting equal c_nwaiting",
+            f"fix             halt all halt {every} v_nwaiting == 0 error continue message yes",
+        ])
+    else:
+        halt = "# (t_end given: the run has a fixed length)"
+
     mass_expected = to_micro(scene.mass, "mass")
     subs = dict(
         name=scene.name, scene_hash=scene.hash, n_chains=B, n=n, spacing=_r(spacing),
@@ -275,7 +388,8 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
         sample_note="round(sample_interval/dt) of the reference engine, finest member",
         dump_columns=dump_cols, ledger_note=ledger_note, energy_computes="\n".join(computes),
         energy_values=" ".join(values), thermo_values=" ".join(values),
-        thermo_every=max(1, nsteps // 10),
+        thermo_every=max(1, nsteps // 10), halt=halt,
+        dump_note=_dump_note(pl.dump_columns),
     )
     deck_text = Template(template_path().read_text()).substitute(subs)
     return deck_text, data_text
