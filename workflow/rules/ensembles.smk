@@ -1,0 +1,46 @@
+# Ensembles: each job runs a batch of members (striker speed x gap realisation) of one
+# study with the reference engine and writes a partial table; see granchain.workflow.
+
+
+rule run_batch:
+    output:
+        table=f"{RESULTS}/work/{{study}}/reference_{{index}}.csv",
+        timing=f"{RESULTS}/work/{{study}}/reference_{{index}}.timing.csv",
+    wildcard_constraints:
+        study="packed_sweep|gap_profile|gap_sweep|extra_length|lammps_check",
+    params:
+        batch=lambda w: batch_of(w.study, "reference", w.index).key(),
+        study=lambda w: w.study,
+        name=lambda w: f"reference_{w.index}",
+    log:
+        f"{RESULTS}/logs/{{study}}/reference_{{index}}.log",
+    threads: BATCH_THREADS
+    resources:
+        mem_mb=BATCH_MEM_MB,
+        runtime=lambda w: batch_runtime(w.study, "reference", w.index),
+    conda:
+        "../envs/granchain.yaml"
+    script:
+        "../scripts/run_batch.py"
+
+
+rule packed_trace:
+    output:
+        table=f"{RESULTS}/work/packed_trace/trace.csv",
+        timing=f"{RESULTS}/work/packed_trace/trace.timing.csv",
+        traces=[trace_path(m) for m in trace_materials()],
+    params:
+        materials=trace_materials(),
+    log:
+        f"{RESULTS}/logs/packed_trace/trace.log",
+    threads: 1
+    resources:
+        mem_mb=BATCH_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/granchain.yaml"
+    script:
+        "../scripts/packed_trace.py"
+
+
+ALL_TARGETS += [trace_path(m) for m in trace_materials()]
