@@ -50,7 +50,15 @@ particle_friction
     particle-particle terms of Eq. 5.1 carry a minus sign (friction opposes slip on both
     sides).
 rolling_friction
-    LAMMPS ``rolling sds``: a spring-dashpot-slider on the relative rolling displacement.
+    LAMMPS ``rolling sds`` (docs/lammps_laws.md section 5) on the 1D line: at each loaded
+    contact of spheres k, k+1 the relative rolling velocity v_r = R* (omega_k -
+    omega_{k+1}) (R* = R/2) winds a history rho (rho' = v_r, erased when the contact
+    opens); the moment M = -k_roll rho - gamma_roll v_r is capped at mu_roll f, and when
+    the cap is exceeded rho is return-mapped to -(mu_roll f sgn(M) + gamma_roll v_r) /
+    k_roll (spring and dashpot hold the cap, as LAMMPS stores it). Torque R* M on sphere k,
+    -R* M on sphere k+1 (equal and opposite; opposes relative spin, nothing for spheres
+    rolling together). k_roll (N/m) has no default; gamma_roll (N s/m) defaults to 0,
+    mu_roll to 0.01. Its work is sum M v_r.
 """
 from __future__ import annotations
 
