@@ -1,0 +1,224 @@
+# Figures (the chapter's panels) and the thesis comparison table, drawn from the contract's
+# tables and traces. Logic: granchain/figures.py and granchain/thesis.py; each rule is one
+# `python -m` call. Every output goes into the report (`snakemake --report report.html`)
+# with a caption from workflow/report/ (rendered with this preset's sizes).
+
+from granchain.figures import caption_sizes as figures_sizes
+
+FIG_DIR = f"{RESULTS}/figures"
+
+
+rule fig5_1a:
+    input:
+        trace=trace_path("{material}"),
+    output:
+        png=report(
+            f"{FIG_DIR}/fig5_1a_{{material}}.png",
+            caption="../report/fig5_1a.rst",
+            category="Figures",
+            subcategory="5.1 packed chain",
+            labels={"figure": "5.1a", "material": "{material}"},
+        ),
+        pdf=f"{FIG_DIR}/fig5_1a_{{material}}.pdf",
+    params:
+        sizes=figures_sizes(PRESET, P, "packed_trace"),
+    log:
+        f"{RESULTS}/logs/figures/fig5_1a_{{material}}.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    conda:
+        "../envs/granchain.yaml"
+    shell:
+        "python -m granchain.figures fig5_1a --trace {input.trace} --out {output.png}"
+        " > {log} 2>&1"
+
+
+rule fig5_1b:
+    input:
+        packed_sweep=table_path("packed_sweep"),
+    output:
+        png=report(
+            f"{FIG_DIR}/fig5_1b.png",
+            caption="../report/fig5_1b.rst",
+            category="Figures",
+            subcategory="5.1 packed chain",
+            labels={"figure": "5.1b", "material": "all"},
+        ),
+        pdf=f"{FIG_DIR}/fig5_1b.pdf",
+    params:
+        sizes=figures_sizes(PRESET, P, "packed_sweep"),
+    log:
+        f"{RESULTS}/logs/figures/fig5_1b.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    conda:
+        "../envs/granchain.yaml"
+    shell:
+        "python -m granchain.figures fig5_1b --packed-sweep {input.packed_sweep}"
+        " --out {output.png} > {log} 2>&1"
+
+
+rule fig5_1c:
+    input:
+        packed_sweep=table_path("packed_sweep"),
+    output:
+        png=report(
+            f"{FIG_DIR}/fig5_1c.png",
+            caption="../report/fig5_1c.rst",
+            category="Figures",
+            subcategory="5.1 packed chain",
+            labels={"figure": "5.1c", "material": "all"},
+        ),
+        pdf=f"{FIG_DIR}/fig5_1c.pdf",
+    params:
+        sizes=figures_sizes(PRESET, P, "packed_sweep"),
+    log:
+        f"{RESULTS}/logs/figures/fig5_1c.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    conda:
+        "../envs/granchain.yaml"
+    shell:
+        "python -m granchain.figures fig5_1c --packed-sweep {input.packed_sweep}"
+        " --out {output.png} > {log} 2>&1"
+
+
+rule fig5_3b:
+    input:
+        gap_profile=table_path("gap_profile"),
+        packed_sweep=table_path("packed_sweep"),
+    output:
+        png=report(
+            f"{FIG_DIR}/fig5_3b.png",
+            caption="../report/fig5_3b.rst",
+            category="Figures",
+            subcategory="5.3 gaps",
+            labels={"figure": "5.3b", "material": P["studies"]["gap_profile"]["material"]},
+        ),
+        pdf=f"{FIG_DIR}/fig5_3b.pdf",
+    params:
+        sizes=figures_sizes(PRESET, P, "gap_profile"),
+    log:
+        f"{RESULTS}/logs/figures/fig5_3b.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    conda:
+        "../envs/granchain.yaml"
+    shell:
+        "python -m granchain.figures fig5_3b --gap-profile {input.gap_profile}"
+        " --packed-sweep {input.packed_sweep} --out {output.png} > {log} 2>&1"
+
+
+rule fig5_3c:
+    input:
+        gap_sweep=table_path("gap_sweep"),
+        packed_sweep=table_path("packed_sweep"),
+    output:
+        png=report(
+            f"{FIG_DIR}/fig5_3c.png",
+            caption="../report/fig5_3c.rst",
+            category="Figures",
+            subcategory="5.3 gaps",
+            labels={"figure": "5.3c", "material": "all"},
+        ),
+        pdf=f"{FIG_DIR}/fig5_3c.pdf",
+    params:
+        sizes=figures_sizes(PRESET, P, "gap_sweep"),
+    log:
+        f"{RESULTS}/logs/figures/fig5_3c.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    conda:
+        "../envs/granchain.yaml"
+    shell:
+        "python -m granchain.figures fig5_3c --gap-sweep {input.gap_sweep}"
+        " --packed-sweep {input.packed_sweep} --out {output.png} > {log} 2>&1"
+
+
+rule fig5_4b:
+    input:
+        extra_length=table_path("extra_length"),
+        packed_sweep=table_path("packed_sweep"),
+    output:
+        png=report(
+            f"{FIG_DIR}/fig5_4b.png",
+            caption="../report/fig5_4b.rst",
+            category="Figures",
+            subcategory="5.4 loose chains",
+            labels={"figure": "5.4b", "material": "all"},
+        ),
+        pdf=f"{FIG_DIR}/fig5_4b.pdf",
+    params:
+        sizes=figures_sizes(PRESET, P, "extra_length"),
+    log:
+        f"{RESULTS}/logs/figures/fig5_4b.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    conda:
+        "../envs/granchain.yaml"
+    shell:
+        "python -m granchain.figures fig5_4b --extra-length {input.extra_length}"
+        " --packed-sweep {input.packed_sweep} --out {output.png} > {log} 2>&1"
+
+
+rule thesis_comparison:
+    input:
+        packed_sweep=table_path("packed_sweep"),
+        packed_trace=table_path("packed_trace"),
+        gap_profile=table_path("gap_profile"),
+        gap_sweep=table_path("gap_sweep"),
+        extra_length=table_path("extra_length"),
+        trace=trace_path("ss440c") if "ss440c" in trace_materials() else [],
+    output:
+        csv=report(
+            f"{RESULTS}/tables/thesis_comparison.csv",
+            caption="../report/thesis_comparison.rst",
+            category="Tables",
+            subcategory="thesis comparison",
+            labels={"table": "thesis_comparison", "kind": "chapter vs this project"},
+        ),
+        md=report(
+            f"{RESULTS}/tables/thesis_comparison.md",
+            caption="../report/thesis_comparison.rst",
+            category="Tables",
+            subcategory="thesis comparison",
+            labels={"table": "thesis_comparison (Markdown)", "kind": "chapter vs this project"},
+        ),
+    params:
+        trace=lambda w, input: f"--trace {input.trace}" if input.trace else "",
+        title=f"Thesis comparison (preset {PRESET})",
+        sizes={"preset": PRESET},
+    log:
+        f"{RESULTS}/logs/figures/thesis_comparison.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    conda:
+        "../envs/granchain.yaml"
+    shell:
+        "python -m granchain.thesis --packed-sweep {input.packed_sweep}"
+        " --packed-trace {input.packed_trace} --gap-profile {input.gap_profile}"
+        " --gap-sweep {input.gap_sweep} --extra-length {input.extra_length} {params.trace}"
+        " --title '{params.title}' --out-csv {output.csv} --out-md {output.md} > {log} 2>&1"
+
+
+ALL_TARGETS += expand(f"{FIG_DIR}/fig5_1a_{{material}}.{{ext}}", material=trace_materials(),
+                      ext=["png", "pdf"])
+ALL_TARGETS += expand(f"{FIG_DIR}/{{name}}.{{ext}}",
+                      name=["fig5_1b", "fig5_1c", "fig5_3b", "fig5_3c", "fig5_4b"],
+                      ext=["png", "pdf"])
+ALL_TARGETS += [f"{RESULTS}/tables/thesis_comparison.csv",
+                f"{RESULTS}/tables/thesis_comparison.md"]
