@@ -361,11 +361,9 @@ def fig5_1a(trace: dict, out) -> list[Path]:
                         arrowprops={"arrowstyle": "-", "lw": 0.6})
     # particles whose peak lies at the trace's end were cut off by the run's end time
     cut = [i + 1 for i in range(n) if int(np.argmax(v[:, i])) >= t.size - 2 or vmax[i] <= 0]
-    if cut:
-        ax.text(0.99, 0.02, f"trace ends before particle{'s' if len(cut) > 1 else ''} "
-                f"{', '.join(map(str, cut))} peak{'' if len(cut) > 1 else 's'} "
-                "(run stops after the wave passes the far probe)", transform=ax.transAxes,
-                ha="right", va="bottom", fontsize=7, color="0.3")
+    note = (f"\ntrace ends before particle{'s' if len(cut) > 1 else ''} "
+            f"{', '.join(map(str, cut))} peak{'' if len(cut) > 1 else 's'} (the run stops "
+            "once the wave has passed the far probe)") if cut else ""
     sm = ScalarMappable(cmap=cmap, norm=Normalize(1, n))
     cb = fig.colorbar(sm, ax=ax, pad=0.02)
     cb.set_label("particle index (1 = striker)")
@@ -373,7 +371,7 @@ def fig5_1a(trace: dict, out) -> list[Path]:
     ax.set_ylabel("particle velocity (mm/s)")
     ax.set_xlim(t[0], t[-1])
     ax.set_title(f"Packed {label(mat)} chain, n = {n}, striker v_s = {vs:g} m/s "
-                 f"(chapter Fig. 5.1a)")
+                 f"(chapter Fig. 5.1a)" + note, fontsize=8.5)
     fig.tight_layout()
     return save(fig, out)
 
@@ -437,6 +435,7 @@ def fig5_1b(packed: pd.DataFrame, out) -> list[Path]:
     h2.append(ax2.plot([], [], ":", color="0.35", label="chapter 0.64")[0])
     ax2.legend(handles=h2, loc="lower right")
     ax2.set_xscale("log")
+    _plain_log(ax2, "x", subs=(1.0, 2.0, 5.0))
     ax2.set_xlabel("striker velocity v_s (m/s), log scale")
     ax2.set_ylabel("v_max / v_s")
     ax2.set_title("normalised (markers as left): flat = linear law")
@@ -489,6 +488,7 @@ def fig5_1c(packed: pd.DataFrame, out) -> list[Path]:
     ax.legend(loc="upper left")
     axr.axhline(1.0, color="0.3", lw=0.8)
     axr.set_xscale("log")
+    _plain_log(axr, "x", subs=(1.0, 2.0, 5.0))
     axr.set_xlabel("striker velocity v_s (m/s), log scale")
     axr.set_ylabel("v_g / Nesterenko")
     axr.legend(loc="best", ncol=2, fontsize=6.5)
@@ -570,8 +570,8 @@ def fig5_3c(gap_sweep: pd.DataFrame, packed: pd.DataFrame, out) -> list[Path]:
     radius = radius_of(d)
     cmap = _cmap("plasma")
     gcol = {g: cmap(0.08 + 0.8 * k / max(len(gaps) - 1, 1)) for k, g in enumerate(gaps)}
-    fig, axes = _figure(ncols=len(mats), size=(5.0 * len(mats), 4.6), sharey=True,
-                        squeeze=False)
+    fig, axes = _figure(ncols=len(mats), size=(max(5.0 * len(mats), 6.4), 4.6),
+                        sharey=True, squeeze=False)
     vall = np.array(sorted(set(d["v_striker_m_s"].astype(float))))
     xx = np.geomspace(vall.min(), vall.max(), 60) if vall.size > 1 else vall
     for ax, mat in zip(axes[0], mats):
@@ -600,6 +600,7 @@ def fig5_3c(gap_sweep: pd.DataFrame, packed: pd.DataFrame, out) -> list[Path]:
                     lw=0.9)
         ax.set_xscale("log")
         ax.set_yscale("log")
+        _plain_log(ax, "x", subs=(1.0, 2.0, 5.0))
         ax.set_xlabel("striker velocity v_s (m/s), log scale")
         nr = int(dm.groupby(["gap_mean_nm", "v_striker_m_s"]).size().max())
         note = ("not arrived (excluded): " + "; ".join(missing)) if missing else \
@@ -632,8 +633,8 @@ def fig5_4b(extra: pd.DataFrame, packed: pd.DataFrame, out) -> list[Path]:
     mats = materials_in(d)
     n = n_particles(d)
     radius = radius_of(d)
-    fig, axes = _figure(ncols=len(mats), size=(4.6 * len(mats), 4.2), sharey=True,
-                        squeeze=False)
+    fig, axes = _figure(ncols=len(mats), size=(max(4.6 * len(mats), 6.4), 4.4),
+                        sharey=True, squeeze=False)
     for ax, mat in zip(axes[0], mats):
         dm = d[d["material"] == mat]
         vss = sorted(set(dm["v_striker_m_s"].astype(float)))
@@ -674,7 +675,7 @@ def fig5_4b(extra: pd.DataFrame, packed: pd.DataFrame, out) -> list[Path]:
         ax.legend(loc="upper right")
         ax.set_ylim(0, None)
     axes[0][0].set_ylabel("group velocity v_g (m/s)")
-    fig.suptitle("Loose chains: v_g vs mean gap from the extra length "
+    fig.suptitle("Loose chains: v_g vs mean gap from the extra length\n"
                  "(chapter Fig. 5.4b counterpart)", fontsize=9)
     fig.tight_layout()
     return save(fig, out)
