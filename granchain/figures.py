@@ -204,20 +204,20 @@ def vmax_fits(packed: pd.DataFrame) -> dict:
     return out
 
 
-def packed_vg(packed: pd.DataFrame, mat: str, v_striker) -> np.ndarray:
-    """Packed chain's v_g of ``mat`` at the given striker speeds.
+def packed_vg(packed: pd.DataFrame, mat: str, v_striker, column: str = "v_g_m_s") -> np.ndarray:
+    """Packed chain's v_g (``column``) of ``mat`` at the given striker speeds.
 
     Exact rows where the packed sweep has that speed (median if repeated); elsewhere
     linear interpolation in log v_g vs log v_s between the sweep's speeds, and outside
     the sweep the power law fitted to its two nearest ends (v_g ~ v_s^(1/5) for Hertz).
     """
-    require(packed, NEEDS["packed_reference"], "packed reference")
+    require(packed, NEEDS["packed_reference"] + [column], "packed reference")
     d = arrived(reference_engine(packed))
-    d = d[d["material"] == mat]
+    d = d[(d["material"] == mat) & np.isfinite(d[column].astype(float))]
     if d.empty:
         raise GranchainError(f"packed reference: no arrived packed-chain row for material "
                              f"'{mat}'; add it to studies.packed_sweep in config/config.yaml")
-    g = d.groupby("v_striker_m_s")["v_g_m_s"].median()
+    g = d.groupby("v_striker_m_s")[column].median()
     xs = np.log(g.index.to_numpy(dtype=float))
     ys = np.log(g.to_numpy(dtype=float))
     q = np.log(np.atleast_1d(np.asarray(v_striker, dtype=float)))

@@ -162,25 +162,23 @@ def test_packed_vg_is_exact_on_the_sweep_and_interpolates_between(tables):
     assert d["v_g_m_s"].iloc[0] < mid < d["v_g_m_s"].iloc[1]
 
 
-def test_gapped_chains_are_below_packed_and_near_the_eq54_bound(tables):
+def test_gapped_chains_are_below_packed_and_the_eq54_bound(tables):
     """The data the figures draw obey the chapter's claims (not a tautology: v_g comes
-    from peak times of simulated chains, the bound from the packed chain's v_g).
+    from the probes' timing in simulated chains, the bound from the packed chain's v_g).
 
-    Eq. 5.4 is not strict: between gaps the wave is carried by contacts at a speed that
-    grows as v_m^(1/5), and a gapped chain's peaks (up to v_s) exceed the packed chain's
-    (v_max,2 ~ 0.68 v_s). With the packed speed raised by (v_s / v_max,2)^(1/5), the
-    fastest any wave can be, the bound must hold for every member."""
+    With arrival (half-peak) times on both sides Eq. 5.4 bounds every chain; the chapter's
+    peak-time v_g may exceed it slightly (peak timing of reshaped pulses; <= 0.8% over 500
+    chains of 10-190 nm at 0.01-1 m/s), as tests/test_physics.py also allows."""
     packed, gs = _read(tables[0], "packed_sweep"), _read(tables[0], "gap_sweep")
-    fits = figures.vmax_fits(packed)
-    ok = figures.arrived(gs)
-    assert len(ok) > 0
-    for _, r in ok.iterrows():
-        vg0 = figures.packed_vg(packed, r["material"], r["v_striker_m_s"])[0]
-        gbar, vs = r["gap_mean_probes_nm"] * 1e-9, r["v_striker_m_s"]
-        fastest = vg0 * (1.0 / fits[r["material"]]["v_max_2"]) ** 0.2
-        assert r["v_g_m_s"] < vg0
-        assert r["v_g_m_s"] <= eq54_group_velocity(fastest, gbar, vs, 150e-6)
-        assert r["v_g_m_s"] <= 1.05 * eq54_group_velocity(vg0, gbar, vs, 150e-6)
+    b = thesis.bound_ratios(gs, packed, 150e-6)
+    assert len(b) == len(figures.arrived(gs)) > 0
+    assert (b["v_g_m_s"] < 0.97 * b["vg_packed"]).all()
+    assert (b["r_front"] <= 1.0).all(), b["r_front"].max()
+    assert (b["r_peak"] <= 1.02).all(), b["r_peak"].max()
+    for _, r in b.iterrows():      # the ratio is the one Eq. 5.4 gives by hand
+        bound = eq54_group_velocity(r["vg_packed"], r["gap_mean_probes_nm"] * 1e-9,
+                                    r["v_striker_m_s"], 150e-6)
+        assert r["r_peak"] == pytest.approx(r["v_g_m_s"] / bound, rel=1e-12)
 
 
 def test_oscillation_measure():
