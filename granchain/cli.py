@@ -1,4 +1,4 @@
-"""Command line: ``granchain validate|run|deck SCENE.yaml``.
+"""Command line: ``granchain validate|run|deck|compare SCENE.yaml``.
 
 Errors a user can cause print one line, ``granchain: error: ...``, and exit with 2.
 """
@@ -74,7 +74,7 @@ def cmd_run(args) -> int:
     scene = load_scene(args.scene, args.set)
     if args.out:
         _check_new(Path(args.out), args.force)     # refuse before spending the compute
-    runs = run_scene(scene, engine=args.engine)
+    runs = run_scene(scene, engine=args.engine, **_engine_kw(args))
     if len(runs) == 1:
         doc = dict(runs[0], scene=scene.name, scene_hash=scene.hash)
     else:
@@ -86,6 +86,81 @@ def cmd_run(args) -> int:
     if args.out:
         _write_new(Path(args.out), json.dumps(_jsonable(doc), indent=1) + "\n", args.force)
     return 0
+
+
+def _engine_kw(args) -> dict:
+    """Options of the LAMMPS engine (refused with the reference engine)."""
+    kw = {}
+    if args.np is not None or args.workdir is not None:
+        if args.engine != "lammps":
+            raise GranchainError("--np and --workdir are options of the LAMMPS engine; add "
+                                 "--engine lammps or drop them")
+        if args.np is not None:
+            if args.np < 1:
+                raise GranchainError(f"--np: must be >= 1 (got {args.np})")
+            kw["nprocs"] = args.np
+        if args.workdir is not None:
+            kw["workdir"] = Path(args.workdir)
+            kw["force"] = args.force
+    return kw
+
+
+def _cell(x, digits=6):
+    import numpy as np
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "-"
+    if isinstance(x, (int, np.integer)):
+        return str(int(x))
+    return f"{x:.{digits}g}"
+
+
+def _print_comparison(cmp, out=sys.stdout) -> None:
+    m = cmp.meta
+    print(f"compare {m['scene']} ({m['scene_hash']}): reference velocity Verlet vs LAMMPS "
+          f"{m['lammps_version']}, dt = {m['dt']:g} s, samples every {m['sample_dt']:.6g} s, "
+          f"{m['chains']} chain(s); walls: reference {m['reference_wall_s']:.3g} s, LAMMPS "
+          f"{m['lammps_wall_s']:.3g} s ({m['nprocs']} rank(s))", file=out)
+    rows = cmp.rows if m["chains"] == 1 else cmp.worst()
+    if m["chains"] > 1:
+        print("worst member for each quantity (all rows: --json)", file=out)
+    whys = {}
+    table = []
+    for r in rows.to_dict("records"):
+        key = whys.setdefault(r["why"], chr(ord("a") + len(whys)))
+        ok = r["ok"] if isinstance(r["ok"], bool) else None
+        tol = r["tolerance"]
+        table.append([r["quantity"] + ("" if m["chains"] == 1 else f" (#{r['member']})"),
+                      _cell(r["reference"], 10), _cell(r["lammps"], 10), _cell(r["diff"], 3),
+                      r["measure"], _cell(tol, 2), "ok" if ok else ("FAIL" if ok is False else "-"),
+                      f"[{key}]"])
+    head = ["quantity", "reference", "lammps", "diff", "measure", "tolerance", "check", "why"]
+    widths = [max(len(str(row[i])) for row in table + [head]) for i in range(len(head))]
+    for row in [head] + table:
+        print("  ".join(str(c).ljust(w) for c, w in zip(row, widths)).rstrip(), file=out)
+    for why, key in whys.items():
+        print(f"[{key}] {why}", file=out)
+    bad = cmp.failures()
+    print(f"{'all tolerances met' if cmp.ok else f'{len(bad)} tolerance(s) missed'}", file=out)
+
+
+def cmd_compare(args) -> int:
+    from .compare import compare
+    scene = load_scene(args.scene, args.set)
+    if args.out:
+        _check_new(Path(args.out), args.force)
+    if args.np < 1:
+        raise GranchainError(f"--np: must be >= 1 (got {args.np})")
+    cmp = compare(scene, nprocs=args.np,
+                  workdir=Path(args.workdir) if args.workdir else None, force=args.force)
+    doc = {"scene": scene.name, "scene_hash": scene.hash, "ok": cmp.ok, "meta": cmp.meta,
+           "rows": cmp.rows.astype(object).where(cmp.rows.notna(), None).to_dict("records")}
+    if args.json and not args.out:
+        print(json.dumps(_jsonable(doc)))
+    elif not args.json:
+        _print_comparison(cmp)
+    if args.out:
+        _write_new(Path(args.out), json.dumps(_jsonable(doc), indent=1) + "\n", args.force)
+    return 0 if cmp.ok else 1
 
 
 def cmd_deck(args) -> int:
@@ -114,8 +189,24 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--engine", default="reference", choices=["reference", "lammps"])
     sp.add_argument("--json", action="store_true", help="print one JSON object")
     sp.add_argument("--out", help="also write the JSON results to this new file")
-    sp.add_argument("--force", action="store_true", help="allow --out to replace an existing file")
+    sp.add_argument("--force", action="store_true",
+                    help="allow --out (and a non-empty --workdir) to be replaced")
+    sp.add_argument("--np", type=int, default=None, metavar="N",
+                    help="LAMMPS engine: MPI ranks (mpirun -np N; default 1)")
+    sp.add_argument("--workdir", metavar="DIR",
+                    help="LAMMPS engine: keep deck, dump and log in DIR (must be empty)")
     sp.set_defaults(func=cmd_run)
+
+    sp = sub.add_parser("compare", help="run a scene through the reference engine and LAMMPS "
+                                        "and tabulate the differences")
+    scene_args(sp)
+    sp.add_argument("--json", action="store_true", help="print one JSON object (every row)")
+    sp.add_argument("--out", help="also write the JSON document to this new file")
+    sp.add_argument("--force", action="store_true",
+                    help="allow --out (and a non-empty --workdir) to be replaced")
+    sp.add_argument("--np", type=int, default=1, metavar="N", help="LAMMPS MPI ranks (default 1)")
+    sp.add_argument("--workdir", metavar="DIR", help="keep the LAMMPS deck, dump and log in DIR")
+    sp.set_defaults(func=cmd_compare)
 
     sp = sub.add_parser("deck", help="write a LAMMPS input deck for a scene")
     scene_args(sp)

@@ -60,16 +60,21 @@ E_KT, E_KR, E_H, E_WG, E_WD, E_WT, E_WR = range(len(ENERGY_COLUMNS))
 UM = 1e-6          # um -> m
 ENERGY = 1e-15     # 1e-15 J -> J
 RAD_PER_US = 1e6   # rad/us -> rad/s
+PARALLEL_READ_BYTES = 200e6   # dumps larger than this are read by several processes
+MAX_READERS = 4
 
 
 def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: bool = False,
         force: bool = False, dt: float | None = None, progress: bool | None = None,
-        timeout: float | None = None, velocities: str = "float64"):
+        timeout: float | None = None, velocities: str = "float64", readers: int | None = None):
     """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s.
 
     workdir: directory for deck, dump and log; default a temporary directory, removed
-    afterwards unless ``keep``. A given directory is kept; it must be empty or absent
-    unless ``force``. ``dt`` overrides the scene's time step.
+    afterwards unless ``keep`` (and kept when the run fails, for the error message names
+    its deck or dump). A given directory is kept; it must be empty or absent unless
+    ``force``. ``dt`` overrides the scene's time step. ``nprocs``: MPI ranks of the
+    one LAMMPS run. ``velocities``, ``readers``: see :func:`read_dump`; by default a
+    dump above PARALLEL_READ_BYTES is read by as many processes as there are cores.
     """
     gaps = np.atleast_2d(np.asarray(gaps, dtype=float))
     B = gaps.shape[0]
@@ -107,19 +112,28 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         if progress:
             print(f"[granchain] {scene.name}: LAMMPS done in {lrun.wall_time:.1f} s; reading "
                   f"{wd / deckmod.DUMP_NAME} ...", file=sys.stderr, flush=True)
-        data = read_dump(wd / deckmod.DUMP_NAME, scene, pl, velocities=velocities)
+        dump = wd / deckmod.DUMP_NAME
+        if readers is None:
+            big = dump.is_file() and dump.stat().st_size > PARALLEL_READ_BYTES
+            readers = min(os.cpu_count() or 1, MAX_READERS) if big else 1
+        data = read_dump(dump, scene, pl, velocities=velocities, readers=readers)
         wall = time.perf_counter() - t0
         meta_common = {"method": METHOD, "dt": scene.dt, "sample_dt": pl.sample_dt,
                        "nprocs": nprocs, "lammps_version": lammps_version(),
                        "lammps_wall_s": lrun.wall_time, "batch_wall_s": wall,
+                       "read_wall_s": wall - lrun.wall_time, "readers": readers,
                        "velocities": velocities,
                        "balance": "residual" if residual_balance(scene) else "independent"}
         if keep or not tmp:
             meta_common["deck"] = str(deck)
         trajs = list(_trajectories(scene, pl, data, wall / B, meta_common))
-    finally:
-        if tmp and not keep:
+    except BaseException:
+        # a failed run keeps its directory: the error message names its deck or dump
+        if tmp and not keep and not (wd / deckmod.DECK_NAME).exists():
             shutil.rmtree(wd, ignore_errors=True)
+        raise
+    if tmp and not keep:
+        shutil.rmtree(wd, ignore_errors=True)
     yield from trajs
 
 
@@ -143,20 +157,20 @@ def residual_balance(scene: Scene) -> bool:
     return scene.has("particle_friction") or scene.has("rolling_friction")
 
 
-def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: str = "float64"):
+def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: str = "float64",
+              readers: int = 1):
     """Read a deck's dump with MDAnalysis into per-chain arrays.
 
     Returns a dict: ``step`` (S,), ``v`` (S, B, n) m/s and ``energy`` (S, B, 7) J.
+    ``readers`` > 1 splits the frames between that many processes (each opens the dump
+    with MDAnalysis and reads its share; worth it for dumps of millions of lines).
     Raises GranchainError (one line, naming the dump) if it is missing, truncated or
     does not match the plan.
     """
-    import MDAnalysis as mda
-
     if velocities not in ("float64", "float32"):
         raise GranchainError(f"read_dump: velocities must be 'float64' or 'float32' (got {velocities!r})")
     path = Path(path)
     B, n = pl.n_chains, pl.n
-    N = B * n
     if not path.is_file() or path.stat().st_size == 0:
         raise GranchainError(f"LAMMPS dump {path} is missing or empty: the run wrote no "
                              "trajectory (see log.lammps next to it)")
@@ -168,48 +182,28 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     missing = [c for c in extra if c not in pl.dump_columns]
     if missing:
         raise GranchainError(f"LAMMPS dump {path}: the deck does not dump {', '.join(missing)}")
-    D = 2.0 * deckmod.to_micro(scene.radius, "length")
-    m, K = terms.m, terms.hertz.K
-    inertia = terms.rotation.inertia if rot else 0.0
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")       # no masses/types in a dump: MDAnalysis warns
-            u = mda.Universe(str(path), topology_format="LAMMPSDUMP", format="LAMMPSDUMP",
-                             additional_columns=extra)
-            traj = u.trajectory
-            S = traj.n_frames
-            if u.atoms.n_atoms != N:
-                raise GranchainError(f"LAMMPS dump {path} holds {u.atoms.n_atoms} atoms; the "
-                                     f"deck has {B} chain(s) x {n} = {N}")
-            if S > pl.nsamples or (not pl.auto and S != pl.nsamples):
-                raise GranchainError(f"LAMMPS dump {path} is truncated: {S} of "
-                                     f"{pl.nsamples} samples (did the run stop early?)")
-            step = np.empty(S, dtype=np.int64)
-            V = np.empty((S, B, n))
-            E = np.zeros((S, B, len(ENERGY_COLUMNS)))
-            for s, ts in enumerate(traj):
-                step[s] = ts.data["step"]
-                data = ts.data
-                if velocities == "float64":
-                    v = data["vx"].reshape(B, n)
-                else:
-                    v = ts.velocities[:, 0].astype(np.float64).reshape(B, n)
-                V[s] = v
-                x = data["x"].reshape(B, n)
-                E[s, :, E_KT] = 0.5 * m * np.sum(v * v, axis=1)
-                if rot:
-                    w = data["omegay"].reshape(B, n) * RAD_PER_US
-                    E[s, :, E_KR] = 0.5 * inertia * np.sum(w * w, axis=1)
-                delta = np.maximum((D - (x[:, 1:] - x[:, :-1])) * UM, 0.0)
-                E[s, :, E_H] = np.sum(0.4 * K * delta * delta * np.sqrt(delta), axis=1)
-                for col, name in wcols.items():
-                    if name:
-                        E[s, :, col] = np.sum(data[name].reshape(B, n), axis=1) * ENERGY
-    except GranchainError:
-        raise
-    except (ValueError, IndexError, EOFError, OSError, KeyError) as exc:
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise GranchainError(f"LAMMPS dump {path} is truncated or unreadable: {msg}") from None
+    job = {"path": str(path), "B": B, "n": n, "extra": extra, "velocities": velocities,
+           "rot": rot, "wcols": {k: v for k, v in wcols.items() if v},
+           "D": 2.0 * deckmod.to_micro(scene.radius, "length"), "m": terms.m,
+           "K": terms.hertz.K, "I": terms.rotation.inertia if rot else 0.0}
+    readers = max(1, int(readers))
+    if readers == 1:
+        parts = [_read_part(job, 0, 1)]
+    else:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+        # fork: the workers run only numpy and MDAnalysis; spawn would re-import the
+        # caller's __main__ (and fail in scripts without a __main__ guard)
+        with ProcessPoolExecutor(readers, mp_context=mp.get_context("fork")) as ex:
+            parts = list(ex.map(_read_part, [job] * readers, range(readers), [readers] * readers))
+    S = parts[0][0]
+    step = np.concatenate([p[1] for p in parts])
+    V = np.concatenate([p[2] for p in parts])
+    E = np.concatenate([p[3] for p in parts])
+    if S > pl.nsamples or (not pl.auto and S != pl.nsamples) or (
+            pl.auto and S < pl.nsamples and not _halted(path)):
+        raise GranchainError(f"LAMMPS dump {path} is truncated: {S} of {pl.nsamples} "
+                             "samples and the run was not halted by its stop rule")
     expected = np.arange(S, dtype=np.int64) * pl.every
     if S == 0 or not np.array_equal(step, expected):
         raise GranchainError(f"LAMMPS dump {path}: its steps are not 0, {pl.every}, "
@@ -218,6 +212,60 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
         mech = E[:, :, E_KT] + E[:, :, E_KR] + E[:, :, E_H]
         E[:, :, E_WT] = mech - mech[0] - E[:, :, E_WG] - E[:, :, E_WD]
     return {"step": step, "v": V, "energy": E}
+
+
+def _halted(dump: Path) -> bool:
+    """Did the run that wrote ``dump`` stop by its fix halt (log.lammps next to it)?"""
+    try:
+        return "Fix halt condition" in (dump.parent / "log.lammps").read_text(errors="replace")
+    except OSError:
+        return False
+
+
+def _read_part(job: dict, part: int, nparts: int):
+    """Frames [part*S/nparts, (part+1)*S/nparts) of a dump: (S, step, V, E)."""
+    import MDAnalysis as mda
+
+    path, B, n = job["path"], job["B"], job["n"]
+    m, K, inertia, D = job["m"], job["K"], job["I"], job["D"]
+    wcols = {int(k): v for k, v in job["wcols"].items()}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")       # no masses/types in a dump: MDAnalysis warns
+            u = mda.Universe(path, topology_format="LAMMPSDUMP", format="LAMMPSDUMP",
+                             additional_columns=job["extra"])
+            traj = u.trajectory
+            S = traj.n_frames
+            if u.atoms.n_atoms != B * n:
+                raise GranchainError(f"LAMMPS dump {path} holds {u.atoms.n_atoms} atoms; the "
+                                     f"deck has {B} chain(s) x {n} = {B * n}")
+            lo, hi = part * S // nparts, (part + 1) * S // nparts
+            step = np.empty(hi - lo, dtype=np.int64)
+            V = np.empty((hi - lo, B, n))
+            E = np.zeros((hi - lo, B, len(ENERGY_COLUMNS)))
+            for s, ts in enumerate(traj[lo:hi]):
+                data = ts.data
+                step[s] = data["step"]
+                if job["velocities"] == "float64":
+                    v = data["vx"].reshape(B, n)
+                else:
+                    v = ts.velocities[:, 0].astype(np.float64).reshape(B, n)
+                V[s] = v
+                x = data["x"].reshape(B, n)
+                E[s, :, E_KT] = 0.5 * m * np.sum(v * v, axis=1)
+                if job["rot"]:
+                    w = data["omegay"].reshape(B, n) * RAD_PER_US
+                    E[s, :, E_KR] = 0.5 * inertia * np.sum(w * w, axis=1)
+                delta = np.maximum((D - (x[:, 1:] - x[:, :-1])) * UM, 0.0)
+                E[s, :, E_H] = np.sum(0.4 * K * delta * delta * np.sqrt(delta), axis=1)
+                for col, name in wcols.items():
+                    E[s, :, col] = np.sum(data[name].reshape(B, n), axis=1) * ENERGY
+    except GranchainError:
+        raise
+    except (ValueError, IndexError, EOFError, OSError, KeyError, TypeError) as exc:
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise GranchainError(f"LAMMPS dump {path} is truncated or unreadable: {msg}") from None
+    return S, step, V, E
 
 
 def _trajectories(scene, pl, data, wall_each, meta_common):

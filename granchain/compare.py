@@ -1,0 +1,173 @@
+"""Cross-validation: the same scene through the reference engine and LAMMPS.
+
+``compare(scene)`` runs every member of the scene through the reference engine with
+velocity Verlet at the LAMMPS time step (the scene's dt) and through one batched LAMMPS
+run, on the same sample grid, and returns a :class:`Comparison` whose ``rows`` (a pandas
+DataFrame, one row per member and quantity) hold both values, their difference, the
+tolerance it must meet and why. ``granchain compare`` formats it; the workflow reuses it.
+
+Both engines apply the same laws (docs/lammps_laws.md) with the same integrator and
+step, so they differ by rounding only: measured <= 2e-9 relative on v_max and v_g and
+<= 6e-10 E0 on the energy terms (docs/lammps_engine.md). The tolerances below are far
+tighter than the 1e-3 the issue asks for, yet keep >= 500x headroom over rounding; at
+1e-3 a missing groove friction or air drag term (~1e-4 on v_max over one pass of the
+wave) would go unnoticed.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import GranchainError
+from .observables import ARRIVAL_THRESHOLD, summarize
+from .scene import Scene
+from .trajectory import ENERGY_COLUMNS
+
+V_TOL = 1e-6       # relative, v_max of every particle, v_max_1, v_max_2, v_g, v_g_front
+T_TOL = 1e-6       # relative, dt_peak, dt_front
+E_TOL = 1e-7       # |difference| / E0, every energy-ledger entry
+
+WHY_V = ("issue: 1e-3; same law and Verlet: rounding only (measured <= 2e-9); "
+         "1e-3 would miss a dropped groove/drag term (~1e-4)")
+WHY_T = "same integrator and sample grid: peak times differ by rounding only (measured <= 1e-10)"
+WHY_E = ("energies and works of the same steps: rounding only (measured <= 6e-10 E0); "
+         "groove and drag works are ~1e-3 E0")
+WHY_SAMPLES = "both engines must stop on the same sample (same grid, same stop rule)"
+WHY_RESIDUAL = ("not independent: LAMMPS has no per-atom contact-friction work; this is "
+                "the residual of its energy balance")
+WHY_BALANCE_RESIDUAL = "not independent: the LAMMPS ledger balances by construction (residual)"
+WHY_BALANCE = "both balances carry the same Verlet error"
+
+
+@dataclass
+class Comparison:
+    scene: Scene                  # the scene as compared (verlet, fixed sample grid)
+    rows: "object"                # pandas.DataFrame
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        checked = self.rows[self.rows["ok"].notna()]
+        return bool(checked["ok"].astype(bool).all())
+
+    def failures(self):
+        return self.rows[self.rows["ok"].eq(False)]
+
+    def worst(self):
+        """The worst row of each quantity over the members (largest diff / tolerance;
+        failed rows first)."""
+        df = self.rows.copy()
+        score = []
+        for d, t, ok in zip(df["diff"], df["tolerance"], df["ok"]):
+            if ok is False:
+                score.append(math.inf)
+            elif t is None or not (isinstance(t, float) and math.isfinite(t)):
+                score.append(-1.0 if d is None or not math.isfinite(d) else d)
+            else:
+                score.append(d / t if t > 0 else d)
+        df["_score"] = score
+        idx = df.groupby("quantity", sort=False)["_score"].idxmax()
+        return df.loc[idx].drop(columns="_score").reset_index(drop=True)
+
+
+def comparison_scene(scene: Scene) -> Scene:
+    """The scene both engines run: velocity Verlet, and the LAMMPS deck's sample grid
+    (its finest member's) fixed for every member, so the two records share one grid."""
+    from .engines.lammps import derive_scene
+    from .lammps.deck import plan
+    from .simulate import member_gaps, members
+    mem = members(scene)
+    pl = plan(scene, gaps=member_gaps(scene, mem), v_striker=[m.v_striker for m in mem])
+    return derive_scene(scene, {"integrator.method": "verlet", "output.sample_dt": pl.sample_dt})
+
+
+def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
+            keep: bool = False) -> Comparison:
+    """Run both engines on every member of ``scene`` and tabulate the differences."""
+    import pandas as pd
+
+    from .engines import lammps as lmp_engine
+    from .engines import reference
+    from .simulate import member_gaps, members
+
+    cs = comparison_scene(scene)
+    mem = members(cs)
+    if not mem:
+        raise GranchainError("compare: the scene has no members (no striker speed)")
+    gaps = member_gaps(cs, mem)
+    vs = np.array([m.v_striker for m in mem])
+    t0 = time.perf_counter()
+    try:
+        ref = list(reference.run(cs, gaps, vs, method="verlet", dt=cs.dt, progress=False))
+    except NotImplementedError as exc:
+        raise GranchainError(f"compare: the reference engine cannot run this scene: {exc}") from None
+    t1 = time.perf_counter()
+    lmp = list(lmp_engine.run(cs, gaps, vs, nprocs=nprocs, workdir=workdir, force=force,
+                              keep=keep, progress=False))
+    t2 = time.perf_counter()
+    rows = []
+    for m, r, lt in zip(mem, ref, lmp):
+        for row in member_rows(cs, r, lt):
+            rows.append(dict(member=m.index, realisation=m.realisation, v_striker=m.v_striker,
+                             **row))
+    df = pd.DataFrame(rows, columns=["member", "realisation", "v_striker", "quantity",
+                                     "reference", "lammps", "diff", "measure", "tolerance",
+                                     "ok", "why"])
+    meta = {"scene": scene.name, "scene_hash": scene.hash, "compared_scene_hash": cs.hash,
+            "chains": len(mem), "dt": cs.dt, "sample_dt": lmp[0].meta.get("sample_dt"),
+            "nprocs": nprocs, "reference_wall_s": t1 - t0, "lammps_wall_s": t2 - t1,
+            "lammps_version": lmp[0].meta.get("lammps_version"),
+            "balance": lmp[0].meta.get("balance"), "deck": lmp[0].meta.get("deck"),
+            "tolerances": {"v": V_TOL, "t": T_TOL, "energy_over_E0": E_TOL}}
+    return Comparison(cs, df, meta)
+
+
+def _rel(a: float, b: float, floor: float) -> float:
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return 0.0 if (math.isnan(a) and math.isnan(b)) else math.inf
+    return abs(b - a) / max(abs(a), floor)
+
+
+def _row(q, a, b, diff, measure, tol, why):
+    ok = None if tol is None else bool(diff <= tol)
+    return {"quantity": q, "reference": a, "lammps": b, "diff": diff, "measure": measure,
+            "tolerance": tol, "ok": ok, "why": why}
+
+
+def member_rows(scene: Scene, ref, lmp) -> list[dict]:
+    """Rows of one member: both trajectories' observables side by side."""
+    sr, sl = summarize(ref, scene.probes), summarize(lmp, scene.probes)
+    vfloor = ARRIVAL_THRESHOLD * max(ref.v_striker, 1e-300)
+    out = [_row("samples", int(ref.t.size), int(lmp.t.size),
+                float(abs(int(ref.t.size) - int(lmp.t.size))), "exact", 0.0, WHY_SAMPLES)]
+    for i, (a, b) in enumerate(zip(sr["v_max"], sl["v_max"])):
+        out.append(_row(f"v_max[{i + 1}]", a, b, _rel(a, b, vfloor), "rel", V_TOL, WHY_V))
+    for q in ("v_max_1", "v_max_2"):
+        out.append(_row(q, sr[q], sl[q], _rel(sr[q], sl[q], vfloor), "rel", V_TOL, WHY_V))
+    for q in ("dt_peak", "dt_front"):
+        out.append(_row(q, sr[q], sl[q], _rel(sr[q], sl[q], 0.0), "rel", T_TOL, WHY_T))
+    for q in ("v_g", "v_g_front"):
+        out.append(_row(q, sr[q], sl[q], _rel(sr[q], sl[q], 0.0), "rel", V_TOL, WHY_V))
+    er, el = sr["energy"], sl["energy"]
+    e0 = er["initial"] if er["initial"] > 0 else 1.0
+    residual = lmp.meta.get("balance") == "residual"
+    for q in ENERGY_COLUMNS + ("initial", "final_mechanical"):
+        a, b = er[q], el[q]
+        if residual and q == "work_particle_friction":
+            a = er["work_particle_friction"] + er["work_rolling_friction"]
+            out.append(_row("work_particle_friction+work_rolling_friction", a, b,
+                            abs(b - a) / e0, "abs/E0", None, WHY_RESIDUAL))
+            continue
+        if residual and q == "work_rolling_friction":
+            continue
+        out.append(_row(q, a, b, abs(b - a) / e0, "abs/E0", E_TOL, WHY_E))
+    a, b = er["balance_error"], el["balance_error"]
+    if residual:
+        out.append(_row("balance_error", a, b, abs(b - a), "abs (of /E0)", None,
+                        WHY_BALANCE_RESIDUAL))
+    else:
+        out.append(_row("balance_error", a, b, abs(b - a), "abs (of /E0)", E_TOL, WHY_BALANCE))
+    return out
