@@ -10,6 +10,7 @@ docs/scenes.md.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import difflib
 import hashlib
 import json
@@ -26,7 +27,7 @@ from .materials import Material, library
 EFFECTS = ("hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
            "rolling_friction")
 GAP_DISTRIBUTIONS = ("none", "fixed", "uniform", "exponential", "list", "from_length")
-METHODS = ("rk4", "verlet", "adaptive")
+METHODS = ("rk4", "verlet", "adaptive", "auto")
 TANGENTIAL_MODELS = ("mindlin", "linear_history")
 
 # Default scene: the chapter's packed 440C chain (15 spheres, R = 150 um, v_s = 0.1 m/s,
@@ -91,6 +92,9 @@ class Scene:
     sample_dt: float | None          # None: auto
     realisations: int
     spec: dict = field(repr=False, compare=False)   # normalised mapping (for hashing, decks)
+    # method auto: the requested relative error on v_g (method, dt, tolerance hold the
+    # setting it resolved to; granchain/cost.py resolve_auto)
+    auto_tolerance: float | None = None
 
     # --- derived quantities -------------------------------------------------------------
     @property
@@ -386,8 +390,8 @@ def scene_from_dict(raw: dict) -> Scene:
     dt = _num(spec, "integrator.dt", positive=True, fix="give the time step in seconds, e.g. 1e-9")
     tol = _num(spec, "integrator.tolerance", positive=True, allow_none=True, hi=0.1,
                fix="give a relative tolerance such as 1e-6")
-    if method == "adaptive" and tol is None:
-        tol = 1e-8
+    if method in ("adaptive", "auto") and tol is None:
+        tol = 1e-8 if method == "adaptive" else 1e-4
         spec["integrator"]["tolerance"] = tol
 
     t_end_raw = spec["t_end"]
@@ -396,9 +400,6 @@ def scene_from_dict(raw: dict) -> Scene:
     sd = spec["output"]["sample_dt"]
     sample_dt = None if sd == "auto" else _num(spec, "output.sample_dt", positive=True,
                                                fix="give seconds or 'auto'")
-    if sample_dt is not None and sample_dt < dt * (1 - 1e-9):
-        raise SceneError("output.sample_dt", f"{sample_dt:g} s is shorter than the step {dt:g} s",
-                         "sample no faster than once per step")
     realisations = _num(spec, "ensemble.realisations", integer=True, lo=1,
                         fix="give a whole number of gap realisations >= 1")
 
@@ -414,6 +415,15 @@ def scene_from_dict(raw: dict) -> Scene:
         probes=tuple(pr), method=method, dt=dt, tolerance=tol, t_end=t_end,
         sample_dt=sample_dt, realisations=realisations, spec=spec,
     )
+    if method == "auto":
+        # the cheapest setting meeting the tolerance on v_g, from the measured cost model
+        from .cost import resolve_auto
+        m, dt_r, rtol = resolve_auto(scene)
+        scene = dataclasses.replace(scene, method=m, dt=dt_r, tolerance=rtol, auto_tolerance=tol)
+    if scene.sample_dt is not None and scene.sample_dt < scene.dt * (1 - 1e-9):
+        raise SceneError("output.sample_dt",
+                         f"{scene.sample_dt:g} s is shorter than the step {scene.dt:g} s",
+                         "sample no faster than once per step")
     _check_step(scene)
     return scene
 
