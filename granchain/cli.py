@@ -114,7 +114,8 @@ def _cell(x, digits=6):
     return f"{x:.{digits}g}"
 
 
-def _print_comparison(cmp, out=sys.stdout) -> None:
+def _print_comparison(cmp, out=None) -> None:
+    out = out or sys.stdout
     m = cmp.meta
     print(f"compare {m['scene']} ({m['scene_hash']}): reference velocity Verlet vs LAMMPS "
           f"{m['lammps_version']}, dt = {m['dt']:g} s, samples every {m['sample_dt']:.6g} s, "

@@ -7,7 +7,7 @@ DataFrame, one row per member and quantity) hold both values, their difference, 
 tolerance it must meet and why. ``granchain compare`` formats it; the workflow reuses it.
 
 Both engines apply the same laws (docs/lammps_laws.md) with the same integrator and
-step, so they differ by rounding only: measured <= 2e-9 relative on v_max and v_g and
+step, so they differ by rounding only: measured <= 3e-9 relative on v_max and v_g and
 <= 6e-10 E0 on the energy terms (docs/lammps_engine.md). The tolerances below are far
 tighter than the 1e-3 the issue asks for, yet keep >= 500x headroom over rounding; at
 1e-3 a missing groove friction or air drag term (~1e-4 on v_max over one pass of the
@@ -30,11 +30,11 @@ V_TOL = 1e-6       # relative, v_max of every particle, v_max_1, v_max_2, v_g, v
 T_TOL = 1e-6       # relative, dt_peak, dt_front
 E_TOL = 1e-7       # |difference| / E0, every energy-ledger entry
 
-WHY_V = ("issue: 1e-3; same law and Verlet: rounding only (measured <= 2e-9); "
+WHY_V = ("issue: 1e-3; same law and Verlet: rounding only (measured <= 3e-9); "
          "1e-3 would miss a dropped groove/drag term (~1e-4)")
 WHY_T = "same integrator and sample grid: peak times differ by rounding only (measured <= 1e-10)"
-WHY_E = ("energies and works of the same steps: rounding only (measured <= 6e-10 E0); "
-         "groove and drag works are ~1e-3 E0")
+WHY_E = ("same steps: rounding only (measured <= 6e-10 E0); 1e-7 E0 still resolves "
+         "the groove (~1e-3 E0) and drag (~1e-4 E0) works")
 WHY_SAMPLES = "both engines must stop on the same sample (same grid, same stop rule)"
 WHY_RESIDUAL = ("not independent: LAMMPS has no per-atom contact-friction work; this is "
                 "the residual of its energy balance")

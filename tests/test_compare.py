@@ -1,0 +1,84 @@
+"""granchain.compare and ``granchain compare``: the table, its tolerances, exit status."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import granchain.compare as C
+from granchain.cli import main as cli_main
+from granchain.trajectory import ENERGY_COLUMNS
+from tests.conftest import packed
+
+pytestmark = pytest.mark.lammps
+
+HERTZ = ["--set", "effects=[hertz]"]
+
+
+@pytest.fixture
+def scene_yaml(repo):
+    return str(repo / "granchain/scenes/packed-440c.yaml")
+
+
+def test_rows_of_a_hertz_chain():
+    cmp = C.compare(packed())
+    df = cmp.rows
+    assert list(df.columns) == ["member", "realisation", "v_striker", "quantity", "reference",
+                                "lammps", "diff", "measure", "tolerance", "ok", "why"]
+    q = df.quantity.tolist()
+    assert q[0] == "samples" and [f"v_max[{i}]" for i in range(1, 16)] == q[1:16]
+    for name in ("v_max_1", "v_max_2", "dt_peak", "v_g", "v_g_front", "balance_error",
+                 *ENERGY_COLUMNS):
+        assert name in q
+    assert df.ok.map(lambda x: x is True).all() and cmp.ok     # every row checked and met
+    vrows = df.quantity.str.startswith("v_")
+    assert vrows.sum() == 15 + 4 and (df.loc[vrows, "tolerance"] == C.V_TOL).all()
+    assert (df.loc[df.quantity.str.startswith("dt_"), "tolerance"] == C.T_TOL).all()
+    assert cmp.meta["balance"] == "independent"
+    assert cmp.scene.method == "verlet" and cmp.scene.sample_dt == pytest.approx(9e-9)
+    # the reference's own ledger is the yardstick: its balance error is Verlet's
+    bal = df[df.quantity == "balance_error"].iloc[0]
+    assert 1e-8 < bal.reference < 1e-5 and bal["diff"] < 1e-9
+
+
+def test_contact_friction_rows_are_marked_not_independent():
+    cmp = C.compare(packed(effects="[hertz, rotation, particle_friction]"))
+    df = cmp.rows
+    assert "work_particle_friction" not in df.quantity.tolist()
+    row = df[df.quantity == "work_particle_friction+work_rolling_friction"].iloc[0]
+    assert row.ok is None and "not independent" in row.why
+    bal = df[df.quantity == "balance_error"].iloc[0]
+    assert bal.ok is None and bal.lammps < 1e-12
+    assert cmp.ok and cmp.meta["balance"] == "residual"
+
+
+def test_cli_table_and_exit_status(scene_yaml, capsys, monkeypatch):
+    assert cli_main(["compare", scene_yaml, *HERTZ]) == 0
+    out = capsys.readouterr().out
+    assert "v_max[15]" in out and "v_g" in out and "kinetic_translational" in out
+    assert "[b] issue: 1e-3" in out and out.rstrip().endswith("all tolerances met")
+    monkeypatch.setattr(C, "V_TOL", 0.0)            # nothing agrees to the last bit
+    assert cli_main(["compare", scene_yaml, *HERTZ]) == 1
+    out = capsys.readouterr().out
+    assert "FAIL" in out and "tolerance(s) missed" in out
+
+
+def test_cli_json_and_out(scene_yaml, tmp_path, capsys):
+    out = tmp_path / "cmp.json"
+    assert cli_main(["compare", scene_yaml, *HERTZ, "--json", "--out", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["ok"] is True and doc["scene"] == "packed-440c"
+    assert {r["quantity"] for r in doc["rows"]} >= {"v_max[1]", "v_g", "hertz_potential"}
+    assert doc["meta"]["tolerances"] == {"v": C.V_TOL, "t": C.T_TOL, "energy_over_E0": C.E_TOL}
+    assert cli_main(["compare", scene_yaml, *HERTZ, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "exists" in err and err.count("\n") == 1
+
+
+def test_ensemble_table_shows_worst_member(scene_yaml, capsys):
+    assert cli_main(["compare", scene_yaml, *HERTZ, "--set", "gaps.distribution=uniform",
+                     "--set", "gaps.mean=20e-9", "--set", "ensemble.realisations=3",
+                     "--set", "probes=[2, 6]"]) == 0
+    out = capsys.readouterr().out
+    assert "3 chain(s)" in out and "worst member" in out
+    assert sum(line.startswith("v_g ") for line in out.splitlines()) == 1

@@ -1,0 +1,245 @@
+"""The LAMMPS engine (granchain.engines.lammps): cross-validation against the reference
+engine's velocity Verlet at the same dt, the per-chain energy ledger, MPI, errors.
+
+Bounds asserted here are the measured agreement with headroom (docs/lammps_engine.md):
+both engines apply the same laws with the same integrator, so they differ by rounding.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+
+import numpy as np
+import pytest
+
+from granchain.cli import main as cli_main
+from granchain.compare import compare
+from granchain.engines import lammps as L
+from granchain.engines import reference
+from granchain.errors import GranchainError
+from granchain.lammps import deck as D
+from granchain.observables import summarize
+from granchain.simulate import member_gaps, members
+from tests.conftest import packed
+
+pytestmark = pytest.mark.lammps
+
+ALL = "[hertz, groove_friction, air_drag, rotation, particle_friction, rolling_friction]"
+ALL_BUT_ROLLING = "[hertz, groove_friction, air_drag, rotation, particle_friction]"
+LIST_GAPS = [0.0, 20e-9, 5e-9, 0.0, 40e-9, 1e-9, 0.0, 3e-9, 0.0, 10e-9, 7e-9, 0.0, 2e-9, 0.0]
+
+# measured (this LAMMPS, dt = 1 ns, t_end auto): v_max, v_g <= 1.3e-9 relative,
+# peak times <= 3e-11 relative, energy terms <= 6e-10 E0, velocities <= 6e-11 m/s
+V_BOUND, T_BOUND, E_BOUND, DV_BOUND = 1e-8, 1e-9, 5e-9, 1e-9
+
+SCENES = {
+    "hertz-packed": lambda: packed(),
+    "list-gaps": lambda: packed(**{"gaps.distribution": "list", "gaps.values": str(LIST_GAPS)}),
+    "all-effects": lambda: packed(effects=ALL, **{"rolling.k_roll": 1e3, "gaps.distribution": "uniform",
+                                                   "gaps.mean": 20e-9, "ensemble.realisations": 2}),
+}
+
+
+def _members(scene):
+    mem = members(scene)
+    return member_gaps(scene, mem), np.array([m.v_striker for m in mem])
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_cross_validation_lammps_equals_reference_verlet(name, tmp_path):
+    scene = SCENES[name]()
+    cmp = compare(scene, workdir=tmp_path / "lmp")
+    rows = cmp.rows
+    assert cmp.ok, cmp.failures().to_string()
+    assert "Fix halt condition" in (tmp_path / "lmp" / "log.lammps").read_text()  # t_end auto
+    assert (rows.loc[rows.quantity == "samples", "diff"] == 0).all()
+    n_v = rows.quantity.str.match(r"v_max\[\d+\]$").groupby(rows.member).sum()
+    assert (n_v == scene.n).all()
+    vq = rows[rows.quantity.str.startswith("v_max") | rows.quantity.str.startswith("v_g")]
+    assert vq["diff"].max() < V_BOUND
+    assert rows[rows.quantity.isin(["dt_peak", "dt_front"])]["diff"].max() < T_BOUND
+    energy = rows[(rows.measure == "abs/E0") & rows.ok.notna()]
+    assert len(energy) >= 7 * len(members(scene)) and energy["diff"].max() < E_BOUND
+    residual = scene.has("particle_friction") or scene.has("rolling_friction")
+    assert cmp.meta["balance"] == ("residual" if residual else "independent")
+    bal = rows[rows.quantity == "balance_error"]
+    if residual:
+        assert bal.ok.isna().all() and bal.why.str.contains("not independent").all()
+        assert (rows.quantity == "work_particle_friction+work_rolling_friction").any()
+    else:
+        assert bal.ok.all() and bal["diff"].max() < 1e-9
+    # and sample by sample
+    gaps, vs = _members(cmp.scene)
+    for r, lt in zip(reference.run(cmp.scene, gaps, vs, method="verlet"),
+                     L.run(cmp.scene, gaps, vs)):
+        assert lt.meta["method"] == "lammps-verlet" and lt.status == r.status == "passed"
+        np.testing.assert_allclose(lt.t, r.t, rtol=1e-12, atol=0)
+        assert np.abs(lt.v - r.v).max() < DV_BOUND
+        e0 = r.energy[0, :3].sum()
+        cols = [0, 1, 2, 3, 4] if residual else list(range(7))
+        assert np.abs(lt.energy[:, cols] - r.energy[:, cols]).max() < E_BOUND * e0
+
+
+def test_run_json_has_the_reference_keys(repo, capsys):
+    scene = str(repo / "granchain/scenes/packed-440c.yaml")
+    docs = {}
+    for engine in ("reference", "lammps"):
+        assert cli_main(["run", scene, "--engine", engine, "--json",
+                         "--set", "integrator.method=verlet"]) == 0
+        docs[engine] = json.loads(capsys.readouterr().out)
+    ref, lmp = docs["reference"], docs["lammps"]
+    assert set(lmp) == set(ref)
+    assert set(lmp["energy"]) == set(ref["energy"])
+    assert lmp["engine"] == "lammps" and lmp["method"] == "lammps-verlet"
+    assert lmp["status"] == ref["status"] == "passed" and lmp["samples"] == ref["samples"]
+    assert lmp["v_g"] == pytest.approx(ref["v_g"], rel=V_BOUND)
+
+
+def test_per_atom_ledger_matches_lammps_global_ledger(tmp_path):
+    """Per-chain sums of the per-atom columns add up to energy.txt (all chains summed)."""
+    scene = packed(effects=ALL_BUT_ROLLING, t_end=3e-6,
+                   **{"gaps.distribution": "uniform", "gaps.mean": 20e-9, "ensemble.realisations": 3})
+    gaps, vs = _members(scene)
+    trajs = list(L.run(scene, gaps, vs, workdir=tmp_path))
+    total = sum(t.energy for t in trajs)
+    en = np.loadtxt(tmp_path / D.ENERGY_NAME)          # step ke erot groove drag (1e-15 J)
+    assert en[:, 0].tolist() == [round(t / scene.dt) for t in trajs[0].t]
+    for col, k in ((1, 0), (2, 1), (3, 3), (4, 4)):
+        np.testing.assert_allclose(total[:, k], en[:, col] * 1e-15, rtol=1e-12,
+                                   atol=1e-12 * abs(en[:, col]).max() * 1e-15)
+    assert np.all(total[1:, 3] < 0)                    # the groove takes energy out
+    for t in trajs:
+        e = t.energy
+        assert e[0, 0] == pytest.approx(0.5 * scene.mass * 0.1**2, rel=1e-15)
+        assert np.all(e[:, 6] == 0)
+        # contact friction: the balance residual, so the ledger balances exactly
+        mech = e[:, 0] + e[:, 1] + e[:, 2]
+        np.testing.assert_allclose(e[:, 5], mech - mech[0] - e[:, 3] - e[:, 4], rtol=0,
+                                   atol=1e-15 * mech[0])
+        assert summarize(t)["energy"]["balance_error"] < 1e-12
+        assert t.meta["balance"] == "residual" and t.meta["deck"] == str(tmp_path / "deck.lmp")
+
+
+def test_float64_columns_are_the_dumped_values(tmp_path):
+    """Observables use the dump's %.17g text at float64; MDAnalysis' own velocities are
+    float32 (relative rounding <= 2^-24)."""
+    scene = packed(t_end=2e-6)
+    gaps, vs = _members(scene)
+    pl = D.plan(scene, gaps=gaps, v_striker=vs)
+    next(L.run(scene, gaps, vs, workdir=tmp_path))
+    lines = (tmp_path / D.DUMP_NAME).read_text().splitlines()
+    cols = lines[8].split()[2:]
+    last = np.array([[float(x) for x in ln.split()] for ln in lines[-scene.n:]])
+    d64 = L.read_dump(tmp_path / D.DUMP_NAME, scene, pl)
+    d32 = L.read_dump(tmp_path / D.DUMP_NAME, scene, pl, velocities="float32")
+    vx = last[:, cols.index("vx")]
+    assert d64["v"][-1, 0].tolist() == vx.tolist()                 # bit for bit
+    assert d32["v"][-1, 0].tolist() == vx.astype(np.float32).astype(float).tolist()
+    assert np.any(d32["v"][-1, 0] != vx)
+    np.testing.assert_allclose(d32["v"], d64["v"], rtol=2.0**-24, atol=0)
+
+
+def test_two_mpi_ranks_give_the_same_observables(tmp_path):
+    """50 chains (two striker speeds x 25 gap realisations) on 1 and on 2 ranks."""
+    scene = packed(effects=ALL_BUT_ROLLING, probes="[2, 6]",
+                   **{"gaps.distribution": "uniform", "gaps.mean": 20e-9, "ensemble.realisations": 25,
+                      "striker.velocity": "[0.07, 0.1]", "output.sample_dt": 36e-9})
+    gaps, vs = _members(scene)
+    assert len(vs) == 50
+    one = list(L.run(scene, gaps, vs, nprocs=1))
+    two = list(L.run(scene, gaps, vs, nprocs=2, workdir=tmp_path))
+    assert "1 by 2 by 1 MPI processor grid" in (tmp_path / "log.lammps").read_text()
+    assert two[0].meta["nprocs"] == 2
+    for a, b in zip(one, two):
+        sa, sb = summarize(a, scene.probes), summarize(b, scene.probes)
+        assert sa["wave_arrived"] and sa["status"] == sb["status"] == "passed"
+        assert sa["samples"] == sb["samples"]
+        np.testing.assert_allclose(sb["v_max"], sa["v_max"], rtol=1e-12, atol=0)
+        for k in ("v_max_1", "v_max_2", "dt_peak", "v_g", "v_g_front"):
+            assert sb[k] == pytest.approx(sa[k], rel=1e-12, abs=0)
+        np.testing.assert_allclose(b.energy, a.energy, rtol=1e-12, atol=1e-12 * a.energy[0, 0])
+
+
+# --------------------------------------------------------------------------------------
+# errors: one line, naming the deck or dump and the cause
+def _one_line(exc):
+    assert "\n" not in str(exc)
+    return str(exc)
+
+
+def test_bad_plugin_parameter_names_the_deck(tmp_path):
+    scene = dataclasses.replace(packed(t_end=1e-6, effects="[hertz, groove_friction]"), groove_mu=-0.1)
+    with pytest.raises(GranchainError) as exc:
+        list(L.run(scene, np.zeros((1, 14)), [0.1], workdir=tmp_path))
+    msg = _one_line(exc.value)
+    assert f"LAMMPS deck {tmp_path / 'deck.lmp'}:" in msg
+    assert "Fix groove/drag: value of 'mu' must be >= 0 (got '-0.1')" in msg
+
+
+def test_failing_run_lost_atoms_names_the_deck_and_keeps_it():
+    # a step far above the scene check (20 steps per contact) blows the chain apart
+    scene = dataclasses.replace(packed(t_end=200e-6, **{"output.sample_dt": 1e-5}), dt=1e-6)
+    with pytest.raises(GranchainError) as exc:
+        list(L.run(scene, np.zeros((1, 14)), [1.0]))
+    msg = _one_line(exc.value)
+    m = re.match(r"LAMMPS deck (\S+deck\.lmp): ERROR: Lost atoms", msg)
+    assert m, msg
+    from pathlib import Path
+    deck = Path(m.group(1))
+    assert deck.is_file()                       # a failed run keeps its directory
+    import shutil
+    shutil.rmtree(deck.parent)
+
+
+def test_missing_and_truncated_dump(tmp_path):
+    scene = packed(t_end=2e-6)
+    gaps, vs = _members(scene)
+    pl = D.plan(scene, gaps=gaps, v_striker=vs)
+    dump = tmp_path / D.DUMP_NAME
+    with pytest.raises(GranchainError, match=f"LAMMPS dump {dump} is missing") as exc:
+        L.read_dump(dump, scene, pl)
+    _one_line(exc.value)
+    next(L.run(scene, gaps, vs, workdir=tmp_path))
+    text = dump.read_text()
+    lines = text.splitlines(keepends=True)
+    frame = 9 + scene.n
+    dump.write_text("".join(lines[:-frame]))                    # last frame missing
+    with pytest.raises(GranchainError, match=r"is truncated: \d+ of \d+ samples") as exc:
+        L.read_dump(dump, scene, pl)
+    _one_line(exc.value)
+    dump.write_text("".join(lines[:-3]))                        # cut inside a frame
+    with pytest.raises(GranchainError, match=f"LAMMPS dump {dump} is truncated") as exc:
+        L.read_dump(dump, scene, pl)
+    _one_line(exc.value)
+
+
+def test_cli_prints_lammps_errors_in_one_line(repo, tmp_path, monkeypatch, capsys):
+    scene = str(repo / "granchain/scenes/packed-440c.yaml")
+    real = D.write_deck
+
+    def broken(*a, **k):                                        # a deck LAMMPS rejects
+        path = real(*a, **k)
+        path.write_text(path.read_text().replace("run             ", "fix bad all nonsense\nrun "))
+        return path
+    monkeypatch.setattr(D, "write_deck", broken)
+    assert cli_main(["run", scene, "--engine", "lammps", "--workdir", str(tmp_path / "w"),
+                     "--set", "t_end=1e-6"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(f"granchain: error: LAMMPS deck {tmp_path / 'w' / 'deck.lmp'}: ERROR:")
+
+
+def test_workdir_and_options(repo, tmp_path, capsys):
+    scene = packed(t_end=1e-6)
+    (tmp_path / "junk").write_text("x")
+    with pytest.raises(GranchainError, match="not empty") as exc:
+        list(L.run(scene, np.zeros((1, 14)), [0.1], workdir=tmp_path))
+    _one_line(exc.value)
+    t = next(L.run(scene, np.zeros((1, 14)), [0.1], workdir=tmp_path, force=True))
+    assert t.status == "done" and (tmp_path / "junk").exists() and (tmp_path / "traj.dump").exists()
+    t = next(L.run(scene, np.zeros((1, 14)), [0.1]))             # temporary dir: removed
+    assert "deck" not in t.meta
+    y = str(repo / "granchain/scenes/packed-440c.yaml")
+    assert cli_main(["run", y, "--np", "2"]) == 2
+    assert "--engine lammps" in capsys.readouterr().err
