@@ -568,9 +568,9 @@ def fig5_3c(gap_sweep: pd.DataFrame, packed: pd.DataFrame, out) -> list[Path]:
     mats = materials_in(d)
     gaps = sorted(set(d["gap_mean_nm"].astype(float)))
     radius = radius_of(d)
-    cmap = _cmap("plasma")
-    gcol = {g: cmap(0.08 + 0.8 * k / max(len(gaps) - 1, 1)) for k, g in enumerate(gaps)}
-    fig, axes = _figure(ncols=len(mats), size=(max(5.0 * len(mats), 6.4), 4.6),
+    cmap = _cmap("viridis")
+    gcol = {g: cmap(0.9 * k / max(len(gaps) - 1, 1)) for k, g in enumerate(gaps)}
+    fig, axes = _figure(ncols=len(mats), size=(max(5.0 * len(mats), 6.4), 5.6),
                         sharey=True, squeeze=False)
     vall = np.array(sorted(set(d["v_striker_m_s"].astype(float))))
     xx = np.geomspace(vall.min(), vall.max(), 60) if vall.size > 1 else vall
@@ -578,7 +578,7 @@ def fig5_3c(gap_sweep: pd.DataFrame, packed: pd.DataFrame, out) -> list[Path]:
         dm = d[d["material"] == mat]
         pk = packed[(packed["material"] == mat)]
         pa = arrived(reference_engine(pk)).sort_values("v_striker_m_s")
-        ax.plot(pa["v_striker_m_s"], pa["v_g_m_s"], "o-", color="#5b2a86", lw=1.6,
+        ax.plot(pa["v_striker_m_s"], pa["v_g_m_s"], "o-", color="k", lw=1.6, ms=3.5,
                 label="packed chain (gap = 0)", zorder=5)
         vg0 = packed_vg(packed, mat, xx)
         missing = []
@@ -594,8 +594,8 @@ def fig5_3c(gap_sweep: pd.DataFrame, packed: pd.DataFrame, out) -> list[Path]:
             if len(ok):
                 x = np.array(sorted(st.groups), dtype=float)
                 q = np.array([band(st.get_group(v)) for v in x])
-                ax.fill_between(x, q[:, 0], q[:, 2], color=gcol[g], alpha=0.35, lw=0)
-                ax.plot(x, q[:, 1], "-", color=gcol[g], lw=0.8)
+                ax.fill_between(x, q[:, 0], q[:, 2], color=gcol[g], alpha=0.28, lw=0)
+                ax.plot(x, q[:, 1], "-", color=gcol[g], lw=1.0)
             ax.plot(xx, eq54_group_velocity(vg0, g * 1e-9, xx, radius), "--", color=gcol[g],
                     lw=0.9)
         ax.set_xscale("log")
@@ -612,15 +612,17 @@ def fig5_3c(gap_sweep: pd.DataFrame, packed: pd.DataFrame, out) -> list[Path]:
     # legend: gap colours + line styles, in the empty lower-right corner
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
-    handles = [Line2D([], [], color="#5b2a86", marker="o", lw=1.6, label="packed chain")]
+    handles = [Line2D([], [], color="k", marker="o", ms=3.5, lw=1.6, label="packed chain")]
     handles += [Patch(color=gcol[g], alpha=0.5, label=f"mean gap {g:g} nm") for g in gaps]
-    handles += [Line2D([], [], color="0.3", lw=0.8, label="median over realisations"),
+    handles += [Line2D([], [], color="0.3", lw=1.0, label="median over realisations"),
                 Patch(color="0.6", alpha=0.5, label="5-95% of arrived realisations"),
                 Line2D([], [], color="0.3", ls="--", lw=0.9,
                        label="Eq. 5.4 bound at the mean gap")]
-    axes[0][-1].legend(handles=handles, loc="lower right", fontsize=7)
+    ncol = min(len(handles), 5 if len(mats) > 1 else 3)
+    nrow = -(-len(handles) // ncol)
+    fig.legend(handles=handles, loc="lower center", ncol=ncol, fontsize=7)
     fig.suptitle("v_g vs v_s with random gaps (chapter Fig. 5.3c counterpart)", fontsize=9)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.032 * nrow + 0.01, 1, 1))
     return save(fig, out)
 
 
@@ -672,7 +674,7 @@ def fig5_4b(extra: pd.DataFrame, packed: pd.DataFrame, out) -> list[Path]:
                      f"{nr} realisations per length" +
                      (f"\nnot arrived (excluded): {nfail}/{len(dm)}" if nfail else ""),
                      fontsize=8)
-        ax.legend(loc="upper right")
+        ax.legend(loc="lower left")
         ax.set_ylim(0, None)
     axes[0][0].set_ylabel("group velocity v_g (m/s)")
     fig.suptitle("Loose chains: v_g vs mean gap from the extra length\n"

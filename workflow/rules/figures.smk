@@ -6,11 +6,15 @@
 from granchain.figures import caption_sizes as figures_sizes
 
 FIG_DIR = f"{RESULTS}/figures"
+# The drawing code is an input: a changed figure module redraws (the tables stay).
+FIG_CODE = str(Path(workflow.basedir) / "granchain" / "figures.py")
+THESIS_CODE = [FIG_CODE, str(Path(workflow.basedir) / "granchain" / "thesis.py")]
 
 
 rule fig5_1a:
     input:
         trace=trace_path("{material}"),
+        code=FIG_CODE,
     output:
         png=report(
             f"{FIG_DIR}/fig5_1a_{{material}}.png",
@@ -38,6 +42,7 @@ rule fig5_1a:
 rule fig5_1b:
     input:
         packed_sweep=table_path("packed_sweep"),
+        code=FIG_CODE,
     output:
         png=report(
             f"{FIG_DIR}/fig5_1b.png",
@@ -65,6 +70,7 @@ rule fig5_1b:
 rule fig5_1c:
     input:
         packed_sweep=table_path("packed_sweep"),
+        code=FIG_CODE,
     output:
         png=report(
             f"{FIG_DIR}/fig5_1c.png",
@@ -93,6 +99,7 @@ rule fig5_3b:
     input:
         gap_profile=table_path("gap_profile"),
         packed_sweep=table_path("packed_sweep"),
+        code=FIG_CODE,
     output:
         png=report(
             f"{FIG_DIR}/fig5_3b.png",
@@ -121,6 +128,7 @@ rule fig5_3c:
     input:
         gap_sweep=table_path("gap_sweep"),
         packed_sweep=table_path("packed_sweep"),
+        code=FIG_CODE,
     output:
         png=report(
             f"{FIG_DIR}/fig5_3c.png",
@@ -149,6 +157,7 @@ rule fig5_4b:
     input:
         extra_length=table_path("extra_length"),
         packed_sweep=table_path("packed_sweep"),
+        code=FIG_CODE,
     output:
         png=report(
             f"{FIG_DIR}/fig5_4b.png",
@@ -181,6 +190,7 @@ rule thesis_comparison:
         gap_sweep=table_path("gap_sweep"),
         extra_length=table_path("extra_length"),
         trace=trace_path("ss440c") if "ss440c" in trace_materials() else [],
+        code=THESIS_CODE,
     output:
         csv=report(
             f"{RESULTS}/tables/thesis_comparison.csv",
