@@ -4,8 +4,6 @@
 #     snakemake --profile workflow/profiles/slurm --config preset=full
 # Rules live in workflow/rules/*.smk; their logic in the granchain package
 # (granchain/workflow.py, tables.py, figures.py, cost.py); scripts in workflow/scripts/.
-from pathlib import Path
-
 from snakemake.utils import min_version
 
 min_version("9.0")
@@ -18,15 +16,8 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/ensembles.smk"
 include: "workflow/rules/tables.smk"
 include: "workflow/rules/lammps.smk"
-# cost.smk and figures.smk are being written (issue 4, helpers COST and FIG).
-if Path(workflow.basedir, "workflow/rules/cost.smk").exists():
-
-    include: "workflow/rules/cost.smk"
-
-
-if Path(workflow.basedir, "workflow/rules/figures.smk").exists():
-
-    include: "workflow/rules/figures.smk"
+include: "workflow/rules/cost.smk"
+include: "workflow/rules/figures.smk"
 
 
 # Every .smk file appends its final outputs to ALL_TARGETS (common.smk).

@@ -63,14 +63,43 @@ class ConfigError(GranchainError):
 def config_error_message(exc: BaseException) -> str:
     """One line for a failed ``snakemake.utils.validate``: config path, problem, hint."""
     import jsonschema
-    err = next((a for a in getattr(exc, "args", ()) if isinstance(a, jsonschema.ValidationError)),
-               exc if isinstance(exc, jsonschema.ValidationError) else None)
+    err, seen = exc, 0
+    while err is not None and not isinstance(err, jsonschema.ValidationError) and seen < 10:
+        err, seen = err.__cause__ or err.__context__, seen + 1   # validate() raises from it
     if err is None:
         return f"invalid configuration: {exc}"
     where = ".".join(str(p) for p in err.absolute_path) or "<top level>"
     hint = err.schema.get("description") if isinstance(err.schema, dict) else None
     msg = f"invalid configuration at '{where}': {err.message}"
-    return msg + (f" ({hint})" if hint else "")
+    return msg + (f"; {hint}" if hint else "")
+
+
+SCHEMA = Path(__file__).resolve().parent.parent / "workflow" / "schemas" / "config.schema.yaml"
+
+
+def validate_config(config: dict, schema=SCHEMA) -> dict:
+    """Check ``config`` against the workflow's JSON schema and fill its defaults (in place),
+    as ``snakemake.utils.validate`` does in the Snakefile; one-line ConfigError if bad."""
+    from snakemake.exceptions import WorkflowError
+    from snakemake.utils import validate
+    if not Path(schema).is_file():
+        raise ConfigError(f"workflow schema '{schema}' not found: run from a checkout "
+                          "installed with pip install -e .")
+    try:
+        validate(config, str(schema))
+    except WorkflowError as exc:
+        raise ConfigError(config_error_message(exc)) from None
+    return config
+
+
+def load_config(path, preset: str | None = None) -> tuple[str, dict]:
+    """(name, validated preset) of a workflow configuration file, e.g. config/config.yaml."""
+    from snakemake.common.configfile import load_configfile
+    config = load_configfile(str(path))
+    if preset is not None:
+        config["preset"] = preset
+    validate_config(config)
+    return check_config(config)
 
 
 def select_preset(config: dict) -> tuple[str, dict]:
@@ -89,7 +118,11 @@ def check_config(config: dict) -> tuple[str, dict]:
     now (with the scene's one-line message), before anything runs."""
     name, preset = select_preset(config)
     for study in STUDIES:
-        batches(preset, study)
+        try:
+            batches(preset, study)
+        except ConfigError as exc:
+            raise ConfigError(str(exc).replace("at 'studies.", f"at 'presets.{name}.studies.", 1)) \
+                from None
     return name, preset
 
 
@@ -169,7 +202,7 @@ def study_scenes(preset: dict, study: str) -> list[StudyScene]:
         raise ConfigError(f"unknown study '{study}'; use one of {', '.join(STUDIES)}")
     spec = preset["studies"][study]
     where = f"studies.{study}"
-    dist = preset["base"].get("gap_distribution", "uniform")
+    dist = preset["base"]["gap_distribution"]
     out: list[StudyScene] = []
 
     def add(material, velocities, gaps, realisations, gap_nm, extra_um, suffix, engines):
@@ -180,7 +213,7 @@ def study_scenes(preset: dict, study: str) -> list[StudyScene]:
 
     engines = ("reference",)
     if study == "lammps_check":
-        engines = tuple(e for e in ENGINE_ORDER if e in spec.get("engines", ENGINE_ORDER))
+        engines = tuple(e for e in ENGINE_ORDER if e in spec["engines"])
     for material in _study_materials(preset, spec):
         v = _as_list(spec["v_striker"])
         if study in ("packed_sweep", "packed_trace"):
@@ -190,7 +223,15 @@ def study_scenes(preset: dict, study: str) -> list[StudyScene]:
                 gaps = {"distribution": "none"} if g == 0 else \
                     {"distribution": dist, "mean": float(g) * 1e-9}
                 reals = 1 if g == 0 else spec["realisations"]
-                add(material, v, gaps, reals, g, math.nan, f"gap{_fmt_num(g)}nm", engines)
+                if study != "lammps_check":
+                    add(material, v, gaps, reals, g, math.nan, f"gap{_fmt_num(g)}nm", engines)
+                    continue
+                # One scene per striker speed: a LAMMPS run samples all its chains on the
+                # grid of its fastest one, so one speed per run keeps both engines on the
+                # same grid (each chain's own) whatever the batching.
+                for vi in v:
+                    add(material, [vi], gaps, reals, g, math.nan,
+                        f"gap{_fmt_num(g)}nm-v{_fmt_num(vi)}", engines)
         elif study == "extra_length":
             n = preset["base"]["n"]
             for L in _as_list(spec["extra_length_um"]):
@@ -340,7 +381,15 @@ def _runs_to_rows(ss: StudyScene, runs: list[dict]) -> list[dict]:
     return [tables.member_row(ss.meta, r, ss.scene.n) for r in runs]
 
 
-def run_batch(preset: dict, study: str, name: str) -> tuple[pd.DataFrame, pd.DataFrame]:
+def engine_options(engine: str, threads: int | None) -> dict:
+    """Keyword arguments of ``run_scene`` for an engine in a job with ``threads`` cores:
+    LAMMPS gets that many MPI ranks; the reference engine's numba threads are set per
+    process (``set_threads``)."""
+    return {"nprocs": max(1, int(threads or 1))} if engine == "lammps" else {}
+
+
+def run_batch(preset: dict, study: str, name: str, threads: int | None = None
+              ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Run one batch: (rows without the Eq. 5.4 bound, timing rows)."""
     batch = find_batch(preset, study, name)
     scenes = study_scenes(preset, study)
@@ -348,7 +397,8 @@ def run_batch(preset: dict, study: str, name: str) -> tuple[pd.DataFrame, pd.Dat
     for si, reals in batch.units:
         ss = scenes[si]
         t0 = time.perf_counter()
-        runs = run_scene(ss.scene, engine=batch.engine, realisations=list(reals))
+        runs = run_scene(ss.scene, engine=batch.engine, realisations=list(reals),
+                         **engine_options(batch.engine, threads))
         wall = time.perf_counter() - t0
         rows += _runs_to_rows(ss, runs)
         timing.append({"study": study, "engine": batch.engine, "batch": batch.name,
@@ -361,8 +411,9 @@ def run_batch(preset: dict, study: str, name: str) -> tuple[pd.DataFrame, pd.Dat
     return tables.study_table(rows, n), tables.timing_table(timing)
 
 
-def write_batch(preset: dict, study: str, name: str, out_csv, timing_csv) -> None:
-    df, timing = run_batch(preset, study, name)
+def write_batch(preset: dict, study: str, name: str, out_csv, timing_csv,
+                threads: int | None = None) -> None:
+    df, timing = run_batch(preset, study, name, threads)
     tables.write_csv(timing, timing_csv)
     tables.write_csv(df, out_csv)
 
@@ -394,7 +445,7 @@ def run_traces(preset: dict, trace_paths: dict[str, str], out_csv, timing_csv) -
 def packed_scene(ss: StudyScene) -> Scene:
     """The packed chain of a study scene: same physics, striker speeds, method and dt."""
     raw = copy.deepcopy(ss.raw)
-    raw["name"] = f"{raw['name']}-packed"
+    raw["name"] = f"{ss.study}-{ss.material}-packed"
     raw["gaps"] = {"distribution": "none", "seed": raw["gaps"].get("seed", 0)}
     raw["ensemble"] = {"realisations": 1}
     return scene_from_dict(raw)
@@ -496,14 +547,13 @@ def rerun_member(preset: dict, study: str, *, material: str, v_striker: float, r
     """Re-run one member of a study alone and return its table row (with the Eq. 5.4
     bound): a chain with only this striker speed and only this gap realisation."""
     cands = [ss for ss in study_scenes(preset, study) if ss.material == material
+             and v_striker in ss.scene.striker_velocities
              and (gap_mean_nm is None or ss.gap_mean_nm == gap_mean_nm)
              and (extra_length_um is None or ss.extra_length_um == extra_length_um)]
     if len(cands) != 1:
-        raise GranchainError(f"{len(cands)} scenes of study '{study}' match; give "
-                             "material and gap_mean_nm or extra_length_um")
+        raise GranchainError(f"{len(cands)} scenes of study '{study}' match; give its "
+                             "material, v_striker and gap_mean_nm or extra_length_um")
     ss = cands[0]
-    if v_striker not in ss.scene.striker_velocities:
-        raise GranchainError(f"v_striker {v_striker} is not a speed of {ss.scene.name}")
     raw = copy.deepcopy(ss.scene.spec)
     raw["striker"]["velocity"] = float(v_striker)
     alone = scene_from_dict(raw)
@@ -512,3 +562,40 @@ def rerun_member(preset: dict, study: str, *, material: str, v_striker: float, r
     df = tables.add_eq54_bound(df, packed_reference([ss], velocities=[v_striker]),
                                ss.scene.radius)
     return df.iloc[0].to_dict()
+
+
+# ---------------------------------------------------------------------------------------
+# LAMMPS vs reference
+# ---------------------------------------------------------------------------------------
+COMPARISON_META = ("scene_hash", "compared_scene_hash", "chains", "dt", "sample_dt", "nprocs",
+                   "lammps_version", "balance", "tolerances")
+
+
+def engine_comparison(preset: dict, threads: int | None = None) -> tuple[pd.DataFrame, list]:
+    """granchain.compare.compare on every lammps_check scene: per member and quantity both
+    engines' values, the difference, its tolerance, ok and why; plus each scene's meta
+    (wall times and temporary paths left out, so the table is deterministic)."""
+    from . import compare as cmp
+    frames, metas = [], []
+    for ss in study_scenes(preset, "lammps_check"):
+        c = cmp.compare(ss.scene, nprocs=max(1, int(threads or 1)))
+        df = c.rows.copy()
+        df.insert(0, "study", "lammps_check")
+        df.insert(1, "material", ss.material)
+        df.insert(2, "gap_mean_nm", ss.gap_mean_nm)
+        df.insert(3, "scene_hash", ss.scene.hash)
+        df = df.rename(columns={"v_striker": "v_striker_m_s"})
+        frames.append(df)
+        metas.append({k: c.meta.get(k) for k in COMPARISON_META} | {"scene": ss.scene.name,
+                                                                   "ok": c.ok})
+    return pd.concat(frames, ignore_index=True), metas
+
+
+def write_engine_comparison(preset_name: str, preset: dict, out_csv, out_provenance,
+                            threads: int | None = None) -> pd.DataFrame:
+    df, metas = engine_comparison(preset, threads)
+    tables.write_provenance(out_provenance, lammps=True, preset=preset_name,
+                            study="lammps_check", config_hash=tables.config_hash(preset),
+                            comparisons=metas, all_ok=all(m["ok"] for m in metas))
+    tables.write_csv(df, out_csv)
+    return df

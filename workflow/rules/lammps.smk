@@ -1,11 +1,8 @@
 # LAMMPS cross-validation: the lammps_check study runs both engines on the same members.
-# Reference batches go through run_batch (ensembles.smk); LAMMPS batches (many chains side
-# by side in one LAMMPS run) through run_lammps_batch; tables.smk gathers both engines'
-# rows into tables/lammps_check.csv, and compare_engines writes their differences.
-
-
-localrules:
-    compare_engines,
+# Reference batches go through run_batch (ensembles.smk), LAMMPS batches (many chains side
+# by side in one LAMMPS run) through run_lammps_batch; gather_study (tables.smk) puts both
+# engines' rows into tables/lammps_check.csv. compare_engines runs granchain.compare on
+# every lammps_check scene: tables/lammps_vs_reference.csv (differences and tolerances).
 
 
 rule run_lammps_batch:
@@ -29,8 +26,6 @@ rule run_lammps_batch:
 
 
 rule compare_engines:
-    input:
-        table_path("lammps_check"),
     output:
         table=report(
             f"{RESULTS}/tables/lammps_vs_reference.csv",
@@ -39,12 +34,16 @@ rule compare_engines:
             labels={"table": "lammps_vs_reference", "kind": "engine differences"},
         ),
         provenance=f"{RESULTS}/tables/lammps_vs_reference.provenance.json",
+    params:
+        scenes=[ss.scene.hash for ss in gw.study_scenes(P, "lammps_check")],
     log:
         f"{RESULTS}/logs/lammps_check/compare.log",
-    threads: 1
+    threads: BATCH_THREADS
     resources:
-        mem_mb=1000,
-        runtime=10,
+        mem_mb=BATCH_MEM_MB,
+        runtime=gw.runtime_minutes(
+            sum(b.est_seconds for b in PLAN["lammps_check"]), BATCH_THREADS
+        ),
     conda:
         "../envs/granchain.yaml"
     script:

@@ -1,7 +1,8 @@
-# LAMMPS vs reference on the lammps_check members. Logic: granchain.workflow / compare.
+# LAMMPS vs reference on the lammps_check scenes (granchain.compare). Logic: granchain.workflow.
 from granchain import workflow as gw
 
 with gw.log_to(snakemake.log[0]):
+    gw.set_threads(snakemake.threads)
     name, preset = gw.select_preset(snakemake.config)
-    gw.write_engine_comparison(name, preset, snakemake.input[0], snakemake.output.table,
-                               snakemake.output.provenance)
+    gw.write_engine_comparison(name, preset, snakemake.output.table,
+                               snakemake.output.provenance, snakemake.threads)

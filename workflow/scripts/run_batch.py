@@ -5,4 +5,4 @@ with gw.log_to(snakemake.log[0]):
     gw.set_threads(snakemake.threads)
     _, preset = gw.select_preset(snakemake.config)
     gw.write_batch(preset, snakemake.params.study, snakemake.params.name,
-                   snakemake.output.table, snakemake.output.timing)
+                   snakemake.output.table, snakemake.output.timing, snakemake.threads)
