@@ -235,9 +235,14 @@ def packed_vg(packed: pd.DataFrame, mat: str, v_striker, column: str = "v_g_m_s"
     return np.exp(out)
 
 
-def radius_of(df: pd.DataFrame) -> float:
-    """Sphere radius (m): the tables do not carry it; the chapter's 150 um (scene default)."""
-    return float(DEFAULTS["chain"]["radius"])
+def radius_or_default(radius: float | None) -> float:
+    """Sphere radius (m). The tables do not carry it: the caller passes the preset's
+    (figures.smk does), else the chapter's 150 um (scene default)."""
+    if radius is None:
+        return float(DEFAULTS["chain"]["radius"])
+    if not (isinstance(radius, (int, float)) and radius > 0):
+        raise GranchainError(f"radius {radius!r} must be a positive number of metres")
+    return float(radius)
 
 
 def n_particles(df: pd.DataFrame) -> int:
@@ -560,14 +565,14 @@ def fig5_3b(gap_profile: pd.DataFrame, packed: pd.DataFrame | None, out) -> list
 
 
 @_drawn
-def fig5_3c(gap_sweep: pd.DataFrame, packed: pd.DataFrame, out) -> list[Path]:
+def fig5_3c(gap_sweep: pd.DataFrame, packed: pd.DataFrame, out, radius=None) -> list[Path]:
     """Chapter Fig. 5.3c: v_g vs v_s for each mean gap, bands, packed curve, Eq. 5.4."""
     require(gap_sweep, NEEDS["fig5_3c"], "fig5_3c")
     require(packed, NEEDS["packed_reference"], "fig5_3c packed reference")
     d = reference_engine(gap_sweep)
     mats = materials_in(d)
     gaps = sorted(set(d["gap_mean_nm"].astype(float)))
-    radius = radius_of(d)
+    radius = radius_or_default(radius)
     cmap = _cmap("viridis")
     gcol = {g: cmap(0.9 * k / max(len(gaps) - 1, 1)) for k, g in enumerate(gaps)}
     fig, axes = _figure(ncols=len(mats), size=(max(5.0 * len(mats), 6.4), 5.6),
@@ -627,14 +632,14 @@ def fig5_3c(gap_sweep: pd.DataFrame, packed: pd.DataFrame, out) -> list[Path]:
 
 
 @_drawn
-def fig5_4b(extra: pd.DataFrame, packed: pd.DataFrame, out) -> list[Path]:
+def fig5_4b(extra: pd.DataFrame, packed: pd.DataFrame, out, radius=None) -> list[Path]:
     """Chapter Fig. 5.4b: v_g vs gbar = extra_length/(n-1) at fixed v_s, with Eq. 5.4."""
     require(extra, NEEDS["fig5_4b"], "fig5_4b")
     require(packed, NEEDS["packed_reference"], "fig5_4b packed reference")
     d = reference_engine(extra)
     mats = materials_in(d)
     n = n_particles(d)
-    radius = radius_of(d)
+    radius = radius_or_default(radius)
     fig, axes = _figure(ncols=len(mats), size=(max(4.6 * len(mats), 6.4), 4.4),
                         sharey=True, squeeze=False)
     for ax, mat in zip(axes[0], mats):
@@ -689,6 +694,10 @@ def caption_sizes(preset_name: str, preset: dict, study: str) -> dict:
     from .workflow import study_scenes
     spec = preset["studies"][study]
     base = preset["base"]
+    if list(base.get("probes", PROBES)) != list(PROBES):
+        raise GranchainError(f"base.probes {base['probes']}: the figures label and measure "
+                             f"the chapter's probes {PROBES[0]} and {PROBES[1]}; remove "
+                             "base.probes from the preset")
     out = {"preset": preset_name, "n": str(base["n"]), "radius_um": f"{base['radius'] * 1e6:g}",
            "method": str(base["method"]), "dt_s": f"{base['dt']:g}",
            "materials": ", ".join(sorted({ss.material for ss in study_scenes(preset, study)}))}
@@ -713,8 +722,9 @@ FIGURES = {
 }
 
 
-def render(name: str, paths: dict, out) -> list[Path]:
-    """Draw figure ``name`` from {study: path} (trace: npz path) into ``out``.{png,pdf}."""
+def render(name: str, paths: dict, out, radius: float | None = None) -> list[Path]:
+    """Draw figure ``name`` from {study: path} (trace: npz path) into ``out``.{png,pdf};
+    ``radius`` (m) for the figures that draw Eq. 5.4."""
     if name not in FIGURES:
         raise GranchainError(f"unknown figure '{name}'; use one of {', '.join(FIGURES)}")
     func, needs = FIGURES[name]
@@ -726,6 +736,8 @@ def render(name: str, paths: dict, out) -> list[Path]:
             raise GranchainError(f"{name}: needs {flag} (the {study} "
                                  f"{'npz' if study == 'trace' else 'table'})")
         args.append(read_trace(p) if study == "trace" else read_table(p))
+    if name in ("fig5_3c", "fig5_4b"):
+        return func(*args, out, radius=radius)
     return func(*args, out)
 
 
@@ -738,11 +750,13 @@ def main(argv=None) -> int:
         ap.add_argument("--" + study.replace("_", "-"), dest=study,
                         help=f"results/<preset>/tables/{study}.csv")
     ap.add_argument("--trace", help="results/<preset>/traces/packed_trace_<material>.npz")
-    ap.add_argument("--out", required=True, help="output path without extension")
+    ap.add_argument("--radius", type=float, help="sphere radius in m for Eq. 5.4 (default "
+                    "the chapter's 150e-6; the tables do not carry it)")
+    ap.add_argument("--out", required=True, help="output path (.png/.pdf or no extension)")
     a = ap.parse_args(argv)
-    paths = {k: v for k, v in vars(a).items() if k not in ("name", "out") and v}
+    paths = {k: v for k, v in vars(a).items() if k not in ("name", "out", "radius") and v}
     try:
-        for p in render(a.name, paths, a.out):
+        for p in render(a.name, paths, a.out, a.radius):
             print(p)
     except GranchainError as exc:
         print(f"granchain.figures: error: {exc}", file=sys.stderr)

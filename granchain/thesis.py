@@ -132,9 +132,10 @@ def _pct(x: float) -> str:
 # ---------------------------------------------------------------------------------------
 def comparison(packed_sweep: pd.DataFrame, packed_trace: pd.DataFrame | None = None,
                gap_profile: pd.DataFrame | None = None, gap_sweep: pd.DataFrame | None = None,
-               extra_length: pd.DataFrame | None = None, trace: dict | None = None
-               ) -> pd.DataFrame:
-    """The comparison table (one row per chapter number, columns ``COLUMNS``)."""
+               extra_length: pd.DataFrame | None = None, trace: dict | None = None,
+               radius: float | None = None) -> pd.DataFrame:
+    """The comparison table (one row per chapter number, columns ``COLUMNS``);
+    ``radius`` (m) of the spheres (the tables do not carry it; default 150 um)."""
     F.require(packed_sweep, F.NEEDS["fig5_1c"] + ["v_max_ratio"], "thesis comparison")
     rows = []
 
@@ -148,7 +149,7 @@ def comparison(packed_sweep: pd.DataFrame, packed_trace: pd.DataFrame | None = N
                          reason=reason))
 
     mat = SIM_MATERIAL
-    radius = F.radius_of(packed_sweep)
+    radius = F.radius_or_default(radius)
     packed = F.reference_engine(packed_sweep)
     fits = F.vmax_fits(packed)
     if mat not in fits:
@@ -472,9 +473,11 @@ def main(argv=None) -> int:
     ap.add_argument("--out-csv", required=True)
     ap.add_argument("--out-md", required=True)
     ap.add_argument("--title", default="Thesis comparison")
+    ap.add_argument("--radius", type=float, help="sphere radius in m (default 150e-6)")
     a = ap.parse_args(argv)
     try:
         kw = read_inputs(vars(a))
+        kw["radius"] = a.radius
         write(comparison(**kw), a.out_csv, a.out_md, a.title)
     except GranchainError as exc:
         print(f"granchain.thesis: error: {exc}", file=sys.stderr)

@@ -139,6 +139,7 @@ rule fig5_3c:
         ),
         pdf=f"{FIG_DIR}/fig5_3c.pdf",
     params:
+        radius=P["base"]["radius"],
         sizes=figures_sizes(PRESET, P, "gap_sweep"),
     log:
         f"{RESULTS}/logs/figures/fig5_3c.log",
@@ -150,7 +151,8 @@ rule fig5_3c:
         "../envs/granchain.yaml"
     shell:
         "python -m granchain.figures fig5_3c --gap-sweep {input.gap_sweep}"
-        " --packed-sweep {input.packed_sweep} --out {output.png} > {log} 2>&1"
+        " --packed-sweep {input.packed_sweep} --radius {params.radius} --out {output.png}"
+        " > {log} 2>&1"
 
 
 rule fig5_4b:
@@ -168,6 +170,7 @@ rule fig5_4b:
         ),
         pdf=f"{FIG_DIR}/fig5_4b.pdf",
     params:
+        radius=P["base"]["radius"],
         sizes=figures_sizes(PRESET, P, "extra_length"),
     log:
         f"{RESULTS}/logs/figures/fig5_4b.log",
@@ -179,7 +182,8 @@ rule fig5_4b:
         "../envs/granchain.yaml"
     shell:
         "python -m granchain.figures fig5_4b --extra-length {input.extra_length}"
-        " --packed-sweep {input.packed_sweep} --out {output.png} > {log} 2>&1"
+        " --packed-sweep {input.packed_sweep} --radius {params.radius} --out {output.png}"
+        " > {log} 2>&1"
 
 
 rule thesis_comparison:
@@ -207,6 +211,7 @@ rule thesis_comparison:
             labels={"table": "thesis_comparison (Markdown)", "kind": "chapter vs this project"},
         ),
     params:
+        radius=P["base"]["radius"],
         trace=lambda w, input: f"--trace {input.trace}" if input.trace else "",
         title=f"Thesis comparison (preset {PRESET})",
         sizes={"preset": PRESET},
@@ -222,7 +227,8 @@ rule thesis_comparison:
         "python -m granchain.thesis --packed-sweep {input.packed_sweep}"
         " --packed-trace {input.packed_trace} --gap-profile {input.gap_profile}"
         " --gap-sweep {input.gap_sweep} --extra-length {input.extra_length} {params.trace}"
-        " --title '{params.title}' --out-csv {output.csv} --out-md {output.md} > {log} 2>&1"
+        " --radius {params.radius} --title '{params.title}' --out-csv {output.csv}"
+        " --out-md {output.md} > {log} 2>&1"
 
 
 ALL_TARGETS += expand(f"{FIG_DIR}/fig5_1a_{{material}}.{{ext}}", material=trace_materials(),
