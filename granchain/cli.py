@@ -57,8 +57,15 @@ def _print_human(scene, runs, out=sys.stdout):
         print(f"{head}: v_max,1 = {_fmt(r['v_max_1'])} m/s ({_fmt(r['v_max_1'] / vs)} v_s) at particle {p1}; "
               f"v_max,2 = {_fmt(r['v_max_2'])} m/s ({_fmt(r['v_max_2'] / vs)} v_s) at {p2}; "
               f"dt = {_fmt(r['dt_peak'])} s; v_g = {_fmt(r['v_g'])} m/s "
-              f"(front: {_fmt(r['v_g_front'])}); energy balance error {_fmt(e['balance_error'], digits=2)}; "
+              f"(front: {_fmt(r['v_g_front'])}); energy balance error {_fmt(e['balance_error'], digits=2)}"
+              f"{_residual_note(scene, r)}; "
               f"{r['steps']} steps, {_fmt(r['wall_s'], ' s', 3)}", file=out)
+
+
+def _residual_note(scene, r) -> str:
+    if r.get("engine") == "lammps" and (scene.has("particle_friction") or scene.has("rolling_friction")):
+        return " (LAMMPS: contact friction work is the balance residual, not an independent check)"
+    return ""
 
 
 def cmd_validate(args) -> int:

@@ -243,3 +243,11 @@ def test_workdir_and_options(repo, tmp_path, capsys):
     y = str(repo / "granchain/scenes/packed-440c.yaml")
     assert cli_main(["run", y, "--np", "2"]) == 2
     assert "--engine lammps" in capsys.readouterr().err
+
+
+def test_human_summary_says_the_balance_is_a_residual(repo, capsys):
+    y = str(repo / "granchain/scenes/packed-440c.yaml")
+    assert cli_main(["run", y, "--engine", "lammps"]) == 0
+    assert "balance residual, not an independent check" in capsys.readouterr().out
+    assert cli_main(["run", y, "--engine", "lammps", "--set", "effects=[hertz, air_drag]"]) == 0
+    assert "residual" not in capsys.readouterr().out
