@@ -23,13 +23,13 @@ at ``reference_tolerance`` (1e-13), cross-checked with RK4 at the finest N of th
 their mutual difference is the reference's own uncertainty (``ref_uncertainty_*``), below
 which no error is meaningful.
 
-Sampling: observables read sampled histories, so a run is compared with a reference
-sampled at the same times. The cost scenes sample every t_c / SAMPLES_PER_CONTACT (auto
-sampling is ~t_c / 163), which every N >= SAMPLES_PER_CONTACT divides; a coarser step
-samples every step (a subset of the reference's samples) and its coarser sampling is part
-of its error, as it is for a user. Fixed steps sampling on a grid *not* aligned with the
-reference's have an error floor on v_g whatever dt (``sampling_floor_v_g``: ~2e-7 packed,
-~3e-5 with plateaus); ``resolve_auto`` therefore snaps dt onto the scene's sample interval.
+Sampling: observables read sampled histories (auto sampling, ~t_c / 163), so a run is
+compared with a reference sampled at the same times. ``fixed_step`` puts N steps per
+contact time on the sample grid: dt = t_c / N snapped down to sample_dt / k, or, for a step
+longer than the sample interval, to k sample_dt (a sample every step: a subset of the
+reference's samples, and that coarser sampling is part of the error, as it is for a user).
+Fixed steps sampling off the reference's grid have an error floor on v_g whatever dt
+(``sampling_floor_v_g``: ~2e-7 packed, ~3e-5 with plateaus).
 
 Wall time per chain (``wall_s_per_chain``): the wall time of ``run_scene`` on a batch of B
 chains (integration and observables), over B; the median of ``repeats``; after a JIT
@@ -54,8 +54,9 @@ machine, versions; no dates), written from the default preset's measurement by
 
 Transfer: dt is stored as N steps per contact time. Under Hertz scaling the dynamics of a
 chain depend on t / t_c and v / v_s only (tests/test_physics.py: v_max / v_s is
-scale-free), and gaps scale with the overlap delta_m ~ v_s^(4/5); so the error of a
-setting at given N transfers across striker speeds, materials and radii. Friction and drag
+scale-free), the auto sample interval is a fixed fraction of t_c, and gaps scale with the
+overlap delta_m ~ v_s^(4/5); so the error of a setting at given N transfers across striker
+speeds, materials and radii. Friction and drag
 break the scaling mildly; tests/test_cost.py checks that settings resolved from the 440C /
 0.1 m/s model meet their tolerance on 316 at 0.05 m/s, packed and gapped.
 
@@ -88,8 +89,11 @@ from .errors import GranchainError, SceneError
 METHODS = ("rk4", "verlet", "adaptive", "lammps")
 SCENE_METHODS = ("rk4", "verlet", "adaptive")   # what ``method: auto`` may resolve to
 OBSERVABLES = ("v_max_2", "v_g", "v_g_front")
-SAMPLES_PER_CONTACT = 160
 MIN_STEPS_PER_CONTACT = 20                      # = scene.MIN_STEPS_PER_CONTACT
+# method auto takes the cheapest setting whose measured error is <= tolerance / AUTO_SAFETY:
+# on other scenes (316 and 440C, 0.03-0.5 m/s, packed and 10-190 nm gaps) the error of a
+# setting at the same N was up to 2.3x the model's (docs: README "method: auto").
+AUTO_SAFETY = 4.0
 MODEL_FILE = "data/cost_model.csv"
 MODEL_PROVENANCE = "data/cost_model.provenance.json"
 
@@ -168,11 +172,6 @@ def settings(cost: dict) -> list[Setting]:
             if int(n) < MIN_STEPS_PER_CONTACT:
                 raise GranchainError(f"cost.steps_per_contact: {n} is below {MIN_STEPS_PER_CONTACT}, "
                                      "the fewest steps per contact time a scene accepts; give N >= 20")
-            if int(n) >= SAMPLES_PER_CONTACT and int(n) % SAMPLES_PER_CONTACT:
-                raise GranchainError(f"cost.steps_per_contact: {n} is not a multiple of "
-                                     f"{SAMPLES_PER_CONTACT}, so its samples would miss the "
-                                     f"reference's (every t_c/{SAMPLES_PER_CONTACT}); give a "
-                                     f"multiple of {SAMPLES_PER_CONTACT} from {SAMPLES_PER_CONTACT} on")
         out += [Setting(m, int(n), None) for n in grid]
     return out
 
@@ -193,8 +192,8 @@ def scene_dicts(cost: dict, base: dict) -> dict[str, dict]:
     for g in (gm if isinstance(gm, (list, tuple)) else [gm]):
         g = float(g)
         out[f"gaps{g:g}nm"] = dict(copy.deepcopy(common), name=f"cost-gaps{g:g}nm-{cost['material']}",
-                                   gaps={"distribution": "uniform", "mean": g * 1e-9,
-                                         "seed": int(base["seed"])})
+                                   gaps={"distribution": base.get("gap_distribution", "uniform"),
+                                         "mean": g * 1e-9, "seed": int(base["seed"])})
     return out
 
 
@@ -209,22 +208,32 @@ def contact_time(raw: dict) -> float:
     return sc.contact_time(max(sc.striker_velocities))
 
 
+def fixed_step(scene, steps_per_contact: int) -> float:
+    """The step of N steps per contact time on the scene's sample grid: t_c / N (t_c at
+    the fastest striker) snapped down to sample_dt / k (k steps per sample) or, for a step
+    longer than the auto sample interval, to k sample_dt (a sample every step, on the
+    grid). Under Hertz scaling sample_dt / t_c is the same for every scene (auto sampling:
+    400 samples per solitary-wave width, t_c / 163), so a given N gives the same dt / t_c
+    and the same sampling everywhere: the measurement and ``resolve_auto`` both use it."""
+    from .engines.reference import sample_interval
+    v = max(scene.striker_velocities)
+    dt = scene.contact_time(v) / steps_per_contact
+    sdt = sample_interval(scene, v)
+    if scene.sample_dt is not None or dt < sdt:
+        return sdt / math.ceil(sdt / dt * (1.0 - 1e-12))
+    return sdt * math.floor(dt / sdt * (1.0 + 1e-12))
+
+
 def scene_for(raw: dict, setting: Setting, *, batch: int = 1):
-    """The scene ``raw`` integrated with ``setting`` (LAMMPS: velocity Verlet), sampled
-    every t_c / SAMPLES_PER_CONTACT (or every step, if coarser)."""
+    """The scene ``raw`` (auto sampling) integrated with ``setting`` (LAMMPS: velocity
+    Verlet), its fixed step from ``fixed_step``."""
     from .scene import scene_from_dict
-    tc = contact_time(raw)
-    sample = tc / SAMPLES_PER_CONTACT
-    raw = copy.deepcopy(raw)
+    raw = dict(copy.deepcopy(raw), ensemble={"realisations": int(batch)})
     if setting.method == "adaptive":
-        integ = {"method": "adaptive", "dt": sample, "tolerance": setting.tolerance}
+        raw["integrator"] = {"method": "adaptive", "tolerance": setting.tolerance}
     else:
-        dt = tc / setting.steps_per_contact
-        integ = {"method": "rk4" if setting.method == "rk4" else "verlet", "dt": dt}
-        sample = max(sample, dt)
-    raw["integrator"] = integ
-    raw["output"] = {"sample_dt": sample}
-    raw["ensemble"] = {"realisations": int(batch)}
+        dt = fixed_step(scene_from_dict(raw), setting.steps_per_contact)
+        raw["integrator"] = {"method": "rk4" if setting.method == "rk4" else "verlet", "dt": dt}
     return scene_from_dict(raw)
 
 
@@ -267,6 +276,7 @@ def rel_err(runs: list[dict], ref: list[dict], key: str) -> float:
 def reference_runs(raw: dict, cost: dict, batch: int, log=_log) -> tuple[list[dict], dict]:
     """Reference observables of ``batch`` chains, and the reference's own uncertainty:
     adaptive at ``reference_tolerance`` against RK4 at the finest N of the grid."""
+    from .engines.reference import sample_interval
     ref_set = Setting("adaptive", None, float(cost["reference_tolerance"]))
     ref_scene = scene_for(raw, ref_set, batch=batch)
     ref = _run(ref_scene, ref_set, batch)
@@ -279,7 +289,8 @@ def reference_runs(raw: dict, cost: dict, batch: int, log=_log) -> tuple[list[di
             "uncertainty": unc, "balance_error": max(r["energy"]["balance_error"] for r in ref),
             "status": sorted({r["status"] for r in ref}),
             "plateau_at_probes": sum(bool(r["plateau"][p - 1]) for r in ref for p in r["probes"]),
-            "contact_time_s": contact_time(raw), "sample_dt_s": ref_scene.sample_dt,
+            "contact_time_s": contact_time(raw),
+            "sample_dt_s": sample_interval(ref_scene, max(ref_scene.striker_velocities)),
             "realisations": batch, "seed": ref_scene.gap_seed}
     info["sampling_floor_v_g"] = sampling_floor(raw, cost, batch)
     log(f"reference {raw['name']}: adaptive tol {ref_set.tolerance:g} vs rk4 N={n_fine}: "
@@ -328,7 +339,7 @@ def measure(cost: dict | None = None, base: dict | None = None, *, log=_log):
 
     B = max(size(s)[0] for s in setts)
     info = {"scenes": {}, "skipped": skipped, "batch": int(cost["batch"]),
-            "repeats": int(cost["repeats"]), "samples_per_contact": SAMPLES_PER_CONTACT}
+            "repeats": int(cost["repeats"])}
     refs, scenes = {}, {}
     for name, raw in raws.items():
         refs[name], info["scenes"][name] = reference_runs(raw, cost, B, log)
@@ -533,46 +544,50 @@ def is_packed(scene) -> bool:
             or (d == "from_length" and not scene.gap_extra_length))
 
 
+def _round_up(x: float) -> float:
+    """x rounded up to two significant digits (a bound that prints as what it is)."""
+    if not (x > 0 and math.isfinite(x)):
+        return x
+    e = math.floor(math.log10(x)) - 1
+    return math.ceil(round(x / 10.0**e, 9)) * 10.0**e
+
+
 def resolve_auto(scene) -> tuple[str, float, float | None]:
-    """(method, dt, tolerance) of the cheapest setting meeting ``scene.tolerance`` on v_g.
+    """(method, dt, tolerance) of the cheapest setting meeting ``scene.tolerance`` on v_g
+    with a margin: its measured error (``envelope``) is <= tolerance / AUTO_SAFETY.
 
     Pure: reads only the scene and the packaged cost model (rows of the scene's class,
-    packed or gapped). dt = t_c / N, t_c the contact time at the fastest striker; a fixed
-    step finer than the sample interval is snapped down onto it (dt = sample_dt / k) so its
-    samples fall on the reference's, as in the measurement. With several sample intervals
-    (a sweep of striker speeds at auto sampling) that cannot hold for every member, so
-    below twice the measured misalignment floor only adaptive is used. Adaptive keeps the
-    scene's dt as its first step and gets the model's tolerance as its rtol."""
+    packed or gapped). dt = ``fixed_step(scene, N)``, as in the measurement, so that the
+    samples fall on the reference's. With several sample intervals (a sweep of striker
+    speeds at auto sampling) that cannot hold for every member, so when the target is below
+    the measured misalignment floor only adaptive is used. Adaptive keeps the scene's dt as
+    its first step and gets the model's tolerance as its rtol."""
     from .engines.reference import sample_interval
     table, prov = load_model()
     tol = float(scene.tolerance)
+    target = tol / AUTO_SAFETY
     cls = "packed" if is_packed(scene) else "gapped"
-    lo = achievable(table, "v_g", scene_class=cls)
+    lo = _round_up(AUTO_SAFETY * achievable(table, "v_g", scene_class=cls))
     if tol < lo:
         raise SceneError("integrator.tolerance",
                          f"{tol:g} is tighter than method auto can deliver on v_g "
-                         f"({cls} chains: {lo:.1e} to 0.1, granchain/data/cost_model.csv)",
-                         f"give a tolerance in [{lo:.1e}, 0.1], or choose method adaptive "
+                         f"({cls} chains: {lo:.2g} to 0.1, granchain/data/cost_model.csv)",
+                         f"give a tolerance in [{lo:.2g}, 0.1], or choose method adaptive "
                          "with its own tolerance")
     vs = [v for v in scene.striker_velocities if v > 0]
     methods = list(SCENE_METHODS)
     if (len({sample_interval(scene, v) for v in vs}) > 1
-            and tol < 2.0 * float(prov["sampling_floor_v_g"][cls])):
+            and target < float(prov["sampling_floor_v_g"][cls])):
         methods = ["adaptive"]
-    pick = cheapest(table, tol, "v_g", methods=methods, scene_class=cls)
+    pick = cheapest(table, target, "v_g", methods=methods, scene_class=cls)
     if pick is None:
         raise SceneError("integrator.tolerance", f"{tol:g}: no setting of the cost model meets it",
-                         f"give a tolerance in [{lo:.1e}, 0.1]")
+                         f"give a tolerance in [{lo:.2g}, 0.1]")
     if pick["method"] == "adaptive":
         return "adaptive", scene.dt, pick["tolerance"]
     if not vs:                                   # nothing moves: any step will do
         return pick["method"], scene.dt, None
-    v = max(vs)
-    dt = scene.contact_time(v) / pick["steps_per_contact"]
-    sdt = sample_interval(scene, v)
-    if scene.sample_dt is not None or dt < sdt:
-        dt = sdt / math.ceil(sdt / dt * (1.0 - 1e-12))
-    return pick["method"], dt, None
+    return pick["method"], fixed_step(scene, pick["steps_per_contact"]), None
 
 
 # ---------------------------------------------------------------------------------------
@@ -599,7 +614,6 @@ def provenance_fields(info: dict, cost: dict, base: dict, preset: str | None) ->
             "seeds": sorted({v["seed"] for v in info["scenes"].values()}),
             "engines": ["reference"] + ([] if "lammps" in info["skipped"] else ["lammps"]),
             "skipped": info["skipped"], "method": "see rows", "dt": "see rows",
-            "samples_per_contact": info["samples_per_contact"],
             "config_hash": config_hash({"cost": cost, "base": base}), "cost": cost, "base": base}
 
 
@@ -644,7 +658,6 @@ def write_model(timing_csv, out, *, force: bool = False) -> None:
                                                     "plateau_at_probes", "realisations")}
                        for k, v in src["scenes"].items()},
             "scene_class": {k: scene_class(k) for k in src["scenes"]},
-            "samples_per_contact": src.get("samples_per_contact"),
             "sampling_floor_v_g": floor, "machine": src.get("machine"),
             "versions": {k: src.get(k) for k in ("granchain_version", "git_commit", "python",
                                                   "numpy", "numba")},

@@ -1,0 +1,245 @@
+"""What accuracy costs in time (granchain/cost.py) and integrator.method auto.
+
+No timing assertions: wall times only rank settings; every check here is on errors,
+steps and settings."""
+import json
+import math
+import re
+
+import numpy as np
+import pytest
+
+from granchain import cost
+from granchain.errors import GranchainError, SceneError
+from granchain.scene import load_scene, scene_from_dict
+from granchain.simulate import run_scene
+
+# A small study: packed and 20 nm gaps, four fixed steps a factor 4 apart, two tolerances.
+SMALL = {"batch": 2, "repeats": 1, "gap_mean_nm": [20], "steps_per_contact": [20, 80, 320, 1280],
+         "tolerances": [1e-4, 1e-8], "lammps_steps_per_contact": [20, 80], "lammps_batch": 2,
+         "lammps_repeats": 1}
+ALL_EFFECTS = ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction"]
+
+
+@pytest.fixture(scope="module")
+def study():
+    rows, info = cost.measure(SMALL, log=lambda msg: None)
+    return cost.to_frame(rows), info
+
+
+def _rows(df, scene, method):
+    return df[(df.scene == scene) & (df.method == method)].sort_values("steps_per_contact")
+
+
+def _slope(dt, err):
+    return float(np.polyfit(np.log(dt), np.log(err), 1)[0])
+
+
+def test_table_has_every_method_and_its_columns(study):
+    df, info = study
+    assert list(df.columns) == list(cost.COLUMNS)
+    expected = {"rk4", "verlet", "adaptive", "lammps"}
+    why = cost.lammps_unavailable()
+    if why:                             # skipped cleanly, with its reason kept
+        assert info["skipped"]["lammps"] == why
+        expected.discard("lammps")
+    assert set(df.method) == expected
+    assert set(df.scene) == {"packed", "gaps20nm"}
+    for col in ("err_v_max_2", "err_v_g", "err_v_g_front"):
+        assert (df[col] >= 0).all() and np.isfinite(df[col]).all(), col
+    assert (df.steps_per_chain > 0).all() and (df.status == "passed").all()
+    fixed = df[df.method != "adaptive"]
+    # dt = t_c / N snapped down onto the sample grid (k steps per sample, or k samples)
+    tc, sdt = info["scenes"]["packed"]["contact_time_s"], info["scenes"]["packed"]["sample_dt_s"]
+    ratio = fixed.dt_s * fixed.steps_per_contact / tc
+    assert (ratio <= 1 + 1e-12).all() and (ratio > 0.5).all()
+    k = np.where(fixed.dt_s < sdt, sdt / fixed.dt_s, fixed.dt_s / sdt)
+    assert np.allclose(k, np.round(k), rtol=0, atol=1e-9)
+    # the reference and its cross-check agree far below the errors being measured
+    for name, sc in info["scenes"].items():
+        assert sc["uncertainty"]["v_g"] < 1e-8, (name, sc["uncertainty"])
+
+
+def test_fixed_step_errors_decrease_with_dt_at_method_order(study):
+    """Energy balance of the packed chain and v_g of the gapped chain fall monotonically
+    with dt, at the observed orders of tests/test_physics.py: 2 (Verlet), ~2.5 (RK4)."""
+    df, _ = study
+    orders = {"verlet": (1.7, 2.3), "rk4": (2.1, 3.2)}
+    for method, (lo, hi) in orders.items():
+        packed = _rows(df, "packed", method)
+        gapped = _rows(df, "gaps20nm", method)
+        for r in (packed.balance_error, gapped.err_v_g, gapped.err_v_max_2):
+            assert np.all(np.diff(r.to_numpy()) < 0), (method, r.to_numpy())
+        p = _slope(packed.dt_s, packed.balance_error)
+        g = _slope(gapped.dt_s, gapped.err_v_g)
+        assert lo < p < hi and lo < g < hi, (method, p, g)
+
+
+def test_lammps_errors_are_reference_verlet_errors(study):
+    df, _ = study
+    if "lammps" not in set(df.method):
+        pytest.skip(f"LAMMPS engine not available: {cost.lammps_unavailable()}")
+    for _, row in df[df.method == "lammps"].iterrows():
+        v = df[(df.scene == row.scene) & (df.method == "verlet")
+               & (df.steps_per_contact == row.steps_per_contact)].iloc[0]
+        # same algorithm, same step: the same error to ~1e-11 m/s of the velocities
+        assert row.err_v_max_2 == pytest.approx(v.err_v_max_2, rel=1e-3, abs=1e-9)
+        assert row.err_v_g == pytest.approx(v.err_v_g, rel=1e-3, abs=1e-9)
+        assert math.isnan(row.balance_error)     # LAMMPS' ledger closes by construction
+
+
+def test_cheapest_meets_the_tolerance_and_is_the_cheapest(study):
+    df, _ = study
+    for tol in (1e-3, 1e-5, 1e-7):
+        c = cost.cheapest(df, tol, "v_g")
+        assert c is not None, tol
+        same = df[(df.method == c["method"])]
+        same = same[same.tolerance == c["tolerance"]] if c["method"] == "adaptive" else \
+            same[same.steps_per_contact == c["steps_per_contact"]]
+        assert len(same) == 2 and (same.err_v_g <= tol).all(), (tol, c)
+        # brute force: settings meeting tol on every scene, also at every finer setting
+        ok = []
+        for (m, n, t), g in df.groupby(["method", "steps_per_contact", "tolerance"], dropna=False):
+            finer = df[df.method == m]
+            finer = finer[finer.tolerance <= t] if m == "adaptive" else \
+                finer[finer.steps_per_contact >= n]
+            if (finer.err_v_g <= tol).all():
+                ok.append(g.wall_s_per_chain.mean())
+        assert c["wall_s_per_chain"] == pytest.approx(min(ok)), tol
+    unc = df.ref_uncertainty_v_g.max()
+    assert cost.cheapest(df, unc / 2, "v_g") is None       # below what the reference verifies
+    assert cost.achievable(df, "v_g") >= unc
+
+
+def test_cheapest_table_covers_the_requested_tolerances(study):
+    df, _ = study
+    t = cost.cheapest_table(df, [1e-3, 1e-5])
+    assert set(t.scenes) == {"all", "packed", "gapped"}
+    for _, r in t[t.method != "none"].iterrows():
+        assert r.envelope <= r.tolerance_requested
+
+
+def test_deterministic_table_and_provenance(study, tmp_path):
+    df, info = study
+    rows = df.to_dict("records")
+    a, b = tmp_path / "a", tmp_path / "b"
+    for d in (a, b):
+        cost.write_outputs(rows, info, SMALL, None, preset="test", table=d / "t.csv",
+                           provenance=d / "t.provenance.json", timing=d / "timing.csv",
+                           cheapest_csv=d / "cheapest.csv")
+    assert (a / "t.csv").read_bytes() == (b / "t.csv").read_bytes()
+    head = (a / "t.csv").read_text().splitlines()[0].split(",")
+    assert head == list(cost.DETERMINISTIC) and "wall_s_per_chain" not in head
+    assert "wall_s_per_chain" in (a / "timing.csv").read_text().splitlines()[0]
+    prov = json.loads((a / "t.provenance.json").read_text())
+    assert set(prov["scene_hashes"]) == {"packed", "gaps20nm"} and prov["git_commit"]
+    assert "machine" in json.loads((a / "timing.provenance.json").read_text())
+
+
+def test_measured_errors_are_deterministic():
+    """What goes into tables/ is byte-identical between runs (timings go to timing/)."""
+    mini = {"batch": 2, "repeats": 1, "gap_mean_nm": [20], "methods": ["rk4", "adaptive"],
+            "steps_per_contact": [20, 80], "tolerances": [1e-6]}
+    a, b = (cost.to_frame(cost.measure(mini, log=lambda m: None)[0]) for _ in range(2))
+    cols = list(cost.DETERMINISTIC)
+    assert a[cols].to_csv() == b[cols].to_csv()
+
+
+def test_study_settings_are_validated():
+    full, _ = cost.full_config({}, None)
+    with pytest.raises(GranchainError, match="below 20"):
+        cost.settings({**full, "steps_per_contact": [10]})
+    with pytest.raises(GranchainError, match="unknown method"):
+        cost.settings({**full, "methods": ["euler"]})
+
+
+# ---------------------------------------------------------------------------------------
+# method: auto
+# ---------------------------------------------------------------------------------------
+def test_cost_model_is_package_data_with_provenance():
+    model, prov = cost.load_model()
+    assert list(model.columns) == list(cost.MODEL_COLUMNS)
+    assert set(model.scene_class) == {"packed", "gapped"}
+    assert set(model.method) == set(cost.SCENE_METHODS)
+    fixed = model[model.method != "adaptive"]
+    assert (fixed.steps_per_contact >= 20).all()
+    assert prov["scenes"]["packed"]["scene_hash"] and prov["machine"]["cores"]
+    assert set(prov["sampling_floor_v_g"]) == {"packed", "gapped"}
+    text = json.dumps(prov)
+    assert not re.search(r"\d{4}-\d{2}-\d{2}", text)          # date-free
+
+
+def _scene316(gap_nm=0.0, tol=1e-4, method="auto", **extra):
+    raw = {"name": "s316", "material": "ss316", "striker": {"velocity": 0.05},
+           "effects": ALL_EFFECTS, "ensemble": {"realisations": 4},
+           "integrator": {"method": method, "tolerance": tol}, **extra}
+    if gap_nm:
+        raw["gaps"] = {"distribution": "uniform", "mean": gap_nm * 1e-9, "seed": 7}
+    return scene_from_dict(raw)
+
+
+@pytest.mark.parametrize("gap_nm", [0.0, 30.0])
+def test_auto_meets_its_tolerance_on_another_scene(gap_nm):
+    """Resolved from the 440C / 0.1 m/s model, checked on 316 at 0.05 m/s (packed, and
+    30 nm gaps: about one Hertz overlap, plateau peaks at the probes) against a converged
+    run (adaptive, 1e-13)."""
+    ref = run_scene(_scene316(gap_nm, 1e-13, "adaptive"))
+    seen = set()
+    for tol in (1e-3, 1e-5, 1e-7):
+        sc = _scene316(gap_nm, tol)
+        assert sc.auto_tolerance == tol and sc.method in cost.SCENE_METHODS
+        runs = run_scene(sc)
+        assert {r["method"] for r in runs} == {sc.method}      # resolved, in run output
+        assert {r["dt"] for r in runs} == {sc.dt}
+        err = cost.rel_err(runs, ref, "v_g")
+        assert err <= tol, (gap_nm, tol, sc.method, sc.dt, sc.tolerance, err)
+        seen.add((sc.method, sc.dt, sc.tolerance))
+    assert len(seen) > 1            # tighter tolerances buy different settings
+
+
+def test_auto_step_sits_on_the_sample_grid_and_is_pure():
+    sc = _scene316(0.0, 1e-5)
+    again = _scene316(0.0, 1e-5)
+    assert (sc.method, sc.dt, sc.tolerance) == (again.method, again.dt, again.tolerance)
+    from granchain.engines.reference import sample_interval
+    if sc.method != "adaptive":
+        assert sc.dt <= sc.contact_time(0.05) / 20
+        k = sample_interval(sc, 0.05) / sc.dt
+        k = k if k >= 1 - 1e-9 else 1 / k       # steps per sample, or samples per step
+        assert abs(k - round(k)) < 1e-9
+    # a sweep has several sample intervals: below twice the misalignment floor, adaptive
+    _, prov = cost.load_model()
+    tol = prov["sampling_floor_v_g"]["packed"] * cost.AUTO_SAFETY / 2
+    sweep = scene_from_dict({"striker": {"velocity": [0.05, 0.1]}, "effects": ALL_EFFECTS,
+                             "integrator": {"method": "auto", "tolerance": tol}})
+    assert sweep.method == "adaptive"
+
+
+def test_auto_in_cli_json_reports_the_resolved_setting(tmp_path, capsys):
+    from granchain.cli import main
+    p = tmp_path / "auto.yaml"
+    p.write_text("material: ss440c\nstriker: {velocity: 0.1}\n"
+                 "integrator: {method: auto, tolerance: 1.0e-4}\n")
+    assert main(["run", str(p), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    sc = load_scene(p)
+    assert doc["method"] == sc.method != "auto" and doc["dt"] == sc.dt
+
+
+def test_auto_rejects_a_tolerance_out_of_range(tmp_path, capsys):
+    with pytest.raises(SceneError) as exc:
+        _scene316(0.0, 1e-14)
+    msg = str(exc.value)
+    assert exc.value.field == "integrator.tolerance" and "\n" not in msg
+    lo = cost.AUTO_SAFETY * cost.achievable(cost.load_model()[0], "v_g", scene_class="packed")
+    shown = float(re.search(r"give a tolerance in \[([0-9.e+-]+), 0\.1\]", msg).group(1))
+    assert lo <= shown < 1.1 * lo
+    assert _scene316(0.0, shown).auto_tolerance == shown      # the bound shown is accepted
+    with pytest.raises(SceneError, match="integrator.tolerance"):
+        _scene316(0.0, 0.5)
+    from granchain.cli import main
+    p = tmp_path / "bad.yaml"
+    p.write_text("integrator: {method: auto, tolerance: 1.0e-14}\n")
+    assert main(["validate", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "integrator.tolerance" in err
