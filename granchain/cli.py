@@ -43,7 +43,8 @@ def _fmt(x, unit="", digits=4):
     return f"{x:.{digits}g}{unit}"
 
 
-def _print_human(scene, runs, out=sys.stdout):
+def _print_human(scene, runs, out=None):
+    out = out or sys.stdout
     print(f"scene {scene.name} ({scene.hash}): {scene.n} x {scene.material.name}, "
           f"R = {scene.radius:g} m, effects: {', '.join(sorted(scene.effects))}", file=out)
     p1, p2 = scene.probes[:2]
