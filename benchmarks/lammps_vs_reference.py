@@ -63,7 +63,7 @@ def main(argv=None):
     ap.add_argument("--chains", type=int, default=1000)
     ap.add_argument("--per-process", type=int, default=10, help="chains run one LAMMPS process each")
     ap.add_argument("--np", type=int, default=1, help="MPI ranks of the batched LAMMPS run")
-    ap.add_argument("--readers", type=int, default=None, help="dump reader processes (default: auto)")
+    ap.add_argument("--readers", type=int, default=2, help="dump reader processes (default 2)")
     ap.add_argument("--workdir", default=None, help="where the batched run writes (default: a temp dir)")
     args = ap.parse_args(argv)
     scene = load_scene(REPO / "granchain/scenes/gaps-20nm-440c.yaml",
