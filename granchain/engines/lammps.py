@@ -120,9 +120,13 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         if keep or not tmp:
             meta_common["deck"] = str(deck)
         trajs = list(_trajectories(scene, pl, data, wall / B, meta_common))
-    except BaseException:
+    except GranchainError:
         # a failed run keeps its directory: the error message names its deck or dump
         if tmp and not keep and not (wd / deckmod.DECK_NAME).exists():
+            shutil.rmtree(wd, ignore_errors=True)
+        raise
+    except BaseException:                       # interrupted (or a bug): clean up
+        if tmp and not keep:
             shutil.rmtree(wd, ignore_errors=True)
         raise
     if tmp and not keep:
