@@ -659,7 +659,7 @@ def write_model(timing_csv, out, *, force: bool = False) -> None:
                        for k, v in src["scenes"].items()},
             "scene_class": {k: scene_class(k) for k in src["scenes"]},
             "sampling_floor_v_g": floor, "machine": src.get("machine"),
-            "versions": {k: src.get(k) for k in ("granchain_version", "git_commit", "python",
+            "versions": {k: src.get(k) for k in ("granchain_version", "git_commit", "git_dirty", "python",
                                                   "numpy", "numba")},
             "config_hash": src.get("config_hash"), "cost": src.get("cost"), "base": src.get("base"),
             "rows": "one per (scene_class, setting); error: largest over the class's scenes; "
