@@ -32,6 +32,7 @@ rule accuracy_cost:
             labels={"table": "accuracy_cost", "kind": "cheapest setting per tolerance"},
         ),
     params:
+        preset=PRESET,
         cost=json.dumps(COST, sort_keys=True),
         base=json.dumps(P["base"], sort_keys=True),
     log:
@@ -43,7 +44,7 @@ rule accuracy_cost:
     conda:
         "../envs/granchain.yaml"
     shell:
-        "NUMBA_NUM_THREADS={threads} python -m granchain.cost measure --preset {PRESET}"
+        "NUMBA_NUM_THREADS={threads} python -m granchain.cost measure --preset {params.preset}"
         " --cost-json {params.cost:q} --base-json {params.base:q}"
         " --table {output.table} --provenance {output.provenance}"
         " --timing {output.timing} --cheapest {output.cheapest} > {log} 2>&1"
