@@ -109,7 +109,7 @@ def test_cli_deck(tmp_path, capsys, repo):
 def test_only_enabled_effects_appear(tmp_path):
     h = write_deck(hertz_scene(), tmp_path / "h").read_text()
     assert "groove/drag" not in h and "plugin load" not in h and not re.search(r"^variable", h, re.M)
-    assert "rolling" not in h and "erotate" not in h
+    assert "rolling" not in h and "erotate" not in h and "chunk" not in h and "ledger.txt" not in h
     assert "tangential linear_history 0.0 0.0 0.0" in h
     assert re.search(r"^fix\s+nve all nve$", h, re.M)
     assert "hertz/material 200000000.0 0.0 0.28 damping viscoelastic" in h
@@ -118,10 +118,13 @@ def test_only_enabled_effects_appear(tmp_path):
     assert "fix             gd all groove/drag groove s" in e and "drag T0 52000.0 L 2500.0" in e
     assert "rotation yes" in e and "tangential mindlin NULL 0.0 1.4" in e
     assert "rolling" not in e and re.search(r"^fix\s+nve all nve/sphere$", e, re.M)
+    assert "reduce/chunk chain sum c_erot_atom f_gd[2] f_gd[3]\n" in e
+    assert "ave/time 9 1 9 c_ledger[*] mode vector file ledger.txt" in e
 
     d = write_deck(hertz_scene(effects="[hertz, air_drag]", **{"drag.form": "odd"}),
                    tmp_path / "d").read_text()
     assert "groove s" not in d and "form odd" in d and "rotation no" in d
+    assert "reduce/chunk chain sum f_gd[3]\n" in d and " c_ledger mode vector" in d
 
     r = write_deck(hertz_scene(effects="[hertz, rotation, particle_friction, rolling_friction]",
                                  **{"rolling.k_roll": 1e3, "contact.tangential": "linear_history",
@@ -180,15 +183,24 @@ def test_deck_runs_standalone(make, tmp_path):
     every = steps[1] - steps[0]
     assert steps[-1] * 1e-9 >= T_SHORT and steps[-1] * 1e-9 < T_SHORT + every * 1e-9
     last = d[steps[-1]]
+    assert list(last) == ["id", "x", "y", "z", "vx"]           # only what the engine reads
     assert last["id"].tolist() == list(range(1, scene.n + 1))
     assert np.all(last["y"] == 0) and np.all(last["z"] == 0)
-    assert np.all(last["vy"] == 0) and np.all(last["vz"] == 0)
     en = np.loadtxt(tmp_path / "energy.txt")
     assert en[:, 0].tolist() == steps
     ke0 = 0.5 * scene.mass * 0.1**2 * 1e15
     assert en[0, 1] == pytest.approx(ke0, rel=1e-12)
+    ledger = tmp_path / "ledger.txt"
     if scene.has("groove_friction"):
         assert en[-1, 3] < 0          # the groove takes energy out
+        # per-chain ledger: 'step 1' then '1 erot groove drag' per sample (one chain)
+        rows = np.loadtxt(ledger, comments="#", usecols=(0, 1))
+        assert rows[0::2, 0].tolist() == steps and np.all(rows[0::2, 1] == 1)
+        vals = np.array([ln.split() for ln in ledger.read_text().splitlines()
+                         if not ln.startswith("#")][1::2], dtype=float)
+        np.testing.assert_allclose(vals[:, 1:], en[:, 2:], rtol=1e-13, atol=0)
+    else:
+        assert not ledger.exists()
 
 
 def test_zero_tangential_force_without_particle_friction(tmp_path):
@@ -196,7 +208,7 @@ def test_zero_tangential_force_without_particle_friction(tmp_path):
     deck = write_deck(hertz_scene(), tmp_path)
     text = deck.read_text().replace("fix             nve all nve\n",
                                     "fix             nve all nve/sphere\n")
-    text = text.replace("traj.dump id x y z vx vy vz", "traj.dump id x y z vx vy vz omegay tqy fx")
+    text = text.replace("traj.dump id x y z vx", "traj.dump id x y z vx omegay tqy fx")
     deck.write_text(text)
     run_deck(deck)
     d = read_dump(tmp_path / "traj.dump")

@@ -96,8 +96,9 @@ def test_run_json_has_the_reference_keys(repo, capsys):
     assert lmp["v_g"] == pytest.approx(ref["v_g"], rel=V_BOUND)
 
 
-def test_per_atom_ledger_matches_lammps_global_ledger(tmp_path):
-    """Per-chain sums of the per-atom columns add up to energy.txt (all chains summed)."""
+def test_per_chain_ledger_matches_lammps_global_ledger(tmp_path):
+    """The per-chain ledger (LAMMPS chunk sums in ledger.txt; kinetic energy from the
+    dumped vx) adds up to energy.txt (LAMMPS' global computes, all chains summed)."""
     scene = packed(effects=ALL_BUT_ROLLING, t_end=3e-6,
                    **{"gaps.distribution": "uniform", "gaps.mean": 20e-9, "ensemble.realisations": 3})
     gaps, vs = _members(scene)
@@ -210,6 +211,30 @@ def test_missing_and_truncated_dump(tmp_path):
     _one_line(exc.value)
     dump.write_text("".join(lines[:-3]))                        # cut inside a frame
     with pytest.raises(GranchainError, match=f"LAMMPS dump {dump} is truncated") as exc:
+        L.read_dump(dump, scene, pl)
+    _one_line(exc.value)
+
+
+def test_missing_and_truncated_ledger(tmp_path):
+    scene = packed(t_end=2e-6, effects="[hertz, groove_friction, air_drag]")
+    gaps, vs = _members(scene)
+    pl = D.plan(scene, gaps=gaps, v_striker=vs)
+    assert pl.ledger_columns == ("work_groove_friction", "work_air_drag")
+    next(L.run(scene, gaps, vs, workdir=tmp_path))
+    dump, ledger = tmp_path / D.DUMP_NAME, tmp_path / D.LEDGER_NAME
+    assert L.read_dump(dump, scene, pl)["energy"][-1, 0, 3] < 0
+    text = ledger.read_text()
+    ledger.write_text(text[:-40])                               # cut inside a row
+    with pytest.raises(GranchainError, match=f"LAMMPS ledger {ledger} is truncated") as exc:
+        L.read_dump(dump, scene, pl)
+    _one_line(exc.value)
+    lines = text.splitlines(keepends=True)
+    ledger.write_text("".join(lines[:-2]))                      # last sample missing
+    with pytest.raises(GranchainError, match=f"LAMMPS ledger {ledger} does not match the dump") as exc:
+        L.read_dump(dump, scene, pl)
+    _one_line(exc.value)
+    ledger.unlink()
+    with pytest.raises(GranchainError, match=f"LAMMPS ledger {ledger} is missing") as exc:
         L.read_dump(dump, scene, pl)
     _one_line(exc.value)
 

@@ -7,25 +7,25 @@ MDAnalysis and yields a :class:`~granchain.trajectory.Trajectory` per chain, in 
 like ``granchain.engines.reference.run``. LAMMPS always integrates with velocity Verlet
 (``fix nve`` / ``nve/sphere``) at the scene's dt; ``meta["method"] = "lammps-verlet"``.
 
-Reading the dump (``read_dump``). MDAnalysis' ``LAMMPSDUMP`` reader (2.11) parses
-positions and velocities as float32 and shifts positions by the box's xlo. Its
-``additional_columns`` are parsed as float64 and not shifted, and an explicit list may
-name the standard columns too, so every observable here is built from the float64
-columns ``x``, ``vx`` (and ``omegay``, ``f_gd[2]``, ``f_gd[3]``), written by the deck
-with ``%.17g``: the values LAMMPS holds, bit for bit. ``velocities="float32"`` uses
-MDAnalysis' float32 velocities instead (only to measure what that would cost; see
-docs/lammps_engine.md).
+Reading the output (``read_dump``). The trajectory dump holds ``id x y z vx`` only. It is
+read with MDAnalysis' ``LAMMPSDUMP`` reader (2.11), which parses positions as float32 and
+shifts them by the box's xlo; its ``additional_columns`` are parsed as float64 and not
+shifted, so the observables are built from the float64 columns ``x`` and ``vx``, written
+by the deck with ``%.17g``: the values LAMMPS holds, bit for bit. ``velocities="float32"``
+rounds vx to float32, as MDAnalysis' own velocity parsing would (only to measure what
+that would cost; see docs/lammps_engine.md).
 
 Energy ledger per chain (columns of ``granchain.trajectory.ENERGY_COLUMNS``), at every
-sample, from the per-atom columns:
+sample:
 
-* kinetic translational 1/2 m sum v^2 and rotational 1/2 I sum omega^2 (SI m, I of
-  ``granchain.effects``);
-* Hertz potential (2/5) K delta^(5/2) per contact with delta = 2R - (x_{k+1} - x_k), the
-  float64 positions LAMMPS integrates (the same law as ``effects.Hertz``);
-* work of the groove friction and of the air drag: sums over the chain of the per-atom
-  cumulative works of ``fix groove/drag`` (the same increments as its global vector,
-  which ``energy.txt`` records for all chains together);
+* kinetic translational 1/2 m sum v^2 (SI m of ``granchain.effects``) from the dumped vx;
+* Hertz potential per contact, ``effects.Hertz.energy`` of delta = 2R - (x_{k+1} - x_k),
+  the float64 positions LAMMPS integrates;
+* kinetic rotational and the works of the groove friction and of the air drag: summed
+  per chain inside LAMMPS (``compute chunk/atom`` + ``reduce/chunk`` of
+  ``erotate/sphere/atom`` and of the per-atom cumulative works of ``fix groove/drag``),
+  read from ``ledger.txt`` (``read_ledger``); ``energy.txt`` holds the same sums over all
+  chains, from LAMMPS' global computes and the fix's global vector;
 * the tangential (particle-particle) and rolling contact friction have no per-atom work
   output in LAMMPS: their sum is reported as the residual of the energy balance in
   ``work_particle_friction`` and ``work_rolling_friction`` is 0. Such a ledger balances
@@ -54,11 +54,11 @@ from ..scene import Scene
 from ..trajectory import ENERGY_COLUMNS, Trajectory
 
 METHOD = "lammps-verlet"
+DUMP_READ = ("x", "vx")   # the dump columns read as MDAnalysis additional (float64) columns
 E_KT, E_KR, E_H, E_WG, E_WD, E_WT, E_WR = range(len(ENERGY_COLUMNS))
 # SI factors of 'units micro' values (docs/lammps_laws.md section 1)
 UM = 1e-6          # um -> m
 ENERGY = 1e-15     # 1e-15 J -> J
-RAD_PER_US = 1e6   # rad/us -> rad/s
 
 
 def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: bool = False,
@@ -99,7 +99,7 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         t0 = time.perf_counter()
         pl = deckmod.plan(scene, gaps=gaps, v_striker=vs)
         deck = deckmod.write_deck(scene, wd, gaps=gaps, v_striker=vs, force=True)
-        for stale in (deckmod.DUMP_NAME, deckmod.ENERGY_NAME):
+        for stale in (deckmod.DUMP_NAME, deckmod.ENERGY_NAME, deckmod.LEDGER_NAME):
             (wd / stale).unlink(missing_ok=True)
         if progress:
             print(f"[granchain] {scene.name}: LAMMPS, {B} chain(s) x {scene.n} spheres, "
@@ -156,15 +156,16 @@ def residual_balance(scene: Scene) -> bool:
 
 def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: str = "float64",
               readers: int = 1):
-    """Read a deck's dump with MDAnalysis into per-chain arrays.
+    """Read a deck's output into per-chain arrays: the dump with MDAnalysis, and the
+    per-chain ledger (``ledger.txt`` next to the dump, if the deck writes one).
 
     Returns a dict: ``step`` (S,), ``v`` (S, B, n) m/s and ``energy`` (S, B, 7) J.
-    ``readers`` > 1 splits the frames between that many processes (each opens the dump
-    with MDAnalysis, scans it for the frame offsets and parses its share): it only pays
-    with idle cores (on the shared 2-core test machine, 2 readers took 60 s for a 385 MB
-    dump that 1 reader read in 57 s).
-    Raises GranchainError (one line, naming the dump) if it is missing, truncated or
-    does not match the plan.
+    ``readers`` > 1 splits the dump's frames between that many processes (each opens the
+    dump with MDAnalysis, scans it for the frame offsets and parses its share): it only
+    pays with idle cores (on the shared 2-core test machine, 2 readers took 60 s for a
+    385 MB dump that 1 reader read in 57 s).
+    Raises GranchainError (one line, naming the file) if the dump or the ledger is
+    missing, truncated or does not match the plan.
     """
     if velocities not in ("float64", "float32"):
         raise GranchainError(f"read_dump: velocities must be 'float64' or 'float32' (got {velocities!r})")
@@ -174,17 +175,11 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
         raise GranchainError(f"LAMMPS dump {path} is missing or empty: the run wrote no "
                              "trajectory (see log.lammps next to it)")
     terms = physics_terms(scene)
-    rot = scene.has("rotation")
-    wcols = {E_WG: deckmod.WORK_COLUMNS["groove_friction"] if scene.has("groove_friction") else None,
-             E_WD: deckmod.WORK_COLUMNS["air_drag"] if scene.has("air_drag") else None}
-    extra = ["x", "vx"] + (["omegay"] if rot else []) + [c for c in wcols.values() if c]
-    missing = [c for c in extra if c not in pl.dump_columns]
+    missing = [c for c in DUMP_READ if c not in pl.dump_columns]
     if missing:
         raise GranchainError(f"LAMMPS dump {path}: the deck does not dump {', '.join(missing)}")
-    job = {"path": str(path), "B": B, "n": n, "extra": extra, "velocities": velocities,
-           "rot": rot, "wcols": {k: v for k, v in wcols.items() if v},
-           "D": 2.0 * deckmod.to_micro(scene.radius, "length"), "m": terms.m,
-           "K": terms.hertz.K, "I": terms.rotation.inertia if rot else 0.0}
+    job = {"path": str(path), "B": B, "n": n, "velocities": velocities,
+           "D": 2.0 * deckmod.to_micro(scene.radius, "length"), "hertz": terms.hertz}
     readers = max(1, int(readers))
     if readers == 1:
         parts = [_read_part(job, 0, 1)]
@@ -198,7 +193,6 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     S = parts[0][0]
     step = np.concatenate([p[1] for p in parts])
     V = np.concatenate([p[2] for p in parts])
-    E = np.concatenate([p[3] for p in parts])
     if S > pl.nsamples or (not pl.auto and S != pl.nsamples) or (
             pl.auto and S < pl.nsamples and not _halted(path)):
         raise GranchainError(f"LAMMPS dump {path} is truncated: {S} of {pl.nsamples} "
@@ -207,10 +201,55 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     if S == 0 or not np.array_equal(step, expected):
         raise GranchainError(f"LAMMPS dump {path}: its steps are not 0, {pl.every}, "
                              f"{2 * pl.every}, ... (was it written by this deck?)")
+    E = np.zeros((S, B, len(ENERGY_COLUMNS)))
+    E[:, :, E_KT] = 0.5 * terms.m * np.sum(V * V, axis=2)
+    E[:, :, E_H] = np.concatenate([p[3] for p in parts])
+    if pl.ledger_columns:
+        ledger = read_ledger(path.with_name(deckmod.LEDGER_NAME), pl, step)
+        for j, name in enumerate(pl.ledger_columns):
+            E[:, :, ENERGY_COLUMNS.index(name)] = ledger[:, :, j] * ENERGY
     if residual_balance(scene):
         mech = E[:, :, E_KT] + E[:, :, E_KR] + E[:, :, E_H]
         E[:, :, E_WT] = mech - mech[0] - E[:, :, E_WG] - E[:, :, E_WD]
     return {"step": step, "v": V, "energy": E}
+
+
+def read_ledger(path: Path, pl: "deckmod.DeckPlan", step) -> np.ndarray:
+    """The per-chain ledger ``ledger.txt`` (``fix ave/time ... mode vector``) at the dump's
+    samples ``step``: (S, B, k) in LAMMPS energy units (1e-15 J), columns
+    ``pl.ledger_columns``. One-line GranchainError if missing, truncated or not this deck's.
+    """
+    path = Path(path)
+    B, k = pl.n_chains, len(pl.ledger_columns)
+    try:
+        text = path.read_text()
+    except OSError:
+        text = ""
+    if not text:
+        raise GranchainError(f"LAMMPS ledger {path} is missing or empty: the run wrote no "
+                             "per-chain energies (see log.lammps next to it)")
+    # header: three '#' lines; then per sample 'step B' and B rows 'row value*k'
+    body = 0
+    for _ in range(3):
+        if text.startswith("#", body):
+            body = text.find("\n", body) + 1 or len(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")        # numpy warns (not raises) at unparsable text
+        try:
+            vals = np.fromstring(text[body:], sep=" ")
+        except (ValueError, DeprecationWarning):
+            vals = None
+    per = 2 + B * (1 + k)
+    S = len(step)
+    if vals is None or vals.size % per or not text.endswith("\n"):
+        raise GranchainError(f"LAMMPS ledger {path} is truncated or unreadable")
+    a = vals.reshape(-1, per)
+    rows = a[:, 2:].reshape(-1, B, 1 + k)
+    if (len(a) != S or not np.array_equal(a[:, 0], step) or np.any(a[:, 1] != B)
+            or np.any(rows[:, :, 0] != np.arange(1, B + 1))):
+        raise GranchainError(f"LAMMPS ledger {path} does not match the dump: {len(a)} samples "
+                             f"of {B} rows; the dump has {S} samples of {B} chains")
+    return rows[:, :, 1:]
 
 
 def _halted(dump: Path) -> bool:
@@ -222,17 +261,15 @@ def _halted(dump: Path) -> bool:
 
 
 def _read_part(job: dict, part: int, nparts: int):
-    """Frames [part*S/nparts, (part+1)*S/nparts) of a dump: (S, step, V, E)."""
+    """Frames [part*S/nparts, (part+1)*S/nparts) of a dump: (S, step, V, E_hertz)."""
     import MDAnalysis as mda
 
-    path, B, n = job["path"], job["B"], job["n"]
-    m, K, inertia, D = job["m"], job["K"], job["I"], job["D"]
-    wcols = {int(k): v for k, v in job["wcols"].items()}
+    path, B, n, D, hertz = job["path"], job["B"], job["n"], job["D"], job["hertz"]
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")       # no masses/types in a dump: MDAnalysis warns
             u = mda.Universe(path, topology_format="LAMMPSDUMP", format="LAMMPSDUMP",
-                             additional_columns=job["extra"])
+                             additional_columns=list(DUMP_READ))
             traj = u.trajectory
             S = traj.n_frames
             if u.atoms.n_atoms != B * n:
@@ -241,30 +278,22 @@ def _read_part(job: dict, part: int, nparts: int):
             lo, hi = part * S // nparts, (part + 1) * S // nparts
             step = np.empty(hi - lo, dtype=np.int64)
             V = np.empty((hi - lo, B, n))
-            E = np.zeros((hi - lo, B, len(ENERGY_COLUMNS)))
+            EH = np.empty((hi - lo, B))
             for s, ts in enumerate(traj[lo:hi]):
                 data = ts.data
                 step[s] = data["step"]
-                if job["velocities"] == "float64":
-                    v = data["vx"].reshape(B, n)
-                else:
-                    v = ts.velocities[:, 0].astype(np.float64).reshape(B, n)
+                v = data["vx"].reshape(B, n)
+                if job["velocities"] == "float32":
+                    v = v.astype(np.float32).astype(np.float64)
                 V[s] = v
                 x = data["x"].reshape(B, n)
-                E[s, :, E_KT] = 0.5 * m * np.sum(v * v, axis=1)
-                if job["rot"]:
-                    w = data["omegay"].reshape(B, n) * RAD_PER_US
-                    E[s, :, E_KR] = 0.5 * inertia * np.sum(w * w, axis=1)
-                delta = np.maximum((D - (x[:, 1:] - x[:, :-1])) * UM, 0.0)
-                E[s, :, E_H] = np.sum(0.4 * K * delta * delta * np.sqrt(delta), axis=1)
-                for col, name in wcols.items():
-                    E[s, :, col] = np.sum(data[name].reshape(B, n), axis=1) * ENERGY
+                EH[s] = np.sum(hertz.energy((D - (x[:, 1:] - x[:, :-1])) * UM), axis=1)
     except GranchainError:
         raise
     except (ValueError, IndexError, EOFError, OSError, KeyError, TypeError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise GranchainError(f"LAMMPS dump {path} is truncated or unreadable: {msg}") from None
-    return S, step, V, E
+    return S, step, V, EH
 
 
 def _trajectories(scene, pl, data, wall_each, meta_common):

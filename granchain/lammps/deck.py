@@ -28,14 +28,23 @@ Choices (also stated in the deck's comments):
   record where the reference engine would have stopped that chain.
 * Cadence: every = round(sample_interval / dt) (as the reference engine), from the
   member with the finest sampling.
-* Dump (``traj.dump``, every sample, sorted by id, ``%.17g``): id x y z vx vy vz, plus
-  omegay (rotation on) and the per-atom cumulative works of ``fix groove/drag``
-  (``f_gd[2]`` groove, ``f_gd[3]`` drag, when that effect is on). The engine reads it
-  with MDAnalysis and builds every chain's energy ledger from these columns.
+* Trajectory dump (``traj.dump``, every sample, sorted by id, ``%.17g``): ``id x y z
+  vx`` only (:data:`DUMP_COLUMNS`). The engine reads it with MDAnalysis (x and vx as
+  float64 additional columns): the velocities, and the Hertz energy from the positions.
+  y and z are constant and print in a few characters; vy, vz and omega are not dumped.
+* Per-chain ledger (``ledger.txt``, :data:`LEDGER_NAME`), computed inside LAMMPS at every
+  sample: the atoms are binned by chain (``compute chunk/atom`` of the atom-style
+  variable floor((id-1)/n)+1) and ``compute reduce/chunk`` sums, per chain, the
+  rotational kinetic energy (``compute erotate/sphere/atom``, rotation on) and the
+  per-atom cumulative works of ``fix groove/drag`` (``f_gd[2]`` groove, ``f_gd[3]``
+  drag), written by ``fix ave/time ... mode vector`` (one row per chain, ``%.17g``); see
+  :data:`LEDGER_INPUTS`. Only the enabled effects' columns; no ledger file when there
+  are none (Hertz only). The translational kinetic energy and the Hertz potential come
+  from the dumped vx and x.
 * The global energy ledger (``energy.txt``) holds sums over all chains: kinetic
   translational (``compute ke``), rotational (``compute erotate/sphere``, rotation
   only) and the cumulative works of ``fix groove/drag`` (groove, drag); a cross-check
-  of the per-atom sums. Pair granular tallies no Hertz energy (computed from the
+  of the per-chain ledger. Pair granular tallies no Hertz energy (computed from the
   positions), nor the work of the tangential and rolling contact friction.
 """
 from __future__ import annotations
@@ -55,15 +64,24 @@ from granchain.scene import Scene
 
 __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "write_deck",
            "plan", "DeckPlan", "DECK_NAME", "DATA_NAME", "DUMP_NAME", "ENERGY_NAME",
-           "WORK_COLUMNS", "STOP_FRACTION", "STOP_THRESHOLD"]
+           "LEDGER_NAME", "DUMP_COLUMNS", "WORK_COLUMNS", "LEDGER_INPUTS", "STOP_FRACTION",
+           "STOP_THRESHOLD"]
 
 DECK_NAME = "deck.lmp"
 DATA_NAME = "chain.data"
 DUMP_NAME = "traj.dump"
 ENERGY_NAME = "energy.txt"
-# dump columns of the per-atom cumulative works of fix groove/drag (per-atom array
-# columns 2 and 3; column 1 is the spring history)
+LEDGER_NAME = "ledger.txt"
+# the trajectory dump: MDAnalysis needs id and x y z; the engine reads x and vx
+DUMP_COLUMNS = ("id", "x", "y", "z", "vx")
+# the per-atom cumulative works of fix groove/drag (per-atom array columns 2 and 3;
+# column 1 is the spring history)
 WORK_COLUMNS = {"groove_friction": "f_gd[2]", "air_drag": "f_gd[3]"}
+# per-chain ledger (ledger.txt): effect -> (granchain.trajectory.ENERGY_COLUMNS entry,
+# the per-atom LAMMPS quantity summed over the chain), in the file's column order
+LEDGER_INPUTS = {"rotation": ("kinetic_rotational", "c_erot_atom"),
+                 "groove_friction": ("work_groove_friction", WORK_COLUMNS["groove_friction"]),
+                 "air_drag": ("work_air_drag", WORK_COLUMNS["air_drag"])}
 # t_end auto stop rule of the reference engine (engines/kernels.py run_window): a chain
 # has passed once its last probe's velocity falls below STOP_FRACTION of its running
 # peak, that peak exceeding STOP_THRESHOLD * v_striker
@@ -153,6 +171,7 @@ class DeckPlan:
     auto: bool                 # t_end auto: fix halt stops the run when every chain passed
     t_note: str
     dump_columns: tuple[str, ...]
+    ledger_columns: tuple[str, ...]   # ENERGY_COLUMNS entries of ledger.txt, in order
     gaps: np.ndarray           # (B, n-1) m
     v_striker: np.ndarray      # (B,) m/s
 
@@ -183,15 +202,11 @@ def plan(scene: Scene, *, gaps=None, v_striker=None) -> DeckPlan:
                   if caps else "t_end auto: no striker moves")
     nsamples = int(math.ceil(t_si / sdt - 1e-9)) if t_si > 0 else 0
     nsteps = nsamples * every
-    cols = ["id", "x", "y", "z", "vx", "vy", "vz"]
-    if scene.has("rotation"):
-        cols.append("omegay")
-    for eff, col in WORK_COLUMNS.items():
-        if scene.has(eff):
-            cols.append(col)
+    ledger = tuple(col for eff, (col, _) in LEDGER_INPUTS.items() if scene.has(eff))
     return DeckPlan(n_chains=B, n=scene.n, every=every, nsteps=nsteps, sample_dt=sdt,
                     dt=scene.dt, t_run=nsteps * scene.dt, auto=auto and nsteps > 0,
-                    t_note=t_note, dump_columns=tuple(cols), gaps=gaps, v_striker=vs)
+                    t_note=t_note, dump_columns=DUMP_COLUMNS, ledger_columns=ledger,
+                    gaps=gaps, v_striker=vs)
 
 
 def _id_ranges(ids) -> str:
@@ -213,14 +228,29 @@ def _id_ranges(ids) -> str:
     return " ".join(out)
 
 
-def _dump_note(cols) -> str:
-    notes = {"omegay": "omegay: spin about y, rad/us (rotation on)",
-             WORK_COLUMNS["groove_friction"]: f"{WORK_COLUMNS['groove_friction']}: cumulative work "
-                                              "of the groove friction on the atom, 1e-15 J",
-             WORK_COLUMNS["air_drag"]: f"{WORK_COLUMNS['air_drag']}: cumulative work of the air "
-                                       "drag on the atom, 1e-15 J"}
-    extra = [notes[c] for c in cols if c in notes]
-    return "".join(f"\n# {e}" for e in extra)
+def _ledger_block(scene: Scene, pl: DeckPlan) -> str:
+    """Deck lines of the per-chain ledger (ledger.txt), or a comment if it has no column."""
+    if not pl.ledger_columns:
+        return ("# (no per-chain ledger file: this scene has no rotation, groove friction or "
+                "air drag;\n# the engine computes the kinetic and Hertz energies from the dump)")
+    notes = {"kinetic_rotational": "rotational kinetic energy (compute erotate/sphere/atom)",
+             "work_groove_friction": f"cumulative work of the groove friction "
+                                     f"({WORK_COLUMNS['groove_friction']})",
+             "work_air_drag": f"cumulative work of the air drag ({WORK_COLUMNS['air_drag']})"}
+    inputs = [LEDGER_INPUTS[eff][1] for eff in LEDGER_INPUTS if scene.has(eff)]
+    k = len(inputs)
+    lines = ["# per-chain energy ledger (ledger.txt): at every sample, one row per chain (row b+1 =",
+             "# chain b), each column the sum over the chain's atoms (1e-15 J) of:"]
+    lines += [f"#   {j + 1}: {notes[c]}" for j, c in enumerate(pl.ledger_columns)]
+    lines += [f'variable        chain atom "floor((id-1)/{pl.n})+1"',
+              "compute         chain all chunk/atom v_chain nchunk once ids once compress no"]
+    if scene.has("rotation"):
+        lines.append("compute         erot_atom all erotate/sphere/atom")
+    lines += [f"compute         ledger all reduce/chunk chain sum {' '.join(inputs)}",
+              f"fix             ledger all ave/time {pl.every} 1 {pl.every} "
+              f"{'c_ledger[*]' if k > 1 else 'c_ledger'} mode vector file {LEDGER_NAME} "
+              'format " %.17g"']
+    return "\n".join(lines)
 
 
 def _plugin_path() -> str:
@@ -388,8 +418,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
         sample_note="round(sample_interval/dt) of the reference engine, finest member",
         dump_columns=dump_cols, ledger_note=ledger_note, energy_computes="\n".join(computes),
         energy_values=" ".join(values), thermo_values=" ".join(values),
-        thermo_every=max(1, nsteps // 10), halt=halt,
-        dump_note=_dump_note(pl.dump_columns),
+        thermo_every=max(1, nsteps // 10), halt=halt, chain_ledger=_ledger_block(scene, pl),
     )
     deck_text = Template(template_path().read_text()).substitute(subs)
     return deck_text, data_text
