@@ -9,8 +9,10 @@ sample refined by the parabola through its neighbours, t_peak that parabola's ve
 (at 1 ns spacing the observables code would call every peak a plateau, see below).
 From the same dump, the observables code (granchain.observables.summarize) is applied
 to the record subsampled at 1x, 4x and 16x the default cadence (400 samples per
-solitary-wave width, 9 steps here), with the float64 columns and with MDAnalysis'
-float32 velocities. Printed: the largest error over particles of v_max (relative) and
+solitary-wave width, 9 steps here), with the float64 columns and with the velocities
+rounded to float32 (``read_dump(velocities="float32")``: what MDAnalysis' own float32
+velocity parsing gives; the dump no longer writes vy vz, so MDAnalysis parses none).
+Printed: the largest error over particles of v_max (relative) and
 t_peak (ns), and the relative error of v_g and v_g_front. Not a test: run by hand.
 """
 from __future__ import annotations

@@ -123,8 +123,8 @@ def test_per_chain_ledger_matches_lammps_global_ledger(tmp_path):
 
 
 def test_float64_columns_are_the_dumped_values(tmp_path):
-    """Observables use the dump's %.17g text at float64; MDAnalysis' own velocities are
-    float32 (relative rounding <= 2^-24)."""
+    """Observables use the dump's %.17g text at float64; velocities="float32" rounds them
+    as MDAnalysis' own float32 parsing would (relative rounding <= 2^-24)."""
     scene = packed(t_end=2e-6)
     gaps, vs = _members(scene)
     pl = D.plan(scene, gaps=gaps, v_striker=vs)
@@ -139,6 +139,9 @@ def test_float64_columns_are_the_dumped_values(tmp_path):
     assert d32["v"][-1, 0].tolist() == vx.astype(np.float32).astype(float).tolist()
     assert np.any(d32["v"][-1, 0] != vx)
     np.testing.assert_allclose(d32["v"], d64["v"], rtol=2.0**-24, atol=0)
+    two = L.read_dump(tmp_path / D.DUMP_NAME, scene, pl, readers=2)   # frames split in two
+    for k in ("step", "v", "energy"):
+        assert np.array_equal(two[k], d64[k])
 
 
 def test_two_mpi_ranks_give_the_same_observables(tmp_path):

@@ -299,6 +299,8 @@ def _lammps_vs_reference(tmp_path, scene, w0, gaps=None):
     from tests.test_lammps_deck import read_dump, run_deck
 
     deck = write_deck(scene, tmp_path)
+    # the deck dumps id x y z vx only (its ledger has the energies): add the spins here
+    deck.write_text(deck.read_text().replace("traj.dump id x y z vx", "traj.dump id x y z vx omegay"))
     data = tmp_path / DATA_NAME
     head, vel = data.read_text().split("Velocities\n\n", 1)
     rows = vel.strip().splitlines()
