@@ -20,6 +20,20 @@ include: "workflow/rules/cost.smk"
 include: "workflow/rules/figures.smk"
 
 
+# On a cluster, rules that take a second or two run on the submitting node instead of
+# waiting in the queue (gather_study is declared in tables.smk).
+localrules:
+    all,
+    fig5_1a,
+    fig5_1b,
+    fig5_1c,
+    fig5_3b,
+    fig5_3c,
+    fig5_4b,
+    thesis_comparison,
+    accuracy_cost_figure,
+
+
 # Every .smk file appends its final outputs to ALL_TARGETS (common.smk).
 rule all:
     default_target: True

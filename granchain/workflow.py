@@ -388,9 +388,17 @@ def engine_options(engine: str, threads: int | None) -> dict:
     return {"nprocs": max(1, int(threads or 1))} if engine == "lammps" else {}
 
 
+def member_rows(ss: StudyScene, runs: list[dict]) -> pd.DataFrame:
+    """Table rows of a study scene's runs, with the Eq. 5.4 bound from its packed chain
+    (run here for the speeds these runs have: a few cheap chains)."""
+    df = tables.study_table(_runs_to_rows(ss, runs), ss.scene.n)
+    speeds = sorted({float(r["v_striker"]) for r in runs})
+    return tables.add_eq54_bound(df, packed_reference([ss], velocities=speeds), ss.scene.radius)
+
+
 def run_batch(preset: dict, study: str, name: str, threads: int | None = None
               ) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Run one batch: (rows without the Eq. 5.4 bound, timing rows)."""
+    """Run one batch: (its rows, complete with the Eq. 5.4 bound; timing rows)."""
     batch = find_batch(preset, study, name)
     scenes = study_scenes(preset, study)
     rows, timing = [], []
@@ -400,15 +408,14 @@ def run_batch(preset: dict, study: str, name: str, threads: int | None = None
         runs = run_scene(ss.scene, engine=batch.engine, realisations=list(reals),
                          **engine_options(batch.engine, threads))
         wall = time.perf_counter() - t0
-        rows += _runs_to_rows(ss, runs)
+        rows.append(member_rows(ss, runs))
         timing.append({"study": study, "engine": batch.engine, "batch": batch.name,
                        "scene_hash": ss.scene.hash, "members": len(runs),
                        "steps": int(sum(r["steps"] for r in runs)), "wall_s": wall,
                        "wall_per_member_s": wall / max(1, len(runs))})
         print(f"[granchain] {study} {batch.name}: {ss.scene.name} {len(runs)} members "
               f"in {wall:.2f} s", file=sys.stderr, flush=True)
-    n = scenes[0].scene.n
-    return tables.study_table(rows, n), tables.timing_table(timing)
+    return pd.concat(rows, ignore_index=True), tables.timing_table(timing)
 
 
 def write_batch(preset: dict, study: str, name: str, out_csv, timing_csv,
@@ -426,7 +433,7 @@ def run_traces(preset: dict, trace_paths: dict[str, str], out_csv, timing_csv) -
     for ss in scenes:
         t0 = time.perf_counter()
         runs = run_scene(ss.scene)
-        rows += _runs_to_rows(ss, runs)
+        rows.append(member_rows(ss, runs))
         (m, traj), = list(trajectories(ss.scene, scene_members(ss.scene)))
         tables.write_npz(trace_paths[ss.material], t_s=traj.t, v_m_s=traj.v,
                          v_striker_m_s=np.float64(m.v_striker), material=np.str_(ss.material))
@@ -436,7 +443,7 @@ def run_traces(preset: dict, trace_paths: dict[str, str], out_csv, timing_csv) -
                        "steps": int(sum(r["steps"] for r in runs)), "wall_s": wall,
                        "wall_per_member_s": wall / max(1, len(runs))})
     tables.write_csv(tables.timing_table(timing), timing_csv)
-    tables.write_csv(tables.study_table(rows, scenes[0].scene.n), out_csv)
+    tables.write_csv(pd.concat(rows, ignore_index=True), out_csv)
 
 
 # ---------------------------------------------------------------------------------------
@@ -516,7 +523,8 @@ def study_provenance(preset_name: str, preset: dict, study: str, df: pd.DataFram
 
 def gather(preset_name: str, preset: dict, study: str, batch_csvs, timing_csvs,
            out_table, out_summary, out_provenance, out_timing) -> pd.DataFrame:
-    """Concatenate a study's batch tables into its table, summary, provenance and timing."""
+    """Concatenate a study's batch tables into its table, summary, provenance and timing
+    (pure table work: the batches' rows are complete)."""
     scenes = study_scenes(preset, study)
     parts = [tables.read_csv(p) for p in batch_csvs]
     df = pd.concat(parts, ignore_index=True) if parts else \
@@ -526,7 +534,6 @@ def gather(preset_name: str, preset: dict, study: str, batch_csvs, timing_csvs,
     if len(df) != expected:
         raise GranchainError(f"study '{study}' has {len(df)} rows, the configuration "
                              f"{expected}; delete its work folder and re-run")
-    df = tables.add_eq54_bound(df, packed_reference(scenes), scenes[0].scene.radius)
     df = df[tables.columns(scenes[0].scene.n)]
     timing = pd.concat([tables.read_csv(p) for p in timing_csvs], ignore_index=True) \
         if timing_csvs else tables.timing_table([])
@@ -558,10 +565,7 @@ def rerun_member(preset: dict, study: str, *, material: str, v_striker: float, r
     raw["striker"]["velocity"] = float(v_striker)
     alone = scene_from_dict(raw)
     run, = run_scene(alone, engine=engine, realisations=[int(realisation)])
-    df = tables.study_table(_runs_to_rows(ss, [run]), ss.scene.n)
-    df = tables.add_eq54_bound(df, packed_reference([ss], velocities=[v_striker]),
-                               ss.scene.radius)
-    return df.iloc[0].to_dict()
+    return member_rows(ss, [run]).iloc[0].to_dict()
 
 
 # ---------------------------------------------------------------------------------------

@@ -202,6 +202,17 @@ def _tables(wd: Path, study: str) -> pd.DataFrame:
     return tables.read_csv(wd / "results" / "tiny" / "tables" / f"{study}.csv")
 
 
+def test_csv_round_trip_is_exact(tmp_path):
+    rng = np.random.default_rng(7)
+    x = rng.standard_normal(20000) * 10.0 ** rng.integers(-25, 25, 20000)
+    df = pd.DataFrame({"x": np.append(x, [math.nan, 0.0, -0.0, 1e-300])})
+    tables.write_csv(df, tmp_path / "x.csv")
+    back = tables.read_csv(tmp_path / "x.csv")["x"].to_numpy()
+    assert np.array_equal(back, df["x"].to_numpy(), equal_nan=True)
+    tables.write_csv(tables.read_csv(tmp_path / "x.csv"), tmp_path / "y.csv")
+    assert (tmp_path / "x.csv").read_bytes() == (tmp_path / "y.csv").read_bytes()
+
+
 def test_tiny_tables_follow_the_contract(tiny_run):
     P = tiny_preset()
     root = tiny_run / "results" / "tiny"
@@ -337,6 +348,8 @@ def test_killed_run_resumes_to_the_same_tables(tiny_run, tmp_path):
     assert len(done_tables) < 2 * len(gw.STUDIES) + 1, "nothing was left to do after the kill"
     for p in list(work.glob("*/*.csv")) + done_tables:
         tables.read_csv(p)     # complete files only: written to a temp file, then renamed
+    # SIGKILL left snakemake's lock behind (a SIGTERM would have removed it): unlock first
+    snakemake(wd, "--unlock", "--config", "preset=tiny")
     proc = snakemake(wd, "--cores", "2", "--config", "preset=tiny", "--rerun-incomplete",
                      timeout=900)
     assert_same_results(tiny_run / "results" / "tiny", root)
