@@ -46,6 +46,9 @@ from .simulate import run_scene, trajectories
 
 STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length",
            "lammps_check")
+FIGURES = {"packed_sweep": "chapter Fig. 5.1b, 5.1c", "packed_trace": "chapter Fig. 5.1a",
+           "gap_profile": "chapter Fig. 5.3b", "gap_sweep": "chapter Fig. 5.3c",
+           "extra_length": "chapter Fig. 5.4b", "lammps_check": "LAMMPS cross-validation"}
 ENGINE_ORDER = ("reference", "lammps")
 # Rough cost of one integration step of one chain on one core (s), per engine: used only
 # to balance batches and to declare runtimes, never for results.
@@ -281,17 +284,19 @@ class Batch:
     units: tuple[tuple[int, tuple[int, ...]], ...]   # (scene index, realisations)
     members: int
     est_seconds: float
+    hashes: tuple[str, ...] = ()                      # scene hash of each unit
 
     @property
     def name(self) -> str:
         return f"{self.engine}_{self.index:03d}"
 
     def key(self) -> str:
-        """Compact description (a Snakemake param: a changed plan re-runs the job)."""
+        """Its scenes (hash: any change of physics, speeds, seed...) and realisations: a
+        Snakemake param, so a changed plan or scene re-runs the job."""
         parts = []
-        for i, reals in self.units:
+        for (i, reals), h in zip(self.units, self.hashes):
             lo, hi = reals[0], reals[-1]
-            parts.append(f"s{i}:r{lo}-{hi}" if len(reals) > 1 else f"s{i}:r{lo}")
+            parts.append(f"{h}:r{lo}-{hi}" if len(reals) > 1 else f"{h}:r{lo}")
         return f"{self.study}/{self.name}[" + ",".join(parts) + "]"
 
 
@@ -334,7 +339,8 @@ def batches(preset: dict, study: str, engine: str | None = None) -> list[Batch]:
                 grouped.setdefault(si, []).append(r)
             out.append(Batch(study, eng, index,
                              tuple((si, tuple(rs)) for si, rs in grouped.items()),
-                             sum(u[2] for u in b), sum(u[3] for u in b)))
+                             sum(u[2] for u in b), sum(u[3] for u in b),
+                             tuple(scenes[si].scene.hash for si in grouped)))
             index += 1
     return out
 
@@ -519,6 +525,31 @@ def study_provenance(preset_name: str, preset: dict, study: str, df: pd.DataFram
                       "the row's mean gap between the probes and v_g_packed the arrival-time "
                       "group velocity of the packed chain (reference engine, same scene)",
     }
+
+
+def describe(preset_name: str, preset: dict, study: str) -> dict:
+    """Sizes of a study for the report's table captions (workflow/report/*.rst)."""
+    scenes = study_scenes(preset, study)
+    s0 = scenes[0].scene
+    speeds = sorted({v for ss in scenes for v in ss.scene.striker_velocities})
+    gaps = sorted({ss.gap_mean_nm for ss in scenes})
+    extra = sorted({ss.extra_length_um for ss in scenes if not math.isnan(ss.extra_length_um)})
+    if extra:
+        gap_text = f"gaps from an extra chain length of {', '.join(f'{x:g}' for x in extra)} um"
+    elif gaps == [0.0]:
+        gap_text = "packed (no gaps)"
+    else:
+        gap_text = (f"{s0.gap_distribution if s0.gap_distribution != 'none' else preset['base']['gap_distribution']} "
+                    f"gaps of mean {', '.join(f'{g:g}' for g in gaps)} nm")
+    engines = [e for e in ENGINE_ORDER if any(e in ss.engines for ss in scenes)]
+    return {"preset": preset_name, "figure": FIGURES[study], "scenes": len(scenes),
+            "materials": ", ".join(dict.fromkeys(ss.material for ss in scenes)),
+            "v_striker": ", ".join(f"{v:g}" for v in speeds),
+            "gaps": gap_text if study != "lammps_check" else ", ".join(f"{g:g}" for g in gaps),
+            "members": sum(ss.members * len(ss.engines) for ss in scenes),
+            "jobs": len(batches(preset, study)), "engines": engines,
+            "method": ", ".join(dict.fromkeys(ss.scene.method for ss in scenes)),
+            "dt_s": f"{s0.dt:g}", "seed": s0.gap_seed, "probes": list(s0.probes[:2])}
 
 
 def gather(preset_name: str, preset: dict, study: str, batch_csvs, timing_csvs,

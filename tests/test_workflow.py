@@ -316,6 +316,18 @@ def test_tiny_rerun_does_nothing(tiny_run):
     assert "Nothing to be done" in proc.stdout + proc.stderr
 
 
+def test_changed_preset_reruns_what_it_changes(tiny_run):
+    """A changed scene value re-runs the batches it affects (params carry the scene hashes),
+    and only those."""
+    (tiny_run / "changed.yaml").write_text(
+        "presets: {tiny: {studies: {gap_profile: {v_striker: 0.2}}}}\n")
+    proc = snakemake(tiny_run, "-n", "--configfile", "changed.yaml", "--config", "preset=tiny")
+    text = " ".join((proc.stdout + proc.stderr).split())
+    assert "run_batch 1" in text and "gather_study 1" in text, text
+    assert "results/tiny/work/gap_profile/reference_000.csv" in text
+    assert "Params have changed" in text or "params have changed" in text.lower()
+
+
 def test_tiny_twice_is_byte_identical(tiny_run, tmp_path):
     wd = _workdir(tmp_path)
     snakemake(wd, "--cores", "2", "--config", "preset=tiny", timeout=900)

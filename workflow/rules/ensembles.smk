@@ -31,6 +31,7 @@ rule packed_trace:
         traces=[trace_path(m) for m in trace_materials()],
     params:
         materials=trace_materials(),
+        scenes=[ss.scene.hash for ss in gw.study_scenes(P, "packed_trace")],
     log:
         f"{RESULTS}/logs/packed_trace/trace.log",
     threads: 1

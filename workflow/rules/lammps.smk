@@ -29,6 +29,7 @@ rule compare_engines:
     output:
         table=report(
             f"{RESULTS}/tables/lammps_vs_reference.csv",
+            caption="../report/lammps_vs_reference.rst",
             category="Tables",
             subcategory="lammps_check",
             labels={"table": "lammps_vs_reference", "kind": "engine differences"},
@@ -36,6 +37,7 @@ rule compare_engines:
         provenance=f"{RESULTS}/tables/lammps_vs_reference.provenance.json",
     params:
         scenes=[ss.scene.hash for ss in gw.study_scenes(P, "lammps_check")],
+        describe=gw.describe(PRESET, P, "lammps_check"),
     log:
         f"{RESULTS}/logs/lammps_check/compare.log",
     threads: BATCH_THREADS

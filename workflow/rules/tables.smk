@@ -14,12 +14,14 @@ rule gather_study:
     output:
         table=report(
             f"{RESULTS}/tables/{{study}}.csv",
+            caption="../report/study_table.rst",
             category="Tables",
             subcategory="{study}",
             labels={"table": "{study}", "kind": "one row per member"},
         ),
         summary=report(
             f"{RESULTS}/tables/{{study}}_summary.csv",
+            caption="../report/study_table.rst",
             category="Tables",
             subcategory="{study}",
             labels={"table": "{study}", "kind": "summary (percentile bands)"},
@@ -28,6 +30,7 @@ rule gather_study:
         timing=f"{RESULTS}/timing/{{study}}.csv",
     params:
         plan=lambda w: [b.key() for b in PLAN[w.study]],
+        describe=lambda w: gw.describe(PRESET, P, w.study),
     log:
         f"{RESULTS}/logs/{{study}}/gather.log",
     threads: 1
