@@ -63,6 +63,8 @@ def result_files(root: Path) -> dict[str, bytes]:
     out = {}
     for sub in ("tables", "traces"):
         for p in sorted((root / sub).glob("*")):
+            if p.name.startswith("."):
+                continue        # a killed writer's temporary file, never a result
             data = p.read_bytes()
             if p.suffix == ".json":
                 doc = json.loads(data)
