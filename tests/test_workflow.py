@@ -360,8 +360,22 @@ def test_killed_run_resumes_to_the_same_tables(tiny_run, tmp_path):
     root = wd / "results" / "tiny"
     done_tables = sorted((root / "tables").glob("*.csv")) if (root / "tables").exists() else []
     assert len(done_tables) < 2 * len(gw.STUDIES) + 1, "nothing was left to do after the kill"
-    for p in list(work.glob("*/*.csv")) + done_tables:
-        tables.read_csv(p)     # complete files only: written to a temp file, then renamed
+    # complete files only (written to a temporary file, then renamed): every batch table
+    # present holds all its members, every study table all of its study's
+    P = tiny_preset()
+    for p in work.glob("*/*.csv"):
+        df = tables.read_csv(p)
+        if p.name.endswith(".timing.csv"):
+            continue
+        study = p.parent.name
+        want = len(gw.study_scenes(P, study)) if study == "packed_trace" else \
+            gw.find_batch(P, study, p.stem).members
+        assert len(df) == want, (p, len(df), want)
+    for p in done_tables:
+        df = tables.read_csv(p)
+        if p.stem in gw.STUDIES:
+            assert len(df) == sum(ss.members * len(ss.engines)
+                                  for ss in gw.study_scenes(P, p.stem)), p
     # SIGKILL left snakemake's lock behind (a SIGTERM would have removed it): unlock first
     snakemake(wd, "--unlock", "--config", "preset=tiny")
     proc = snakemake(wd, "--cores", "2", "--config", "preset=tiny", "--rerun-incomplete",
