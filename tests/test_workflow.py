@@ -246,6 +246,9 @@ def test_tiny_tables_follow_the_contract(tiny_run):
         assert str(tr["material"]) == m and float(tr["v_striker_m_s"]) == 0.1
         row = _tables(tiny_run, "packed_trace").query("material == @m").iloc[0]
         assert tr["v_m_s"][:, 12].max() == pytest.approx(row["vmax_p13_m_s"], rel=1e-3)
+        # Fig. 5.1a shows the whole chain: the last sphere's peak lies inside the trace
+        last = tr["v_m_s"][:, -1]
+        assert int(np.argmax(last)) < last.size - 10 and last.max() > 0.5 * 0.1
 
 
 def test_tiny_physics(tiny_run):
