@@ -23,7 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import GranchainError
-from .observables import ARRIVAL_THRESHOLD, summarize
+from .observables import summarize
+from .schedule import arrival_speed
 from .scene import Scene
 from .trajectory import ENERGY_COLUMNS
 
@@ -141,7 +142,7 @@ def _row(q, a, b, diff, measure, tol, why):
 def member_rows(scene: Scene, ref, lmp) -> list[dict]:
     """Rows of one member: both trajectories' observables side by side."""
     sr, sl = summarize(ref, scene.probes), summarize(lmp, scene.probes)
-    vfloor = ARRIVAL_THRESHOLD * max(ref.v_striker, 1e-300)
+    vfloor = arrival_speed(max(ref.v_striker, 1e-300))
     out = [_row("samples", int(ref.t.size), int(lmp.t.size),
                 float(abs(int(ref.t.size) - int(lmp.t.size))), "exact", 0.0, WHY_SAMPLES)]
     for i, (a, b) in enumerate(zip(sr["v_max"], sl["v_max"])):

@@ -368,7 +368,7 @@ def fig5_1a(trace: dict, out) -> list[Path]:
     cut = [i + 1 for i in range(n) if int(np.argmax(v[:, i])) >= t.size - 2 or vmax[i] <= 0]
     note = (f"\ntrace ends before particle{'s' if len(cut) > 1 else ''} "
             f"{', '.join(map(str, cut))} peak{'' if len(cut) > 1 else 's'} (the run stops "
-            "once the wave has passed the far probe)") if cut else ""
+            "before the wave has crossed the chain)") if cut else ""
     sm = ScalarMappable(cmap=cmap, norm=Normalize(1, n))
     cb = fig.colorbar(sm, ax=ax, pad=0.02)
     cb.set_label("particle index (1 = striker)")
@@ -510,7 +510,7 @@ def _packed_profile(packed: pd.DataFrame, mat: str, vs: float, what: str):
     speeds = d["v_striker_m_s"].to_numpy(dtype=float)
     k = int(np.argmin(np.abs(np.log(speeds / vs))))
     row = d.iloc[[k]]
-    return peak_profile(row, what)[0], float(speeds[k])
+    return peak_profile(row, what, last=n_particles(row))[0], float(speeds[k])
 
 
 @_drawn
@@ -519,14 +519,15 @@ def fig5_3b(gap_profile: pd.DataFrame, packed: pd.DataFrame | None, out) -> list
     require(gap_profile, NEEDS["fig5_3b"], "fig5_3b")
     d = reference_engine(gap_profile)
     mats = materials_in(d)
-    prof = peak_profile(d, "fig5_3b")
+    prof = peak_profile(d, "fig5_3b", last=n_particles(d))   # every particle's peak is measured
     n_show = prof.shape[1]
     idx = np.arange(1, n_show + 1)
-    osc = oscillation(prof)
+    p1, p2 = PROBES
+    osc = oscillation(prof[:, :p2])      # the chapter's stretch, clear of the free chain end
     fig, ax = _figure(size=(6.4, 4.2))
     for row in prof:
         ax.plot(idx, row, "-", color="0.55", lw=0.5, alpha=0.35)
-    lo, med, hi = np.percentile(prof, [5, 50, 95], axis=0)
+    lo, med, hi = np.nanpercentile(prof, [5, 50, 95], axis=0)
     gaps = ", ".join(f"{g:g}" for g in sorted(set(d["gap_mean_nm"].astype(float))))
     vss = sorted(set(d["v_striker_m_s"].astype(float)))
     ax.fill_between(idx, lo, hi, color="#e377c2", alpha=0.3, lw=0,
@@ -544,19 +545,18 @@ def fig5_3b(gap_profile: pd.DataFrame, packed: pd.DataFrame | None, out) -> list
                 ax.plot(idx[:p.size], p[:n_show], "s-", color="k", mfc="none",
                         label=f"packed {label(mat)} chain (v_s = {vs_ref:g} m/s)")
                 packed_txt = (f"\npacked chain on the same measure: "
-                              f"{oscillation(p[None, :n_show])[0]:.1%} (monotone decay)")
+                              f"{oscillation(p[None, :p2])[0]:.1%} (monotone decay)")
     o_lo, o_med, o_hi = band(osc)
-    p1, p2 = PROBES
     ax.text(0.98, 0.04,
-            f"spread along the chain, (max - min)/mean of v_max,i, i = {p1}..{n_show}:\n"
+            f"spread along the chain, (max - min)/mean of v_max,i, i = {p1}..{p2}:\n"
             f"median {o_med:.1%} (5-95%: {o_lo:.1%} - {o_hi:.1%})  [chapter: ~20%]"
             + packed_txt,
             transform=ax.transAxes, ha="right", va="bottom", fontsize=7.5,
             bbox={"boxstyle": "round", "fc": "white", "ec": "0.7"})
-    ax.set_xlabel(f"particle index (1 = striker; shown up to the far probe, {p2})")
+    ax.set_xlabel(f"particle index (1 = striker, {n_show} = the free end)")
     ax.set_ylabel("peak velocity v_max,i / v_s")
     ax.set_xticks(idx)
-    ax.set_ylim(0.4, 1.05)
+    ax.set_ylim(0.4, 1.1)
     ax.set_title(f"{'/'.join(label(m) for m in mats)} chain with random gaps, mean {gaps} nm, "
                  f"v_s = {', '.join(f'{v:g}' for v in vss)} m/s\n(chapter Fig. 5.3b counterpart)")
     ax.legend(loc="lower left")

@@ -9,12 +9,18 @@ Peak of particle i: v_max,i = max_t v_i(t), refined below the sample spacing:
 Arrival (front) time of particle i: first crossing of v_max,i / 2 on the rising edge,
 linearly interpolated. It is defined whether the peak is sharp or a plateau.
 
+A peak is reported only when it is *final* (``granchain.schedule``: the wave has passed
+an inner particle, the last particle has left): otherwise v_max, t_peak and t_front of
+that particle are NaN and ``final`` is False for it. A maximum at the end of the record
+is not a peak.
+
 The chapter's observables: v_max,1 and v_max,2 are the peaks of the two probes (particles
 2 and 13 by default), dt_peak the time between their peak times, and
 v_g = (p2 - p1)(2R + gbar)/dt_peak with gbar the mean gap over the p2 - p1 contacts
 between the probes (11 for the chapter's probes). ``v_g`` uses peak times, as the
 chapter does; ``v_g_front`` uses arrival (half-peak) times and is the robust choice
-for gapped chains; both are always reported, with ``plateau`` flags per particle.
+for gapped chains; both are always reported, with ``plateau`` flags per particle. They
+need both probes' peaks to be final; ``wave_arrived`` says whether they are.
 """
 from __future__ import annotations
 
@@ -22,11 +28,11 @@ import math
 
 import numpy as np
 
+from . import schedule
 from .trajectory import ENERGY_COLUMNS, Trajectory
 
 PEAK_TOL = 1e-4
 PLATEAU_SAMPLES = 5
-ARRIVAL_THRESHOLD = 1e-3      # a probe "sees" the wave once its peak exceeds this * v_s
 
 
 def _crossing(t, y, level, stop):
@@ -73,10 +79,26 @@ def peak(t: np.ndarray, y: np.ndarray) -> tuple[float, float, float, bool]:
     return float(vmax), float(tpk), tfront, bool(plateau)
 
 
+def peak_final(traj: Trajectory, i: int) -> bool:
+    """Is the peak of particle i (0-based) inside the record? (``granchain.schedule``)"""
+    y = traj.v[:, i]
+    j = int(np.argmax(y))
+    top = float(y[j])
+    if not top > schedule.arrival_speed(traj.v_striker):
+        return False            # the wave never reached it
+    if i == traj.n - 1:
+        return bool(schedule.last_detached(y[-1], traj.last_overlap, traj.v_striker))
+    return schedule.inner_passed(y[j + 1:], top)
+
+
 def peaks(traj: Trajectory):
+    """(v_max, t_peak, t_front, plateau, final) of every particle; NaN where not final."""
     cols = [peak(traj.t, traj.v[:, i]) for i in range(traj.n)]
-    v_max, t_peak, t_front, plateau = (np.array(c) for c in zip(*cols))
-    return v_max, t_peak, t_front, plateau.astype(bool)
+    v_max, t_peak, t_front, plateau = (np.array(c, dtype=float) for c in zip(*cols))
+    final = np.array([peak_final(traj, i) for i in range(traj.n)], dtype=bool)
+    for a in (v_max, t_peak, t_front):
+        a[~final] = math.nan
+    return v_max, t_peak, t_front, plateau.astype(bool), final
 
 
 def energy_ledger(traj: Trajectory) -> dict:
@@ -99,13 +121,14 @@ def energy_ledger(traj: Trajectory) -> dict:
 
 def summarize(traj: Trajectory, probes=(2, 13)) -> dict:
     """All observables of one chain as plain Python (JSON-ready) values."""
-    v_max, t_peak, t_front, plateau = peaks(traj)
+    v_max, t_peak, t_front, plateau, final = peaks(traj)
     p1, p2 = probes[0], probes[1]
     i1, i2 = p1 - 1, p2 - 1
     gbar = float(np.mean(traj.gaps[p1 - 1:p2 - 1])) if p2 > p1 else 0.0
     span = (p2 - p1) * (2.0 * traj.radius + gbar)
-    arrived = (traj.v_striker > 0 and v_max[i2] > ARRIVAL_THRESHOLD * traj.v_striker
-               and traj.status in ("passed", "done") and math.isfinite(t_peak[i2]))
+    # both probes' peaks measured, by a run that did not fail numerically
+    arrived = bool(traj.v_striker > 0 and final[i1] and final[i2]
+                   and traj.status in ("passed", "done", "timeout"))
     dt_peak = float(t_peak[i2] - t_peak[i1]) if arrived else math.nan
     dt_front = float(t_front[i2] - t_front[i1]) if arrived else math.nan
     v_g = span / dt_peak if arrived and dt_peak > 0 else math.nan
@@ -118,6 +141,8 @@ def summarize(traj: Trajectory, probes=(2, 13)) -> dict:
         "t_peak": t_peak.tolist(),
         "t_front": t_front.tolist(),
         "plateau": plateau.tolist(),
+        "final": final.tolist(),
+        "not_final": [i + 1 for i in range(traj.n) if not final[i]],
         "probes": list(probes),
         "v_max_1": float(v_max[i1]),
         "v_max_2": float(v_max[i2]),

@@ -43,7 +43,7 @@ NA_REP = "NaN"
 BASE_COLUMNS = (
     "study", "material", "engine", "method", "dt_s", "v_striker_m_s", "gap_distribution",
     "gap_mean_nm", "extra_length_um", "realisation", "seed", "scene_hash", "status",
-    "wave_arrived", "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio", "dt_peak_s", "v_g_m_s",
+    "wave_arrived", "peaks_not_final", "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio", "dt_peak_s", "v_g_m_s",
     "v_g_front_m_s", "gap_mean_probes_nm", "v_g_bound_eq54_m_s", "energy_initial_J",
     "work_groove_J", "work_air_J", "work_particle_friction_J", "work_rolling_J",
     "balance_error", "steps",
@@ -105,6 +105,9 @@ def member_row(meta: dict, run: dict, n: int) -> dict:
         "scene_hash": meta["scene_hash"],
         "status": run["status"],
         "wave_arrived": bool(run["wave_arrived"]),
+        # particles (1-based, ';'-separated) whose peak the run did not measure: their
+        # vmax_p columns are NaN (granchain.schedule)
+        "peaks_not_final": ";".join(str(i) for i in run["not_final"]),
         "v_max_1_m_s": float(run["v_max_1"]),
         "v_max_2_m_s": float(run["v_max_2"]),
         "v_max_ratio": _ratio(float(run["v_max_2"]), float(run["v_max_1"])),

@@ -31,6 +31,9 @@ class Trajectory:
     status: str = "done"
     wall_s: float = 0.0
     meta: dict = field(default_factory=dict)
+    # Hertz overlap (m, > 0 in contact) of the last contact (particles n-1, n) at the last
+    # sample: tells whether the last particle has left (granchain.schedule). NaN: unknown.
+    last_overlap: float = float("nan")
 
     @property
     def n(self) -> int:

@@ -408,16 +408,17 @@ def _finite(y, LO, n):
 
 
 @njit(parallel=True, cache=True)
-def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VRUN, VTHR, gaps, P, FL, LO,
-               scale_abs, rel, rtol, dt, every, sample_dt, NT, probe, Vout, Eout, counts):
+def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, LO,
+               scale_abs, rel, rtol, dt, every, sample_dt, NT, auto_stop, Vout, Eout, counts):
     """Advance every running chain by up to Vout.shape[1] samples.
 
     Per chain b: Y[b] state, ACC[b] last derivative (Verlet), T[b] time, H[b] adaptive
-    step, NS[b] samples recorded so far, STEPS/REJ counters, STATUS[b] (S_*), VRUN[b]
-    running peak of the stop probe, VTHR[b] its threshold. A sample is taken every
+    step, NS[b] samples recorded so far, STEPS/REJ counters, STATUS[b] (S_*), VTHR[b]
+    the arrival speed of chain b (``schedule.arrival_speed``). A sample is taken every
     ``every`` fixed steps (rk4, verlet) or exactly every ``sample_dt`` (dop853). A chain
-    stops after NT[b] samples, or (probe >= 0) once the probe's velocity has
-    fallen below half its running peak, that peak exceeding VTHR[b].
+    stops after NT[b] samples, or (auto_stop) at the first sample at which its last
+    particle has taken the wave and left (``schedule.last_detached``: velocity above
+    VTHR[b], contact with its neighbour open), with status S_PASSED.
     """
     B = Y.shape[0]
     W = Vout.shape[1]
@@ -501,9 +502,5 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VRUN, VTHR, gaps, P
             if not _finite(y, LO, n):
                 STATUS[b] = S_NONFINITE
                 break
-            if probe >= 0:
-                vp = y[ov + probe]
-                if vp > VRUN[b]:
-                    VRUN[b] = vp
-                if VRUN[b] > VTHR[b] and vp < 0.5 * VRUN[b]:
-                    STATUS[b] = S_PASSED
+            if auto_stop and y[ov + n - 1] > VTHR[b] and _overlap(y, LO[L_X], g, n - 2) <= 0.0:
+                STATUS[b] = S_PASSED

@@ -51,6 +51,7 @@ from ..effects import physics_terms
 from ..errors import GranchainError
 from ..lammps import deck as deckmod
 from ..scene import Scene
+from ..schedule import last_detached
 from ..trajectory import ENERGY_COLUMNS, Trajectory
 
 METHOD = "lammps-verlet"
@@ -159,7 +160,8 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     """Read a deck's output into per-chain arrays: the dump with MDAnalysis, and the
     per-chain ledger (``ledger.txt`` next to the dump, if the deck writes one).
 
-    Returns a dict: ``step`` (S,), ``v`` (S, B, n) m/s and ``energy`` (S, B, 7) J.
+    Returns a dict: ``step`` (S,), ``v`` (S, B, n) m/s, ``energy`` (S, B, 7) J and
+    ``last_overlap`` (S, B) m, the Hertz overlap of each chain's last contact.
     ``readers`` > 1 splits the dump's frames between that many processes (each opens the
     dump with MDAnalysis, scans it for the frame offsets and parses its share): it only
     pays with idle cores (on the shared 2-core test machine, 2 readers read a 200-chain
@@ -204,6 +206,7 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     E = np.zeros((S, B, len(ENERGY_COLUMNS)))
     E[:, :, E_KT] = 0.5 * terms.m * np.sum(V * V, axis=2)
     E[:, :, E_H] = np.concatenate([p[3] for p in parts])
+    last_overlap = np.concatenate([p[4] for p in parts])
     if pl.ledger_columns:
         ledger = read_ledger(path.with_name(deckmod.LEDGER_NAME), pl, step)
         for j, name in enumerate(pl.ledger_columns):
@@ -211,7 +214,7 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     if residual_balance(scene):
         mech = E[:, :, E_KT] + E[:, :, E_KR] + E[:, :, E_H]
         E[:, :, E_WT] = mech - mech[0] - E[:, :, E_WG] - E[:, :, E_WD]
-    return {"step": step, "v": V, "energy": E}
+    return {"step": step, "v": V, "energy": E, "last_overlap": last_overlap}
 
 
 def read_ledger(path: Path, pl: "deckmod.DeckPlan", step) -> np.ndarray:
@@ -261,7 +264,8 @@ def _halted(dump: Path) -> bool:
 
 
 def _read_part(job: dict, part: int, nparts: int):
-    """Frames [part*S/nparts, (part+1)*S/nparts) of a dump: (S, step, V, E_hertz)."""
+    """Frames [part*S/nparts, (part+1)*S/nparts) of a dump: (S, step, V, E_hertz,
+    overlap of the last contact in m)."""
     import MDAnalysis as mda
 
     path, B, n, D, hertz = job["path"], job["B"], job["n"], job["D"], job["hertz"]
@@ -279,6 +283,7 @@ def _read_part(job: dict, part: int, nparts: int):
             step = np.empty(hi - lo, dtype=np.int64)
             V = np.empty((hi - lo, B, n))
             EH = np.empty((hi - lo, B))
+            OL = np.empty((hi - lo, B))
             for s, ts in enumerate(traj[lo:hi]):
                 data = ts.data
                 step[s] = data["step"]
@@ -287,25 +292,26 @@ def _read_part(job: dict, part: int, nparts: int):
                     v = v.astype(np.float32).astype(np.float64)
                 V[s] = v
                 x = data["x"].reshape(B, n)
-                EH[s] = np.sum(hertz.energy((D - (x[:, 1:] - x[:, :-1])) * UM), axis=1)
+                overlap = (D - (x[:, 1:] - x[:, :-1])) * UM
+                EH[s] = np.sum(hertz.energy(overlap), axis=1)
+                OL[s] = overlap[:, -1]
     except GranchainError:
         raise
     except (ValueError, IndexError, EOFError, OSError, KeyError, TypeError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise GranchainError(f"LAMMPS dump {path} is truncated or unreadable: {msg}") from None
-    return S, step, V, EH
+    return S, step, V, EH, OL
 
 
 def _trajectories(scene, pl, data, wall_each, meta_common):
-    step, V, E = data["step"], data["v"], data["energy"]
-    probe = scene.probes[-1] - 1
+    step, V, E, OL = data["step"], data["v"], data["energy"], data["last_overlap"]
     eff = tuple(sorted(scene.effects))
     for b in range(pl.n_chains):
         vsb = float(pl.v_striker[b])
         v = V[:, b, :]
         keep, status = step.size, "done"
         if scene.t_end is None:
-            keep, status = auto_stop(scene, pl.gaps[b], vsb, v[:, probe], pl.sample_dt)
+            keep, status = auto_stop(scene, pl.gaps[b], vsb, v[:, -1], OL[:, b], pl.sample_dt)
         bad = np.flatnonzero(~np.all(np.isfinite(v[:keep]), axis=1))
         if bad.size:
             keep, status = int(bad[0]) + 1, "nonfinite"
@@ -313,27 +319,26 @@ def _trajectories(scene, pl, data, wall_each, meta_common):
             t=step[:keep] * scene.dt, v=v[:keep].copy(), energy=E[:keep, b, :].copy(),
             gaps=pl.gaps[b].copy(), radius=scene.radius, v_striker=vsb, effects=eff,
             steps=int(step[keep - 1]), rejected=0, status=status, wall_s=wall_each,
-            meta=dict(meta_common))
+            meta=dict(meta_common), last_overlap=float(OL[keep - 1, b]))
 
 
-def auto_stop(scene: Scene, gaps, v_striker: float, vprobe, sample_dt: float) -> tuple[int, str]:
-    """(samples kept, status) of a t_end auto chain, by the reference engine's rule.
+def auto_stop(scene: Scene, gaps, v_striker: float, vlast, overlap_last,
+              sample_dt: float) -> tuple[int, str]:
+    """(samples kept, status) of a t_end auto chain, by the stop rule of
+    ``granchain.schedule`` as ``engines.kernels.run_window`` applies it.
 
-    As ``engines.kernels.run_window``: after each sample but the first, the running peak
-    of the last probe's velocity is updated; the chain has passed (and stops, that sample
-    included) once the peak exceeds STOP_THRESHOLD * v_striker and the velocity is below
-    STOP_FRACTION of it. A chain that never passes stops at its own cap, auto_t_max,
-    with status timeout. A chain at rest keeps its initial sample only.
+    vlast, overlap_last: the last particle's velocity (m/s) and its contact's overlap (m)
+    at every sample. The chain stops (that sample included) at the first sample after
+    t = 0 at which its last particle has left, status passed. A chain that never does
+    stops at its own cap, auto_t_max, with status timeout. A chain at rest keeps its
+    initial sample only.
     """
     from .reference import auto_t_max
-    S = len(vprobe)
+    S = len(vlast)
     if v_striker <= 0:
         return 1, "done"
     nt = min(S, int(math.ceil(auto_t_max(scene, np.asarray(gaps), v_striker) / sample_dt)) + 1)
-    vp = np.asarray(vprobe[1:nt], dtype=float)
-    run_peak = np.maximum.accumulate(np.maximum(vp, 0.0))
-    hit = np.flatnonzero((run_peak > deckmod.STOP_THRESHOLD * v_striker)
-                         & (vp < deckmod.STOP_FRACTION * run_peak))
+    hit = np.flatnonzero(last_detached(vlast[1:nt], overlap_last[1:nt], v_striker))
     if hit.size:
         return int(hit[0]) + 2, "passed"
     return nt, "timeout"

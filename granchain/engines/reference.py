@@ -4,7 +4,8 @@
 speed each) and yields a :class:`~granchain.trajectory.Trajectory` per chain, in order.
 Chains are processed in chunks (bounded memory) and, inside a chunk, in parallel over
 chains with numba's prange; each chain advances window by window of samples until it
-stops (t_end reached, or with t_end auto once the wave has passed the last probe).
+stops (t_end reached, or with t_end auto once the wave has left the whole chain: the
+stop rule of ``granchain.schedule``).
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import analytic
+from ..schedule import arrival_speed
 from ..effects import Terms, physics_terms
 from ..scene import Scene
 from ..trajectory import Trajectory
@@ -105,11 +107,12 @@ def sample_interval(scene: Scene, v_striker: float) -> float:
 
 
 def auto_t_max(scene: Scene, gaps: np.ndarray, v_striker: float) -> float:
-    """Generous cap on the duration of a t_end: auto run (a run that hits it is flagged)."""
-    p = scene.probes[-1]
+    """Generous cap on the duration of a t_end: auto run, which lasts until the wave has
+    left the whole chain (a run that hits the cap is flagged ``timeout``)."""
+    n = scene.n
     vs = analytic.nesterenko_speed(scene.material, 0.5 * v_striker)
-    travel = (p - 1) * 2.0 * scene.radius / vs
-    flight = float(np.sum(gaps[: p - 1])) / v_striker
+    travel = (n - 1) * 2.0 * scene.radius / vs
+    flight = float(np.sum(gaps[: n - 1])) / v_striker
     return 20.0 * travel + 50.0 * flight + 10.0 * analytic.pulse_width(
         scene.material, scene.radius, 0.5 * v_striker)
 
@@ -159,7 +162,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
 
 def _chunks(group, scene, terms, sample_dt):
     """Split chains into chunks whose recorded samples fit in CHUNK_BYTES."""
-    p = scene.probes[-1]
+    p = scene.n
     if scene.t_end is not None:
         t_est = scene.t_end
     else:
@@ -187,19 +190,17 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
     STEPS = np.zeros(B, dtype=np.int64)
     REJ = np.zeros(B, dtype=np.int64)
     STATUS = np.zeros(B, dtype=np.int64)
-    VRUN = np.zeros(B)
-    VTHR = 1e-3 * vs
+    VTHR = arrival_speed(vs)
     mcode = METHOD_CODES[method]
     if mcode == K.M_DOP853:
         every, sdt = 1, sample_dt
     else:
         every = max(1, int(round(sample_dt / dt)))
         sdt = every * dt
-    probe = -1
-    if scene.t_end is not None:
+    auto = scene.t_end is None
+    if not auto:
         NT = np.full(B, int(math.ceil(scene.t_end / sdt - 1e-9)) + 1, dtype=np.int64)
     else:
-        probe = scene.probes[-1] - 1
         # a chain at rest has no wave to wait for: its initial state is its whole record
         NT = np.array([int(math.ceil(auto_t_max(scene, gaps[b], vs[b]) / sdt)) + 1
                        if vs[b] > 0 else 1 for b in range(B)], dtype=np.int64)
@@ -211,8 +212,8 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
     counts = np.zeros(B, dtype=np.int64)
     t0 = time.perf_counter()
     while np.any(STATUS == K.S_RUNNING):
-        K.run_window(mcode, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VRUN, VTHR, gaps, P, FL,
-                     layout.LO, scale_abs, rel, rtol, dt, every, sdt, NT, probe, Vbuf, Ebuf,
+        K.run_window(mcode, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL,
+                     layout.LO, scale_abs, rel, rtol, dt, every, sdt, NT, auto, Vbuf, Ebuf,
                      counts)
         for b in range(B):
             c = counts[b]
@@ -226,12 +227,14 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
         e = np.concatenate(E_parts[b])
         t = np.arange(v.shape[0]) * sdt
         status = STATUS[b]
-        if probe >= 0 and status == K.S_DONE and vs[b] > 0:
-            status = K.S_TIMEOUT      # t_end auto hit its cap before the wave passed
+        if auto and status == K.S_DONE and vs[b] > 0:
+            status = K.S_TIMEOUT      # t_end auto hit its cap before the wave left the chain
+        ox = layout.LO[K.L_X]
+        last_overlap = float(Y[b, ox + n - 2] - Y[b, ox + n - 1] - gaps[b, n - 2])
         yield Trajectory(t=t, v=v, energy=e, gaps=gaps[b].copy(), radius=scene.radius,
                          v_striker=float(vs[b]), effects=eff, steps=int(STEPS[b]),
                          rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
-                         wall_s=wall / B,
+                         wall_s=wall / B, last_overlap=last_overlap,
                          meta={"method": method, "dt": dt, "rtol": rtol, "sample_dt": sdt})
 
 

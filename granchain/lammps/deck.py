@@ -21,10 +21,9 @@ Choices (also stated in the deck's comments):
 * Run length: ``scene.t_end``, else the reference engine's ``auto_t_max`` of the slowest
   member (the largest cap over all members); rounded up to whole samples as the
   reference engine does, so the last sample falls at the same time. With t_end auto
-  the run also stops (``fix halt``) at the first sample at which the last probe of
-  every moving chain has seen the wave pass (its velocity fell below half its running
-  peak, the peak above 1e-3 of the slowest striker speed): the reference engine's stop
-  rule, applied to the whole batch. ``granchain.engines.lammps`` then cuts each chain's
+  the run also stops (``fix halt``) at the first sample at which the wave has left
+  every moving chain (its last particle moves and has no contact left,
+  ``granchain.schedule``): the reference engine's stop rule, applied to the whole batch. ``granchain.engines.lammps`` then cuts each chain's
   record where the reference engine would have stopped that chain.
 * Cadence: every = round(sample_interval / dt) (as the reference engine), from the
   member with the finest sampling.
@@ -61,11 +60,11 @@ import numpy as np
 from granchain.effects import physics_terms
 from granchain.errors import GranchainError
 from granchain.scene import Scene
+from granchain.schedule import ARRIVAL_FRACTION, arrival_speed
 
 __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "write_deck",
            "plan", "DeckPlan", "DECK_NAME", "DATA_NAME", "DUMP_NAME", "ENERGY_NAME",
-           "LEDGER_NAME", "DUMP_COLUMNS", "WORK_COLUMNS", "LEDGER_INPUTS", "STOP_FRACTION",
-           "STOP_THRESHOLD"]
+           "LEDGER_NAME", "DUMP_COLUMNS", "WORK_COLUMNS", "LEDGER_INPUTS"]
 
 DECK_NAME = "deck.lmp"
 DATA_NAME = "chain.data"
@@ -82,11 +81,6 @@ WORK_COLUMNS = {"groove_friction": "f_gd[2]", "air_drag": "f_gd[3]"}
 LEDGER_INPUTS = {"rotation": ("kinetic_rotational", "c_erot_atom"),
                  "groove_friction": ("work_groove_friction", WORK_COLUMNS["groove_friction"]),
                  "air_drag": ("work_air_drag", WORK_COLUMNS["air_drag"])}
-# t_end auto stop rule of the reference engine (engines/kernels.py run_window): a chain
-# has passed once its last probe's velocity falls below STOP_FRACTION of its running
-# peak, that peak exceeding STOP_THRESHOLD * v_striker
-STOP_FRACTION = 0.5
-STOP_THRESHOLD = 1e-3
 
 # SI value * 10**e = value in LAMMPS 'units micro' (docs/lammps_laws.md section 1).
 MICRO_EXPONENT = {
@@ -198,7 +192,7 @@ def plan(scene: Scene, *, gaps=None, v_striker=None) -> DeckPlan:
         caps = [auto_t_max(scene, gaps[b], float(vs[b])) for b in range(B) if vs[b] > 0]
         t_si = max(caps) if caps else 0.0
         t_note = ("t_end auto: the reference engine's auto_t_max cap of the slowest member; "
-                  "fix halt stops earlier once the wave has passed every chain's last probe"
+                  "fix halt stops earlier once the wave has left every chain"
                   if caps else "t_end auto: no striker moves")
     nsamples = int(math.ceil(t_si / sdt - 1e-9)) if t_si > 0 else 0
     nsteps = nsamples * every
@@ -250,6 +244,31 @@ def _ledger_block(scene: Scene, pl: DeckPlan) -> str:
               f"fix             ledger all ave/time {pl.every} 1 {pl.every} "
               f"{'c_ledger[*]' if k > 1 else 'c_ledger'} mode vector file {LEDGER_NAME} "
               'format " %.17g"']
+    return "\n".join(lines)
+
+
+def _halt_block(n: int, vs: np.ndarray, every: int) -> str:
+    """Deck lines of the t_end auto stop rule (granchain.schedule): halt at the first
+    sample at which the last particle of every moving chain has left. Chains are grouped
+    by striker speed, each group with its own arrival speed, as the engines apply it."""
+    speeds = sorted({float(v) for v in vs if v > 0})
+    lines = [
+        "# t_end auto: stop at the first sample at which the wave has left every moving chain:",
+        f"# the chain's last particle (particle {n}) moves faster than {ARRIVAL_FRACTION:g} x its",
+        "# striker speed and has no contact left (compute contact/atom = 0), the stop rule of",
+        "# the reference engine. One group of last particles per striker speed.",
+        "compute         contacts all contact/atom",
+    ]
+    waiting = []
+    for k, v in enumerate(speeds, start=1):
+        ids = [b * n + n for b in range(len(vs)) if float(vs[b]) == v]
+        thr = _r(to_micro(arrival_speed(v), "velocity"))
+        lines += [f"group           last{k} id {_id_ranges(ids)}",
+                  f'variable        waiting{k} atom "!((vx>{thr})&&(c_contacts==0))"',
+                  f"compute         nwaiting{k} last{k} reduce sum v_waiting{k}"]
+        waiting.append(f"c_nwaiting{k}")
+    lines += [f'variable        nwaiting equal "{"+".join(waiting)}"',
+              f"fix             halt all halt {every} v_nwaiting == 0 error continue message yes"]
     return "\n".join(lines)
 
 
@@ -387,23 +406,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
     ledger_note += " (energy 1e-15 J)"
 
     if pl.auto:
-        p = scene.probes[-1]
-        moving = [b * n + p for b in range(B) if vs[b] > 0]
-        thr = STOP_THRESHOLD * float(vs[vs > 0].min())
-        halt = "\n".join([
-            "# t_end auto: stop at the first sample at which the wave has passed the last probe",
-            f"# (particle {p}) of every moving chain: its velocity fell below {STOP_FRACTION} x its",
-            f"# running peak, the peak above {STOP_THRESHOLD:g} x the slowest striker speed (the reference",
-            "# engine's stop rule). f_vpeak: running peak of vx, updated every sample.",
-            f"group           lastprobe id {_id_ranges(moving)}",
-            'variable        vpeak atom "vx*(vx>f_vpeak)+f_vpeak*(vx<=f_vpeak)"',
-            f"fix             vpeak lastprobe store/state {every} v_vpeak",
-            f'variable        waiting atom "!((f_vpeak>{_r(to_micro(thr, "velocity"))})&&'
-            f'(vx<{_r(STOP_FRACTION)}*f_vpeak))"',
-            "compute         nwaiting lastprobe reduce sum v_waiting",
-            "variable        nwaiting equal c_nwaiting",
-            f"fix             halt all halt {every} v_nwaiting == 0 error continue message yes",
-        ])
+        halt = _halt_block(n, vs, every)
     else:
         halt = "# (t_end given: the run has a fixed length)"
 

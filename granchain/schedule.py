@@ -1,0 +1,48 @@
+"""When a run stops, and which peaks it has measured: one rule for both engines and the
+observables.
+
+A particle has *seen the wave* once its velocity exceeds ``ARRIVAL_FRACTION * v_s``.
+Its peak velocity is *final* (a measured maximum, inside the run) when:
+
+- for every particle but the last: after its peak, its velocity fell below
+  ``PASS_FRACTION`` of that peak, i.e. the wave has passed it;
+- for the last particle: it has seen the wave and its contact with its neighbour is open
+  (Hertz overlap <= 0). Nothing pushes it any more: it has taken the wave and flies off,
+  and the peak is the moment the contact opened. (It never slows the way an inner
+  particle does, so the half-peak rule cannot apply to it.)
+
+With ``t_end: auto`` a chain stops at the first sample at which its last particle's peak
+is final: the wave has left the whole chain, so every particle's peak lies inside the
+run (the chapter's Fig. 5.3b plots every particle). A peak that is not final (a fixed
+``t_end`` cut it off, or an auto run hit its time cap) is reported as NaN with the
+particle flagged, never as a number.
+
+The reference kernels (``engines/kernels.py``, ``run_window``), the LAMMPS deck
+(``fix halt`` on ``compute contact/atom``, ``lammps/deck.py``), the LAMMPS engine's
+per-chain cut (``engines/lammps.auto_stop``) and ``observables.peak_final`` implement
+these definitions with the constants below.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+ARRIVAL_FRACTION = 1e-3    # a particle has seen the wave once v > ARRIVAL_FRACTION * v_s
+PASS_FRACTION = 0.5        # the wave has passed an inner particle once v < this * its peak
+
+
+def arrival_speed(v_striker: float) -> float:
+    """Velocity (m/s) above which a particle has seen the wave."""
+    return ARRIVAL_FRACTION * v_striker
+
+
+def last_detached(v_last, overlap_last, v_striker):
+    """Has the last particle taken the wave and left? (elementwise on arrays)
+
+    v_last: velocity of particle n (m/s); overlap_last: Hertz overlap of contact n-1, n
+    (m, > 0 in contact)."""
+    return (np.asarray(v_last) > arrival_speed(v_striker)) & (np.asarray(overlap_last) <= 0.0)
+
+
+def inner_passed(v_after_peak: np.ndarray, v_peak: float) -> bool:
+    """Has the wave passed an inner particle? v_after_peak: its samples after the peak."""
+    return bool(np.any(np.asarray(v_after_peak) < PASS_FRACTION * v_peak))
