@@ -169,6 +169,17 @@ def test_unknown_preset_is_rejected(tmp_path):
     assert not (tmp_path / "results").exists()
 
 
+def test_preset_and_material_names_cannot_leave_results(tmp_path):
+    """A preset name becomes results/<preset>/ and a material name a trace file name."""
+    wd = _workdir(tmp_path)
+    proc = snakemake(wd, "-n", "--config", "preset=../../escaped", check=False)
+    _one_error(proc, "'preset'", "does not match")
+    (wd / "bad.yaml").write_text("presets: {tiny: {materials: [../ss440c]}}\n")
+    proc = snakemake(wd, "-n", "--configfile", "bad.yaml", "--config", "preset=tiny", check=False)
+    _one_error(proc, "presets.tiny.materials", "does not match")
+    assert not (wd / "results").exists() and not (tmp_path.parent / "escaped").exists()
+
+
 @pytest.mark.parametrize("bad,needles", [
     ("presets: {tiny: {base: {dt: -1.0}}}", ("presets.tiny.base.dt", "minimum")),
     ("presets: {tiny: {base: {dt: 1e-9}}}", ("presets.tiny.base.dt", "not of type 'number'")),
