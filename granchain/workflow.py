@@ -187,6 +187,8 @@ def _raw_scene(preset: dict, spec: dict, name: str, material: str, velocities, g
                        "dt": spec.get("dt", base["dt"])},
         "ensemble": {"realisations": int(realisations)},
     }
+    if raw["integrator"]["method"] == "auto" and "dt" not in spec:
+        del raw["integrator"]["dt"]          # auto chooses its own step
     if "probes" in base:
         raw["probes"] = list(base["probes"])
     from .scene import apply_overrides
