@@ -7,8 +7,10 @@ from .materials import Material
 
 
 def nesterenko_speed(material: Material, v_m):
-    """Long-wave solitary-wave speed V_s = (16/25)^(1/5) c^(4/5) v_m^(1/5) (m/s)."""
-    return (16.0 / 25.0) ** 0.2 * material.c0 ** 0.8 * np.asarray(v_m, dtype=float) ** 0.2
+    """Long-wave solitary-wave speed V_s = (16/25)^(1/5) c^(4/5) v_m^(1/5) (m/s); a float
+    for a scalar v_m, an array for an array."""
+    vs = (16.0 / 25.0) ** 0.2 * material.c0 ** 0.8 * np.asarray(v_m, dtype=float) ** 0.2
+    return float(vs) if vs.ndim == 0 else vs
 
 
 def pulse_width(material: Material, radius: float, v_m) -> float:

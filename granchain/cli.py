@@ -7,10 +7,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 from pathlib import Path
 
 from .errors import GranchainError
+from .fileio import atomic_write_text, check_output_path
+from .guards import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost, scene_warnings
 from .scene import load_scene
 
 
@@ -24,17 +27,9 @@ def _jsonable(obj):
     return obj
 
 
-def _check_new(path: Path, force: bool) -> None:
-    if path.exists() and not force:
-        raise GranchainError(f"--out: '{path}' exists; choose another path or pass --force to replace it")
-
-
-def _write_new(path: Path, text: str, force: bool) -> None:
-    """Write results without ever silently overwriting earlier ones."""
-    _check_new(path, force)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
+def one_line(text: str) -> str:
+    """A message on one line: control characters (newlines, ...) shown escaped."""
+    return re.sub(r"[\x00-\x1f\x7f]", lambda m: repr(m.group())[1:-1], text)
 
 
 def _fmt(x, unit="", digits=4):
@@ -51,8 +46,13 @@ def _print_human(scene, runs, out=None):
     for r in runs:
         vs = r["v_striker"]
         head = f"v_s = {vs:g} m/s, realisation {r['realisation']}"
+        cut = r.get("not_final") or []
+        note = (f"; peak not measured (n/a) for particle{'s' if len(cut) > 1 else ''} "
+                f"{_ranges(cut)}" if cut else "")
         if not r["wave_arrived"]:
-            print(f"{head}: no wave arrived at particle {p2} (status {r['status']})", file=out)
+            missed = [p for p in (p1, p2) if p in cut]
+            print(f"{head}: no measured peak at probe{'s' if len(missed) > 1 else ''} "
+                  f"{_ranges(missed)} (status {r['status']}){note}", file=out)
             continue
         e = r["energy"]
         print(f"{head}: v_max,1 = {_fmt(r['v_max_1'])} m/s ({_fmt(r['v_max_1'] / vs)} v_s) at particle {p1}; "
@@ -60,7 +60,29 @@ def _print_human(scene, runs, out=None):
               f"dt = {_fmt(r['dt_peak'])} s; v_g = {_fmt(r['v_g'])} m/s "
               f"(front: {_fmt(r['v_g_front'])}); energy balance error {_fmt(e['balance_error'], digits=2)}"
               f"{_residual_note(scene, r)}; "
-              f"{r['steps']} steps, {_fmt(r['wall_s'], ' s', 3)}", file=out)
+              f"{r['steps']} steps, {_fmt(r['wall_s'], ' s', 3)}{note}", file=out)
+    _print_warnings([w for r in runs for w in r.get("warnings", ())], out)
+
+
+def _ranges(ps) -> str:
+    """[11, 12, 13, 15] -> '11-13, 15'."""
+    out, ps = [], sorted(ps)
+    i = 0
+    while i < len(ps):
+        j = i
+        while j + 1 < len(ps) and ps[j + 1] == ps[j] + 1:
+            j += 1
+        out.append(str(ps[i]) if i == j else f"{ps[i]}-{ps[j]}")
+        i = j + 1
+    return ", ".join(out)
+
+
+def _print_warnings(warnings, out) -> None:
+    shown = []
+    for w in warnings:
+        if w not in shown:
+            shown.append(w)
+            print(f"warning: {one_line(w)}", file=out)
 
 
 def _residual_note(scene, r) -> str:
@@ -74,6 +96,7 @@ def cmd_validate(args) -> int:
     print(f"{args.scene}: valid scene '{scene.name}' ({scene.hash}), {scene.n} particles, "
           f"{len(scene.striker_velocities)} striker speed(s) x {scene.realisations} realisation(s), "
           f"effects: {', '.join(sorted(scene.effects))}, integrator {scene.method}")
+    _print_warnings(scene_warnings(scene), sys.stdout)
     return 0
 
 
@@ -81,8 +104,10 @@ def cmd_run(args) -> int:
     from .simulate import run_scene
     scene = load_scene(args.scene, args.set)
     if args.out:
-        _check_new(Path(args.out), args.force)     # refuse before spending the compute
-    runs = run_scene(scene, engine=args.engine, **_engine_kw(args))
+        check_output_path(args.out, args.force, "--out")     # refuse before spending the compute
+    check_cost(scene, args.max_steps, args.max_memory_gb)
+    runs = run_scene(scene, engine=args.engine, max_steps=args.max_steps,
+                     max_memory_gb=args.max_memory_gb, **_engine_kw(args))
     if len(runs) == 1:
         doc = dict(runs[0], scene=scene.name, scene_hash=scene.hash)
     else:
@@ -92,7 +117,7 @@ def cmd_run(args) -> int:
     elif not args.out:
         print(json.dumps(_jsonable(doc)))
     if args.out:
-        _write_new(Path(args.out), json.dumps(_jsonable(doc), indent=1) + "\n", args.force)
+        atomic_write_text(args.out, json.dumps(_jsonable(doc), indent=1) + "\n", args.force, "--out")
     return 0
 
 
@@ -156,9 +181,10 @@ def cmd_compare(args) -> int:
     from .compare import compare
     scene = load_scene(args.scene, args.set)
     if args.out:
-        _check_new(Path(args.out), args.force)
+        check_output_path(args.out, args.force, "--out")
     if args.np < 1:
         raise GranchainError(f"--np: must be >= 1 (got {args.np})")
+    check_cost(scene, args.max_steps, args.max_memory_gb)
     cmp = compare(scene, nprocs=args.np,
                   workdir=Path(args.workdir) if args.workdir else None, force=args.force)
     doc = {"scene": scene.name, "scene_hash": scene.hash, "ok": cmp.ok, "meta": cmp.meta,
@@ -168,7 +194,7 @@ def cmd_compare(args) -> int:
     elif not args.json:
         _print_comparison(cmp)
     if args.out:
-        _write_new(Path(args.out), json.dumps(_jsonable(doc), indent=1) + "\n", args.force)
+        atomic_write_text(args.out, json.dumps(_jsonable(doc), indent=1) + "\n", args.force, "--out")
     return 0 if cmp.ok else 1
 
 
@@ -180,9 +206,35 @@ def cmd_deck(args) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (exit status 2), like every other granchain error."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)\n")
+
+
+def _limit(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a number > 0")
+    return value
+
+
+def _cost_args(sp) -> None:
+    sp.add_argument("--max-steps", type=_limit, default=DEFAULT_MAX_STEPS, metavar="N",
+                    help=f"refuse a scene needing more integration steps per chain "
+                         f"(estimate; default {DEFAULT_MAX_STEPS:.0e})")
+    sp.add_argument("--max-memory-gb", type=_limit, default=DEFAULT_MAX_MEMORY_GB, metavar="X",
+                    help=f"refuse a scene whose sample record needs more GB per chain "
+                         f"(estimate; default {DEFAULT_MAX_MEMORY_GB:g})")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="granchain", description=__doc__.splitlines()[0])
-    sub = p.add_subparsers(dest="command", required=True)
+    p = _Parser(prog="granchain", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     def scene_args(sp):
         sp.add_argument("scene", help="scene YAML file")
@@ -204,6 +256,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="LAMMPS engine: MPI ranks (mpirun -np N; default 1)")
     sp.add_argument("--workdir", metavar="DIR",
                     help="LAMMPS engine: keep deck, dump and log in DIR (must be empty)")
+    _cost_args(sp)
     sp.set_defaults(func=cmd_run)
 
     sp = sub.add_parser("compare", help="run a scene through the reference engine and LAMMPS "
@@ -215,6 +268,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="allow --out (and a non-empty --workdir) to be replaced")
     sp.add_argument("--np", type=int, default=1, metavar="N", help="LAMMPS MPI ranks (default 1)")
     sp.add_argument("--workdir", metavar="DIR", help="keep the LAMMPS deck, dump and log in DIR")
+    _cost_args(sp)
     sp.set_defaults(func=cmd_compare)
 
     sp = sub.add_parser("deck", help="write a LAMMPS input deck for a scene")
@@ -227,11 +281,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:        # argparse: --help (0) or a bad option (2, one line)
+        return exc.code if isinstance(exc.code, int) else 2
     try:
         return args.func(args)
     except GranchainError as exc:
-        print(f"granchain: error: {exc}", file=sys.stderr)
+        print(f"granchain: error: {one_line(str(exc))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("granchain: interrupted", file=sys.stderr)

@@ -215,7 +215,7 @@ def fixed_step(scene, steps_per_contact: int) -> float:
     grid). Under Hertz scaling sample_dt / t_c is the same for every scene (auto sampling:
     400 samples per solitary-wave width, t_c / 163), so a given N gives the same dt / t_c
     and the same sampling everywhere: the measurement and ``resolve_auto`` both use it."""
-    from .engines.reference import sample_interval
+    from .schedule import sample_interval
     v = max(scene.striker_velocities)
     dt = scene.contact_time(v) / steps_per_contact
     sdt = sample_interval(scene, v)
@@ -276,7 +276,7 @@ def rel_err(runs: list[dict], ref: list[dict], key: str) -> float:
 def reference_runs(raw: dict, cost: dict, batch: int, log=_log) -> tuple[list[dict], dict]:
     """Reference observables of ``batch`` chains, and the reference's own uncertainty:
     adaptive at ``reference_tolerance`` against RK4 at the finest N of the grid."""
-    from .engines.reference import sample_interval
+    from .schedule import sample_interval
     ref_set = Setting("adaptive", None, float(cost["reference_tolerance"]))
     ref_scene = scene_for(raw, ref_set, batch=batch)
     ref = _run(ref_scene, ref_set, batch)
@@ -562,7 +562,7 @@ def resolve_auto(scene) -> tuple[str, float, float | None]:
     speeds at auto sampling) that cannot hold for every member, so when the target is below
     the measured misalignment floor only adaptive is used. Adaptive keeps the scene's dt as
     its first step and gets the model's tolerance as its rtol."""
-    from .engines.reference import sample_interval
+    from .schedule import sample_interval
     table, prov = load_model()
     tol = float(scene.tolerance)
     target = tol / AUTO_SAFETY

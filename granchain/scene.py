@@ -15,6 +15,7 @@ import difflib
 import hashlib
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,6 +23,7 @@ from typing import Any
 import yaml
 
 from .errors import SceneError
+from .guards import MIN_SAMPLES_PER_PULSE, floor_sig, max_sample_dt, pulse_width
 from .materials import Material, library
 
 EFFECTS = ("hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
@@ -55,6 +57,15 @@ DEFAULTS: dict[str, Any] = {
 
 # Fewest integration steps that must fit in the shortest Hertz collision of a scene.
 MIN_STEPS_PER_CONTACT = 20
+# Fewest samples per solitary-wave width that output.sample_dt must give:
+# MIN_SAMPLES_PER_PULSE (granchain/guards.py).
+
+# Names (scene name, file stem, custom material name) reach deck comments, data-file
+# titles, JSON and logs: only these characters, 1 to 64 of them.
+NAME_RE = re.compile(r"[A-Za-z0-9._-]{1,64}")
+NAME_RULE = "use 1-64 characters from A-Z a-z 0-9 . _ -"
+# the distributions that draw at random (gaps.seed matters only for these)
+RANDOM_GAPS = ("uniform", "exponential", "from_length")
 
 
 @dataclass(frozen=True)
@@ -134,23 +145,117 @@ def scene_hash(spec: dict) -> str:
 # ---------------------------------------------------------------------------------------
 # loading
 # ---------------------------------------------------------------------------------------
-def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
-    path = Path(path)
-    if not path.is_file():
-        raise SceneError("<file>", f"'{path}' does not exist", "give the path of a scene YAML file")
+class SceneLoader(yaml.SafeLoader):
+    """YAML SafeLoader that refuses a key given twice in one mapping (at any depth),
+    naming the key's path and the line of its second occurrence."""
+
+    def __init__(self, stream, root: str = ""):
+        super().__init__(stream)
+        self._paths: dict[int, str] = {}
+        self._root = root
+
+    def _path_of(self, node) -> str:
+        return self._paths.get(id(node), self._root)
+
+    def construct_mapping(self, node, deep=False):
+        if isinstance(node, yaml.MappingNode):
+            base = self._path_of(node)
+            seen = set()
+            for key_node, value_node in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    hash(key)
+                except TypeError:
+                    continue                     # the base class reports it
+                where = f"{base}.{key}" if base else str(key)
+                if key in seen:
+                    raise SceneError(where, f"duplicate key (again at line "
+                                            f"{key_node.start_mark.line + 1})",
+                                     "keep one of the entries")
+                seen.add(key)
+                self._paths[id(value_node)] = where
+        return super().construct_mapping(node, deep=deep)
+
+    def construct_sequence(self, node, deep=False):
+        if isinstance(node, yaml.SequenceNode):
+            base = self._path_of(node)
+            for i, child in enumerate(node.value):
+                self._paths[id(child)] = f"{base}[{i}]"
+        return super().construct_sequence(node, deep=deep)
+
+
+SceneLoader.add_constructor("tag:yaml.org,2002:map", SceneLoader.construct_yaml_map)
+SceneLoader.add_constructor("tag:yaml.org,2002:seq", SceneLoader.construct_yaml_seq)
+
+
+def parse_yaml(text: str, what: str, root: str = ""):
+    """A YAML document read with :class:`SceneLoader`; every failure is a SceneError.
+    ``root``: the key path of the document (an override's key)."""
+    loader = None
     try:
-        raw = yaml.safe_load(path.read_text())
+        loader = SceneLoader(text, root)      # its reader refuses non-printable characters
+        return loader.get_single_data()
+    except SceneError:
+        raise
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark else ""
-        raise SceneError("<file>", f"'{path}' is not valid YAML{where}",
+        problem = getattr(exc, "problem", None) or "syntax error"
+        raise SceneError("<file>", f"{what} is not valid YAML{where} ({problem})",
                          "fix the YAML syntax") from None
+    except (ValueError, TypeError, OverflowError, RecursionError) as exc:
+        # e.g. a date-like value that is no date (2024-13-45): the constructors raise these
+        raise SceneError("<file>", f"{what} has a value YAML cannot read ({type(exc).__name__}: "
+                         f"{str(exc)[:80]!r})", "quote the value or fix it") from None
+    finally:
+        if loader is not None:
+            loader.dispose()
+
+
+def read_scene_file(path: str | Path) -> dict:
+    """The mapping of a scene file; a missing, unreadable, non-UTF-8 or non-YAML file is a
+    one-line SceneError."""
+    shown = repr(str(path))
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise SceneError("<file>", f"{shown} does not exist",
+                         "give the path of a scene YAML file") from None
+    except IsADirectoryError:
+        raise SceneError("<file>", f"{shown} is a directory",
+                         "give the path of a scene YAML file") from None
+    except PermissionError:
+        raise SceneError("<file>", f"{shown} cannot be read (permission denied)",
+                         "make it readable or copy it somewhere you can read") from None
+    except (OSError, ValueError) as exc:
+        raise SceneError("<file>", f"{shown} cannot be read "
+                         f"({getattr(exc, 'strerror', None) or exc})",
+                         "give the path of a readable scene YAML file") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise SceneError("<file>", f"{shown} is not UTF-8 text (byte {exc.start}, line {line})",
+                         "save the scene file as UTF-8") from None
+    raw = parse_yaml(text, shown)
     if raw is None:
         raw = {}
     if not isinstance(raw, dict):
         raise SceneError("<file>", "the top level is not a mapping", "write 'key: value' lines")
-    raw = apply_overrides(raw, overrides)
-    raw.setdefault("name", path.stem)
+    return raw
+
+
+def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
+    path = Path(path)
+    raw = apply_overrides(read_scene_file(path), overrides)
+    if raw.get("name") is None:
+        if not NAME_RE.fullmatch(path.stem):
+            raise SceneError("name", f"not given, and the file name {path.stem!r} is no valid "
+                             "scene name", f"give name: in the scene or rename the file ({NAME_RULE})")
+        raw["name"] = path.stem
     return scene_from_dict(raw)
 
 
@@ -164,8 +269,10 @@ def apply_overrides(raw: dict, overrides) -> dict:
         key, _, text = item.partition("=")
         parts = key.strip().split(".")
         try:
-            value = yaml.safe_load(text)
-        except yaml.YAMLError:
+            value = parse_yaml(text, f"the value of --set {key.strip()}", key.strip())
+        except SceneError as exc:
+            if exc.field != "<file>":
+                raise
             value = text
         node = raw
         for p in parts[:-1]:
@@ -189,7 +296,7 @@ def _merge(defaults: dict, given: dict, prefix: str = "") -> dict:
             if value is None:
                 continue
             if not isinstance(value, dict):
-                raise SceneError(where, f"expected a mapping, got {value!r}",
+                raise SceneError(where, f"expected a mapping, got {_short(value)}",
                                  f"write e.g. {key}: {{...}}")
             out[key] = _merge(defaults[key], value, where + ".")
         else:
@@ -197,45 +304,68 @@ def _merge(defaults: dict, given: dict, prefix: str = "") -> dict:
     return out
 
 
-def _num(spec: dict, dotted: str, *, positive=False, nonneg=False, integer=False,
-         allow_none=False, lo=None, hi=None, fix=None):
-    node: Any = spec
-    for p in dotted.split("."):
-        node = node[p]
+def _short(value, limit: int = 60) -> str:
+    """repr of a value for a one-line message, cut to ``limit`` characters."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _num(spec: dict, dotted: str, **kw):
+    return _value(_get(spec, dotted), dotted, **kw)
+
+
+def _value(node, field: str, *, positive=False, nonneg=False, integer=False,
+           allow_none=False, lo=None, hi=None, fix=None):
+    """A number (``field`` names it in errors) checked against the given bounds."""
     if node is None and allow_none:
         return None
+    given = node
     if isinstance(node, bool) or not isinstance(node, (int, float)):
         # YAML 1.1 reads "1e-9" (no dot) as a string: accept numeric strings.
         try:
-            node = float(node) if not isinstance(node, bool) else None
-        except (TypeError, ValueError):
+            node = float(node) if isinstance(node, str) else None
+        except (TypeError, ValueError, OverflowError):
             node = None
         if node is None:
-            raise SceneError(dotted, f"expected a number, got {_get(spec, dotted)!r}",
+            raise SceneError(field, f"expected a number, got {_short(given)}",
                              fix or "give a number in SI units")
-    value = float(node)
+    try:
+        value = float(node)
+    except OverflowError:
+        value = math.inf
     if not math.isfinite(value):
-        raise SceneError(dotted, f"{value} is not a finite number", fix or "give a finite number")
+        raise SceneError(field, f"{_short(given)} is not a finite number",
+                         fix or "give a finite number")
     if integer and value != int(value):
-        raise SceneError(dotted, f"{value} is not a whole number", fix or "give an integer")
+        raise SceneError(field, f"{value} is not a whole number", fix or "give an integer")
     if positive and value <= 0:
-        raise SceneError(dotted, f"{value:g} must be > 0", fix or "give a positive value")
+        raise SceneError(field, f"{value:g} must be > 0", fix or "give a positive value")
     if nonneg and value < 0:
-        raise SceneError(dotted, f"{value:g} must be >= 0", fix or "give a value >= 0")
+        raise SceneError(field, f"{value:g} must be >= 0", fix or "give a value >= 0")
     if lo is not None and value < lo:
-        raise SceneError(dotted, f"{value:g} is below {lo:g}", fix or f"give a value >= {lo:g}")
+        raise SceneError(field, f"{value:g} is below {lo:g}", fix or f"give a value >= {lo:g}")
     if hi is not None and value > hi:
-        raise SceneError(dotted, f"{value:g} is above {hi:g}", fix or f"give a value <= {hi:g}")
+        raise SceneError(field, f"{value:g} is above {hi:g}", fix or f"give a value <= {hi:g}")
     return int(value) if integer else value
 
 
 def _choice(value, field, options, what):
     """A value that must be one of ``options``, with a 'did you mean' on a typo."""
-    if value in options:
+    if isinstance(value, str) and value in options:
         return value
-    close = difflib.get_close_matches(str(value), options, n=1)
+    close = difflib.get_close_matches(str(value), options, n=1) if isinstance(value, str) else []
     hint = f"did you mean '{close[0]}'?" if close else f"use one of {', '.join(options)}"
-    raise SceneError(field, f"unknown {what} '{value}'", hint)
+    raise SceneError(field, f"unknown {what} {_short(value)}", hint)
+
+
+def check_name(value, field: str) -> str:
+    """A name that may reach deck comments, data-file titles and file names."""
+    if isinstance(value, bool) or not isinstance(value, (str, int)):
+        raise SceneError(field, f"expected a name, got {_short(value)}", NAME_RULE)
+    text = str(value)
+    if not NAME_RE.fullmatch(text):
+        raise SceneError(field, f"{_short(text)} is not a valid name", NAME_RULE)
+    return text
 
 
 def _get(spec, dotted):
@@ -251,13 +381,13 @@ def _material(value) -> Material:
         if value not in lib:
             close = difflib.get_close_matches(value, list(lib), n=1)
             hint = f"did you mean '{close[0]}'?" if close else f"use one of {', '.join(lib)}"
-            raise SceneError("material", f"unknown material '{value}'",
+            raise SceneError("material", f"unknown material {_short(value)}",
                              f"{hint} or give {{E: ..., nu: ..., rho: ...}}")
         return lib[value]
     if isinstance(value, dict):
         extra = set(value) - {"E", "nu", "rho", "name"}
         if extra:
-            raise SceneError(f"material.{sorted(extra)[0]}", "unknown key",
+            raise SceneError(f"material.{sorted(map(str, extra))[0]}", "unknown key",
                              "a material mapping has E, nu, rho (and optional name)")
         for k in ("E", "nu", "rho"):
             if k not in value:
@@ -267,16 +397,133 @@ def _material(value) -> Material:
         nu = _num(spec, "material.nu", lo=-0.999, hi=0.4999,
                   fix="a Poisson ratio lies in (-1, 0.5)")
         rho = _num(spec, "material.rho", positive=True)
-        return Material(str(value.get("name", "custom")), E, nu, rho)
-    raise SceneError("material", f"expected a name or a mapping, got {value!r}",
+        name = check_name(value.get("name", "custom"), "material.name")
+        return Material(name, E, nu, rho)
+    raise SceneError("material", f"expected a name or a mapping, got {_short(value)}",
                      "write material: ss440c or material: {E: 200e9, nu: 0.28, rho: 7800}")
 
 
-def scene_from_dict(raw: dict) -> Scene:
+def given_keys(raw: dict) -> set[str]:
+    """Dotted paths of the keys a mapping gives (values not null), before defaults:
+    'name', 'gaps', 'gaps.mean', ... Only these can be refused as having no effect."""
+    out = set()
+    if not isinstance(raw, dict):
+        return out
+    for key, value in raw.items():
+        if value is None:
+            continue
+        out.add(str(key))
+        if isinstance(value, dict) and isinstance(DEFAULTS.get(key), dict):
+            out |= {f"{key}.{k}" for k, v in value.items() if v is not None}
+    return out
+
+
+def _effects(value) -> frozenset[str]:
+    if isinstance(value, str):
+        words = [w for w in re.split(r"[\s,\[\]]+", value) if w]
+        if len(words) != 1:
+            listed = ", ".join(words) if words else "hertz"
+            raise SceneError("effects", f"{_short(value)} is one string, not a list",
+                             f"write effects: [{listed}]")
+        value = words
+    if not isinstance(value, list):
+        raise SceneError("effects", f"expected a list, got {_short(value)}",
+                         "write effects: [hertz, ...]")
+    seen = []
+    for i, e in enumerate(value):
+        _choice(e, f"effects[{i}]", EFFECTS, "effect")
+        if e in seen:
+            raise SceneError(f"effects[{i}]", f"'{e}' is listed twice (also effects[{seen.index(e)}])",
+                             "list each effect once")
+        seen.append(e)
+    eff = frozenset(seen)
+    if "hertz" not in eff:
+        raise SceneError("effects", "'hertz' is missing", "every chain needs hertz contacts: add hertz")
+    for needs_rot in ("particle_friction", "rolling_friction"):
+        if needs_rot in eff and "rotation" not in eff:
+            raise SceneError("effects", f"'{needs_rot}' acts through torques but 'rotation' is off",
+                             "add rotation to effects")
+    return eff
+
+
+def _probes(value, n: int) -> tuple[int, int]:
+    example = f"write probes: [2, {n}] (two particles from 2 to n = {n}; particle 1 is the striker)"
+    if not isinstance(value, list) or len(value) != 2:
+        raise SceneError("probes", f"expected a list of exactly two particles, got {_short(value)}",
+                         example)
+    for i, p in enumerate(value):
+        if isinstance(p, bool) or not isinstance(p, int):
+            raise SceneError(f"probes[{i}]", f"{_short(p)} is not a particle number",
+                             "give whole numbers (1-based)")
+        if p == 1:
+            raise SceneError(f"probes[{i}]", "particle 1 is the striker",
+                             f"give particles from 2 to n = {n}")
+        if not 2 <= p <= n:
+            raise SceneError(f"probes[{i}]", f"particle {p} is outside the chain of {n}",
+                             f"give particles from 2 to n = {n}")
+    p1, p2 = value
+    if p2 == p1:
+        raise SceneError("probes", f"both probes are particle {p1}", "give two different particles")
+    if p2 < p1:
+        raise SceneError("probes", f"the second probe ({p2}) is before the first ({p1})",
+                         f"list them in the direction the wave travels: probes: [{p2}, {p1}]")
+    return p1, p2
+
+
+# keys that have no effect unless ... (checked only for keys the user wrote)
+_SECTION_EFFECT = {"groove": "groove_friction", "drag": "air_drag",
+                   "contact": "particle_friction", "rolling": "rolling_friction"}
+
+
+def _check_unused(given: set[str], dist: str, eff: frozenset[str], method: str,
+                  tangential: str) -> None:
+    def refuse(key, why, fix):
+        raise SceneError(key, f"has no effect {why}", fix)
+
+    if "groove.s" in given and "groove.angle_deg" in given:
+        raise SceneError("groove.s", "given together with groove.angle_deg",
+                         "give one of them (s = sin(angle/2))")
+    for key in sorted(given):
+        section, _, sub = key.partition(".")
+        if not sub:
+            continue
+        if section in _SECTION_EFFECT and _SECTION_EFFECT[section] not in eff:
+            refuse(key, f"while {_SECTION_EFFECT[section]} is off",
+                   f"add {_SECTION_EFFECT[section]} to effects or drop {key}")
+    if "gaps.mean" in given and dist not in ("fixed", "uniform", "exponential"):
+        refuse("gaps.mean", f"with distribution '{dist}'",
+               "drop it, or use distribution fixed, uniform or exponential")
+    if "gaps.values" in given and dist != "list":
+        refuse("gaps.values", f"with distribution '{dist}'", "drop it, or use distribution list")
+    if "gaps.extra_length" in given and dist != "from_length":
+        refuse("gaps.extra_length", f"with distribution '{dist}'",
+               "drop it, or use distribution from_length")
+    if "gaps.seed" in given and dist not in RANDOM_GAPS:
+        refuse("gaps.seed", f"with distribution '{dist}' (nothing is drawn at random)",
+               "drop it, or use distribution uniform, exponential or from_length")
+    if "integrator.tolerance" in given and method in ("rk4", "verlet"):
+        refuse("integrator.tolerance", f"with method {method} (a fixed step)",
+               "drop it, or use method adaptive or auto")
+    if "contact.kt" in given and "particle_friction" in eff and tangential == "mindlin":
+        refuse("contact.kt", "with tangential: mindlin (its stiffness follows from the material)",
+               "drop it, or use tangential: linear_history")
+
+
+def scene_from_dict(raw: dict, *, check_unused: bool = True) -> Scene:
+    """Validate a scene mapping (SI units) and return the Scene.
+
+    ``check_unused``: refuse keys of ``raw`` that have no effect for its settings. Turn it
+    off only to rebuild a scene from a normalised ``Scene.spec`` (which holds every key).
+    """
+    if not isinstance(raw, dict):
+        raise SceneError("<file>", "the top level is not a mapping", "write 'key: value' lines")
+    given = given_keys(raw) if check_unused else set()
     spec = _merge(DEFAULTS, raw)
+    name = check_name(spec["name"], "name") if spec["name"] is not None else "scene"
     material = _material(spec["material"])
 
-    n = _num(spec, "chain.n", integer=True, lo=2, fix="a chain needs at least 2 particles")
+    n = _num(spec, "chain.n", integer=True, lo=3,
+             fix="a chain needs at least 3 particles (the striker and two probes)")
     radius = _num(spec, "chain.radius", positive=True, fix="give the sphere radius in metres, e.g. 150e-6")
 
     vel = spec["striker"]["velocity"]
@@ -284,26 +531,12 @@ def scene_from_dict(raw: dict) -> Scene:
     if not vlist:
         raise SceneError("striker.velocity", "empty list", "give one velocity or a list of them (m/s)")
     velocities = []
-    for i, _ in enumerate(vlist):
-        sub = {"striker": {"velocity": vlist[i]}}
-        velocities.append(_num(sub, "striker.velocity", nonneg=True,
-                               fix="the striker moves towards the chain: give a speed >= 0 in m/s"))
+    for i, v in enumerate(vlist):
+        velocities.append(_value(v, f"striker.velocity[{i}]" if isinstance(vel, list) else
+                                 "striker.velocity", nonneg=True,
+                                 fix="the striker moves towards the chain: give a speed >= 0 in m/s"))
 
-    # effects
-    effects = spec["effects"]
-    if isinstance(effects, str):
-        effects = [effects]
-    if not isinstance(effects, list):
-        raise SceneError("effects", f"expected a list, got {effects!r}", "write effects: [hertz, ...]")
-    for e in effects:
-        _choice(e, "effects", EFFECTS, "effect")
-    eff = frozenset(effects)
-    if "hertz" not in eff:
-        raise SceneError("effects", "'hertz' is missing", "every chain needs hertz contacts: add hertz")
-    for needs_rot in ("particle_friction", "rolling_friction"):
-        if needs_rot in eff and "rotation" not in eff:
-            raise SceneError("effects", f"'{needs_rot}' acts through torques but 'rotation' is off",
-                             "add rotation to effects")
+    eff = _effects(spec["effects"])
 
     # gaps
     dist = _choice(spec["gaps"]["distribution"], "gaps.distribution", GAP_DISTRIBUTIONS,
@@ -322,11 +555,9 @@ def scene_from_dict(raw: dict) -> Scene:
         if len(vals) != n - 1:
             raise SceneError("gaps.values", f"has {len(vals)} entries but the chain has {n - 1} contacts",
                              f"give exactly n-1 = {n - 1} gaps")
-        gv = []
-        for i, g in enumerate(vals):
-            gv.append(_num({"g": {str(i): g}}, f"g.{i}", nonneg=True,
-                           fix=f"gaps.values[{i}] must be a finite gap >= 0 in metres"))
-        gap_values = tuple(gv)
+        gap_values = tuple(_value(g, f"gaps.values[{i}]", nonneg=True,
+                                  fix="give a finite gap >= 0 in metres")
+                           for i, g in enumerate(vals))
     if dist == "from_length":
         if spec["gaps"]["extra_length"] is None:
             raise SceneError("gaps.extra_length", "missing for distribution 'from_length'",
@@ -367,29 +598,14 @@ def scene_from_dict(raw: dict) -> Scene:
     gamma_roll = _num(spec, "rolling.gamma_roll", nonneg=True)
     mu_roll = _num(spec, "rolling.mu_roll", nonneg=True)
 
-    # probes
-    probes = spec["probes"]
-    if not isinstance(probes, list) or len(probes) < 2:
-        raise SceneError("probes", f"expected a list of at least two particles, got {probes!r}",
-                         "write probes: [2, 13] (1-based; particle 1 is the striker)")
-    pr = []
-    for i, p in enumerate(probes):
-        if isinstance(p, bool) or not isinstance(p, int):
-            raise SceneError(f"probes[{i}]", f"{p!r} is not a particle number",
-                             "give 1-based whole numbers")
-        if not 1 <= p <= n:
-            raise SceneError(f"probes[{i}]", f"particle {p} is outside the chain of {n}",
-                             f"give numbers from 1 to {n}")
-        pr.append(p)
-    if pr[1] <= pr[0]:
-        raise SceneError("probes", f"the second probe ({pr[1]}) is not after the first ({pr[0]})",
-                         "list probes in the direction the wave travels")
+    pr = _probes(spec["probes"], n)
 
     # integrator
     method = _choice(spec["integrator"]["method"], "integrator.method", METHODS, "method")
     dt = _num(spec, "integrator.dt", positive=True, fix="give the time step in seconds, e.g. 1e-9")
     tol = _num(spec, "integrator.tolerance", positive=True, allow_none=True, hi=0.1,
                fix="give a relative tolerance such as 1e-6")
+    _check_unused(given, dist, eff, method, tangential)
     if method in ("adaptive", "auto") and tol is None:
         tol = 1e-8 if method == "adaptive" else 1e-4
         spec["integrator"]["tolerance"] = tol
@@ -402,10 +618,14 @@ def scene_from_dict(raw: dict) -> Scene:
                                                fix="give seconds or 'auto'")
     realisations = _num(spec, "ensemble.realisations", integer=True, lo=1,
                         fix="give a whole number of gap realisations >= 1")
+    try:
+        scene_hash(spec)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise SceneError("<file>", f"a value cannot be stored ({type(exc).__name__})",
+                         "give plain numbers, strings and lists") from None
 
-    name = spec["name"] if spec["name"] is not None else "scene"
     scene = Scene(
-        name=str(name), material=material, n=n, radius=radius,
+        name=name, material=material, n=n, radius=radius,
         striker_velocities=tuple(velocities), gap_distribution=dist, gap_mean=gap_mean,
         gap_seed=seed, gap_values=gap_values, gap_extra_length=extra, effects=eff,
         groove_s=s, groove_mu=groove_mu, gravity=gravity, groove_kt=groove_kt,
@@ -419,13 +639,32 @@ def scene_from_dict(raw: dict) -> Scene:
         # the cheapest setting meeting the tolerance on v_g, from the measured cost model
         from .cost import resolve_auto
         m, dt_r, rtol = resolve_auto(scene)
+        if "integrator.dt" in given and m in ("rk4", "verlet"):
+            raise SceneError("integrator.dt", f"has no effect: method auto chose {m} with its "
+                             f"own step ({dt_r:.3g} s) for tolerance {tol:g}",
+                             "drop dt, or choose method rk4 or verlet to set the step")
         scene = dataclasses.replace(scene, method=m, dt=dt_r, tolerance=rtol, auto_tolerance=tol)
     if scene.sample_dt is not None and scene.sample_dt < scene.dt * (1 - 1e-9):
         raise SceneError("output.sample_dt",
                          f"{scene.sample_dt:g} s is shorter than the step {scene.dt:g} s",
                          "sample no faster than once per step")
     _check_step(scene)
+    _check_sampling(scene)
     return scene
+
+
+def _check_sampling(scene: Scene) -> None:
+    """A given sample interval must resolve the solitary wave of the fastest striker."""
+    limit = max_sample_dt(scene) if scene.sample_dt is not None else None
+    if limit is None or scene.sample_dt <= limit:
+        return
+    vmax = max(scene.striker_velocities)
+    width = pulse_width(scene.material, scene.radius, 0.64 * vmax)
+    raise SceneError("output.sample_dt",
+                     f"{scene.sample_dt:g} s cannot resolve the pulse: at {vmax:g} m/s the "
+                     f"solitary wave lasts {width:.3g} s and needs >= {MIN_SAMPLES_PER_PULSE} "
+                     f"samples (limit {floor_sig(limit):.2g} s)",
+                     f"use sample_dt <= {floor_sig(limit):.2g} or sample_dt: auto")
 
 
 def _check_step(scene: Scene) -> None:
@@ -440,5 +679,6 @@ def _check_step(scene: Scene) -> None:
     if scene.dt > limit:
         raise SceneError("integrator.dt",
                          f"{scene.dt:g} s is too large: a collision at {vmax:g} m/s lasts "
-                         f"{tc:.3g} s and needs >= {MIN_STEPS_PER_CONTACT} steps",
-                         f"use dt <= {limit:.2g}")
+                         f"{tc:.3g} s and needs >= {MIN_STEPS_PER_CONTACT} steps "
+                         f"(limit {floor_sig(limit):.2g} s)",
+                         f"use dt <= {floor_sig(limit):.2g}, or method adaptive")

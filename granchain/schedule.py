@@ -1,5 +1,7 @@
-"""When a run stops, and which peaks it has measured: one rule for both engines and the
-observables.
+"""How a run samples, when it stops, and which peaks it has measured: one rule for both
+engines and the observables.
+
+Sampling: ``sample_interval`` (the scene's, or 400 samples per solitary-wave width).
 
 A particle has *seen the wave* once its velocity exceeds ``ARRIVAL_FRACTION * v_s``.
 Its peak velocity is *final* (a measured maximum, inside the run) when:
@@ -26,8 +28,21 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import analytic
+
+SAMPLES_PER_PULSE = 400    # auto sampling: samples per solitary-wave width
 ARRIVAL_FRACTION = 1e-3    # a particle has seen the wave once v > ARRIVAL_FRACTION * v_s
 PASS_FRACTION = 0.5        # the wave has passed an inner particle once v < this * its peak
+
+
+def sample_interval(scene, v_striker: float) -> float:
+    """Sample interval (s) of a chain: the scene's ``output.sample_dt``, or
+    SAMPLES_PER_PULSE per width of the solitary wave at 0.64 v_s (both engines, and the
+    cost estimate, use this grid)."""
+    if scene.sample_dt is not None:
+        return scene.sample_dt
+    v = max(v_striker, 1e-6)
+    return float(analytic.pulse_width(scene.material, scene.radius, 0.64 * v)) / SAMPLES_PER_PULSE
 
 
 def arrival_speed(v_striker: float) -> float:

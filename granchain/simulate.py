@@ -12,6 +12,7 @@ import numpy as np
 
 from . import gaps as gaps_mod
 from .errors import GranchainError
+from .guards import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost, physics_warnings
 from .observables import summarize
 from .scene import Scene
 
@@ -57,15 +58,25 @@ def trajectories(scene: Scene, mem: list[Member], engine: str = "reference", **k
     yield from zip(mem, it)
 
 
-def run_scene(scene: Scene, engine: str = "reference", realisations=None, **kw) -> list[dict]:
-    """Observables of every member of the scene, one dict each (JSON-ready)."""
+def run_scene(scene: Scene, engine: str = "reference", realisations=None, *,
+              max_steps: float = DEFAULT_MAX_STEPS, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
+              **kw) -> list[dict]:
+    """Observables of every member of the scene, one dict each (JSON-ready).
+
+    Before integrating, refuses (GranchainError) a scene whose chains need more than
+    ``max_steps`` integration steps or ``max_memory_gb`` GB of sample record each
+    (estimates: granchain/guards.py). Each dict carries ``warnings``: a list of one-line
+    physics warnings for its striker speed (empty when none)."""
+    check_cost(scene, max_steps, max_memory_gb)
     mem = members(scene, realisations)
     t0 = time.perf_counter()
     out = []
+    warn = {v: physics_warnings(scene, v) for v in scene.striker_velocities}
     for m, traj in trajectories(scene, mem, engine, **kw):
         s = summarize(traj, scene.probes)
         s.update(member=m.index, realisation=m.realisation, engine=engine,
-                 method=traj.meta.get("method"), dt=traj.meta.get("dt"))
+                 method=traj.meta.get("method"), dt=traj.meta.get("dt"),
+                 warnings=list(warn.get(m.v_striker) or physics_warnings(scene, m.v_striker)))
         out.append(s)
     wall = time.perf_counter() - t0
     for s in out:

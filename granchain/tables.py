@@ -46,7 +46,7 @@ BASE_COLUMNS = (
     "wave_arrived", "peaks_not_final", "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio", "dt_peak_s", "v_g_m_s",
     "v_g_front_m_s", "gap_mean_probes_nm", "v_g_bound_eq54_m_s", "energy_initial_J",
     "work_groove_J", "work_air_J", "work_particle_friction_J", "work_rolling_J",
-    "balance_error", "steps",
+    "balance_error", "steps", "warnings",
 )
 # Energy-ledger entries of observables.energy_ledger -> table columns.
 ENERGY_MAP = {
@@ -117,6 +117,7 @@ def member_row(meta: dict, run: dict, n: int) -> dict:
         "gap_mean_probes_nm": float(run["gap_mean_probes"]) * 1e9,
         "v_g_bound_eq54_m_s": math.nan,
         "steps": int(run["steps"]),
+        "warnings": ";".join(run.get("warnings") or ()),
     }
     for col, key in ENERGY_MAP.items():
         row[col] = float(e[key])
@@ -209,19 +210,12 @@ def timing_table(rows: list[dict]) -> pd.DataFrame:
 # writing
 # ---------------------------------------------------------------------------------------
 def _atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write to a temporary file in the same folder, then rename over ``path``."""
+    """Write to a new temporary file in the same folder, then rename over ``path``
+    (granchain.fileio.atomic_write_bytes)."""
+    from .fileio import atomic_write_bytes
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    atomic_write_bytes(path, data, force=True, field=str(path))
 
 
 def csv_text(df: pd.DataFrame) -> str:

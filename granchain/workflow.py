@@ -40,7 +40,7 @@ import pandas as pd
 
 from . import analytic, tables
 from .errors import GranchainError
-from .scene import Scene, scene_from_dict
+from .scene import RANDOM_GAPS, Scene, scene_from_dict
 from .simulate import members as scene_members
 from .simulate import run_scene, trajectories
 
@@ -179,12 +179,16 @@ def _raw_scene(preset: dict, spec: dict, name: str, material: str, velocities, g
         "material": material,
         "chain": {"n": base["n"], "radius": base["radius"]},
         "striker": {"velocity": list(velocities) if len(velocities) > 1 else velocities[0]},
-        "gaps": dict(gaps, seed=base["seed"]),
+        # the seed only where gaps are drawn at random (elsewhere it has no effect)
+        "gaps": dict(gaps, seed=base["seed"]) if gaps.get("distribution") in RANDOM_GAPS
+        else dict(gaps),
         "effects": list(base["effects"]),
         "integrator": {"method": spec.get("method", base["method"]),
                        "dt": spec.get("dt", base["dt"])},
         "ensemble": {"realisations": int(realisations)},
     }
+    if raw["integrator"]["method"] == "auto" and "dt" not in spec:
+        del raw["integrator"]["dt"]          # auto chooses its own step
     if "probes" in base:
         raw["probes"] = list(base["probes"])
     from .scene import apply_overrides
@@ -472,7 +476,7 @@ def packed_scene(ss: StudyScene) -> Scene:
     """The packed chain of a study scene: same physics, striker speeds, method and dt."""
     raw = copy.deepcopy(ss.raw)
     raw["name"] = f"{ss.study}-{ss.material}-packed"
-    raw["gaps"] = {"distribution": "none", "seed": raw["gaps"].get("seed", 0)}
+    raw["gaps"] = {"distribution": "none"}
     raw["ensemble"] = {"realisations": 1}
     return scene_from_dict(raw)
 
@@ -489,7 +493,7 @@ def packed_reference(scenes: list[StudyScene], velocities=None) -> pd.DataFrame:
         if velocities is not None:
             raw = copy.deepcopy(ps.spec)
             raw["striker"]["velocity"] = [float(v) for v in velocities]
-            ps = scene_from_dict(raw)
+            ps = scene_from_dict(raw, check_unused=False)
         if ps.hash in done:
             continue
         done.add(ps.hash)
@@ -607,7 +611,7 @@ def rerun_member(preset: dict, study: str, *, material: str, v_striker: float, r
     ss = cands[0]
     raw = copy.deepcopy(ss.scene.spec)
     raw["striker"]["velocity"] = float(v_striker)
-    alone = scene_from_dict(raw)
+    alone = scene_from_dict(raw, check_unused=False)
     run, = run_scene(alone, engine=engine, realisations=[int(realisation)])
     return member_rows(ss, [run]).iloc[0].to_dict()
 

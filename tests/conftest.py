@@ -1,3 +1,4 @@
+import dataclasses
 import os
 from pathlib import Path
 
@@ -23,6 +24,14 @@ def packed(**over):
            "integrator": {"method": "rk4", "dt": 1e-9}}
     from granchain.scene import apply_overrides
     return scene_from_dict(apply_overrides(raw, [f"{k}={v}" for k, v in over.items()]))
+
+
+def pair(**over):
+    """Two spheres, for kernel-level tests. A scene needs n >= 3 (the striker and two
+    probes from 2 to n), so this is a valid 3-sphere scene cut to its first two spheres,
+    with probes (1, 2) that no scene may give."""
+    return dataclasses.replace(packed(**{"chain.n": 3, "probes": "[2, 3]", **over}), n=2,
+                               probes=(1, 2))
 
 
 def run1(scene, **kw):

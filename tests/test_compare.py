@@ -12,7 +12,10 @@ from tests.conftest import packed
 
 pytestmark = pytest.mark.lammps
 
-HERTZ = ["--set", "effects=[hertz]"]
+# Hertz only: the scene file's groove, drag and contact parameters back to their defaults
+# (null), since keys of effects that are off are refused
+HERTZ = ["--set", "effects=[hertz]", "--set", "groove=null", "--set", "drag=null",
+         "--set", "contact=null"]
 
 
 @pytest.fixture

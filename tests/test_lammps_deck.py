@@ -98,11 +98,13 @@ def test_refuses_to_overwrite_unless_forced(tmp_path):
 
 def test_cli_deck(tmp_path, capsys, repo):
     out = tmp_path / "d"
+    hertz = ["--set", "effects=[hertz]", "--set", "groove=null", "--set", "drag=null",
+             "--set", "contact=null"]
     assert cli_main(["deck", str(repo / "granchain/scenes/packed-440c.yaml"), "-o", str(out),
-                     "--set", "effects=[hertz]"]) == 0
+                     *hertz]) == 0
     assert (out / "deck.lmp").is_file() and (out / DATA_NAME).is_file()
     assert cli_main(["deck", str(repo / "granchain/scenes/packed-440c.yaml"), "-o", str(out),
-                     "--set", "effects=[hertz]"]) == 2
+                     *hertz]) == 2
     assert "exists" in capsys.readouterr().err
 
 

@@ -183,7 +183,7 @@ def test_bad_plugin_parameter_names_the_deck(tmp_path):
 
 def test_failing_run_lost_atoms_names_the_deck_and_keeps_it():
     # a step far above the scene check (20 steps per contact) blows the chain apart
-    scene = dataclasses.replace(packed(t_end=200e-6, **{"output.sample_dt": 1e-5}), dt=1e-6)
+    scene = dataclasses.replace(packed(t_end=200e-6, **{"output.sample_dt": 1e-7}), dt=1e-6)
     with pytest.raises(GranchainError) as exc:
         list(L.run(scene, np.zeros((1, 14)), [1.0]))
     msg = _one_line(exc.value)
@@ -277,5 +277,6 @@ def test_human_summary_says_the_balance_is_a_residual(repo, capsys):
     y = str(repo / "granchain/scenes/packed-440c.yaml")
     assert cli_main(["run", y, "--engine", "lammps"]) == 0
     assert "balance residual, not an independent check" in capsys.readouterr().out
-    assert cli_main(["run", y, "--engine", "lammps", "--set", "effects=[hertz, air_drag]"]) == 0
+    assert cli_main(["run", y, "--engine", "lammps", "--set", "effects=[hertz, air_drag]",
+                     "--set", "groove=null", "--set", "contact=null"]) == 0
     assert "residual" not in capsys.readouterr().out

@@ -10,7 +10,7 @@ from granchain.engines import kernels as K
 from granchain.engines import reference
 from granchain.engines.reference import Layout, pack
 
-from conftest import packed, run1
+from conftest import packed, pair, run1
 
 
 def test_hertz_force_matches_closed_form():
@@ -22,7 +22,7 @@ def test_hertz_force_matches_closed_form():
     terms = physics_terms(sc)
     assert np.allclose(terms.hertz.force(delta), expect, rtol=1e-14, atol=0)
     # the kernel's force on a compressed pair, through the same parameters
-    two = packed(**{"chain.n": 2, "probes": "[1,2]"})
+    two = pair()
     t2 = physics_terms(two)
     lay = Layout.of(t2)
     P, FL = pack(t2)
@@ -83,7 +83,7 @@ def test_particle_friction_opposes_slip_on_both_spheres():
     """Two compressed spheres spinning the same way (slip R(w1+w2) != 0): the contact
     torque has the same sign on both and removes slip; with the chapter's '+' on the last
     term one sphere would be spun up instead."""
-    sc = packed(**{"chain.n": 2, "probes": "[1,2]", "effects": "[hertz,rotation,particle_friction]"})
+    sc = pair(effects="[hertz,rotation,particle_friction]")
     terms = physics_terms(sc)
     lay = Layout.of(terms)
     P, FL = pack(terms)
@@ -116,14 +116,14 @@ def test_groove_friction_slides_then_rolls_without_slip():
     """A free sphere launched without spin: Coulomb sliding until u = v - sR w = 0, then
     rolling at constant speed (exact stick: no chatter, no further loss)."""
     v0 = 0.01
-    base = {"chain.n": 2, "probes": "[1,2]", "gaps": "{distribution: fixed, mean: 1.0e-3}",
-            "striker.velocity": v0, "t_end": 2e-3, "output.sample_dt": 1e-6,
+    base = {"gaps": "{distribution: fixed, mean: 1.0e-3}",
+            "striker.velocity": v0, "t_end": 2e-3, "output.sample_dt": 2e-7,
             "integrator.dt": 2e-9}
-    sc = packed(**base, effects="[hertz,groove_friction]")
+    sc = pair(**base, effects="[hertz,groove_friction]")
     tr = next(reference.run(sc, [[1e-3]], [v0]))
     g, mu, s = 9.81, 0.293, math.sqrt(0.5)
     assert tr.v[-1, 0] == pytest.approx(v0 - mu * g / s * 2e-3, rel=1e-4)      # pure sliding
-    sc = packed(**base, effects="[hertz,groove_friction,rotation]")
+    sc = pair(**base, effects="[hertz,groove_friction,rotation]")
     tr = next(reference.run(sc, [[1e-3]], [v0]))
     t_star = v0 / (g * mu * (1 / s + 2.5 * s))
     v_roll = v0 - mu * g / s * t_star

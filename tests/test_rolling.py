@@ -13,7 +13,7 @@ from granchain.engines import kernels as K
 from granchain.engines import reference
 from granchain.engines.reference import Layout, pack
 
-from tests.conftest import SCENES, packed, run1
+from tests.conftest import SCENES, packed, pair, run1
 
 ROLL = "[hertz, rotation, rolling_friction]"
 CONTACT_ROLL = "[hertz, rotation, particle_friction, rolling_friction]"
@@ -25,7 +25,8 @@ SPINS = np.array([300.0, -200.0, 500.0, 0.0, -400.0])        # rad/s, 5-sphere c
 
 
 def five(effects, **over):
-    return packed(effects=effects, **{"chain.n": 5, "probes": "[2, 4]", **ROLL_PARAMS, **over})
+    roll = ROLL_PARAMS if "rolling_friction" in effects else {}     # unused keys are refused
+    return packed(effects=effects, **{"chain.n": 5, "probes": "[2, 4]", **roll, **over})
 
 
 class Chain:
@@ -83,7 +84,7 @@ def balance(E):
 
 def two_spheres(d, w, rho, **over):
     """Two spheres overlapping by d (m), spins w (rad/s), rolling history rho (m)."""
-    c = Chain(packed(effects=ROLL, **{"chain.n": 2, "probes": "[1, 2]", **ROLL_PARAMS, **over}), w0=w)
+    c = Chain(pair(effects=ROLL, **{**ROLL_PARAMS, **over}), w0=w)
     c.block(K.L_X)[0] = d
     c.block(K.L_V)[0] = 0.0
     c.block(K.L_PS, 1)[0] = rho
@@ -178,7 +179,7 @@ def test_zero_history_above_the_cap_gives_zero_moment_in_verlet():
     """LAMMPS zeroes the rolling moment when the updated history is exactly 0 and the
     trial (the dashpot alone) exceeds the cap (gran_sub_mod_rolling: 'else zero3(fr)')."""
     w, dt = (2000.0, -3000.0), 1e-9
-    c = Chain(packed(effects=ROLL, **{"chain.n": 2, "probes": "[1, 2]", **ROLL_PARAMS}))
+    c = Chain(pair(effects=ROLL, **ROLL_PARAMS))
     vr = 0.5 * c.terms.R * (w[0] - w[1])              # as the kernel computes it
     c = two_spheres(5e-8, w, -(vr * dt))              # rho + dt v_roll == 0 exactly
     dy = np.zeros(c.lay.ny)

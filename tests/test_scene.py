@@ -13,19 +13,22 @@ from conftest import SCENES, packed
 @pytest.mark.parametrize("override, field, words", [
     ("chain.radius=-1", "chain.radius", "must be > 0"),
     ("chain.radius=.nan", "chain.radius", "not a finite number"),
-    ("chain.n=1", "chain.n", "at least 2"),
-    ("effects=[hertz,magic]", "effects", "unknown effect 'magic'"),
+    ("chain.n=2", "chain.n", "at least 3"),
+    ("effects=[hertz,magic]", "effects[1]", "unknown effect 'magic'"),
     ("effects=[hertz,particle_friction]", "effects", "add rotation"),
     ("effects=[air_drag]", "effects", "'hertz' is missing"),
     ("probes=[2,16]", "probes[1]", "outside the chain of 15"),
     ("probes=[0,13]", "probes[0]", "outside the chain"),
-    ("probes=[13,2]", "probes", "not after the first"),
+    ("probes=[13,2]", "probes", "before the first"),
+    ("probes=[1,13]", "probes[0]", "particle 1 is the striker"),
+    ("probes=[2,13,14]", "probes", "exactly two"),
     ("gaps={distribution: list, values: [1.0e-9]}", "gaps.values", "has 1 entries"),
     ("gaps={distribution: uniform}", "gaps.mean", "missing"),
     ("gaps={distribution: gaussian, mean: 1.0e-9}", "gaps.distribution", "unknown distribution"),
     ("gaps={distribution: fixed, mean: -1.0e-9}", "gaps.mean", ">= 0"),
     ("striker.velocity=.nan", "striker.velocity", "not a finite number"),
     ("striker.velocity=-0.1", "striker.velocity", ">= 0"),
+    ("striker.velocity=[0.1, 0.2, -1]", "striker.velocity[2]", ">= 0"),
     ("integrator.dt=1e-7", "integrator.dt", "too large"),
     ("integrator.method=euler", "integrator.method", "unknown method"),
     ("material=unobtainium", "material", "unknown material"),
@@ -33,6 +36,9 @@ from conftest import SCENES, packed
     ("gap.mean=1", "gap", "did you mean 'gaps'"),
     ("drag.form=even", "drag.form", "unknown form"),
     ("output.sample_dt=1e-12", "output.sample_dt", "shorter than the step"),
+    ("output.sample_dt=1.0e-6", "output.sample_dt", "cannot resolve the pulse"),
+    ("effects=[hertz, rotation, groove_friction, air_drag, particle_friction, rotation]", "effects[5]",
+     "listed twice"),
 ])
 def test_validation_errors_name_field_and_fix(override, field, words):
     with pytest.raises(SceneError) as err:
@@ -68,7 +74,7 @@ def test_cli_refuses_to_overwrite_results(tmp_path):
     out = tmp_path / "r.json"
     out.write_text("precious")
     p = subprocess.run([sys.executable, "-m", "granchain.cli", "run", str(SCENES / "packed-440c.yaml"),
-                        "--set", "effects=[hertz]", "--json", "--out", str(out)],
+                        "--set", "striker.velocity=0.2", "--json", "--out", str(out)],
                        capture_output=True, text=True)
     assert p.returncode == 2 and "--force" in p.stderr
     assert out.read_text() == "precious"

@@ -147,7 +147,7 @@ def derive_scene(scene: Scene, changes: dict) -> Scene:
         for p in parts[:-1]:
             node = node.setdefault(p, {})
         node[parts[-1]] = value
-    return scene_from_dict(spec)
+    return scene_from_dict(spec, check_unused=False)
 
 
 def residual_balance(scene: Scene) -> bool:

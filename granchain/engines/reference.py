@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import analytic
-from ..schedule import arrival_speed
+from ..schedule import arrival_speed, sample_interval
 from ..effects import Terms, physics_terms
 from ..scene import Scene
 from ..trajectory import Trajectory
@@ -26,7 +26,6 @@ from . import kernels as K
 METHOD_CODES = {"rk4": K.M_RK4, "verlet": K.M_VERLET, "adaptive": K.M_DOP853}
 STATUS_NAMES = {K.S_DONE: "done", K.S_PASSED: "passed", K.S_TIMEOUT: "timeout",
                 K.S_NONFINITE: "nonfinite", K.S_STEPFAIL: "stepfail", K.S_RUNNING: "timeout"}
-SAMPLES_PER_PULSE = 400          # default sampling: 400 samples per solitary-wave width
 WINDOW = 2048                    # samples per kernel call
 CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
 
@@ -95,15 +94,6 @@ def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
         FL[K.F_ROLL] = 1
         P[K.P_KR], P[K.P_GR], P[K.P_MUR] = rf.k_roll, rf.gamma_roll, rf.mu_roll
     return P, FL
-
-
-def sample_interval(scene: Scene, v_striker: float) -> float:
-    """Sampling interval: the scene's, or SAMPLES_PER_PULSE per solitary-wave width."""
-    if scene.sample_dt is not None:
-        return scene.sample_dt
-    v = max(v_striker, 1e-6)
-    width = analytic.pulse_width(scene.material, scene.radius, 0.64 * v)
-    return width / SAMPLES_PER_PULSE
 
 
 def auto_t_max(scene: Scene, gaps: np.ndarray, v_striker: float) -> float:

