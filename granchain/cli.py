@@ -286,6 +286,9 @@ def main(argv=None) -> int:
     except SystemExit as exc:        # argparse: --help (0) or a bad option (2, one line)
         return exc.code if isinstance(exc.code, int) else 2
     try:
+        for flag, dest in (("--out", "out"), ("-o/--output", "output"), ("--workdir", "workdir")):
+            if getattr(args, dest, None) == "":
+                raise GranchainError(f"{flag}: the path is empty; give a path")
         return args.func(args)
     except GranchainError as exc:
         print(f"granchain: error: {one_line(str(exc))}", file=sys.stderr)

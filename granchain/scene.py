@@ -16,6 +16,7 @@ import hashlib
 import json
 import math
 import re
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -62,8 +63,10 @@ MIN_STEPS_PER_CONTACT = 20
 
 # Names (scene name, file stem, custom material name) reach deck comments, data-file
 # titles, JSON and logs: only these characters, 1 to 64 of them.
-NAME_RE = re.compile(r"[A-Za-z0-9._-]{1,64}")
-NAME_RULE = "use 1-64 characters from A-Z a-z 0-9 . _ -"
+# Names reach decks, data files, paths and shells: a safe set, no leading '.' or '-'
+NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9._-]{0,63}")
+MAX_SCENE_BYTES = 1 << 20      # a scene is a page of YAML; anything larger is not a scene
+NAME_RULE = "use 1-64 characters from A-Z a-z 0-9 . _ -, starting with a letter, digit or _"
 # the distributions that draw at random (gaps.seed matters only for these)
 RANDOM_GAPS = ("uniform", "exponential", "from_length")
 
@@ -218,8 +221,19 @@ def read_scene_file(path: str | Path) -> dict:
     """The mapping of a scene file; a missing, unreadable, non-UTF-8 or non-YAML file is a
     one-line SceneError."""
     shown = repr(str(path))
+    if str(path) == "":
+        raise SceneError("<file>", "the scene path is empty", "give the path of a scene YAML file")
     path = Path(path)
     try:
+        st = path.stat()
+        if stat.S_ISDIR(st.st_mode):
+            raise IsADirectoryError
+        if not stat.S_ISREG(st.st_mode):
+            raise SceneError("<file>", f"{shown} is not a regular file",
+                             "give the path of a scene YAML file")
+        if st.st_size > MAX_SCENE_BYTES:
+            raise SceneError("<file>", f"{shown} has {st.st_size} bytes, more than a scene "
+                             f"file can ({MAX_SCENE_BYTES})", "give the path of a scene YAML file")
         data = path.read_bytes()
     except FileNotFoundError:
         raise SceneError("<file>", f"{shown} does not exist",
@@ -249,8 +263,8 @@ def read_scene_file(path: str | Path) -> dict:
 
 
 def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
-    path = Path(path)
     raw = apply_overrides(read_scene_file(path), overrides)
+    path = Path(path)
     if raw.get("name") is None:
         if not NAME_RE.fullmatch(path.stem):
             raise SceneError("name", f"not given, and the file name {path.stem!r} is no valid "

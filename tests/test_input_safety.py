@@ -585,3 +585,36 @@ def test_fuzz_mutated_scenes(mutations, rnd):
 @given(st.binary(max_size=300))
 def test_fuzz_random_bytes(data):
     _validate_once(data)
+
+
+# ---------------------------------------------------------------------------------------
+# paths that are not files, empty paths, names that look like paths or options
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("path", ["/dev/null", "/dev/zero", ""])
+def test_special_and_empty_scene_paths_are_refused(capsys, path):
+    refused(capsys, ["validate", path], "'<file>'")
+
+
+@pytest.mark.parametrize("name", ["..", ".", "-rf", ".hidden"])
+def test_names_cannot_be_dot_paths_or_options(tmp_path, capsys, name):
+    refused(capsys, ["validate", write(tmp_path, f"name: '{name}'\n")], "'name'")
+
+
+@pytest.mark.parametrize("argv_tail, field", [
+    (["run", "--out", ""], "--out"),
+    (["deck", "-o", ""], "-o/--output"),
+    (["run", "--engine", "lammps", "--workdir", ""], "--workdir"),
+])
+def test_empty_output_paths_are_refused(tmp_path, capsys, no_compute, argv_tail, field):
+    scene = write(tmp_path, "name: ok\n")
+    refused(capsys, [argv_tail[0], scene] + argv_tail[1:], field)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.yaml"]
+
+
+def test_uncreatable_lammps_workdir_is_one_line(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    scene = write(tmp_path, "name: ok\nchain: {n: 4}\nprobes: [2, 4]\n")
+    refused(capsys, ["run", scene, "--engine", "lammps", "--workdir", str(blocker / "sub")],
+            "workdir")
+    assert blocker.read_text() == "x"

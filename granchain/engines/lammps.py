@@ -94,7 +94,11 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         if wd.is_dir() and any(wd.iterdir()) and not force:
             raise GranchainError(f"LAMMPS workdir '{wd}' is not empty; choose an empty "
                                  "directory or allow replacing its files (force / --force)")
-        wd.mkdir(parents=True, exist_ok=True)
+        try:
+            wd.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise GranchainError(f"LAMMPS workdir '{wd}' cannot be created "
+                                 f"({exc.strerror or exc}); choose another directory") from None
     try:
         from ..lammps.runner import lammps_version, run_lammps
         t0 = time.perf_counter()
