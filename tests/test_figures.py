@@ -225,31 +225,107 @@ def test_cli_prints_one_line_error(tmp_path):
 
 
 # --- thesis comparison -----------------------------------------------------------------
+# The numbers of ../shared/physics.md, "What the chapter reports", written out here
+# independently of granchain/thesis.py: row id -> (chapter value, chapter uncertainty).
+CHAPTER = {
+    "vmax_slope": (0.64, math.nan),             # v_max ~ 0.64 v_s, linear
+    "vmax1_over_vs": (0.89, math.nan),          # v_max,1 = 0.89 v_s
+    "vmax2_over_vs": (0.64, math.nan),          # v_max,2 = 0.64 v_s
+    "vmax_ratio": (0.72, math.nan),             # v_max,2 / v_max,1 = 0.72
+    "vg_nesterenko": (1.0, math.nan),           # v_g matches Nesterenko(v_m = 0.64 v_s)
+    "exp_vmax_ratio": (0.80, 0.08),             # experiment: 0.80 +/- 0.08
+    "exp_vmax1_over_vs": (0.57, 0.09),          # experiment: (0.57 +/- 0.09) v_s
+    "exp_vmax2_over_vs": (0.46, 0.07),          # experiment: (0.46 +/- 0.07) v_s
+    "exp_vg_below_packed": (math.nan, math.nan),  # "well below": no number printed
+    "gap20_oscillation": (0.20, math.nan),      # 20 nm gaps: peaks oscillate by ~20%
+    "gap20_vg_reduction": (1 / 3, math.nan),    # 20 nm gaps cut v_g by ~1/3
+    "fitted_gap_316": (190.4, math.nan),        # fitted mean gap, nm
+    "fitted_gap_440c": (47.0, math.nan),
+    "dE_coulomb_over_E": (-1e-3, math.nan),     # ~0.1% lost to groove friction
+    "dE_air_over_E": (-5e-4, math.nan),         # ~0.05% lost to air drag
+}
+# 440C handbook values (physics.md, Materials), for an independent Nesterenko speed
+E_440C, NU_440C, RHO_440C = 200e9, 0.28, 7800.0
+
+
+def _nesterenko_440c(v_m):
+    c = math.sqrt(2 * E_440C / (math.pi * RHO_440C * (1 - NU_440C**2)))
+    return (16 / 25) ** 0.2 * c ** 0.8 * v_m ** 0.2
+
+
+def _project_values(tdir):
+    """The project's value of every reported number, recomputed here with pandas from
+    the contract tables (the fixture's sweeps hold 0.1 m/s and the gap sweep's speeds
+    exactly, so no interpolation is needed)."""
+    ps = pd.read_csv(tdir / "packed_sweep.csv")
+    p = ps[ps["material"] == "ss440c"]
+    x = p["v_striker_m_s"]
+    s1 = (x * p["v_max_1_m_s"]).sum() / (x * x).sum()      # fit through the origin
+    s2 = (x * p["v_max_2_m_s"]).sum() / (x * x).sum()
+    ratio = (p["v_max_2_m_s"] / p["v_max_1_m_s"]).median()
+    at01 = p[p["v_striker_m_s"] == 0.1]
+    assert len(at01) == 1 and bool(at01["wave_arrived"].iloc[0])
+    vg01 = float(at01["v_g_m_s"].iloc[0])
+
+    gs = pd.read_csv(tdir / "gap_sweep.csv")
+    gs = gs[gs["wave_arrived"] & gs["v_g_m_s"].notna()]
+    vg_packed = ps.set_index(["material", "v_striker_m_s"])["v_g_m_s"]
+    packed_at = vg_packed.loc[list(zip(gs["material"], gs["v_striker_m_s"]))].to_numpy()
+    below = float(np.mean(gs["v_g_m_s"].to_numpy() < packed_at))
+
+    gp = pd.read_csv(tdir / "gap_profile.csv")
+    prof = gp[[f"vmax_p{i:02d}_m_s" for i in range(2, 14)]].div(gp["v_striker_m_s"], axis=0)
+    osc = ((prof.max(axis=1) - prof.min(axis=1)) / prof.mean(axis=1)).median()
+    gpa = gp[gp["wave_arrived"]]
+    assert (gp["v_striker_m_s"] == 0.1).all() and len(gpa) > 0
+    red = 1 - gpa["v_g_m_s"].median() / vg01
+
+    pt = pd.read_csv(tdir / "packed_trace.csv")
+    t = pt[pt["material"] == "ss440c"].iloc[0]
+    return {
+        "vmax_slope": s2, "vmax1_over_vs": s1, "vmax2_over_vs": s2, "vmax_ratio": ratio,
+        "vg_nesterenko": vg01 / _nesterenko_440c(0.64 * 0.1),
+        "exp_vmax_ratio": ratio, "exp_vmax1_over_vs": s1, "exp_vmax2_over_vs": s2,
+        "exp_vg_below_packed": below, "gap20_oscillation": osc, "gap20_vg_reduction": red,
+        "fitted_gap_316": math.nan, "fitted_gap_440c": math.nan,   # need measured v_g
+        "dE_coulomb_over_E": t["work_groove_J"] / t["energy_initial_J"],
+        "dE_air_over_E": t["work_air_J"] / t["energy_initial_J"],
+    }
+
+
 def test_thesis_table_has_every_reported_number(tables, tmp_path):
     tdir, rdir = tables
     paths = _paths(tdir, rdir)
     df = thesis.comparison(**thesis.read_inputs(paths))
     assert list(df.columns) == thesis.COLUMNS
-    assert set(thesis.REPORTED) <= set(df["id"])
-    # every chapter number of physics.md's list appears in a row
-    for number in (0.64, 0.89, 0.72, 0.80, 0.57, 0.46, 0.20, 1 / 3, 190.4, 47.0, -1e-3, -5e-4):
-        assert np.isclose(df["chapter_value"], number, rtol=1e-12).any(), number
-    # project values exist wherever the data exists (only the fitted gaps need experiments)
-    needs_exp = df["id"].isin(thesis.NEEDS_EXPERIMENT)
-    assert df.loc[~needs_exp, "project_value"].notna().all(), \
-        df.loc[~needs_exp & df["project_value"].isna(), "id"].tolist()
-    both = df["chapter_value"].notna() & df["project_value"].notna()
-    np.testing.assert_allclose(df.loc[both, "ratio"],
-                               df.loc[both, "project_value"] / df.loc[both, "chapter_value"])
+    assert set(thesis.REPORTED) == set(CHAPTER)
+    want = _project_values(tdir)
+    for id_, (value, unc) in CHAPTER.items():
+        rows = df[df["id"] == id_]
+        assert len(rows) == 1, (id_, len(rows))        # each reported number: one row
+        r = rows.iloc[0]
+        # the chapter's number, as the chapter prints it
+        np.testing.assert_allclose(r["chapter_value"], value, rtol=1e-12, err_msg=id_)
+        np.testing.assert_allclose(r["chapter_uncertainty"], unc, rtol=1e-12, err_msg=id_)
+        # the project's number, recomputed from the tables
+        if math.isnan(want[id_]):
+            assert math.isnan(r["project_value"]), (id_, r["project_value"])
+        else:
+            assert math.isfinite(r["project_value"]), id_
+            assert r["project_value"] == pytest.approx(want[id_], rel=1e-12), id_
+        if math.isfinite(value) and math.isfinite(want[id_]):
+            assert r["ratio"] == pytest.approx(want[id_] / value, rel=1e-12), id_
+        else:
+            assert math.isnan(r["ratio"]), id_
+        assert len(r["reason"]) > 20 and len(r["evidence"]) > 3, id_
+    # physics sanity of the recomputed values: the packed chain's peaks are below the
+    # striker and decay from particle 2 to 13; the printed drag is propulsive at 0.1 m/s
+    # (positive work, physics.md) and the groove friction takes energy
+    assert 0.5 < want["vmax2_over_vs"] < want["vmax1_over_vs"] < 1.0
+    assert want["dE_air_over_E"] > 0 > want["dE_coulomb_over_E"]
+    assert abs(want["vg_nesterenko"] - 1) < 0.05
+    assert want["exp_vg_below_packed"] == 1.0
     assert df["reason"].str.len().gt(20).all() and df["evidence"].str.len().gt(3).all()
-    # values agree with the figures' own fit
-    fits = figures.vmax_fits(_read(tdir, "packed_sweep"))["ss440c"]
-    row = df.set_index("id")
-    assert row.loc["vmax1_over_vs", "project_value"] == fits["v_max_1"]
-    assert row.loc["vmax2_over_vs", "project_value"] == fits["v_max_2"]
-    # the printed drag is propulsive at 0.1 m/s: positive work (physics.md)
-    assert row.loc["dE_air_over_E", "project_value"] > 0
-    assert row.loc["dE_coulomb_over_E", "project_value"] < 0
 
     csv, md = tmp_path / "thesis_comparison.csv", tmp_path / "thesis_comparison.md"
     thesis.write(df, csv, md)

@@ -306,7 +306,8 @@ def energies(y, gaps, P, FL, LO, out):
         ow = LO[L_W]
         for i in range(n):
             ekr += y[ow + i] * y[ow + i]
-    out[E_KR] = 0.5 * P[P_I] * ekr
+        ekr *= 0.5 * P[P_I]
+    out[E_KR] = ekr
     eh = 0.0
     for k in range(n - 1):
         d = _overlap(y, ox, gaps, k)
