@@ -45,10 +45,13 @@ def _traj(scene, method, dt):
 # f ~ delta^(3/2) has a singular second derivative at contact onset (the local error of
 # the steps in which a contact closes is O(h^3.5)); measured 2.4-2.5 for dt = 1-4 ns
 # (1.98-1.99 for Verlet). max_err: bound on the energy error at the finest dt, 1 ns
-# (measured 6.0e-10 for RK4, 3.4e-7 for Verlet).
+# (measured 6.0e-10 for RK4, 3.4e-7 for Verlet). Measured over the first 8 us, while the
+# wave crosses the bulk of the chain: at the free end the last particle leaves at up to
+# v_s, and the one-off RK4 error of that release depends on where it falls inside a step
+# (1e-8 at 2 and 2.5 ns, 1.4e-9 at 1.5 ns), which would hide the order.
 @pytest.mark.parametrize("method, order, max_err", [("rk4", 2.5, 1.5e-9), ("verlet", 2, 7e-7)])
 def test_hertz_chain_conserves_momentum_and_energy_at_method_order(method, order, max_err):
-    sc = packed()
+    sc = packed(t_end="8.0e-6")
     dts = (4e-9, 2e-9, 1e-9)
     errs = []
     for dt in dts:
@@ -197,9 +200,9 @@ def _window(sc, P, FL, lay, method, dt=2e-9, samples=64, every=10):
     Vout = np.full((1, samples, n), np.nan)
     Eout = np.full((1, samples, K.E_LEN), np.nan)
     K.run_window(reference.METHOD_CODES[method], Y, np.zeros((1, ny)), np.zeros(1),
-                 np.full(1, dt), NS, STEPS, REJ, STATUS, np.zeros(1), np.full(1, 1e-4),
+                 np.full(1, dt), NS, STEPS, REJ, STATUS, np.full(1, 1e-4),
                  np.zeros((1, n - 1)), P, FL, lay.LO, scale, np.ones(ny, dtype=np.int64),
-                 1e-8, dt, every, every * dt, np.full(1, samples, dtype=np.int64), -1,
+                 1e-8, dt, every, every * dt, np.full(1, samples, dtype=np.int64), False,
                  Vout, Eout, counts)
     return Y[0], Vout[0], Eout[0], int(counts[0])
 
