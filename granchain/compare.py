@@ -80,7 +80,7 @@ def comparison_scene(scene: Scene) -> Scene:
     (its finest member's) fixed for every member, so the two records share one grid."""
     from .engines.lammps import derive_scene
     from .lammps.deck import plan
-    from .simulate import member_gaps, members
+    from .gaps import member_gaps, members
     mem = members(scene)
     pl = plan(scene, gaps=member_gaps(scene, mem), v_striker=[m.v_striker for m in mem])
     return derive_scene(scene, {"integrator.method": "verlet", "output.sample_dt": pl.sample_dt})
@@ -93,7 +93,7 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
 
     from .engines import lammps as lmp_engine
     from .engines import reference
-    from .simulate import member_gaps, members
+    from .gaps import member_gaps, members
 
     cs = comparison_scene(scene)
     mem = members(cs)

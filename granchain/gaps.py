@@ -1,4 +1,5 @@
-"""Gap realisations between neighbouring spheres.
+"""Gap realisations between neighbouring spheres, and the members of a scene (striker
+speed x gap realisation, ``members``) that they are drawn for.
 
 Gap k (0-based) separates particles k+1 and k+2 (1-based): there are n-1 of them.
 Realisation r of a scene draws from ``numpy.random.default_rng([seed, r])``, so any
@@ -17,6 +18,8 @@ Distributions (``gaps.distribution``):
   ``extra_length`` and mean gap ``extra_length/(n-1)``.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -51,3 +54,26 @@ def realise_many(scene: Scene, realisations) -> np.ndarray:
 def mean_gap_between(gaps: np.ndarray, p1: int, p2: int) -> np.ndarray:
     """Mean gap over the contacts between 1-based particles p1 < p2 (last axis = contacts)."""
     return np.asarray(gaps)[..., p1 - 1:p2 - 1].mean(axis=-1)
+
+
+@dataclass(frozen=True)
+class Member:
+    """One chain of a scene: a striker speed and a gap realisation index."""
+    index: int
+    v_striker: float
+    realisation: int
+
+
+def members(scene: Scene, realisations=None) -> list[Member]:
+    """The chains of a scene: every striker speed x every realisation, in table order."""
+    reals = range(scene.realisations) if realisations is None else realisations
+    out = []
+    for v in scene.striker_velocities:
+        for r in reals:
+            out.append(Member(len(out), float(v), int(r)))
+    return out
+
+
+def member_gaps(scene: Scene, mem: list[Member]) -> np.ndarray:
+    """(len(mem), n-1) gaps (m) of the members, one realisation each."""
+    return realise_many(scene, [m.realisation for m in mem]).reshape(len(mem), scene.n - 1)

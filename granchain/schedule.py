@@ -45,6 +45,17 @@ def sample_interval(scene, v_striker: float) -> float:
     return float(analytic.pulse_width(scene.material, scene.radius, 0.64 * v)) / SAMPLES_PER_PULSE
 
 
+def auto_t_max(scene, gaps, v_striker: float) -> float:
+    """Generous cap on the duration of a t_end: auto run, which lasts until the wave has
+    left the whole chain (a run that hits the cap is flagged ``timeout``)."""
+    n = scene.n
+    vs = analytic.nesterenko_speed(scene.material, 0.5 * v_striker)
+    travel = (n - 1) * 2.0 * scene.radius / vs
+    flight = float(np.sum(gaps[: n - 1])) / v_striker
+    return 20.0 * travel + 50.0 * flight + 10.0 * analytic.pulse_width(
+        scene.material, scene.radius, 0.5 * v_striker)
+
+
 def arrival_speed(v_striker: float) -> float:
     """Velocity (m/s) above which a particle has seen the wave."""
     return ARRIVAL_FRACTION * v_striker

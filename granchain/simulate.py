@@ -6,38 +6,16 @@ scene -> physics terms -> engine -> trajectories -> observables.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
-from . import gaps as gaps_mod
 from .errors import GranchainError
+from .gaps import Member, member_gaps, members
 from .guards import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost, physics_warnings
 from .observables import summarize
 from .scene import Scene
 
 ENGINES = ("reference", "lammps")
-
-
-@dataclass(frozen=True)
-class Member:
-    """One chain of a scene: a striker speed and a gap realisation index."""
-    index: int
-    v_striker: float
-    realisation: int
-
-
-def members(scene: Scene, realisations=None) -> list[Member]:
-    reals = range(scene.realisations) if realisations is None else realisations
-    out = []
-    for v in scene.striker_velocities:
-        for r in reals:
-            out.append(Member(len(out), float(v), int(r)))
-    return out
-
-
-def member_gaps(scene: Scene, mem: list[Member]) -> np.ndarray:
-    return gaps_mod.realise_many(scene, [m.realisation for m in mem]).reshape(len(mem), scene.n - 1)
 
 
 def trajectories(scene: Scene, mem: list[Member], engine: str = "reference", **kw):

@@ -51,7 +51,7 @@ from ..effects import physics_terms
 from ..errors import GranchainError
 from ..lammps import deck as deckmod
 from ..scene import Scene
-from ..schedule import last_detached
+from ..schedule import auto_t_max, last_detached
 from ..trajectory import ENERGY_COLUMNS, Trajectory
 
 METHOD = "lammps-verlet"
@@ -337,7 +337,6 @@ def auto_stop(scene: Scene, gaps, v_striker: float, vlast, overlap_last,
     stops at its own cap, auto_t_max, with status timeout. A chain at rest keeps its
     initial sample only.
     """
-    from .reference import auto_t_max
     S = len(vlast)
     if v_striker <= 0:
         return 1, "done"

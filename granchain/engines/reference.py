@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import analytic
-from ..schedule import arrival_speed, sample_interval
+from ..schedule import arrival_speed, auto_t_max, sample_interval
 from ..effects import Terms, physics_terms
 from ..scene import Scene
 from ..trajectory import Trajectory
@@ -95,16 +95,6 @@ def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
         P[K.P_KR], P[K.P_GR], P[K.P_MUR] = rf.k_roll, rf.gamma_roll, rf.mu_roll
     return P, FL
 
-
-def auto_t_max(scene: Scene, gaps: np.ndarray, v_striker: float) -> float:
-    """Generous cap on the duration of a t_end: auto run, which lasts until the wave has
-    left the whole chain (a run that hits the cap is flagged ``timeout``)."""
-    n = scene.n
-    vs = analytic.nesterenko_speed(scene.material, 0.5 * v_striker)
-    travel = (n - 1) * 2.0 * scene.radius / vs
-    flight = float(np.sum(gaps[: n - 1])) / v_striker
-    return 20.0 * travel + 50.0 * flight + 10.0 * analytic.pulse_width(
-        scene.material, scene.radius, 0.5 * v_striker)
 
 
 def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | None = None,

@@ -18,7 +18,7 @@ Choices (also stated in the deck's comments):
   tangential law is then ``linear_history 0.0 0.0 0.0`` (k_t = 0, mu = 0: the force
   -k_t xi is exactly zero, and the cap test 0 > 0 never fires, so no division by k_t).
   Rotation on: ``fix nve/sphere``.
-* Run length: ``scene.t_end``, else the reference engine's ``auto_t_max`` of the slowest
+* Run length: ``scene.t_end``, else ``schedule.auto_t_max`` of the slowest
   member (the largest cap over all members); rounded up to whole samples as the
   reference engine does, so the last sample falls at the same time. With t_end auto
   the run also stops (``fix halt``) at the first sample at which the wave has left
@@ -48,9 +48,6 @@ Choices (also stated in the deck's comments):
 """
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-from decimal import Decimal
 from pathlib import Path
 from string import Template
 
@@ -59,62 +56,18 @@ import numpy as np
 from granchain.effects import physics_terms
 from granchain.errors import GranchainError
 from granchain.fileio import atomic_write_text, check_output_path
-from granchain.scene import NAME_RE, Scene
+from granchain.scene import NAME_RE, NAME_RULE, Scene
+from granchain.lammps.plan import (DATA_NAME, DECK_NAME, DUMP_COLUMNS, DUMP_NAME, ENERGY_NAME,
+                                   LEDGER_INPUTS, LEDGER_NAME, WORK_COLUMNS, DeckPlan, plan)
+from granchain.lammps.units import MICRO_EXPONENT, lmp_float as _r, to_micro
 from granchain.schedule import ARRIVAL_FRACTION, arrival_speed
 
 __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "write_deck",
            "plan", "DeckPlan", "DECK_NAME", "DATA_NAME", "DUMP_NAME", "ENERGY_NAME",
            "LEDGER_NAME", "DUMP_COLUMNS", "WORK_COLUMNS", "LEDGER_INPUTS"]
 
-DECK_NAME = "deck.lmp"
-DATA_NAME = "chain.data"
-DUMP_NAME = "traj.dump"
-ENERGY_NAME = "energy.txt"
-LEDGER_NAME = "ledger.txt"
-# the trajectory dump: MDAnalysis needs id and x y z; the engine reads x and vx
-DUMP_COLUMNS = ("id", "x", "y", "z", "vx")
-# the per-atom cumulative works of fix groove/drag (per-atom array columns 2 and 3;
-# column 1 is the spring history)
-WORK_COLUMNS = {"groove_friction": "f_gd[2]", "air_drag": "f_gd[3]"}
-# per-chain ledger (ledger.txt): effect -> (granchain.trajectory.ENERGY_COLUMNS entry,
-# the per-atom LAMMPS quantity summed over the chain), in the file's column order
-LEDGER_INPUTS = {"rotation": ("kinetic_rotational", "c_erot_atom"),
-                 "groove_friction": ("work_groove_friction", WORK_COLUMNS["groove_friction"]),
-                 "air_drag": ("work_air_drag", WORK_COLUMNS["air_drag"])}
-
-# SI value * 10**e = value in LAMMPS 'units micro' (docs/lammps_laws.md section 1).
-MICRO_EXPONENT = {
-    "length": 6,          # m -> um
-    "time": 6,            # s -> us
-    "velocity": 0,        # m/s -> um/us
-    "acceleration": -6,   # m/s^2 -> um/us^2            (g = 9.81 -> 9.81e-6)
-    "mass": 15,           # kg -> pg
-    "force": 9,           # N -> 1e-9 N
-    "energy": 15,         # J -> 1e-15 J
-    "stiffness": 3,       # N/m -> 1e-3 N/m
-    "damping": 9,         # kg/s (N s/m) -> 1e-9 kg/s = pg/us
-    "pressure": -3,       # Pa -> 1e3 Pa                (E = 200e9 -> 2e8)
-    "density": -3,        # kg/m^3 -> 1e3 kg/m^3         (7800 -> 7.8)
-}
-
-
-def to_micro(value: float, quantity: str) -> float:
-    """Convert an SI value to micro units by shifting the decimal exponent of its repr.
-
-    The shift is exact in decimal and rounded once, so 150e-6 m -> 150.0 um and
-    1e-9 s -> 0.001 us (multiplying by 1e6 in binary may be off by one ulp).
-    """
-    e = MICRO_EXPONENT[quantity]
-    return float(Decimal(repr(float(value))).scaleb(e))
-
-
 def template_path() -> Path:
     return Path(__file__).resolve().parents[2] / "lammps_inputs" / "templates" / "chain.lmp.in"
-
-
-def _r(x: float) -> str:
-    """A float with repr precision (shortest string that round-trips)."""
-    return repr(float(x))
 
 
 def chain_positions(scene: Scene, gaps) -> np.ndarray:
@@ -124,84 +77,6 @@ def chain_positions(scene: Scene, gaps) -> np.ndarray:
     for g in np.asarray(gaps, dtype=float):
         x.append(x[-1] + 2.0 * R + to_micro(float(g), "length"))
     return np.array(x)
-
-
-def _members(scene: Scene, gaps, v_striker):
-    if gaps is None and v_striker is None:
-        from granchain.simulate import member_gaps, members
-        mem = members(scene)
-        return member_gaps(scene, mem), np.array([m.v_striker for m in mem], dtype=float)
-    if gaps is None:
-        v = np.atleast_1d(np.asarray(v_striker, dtype=float))
-        from granchain.gaps import realise
-        gaps = np.stack([realise(scene, 0)] * len(v))
-    gaps = np.atleast_2d(np.asarray(gaps, dtype=float))
-    if v_striker is None:
-        if len(scene.striker_velocities) != 1:
-            raise GranchainError("write_deck: give v_striker with gaps for a scene with several "
-                                 "striker speeds")
-        v_striker = np.full(gaps.shape[0], scene.striker_velocities[0])
-    v = np.broadcast_to(np.asarray(v_striker, dtype=float), (gaps.shape[0],)).copy()
-    if gaps.shape[1] != scene.n - 1:
-        raise GranchainError(f"write_deck: gaps has {gaps.shape[1]} columns; the chain has "
-                             f"n-1 = {scene.n - 1} contacts")
-    if not (np.all(np.isfinite(gaps)) and np.all(gaps >= 0)):
-        raise GranchainError("write_deck: gaps must be finite and >= 0 (m)")
-    if not (np.all(np.isfinite(v)) and np.all(v >= 0)):
-        raise GranchainError("write_deck: striker speeds must be finite and >= 0 (m/s)")
-    return gaps, v
-
-
-@dataclass(frozen=True)
-class DeckPlan:
-    """Run length, cadence and layout of a deck (what the engine needs to read it back)."""
-    n_chains: int
-    n: int
-    every: int                 # steps between samples
-    nsteps: int                # steps of the run (the cap, with t_end auto)
-    sample_dt: float           # s, = every * dt
-    dt: float                  # s
-    t_run: float               # s, = nsteps * dt
-    auto: bool                 # t_end auto: fix halt stops the run when every chain passed
-    t_note: str
-    dump_columns: tuple[str, ...]
-    ledger_columns: tuple[str, ...]   # ENERGY_COLUMNS entries of ledger.txt, in order
-    gaps: np.ndarray           # (B, n-1) m
-    v_striker: np.ndarray      # (B,) m/s
-
-    @property
-    def nsamples(self) -> int:
-        """Samples of a run that is not halted early (including t = 0)."""
-        return self.nsteps // self.every + 1
-
-
-def plan(scene: Scene, *, gaps=None, v_striker=None) -> DeckPlan:
-    """Run length and cadence of the deck for these members (as the reference engine)."""
-    from granchain.engines.reference import auto_t_max
-    from granchain.schedule import sample_interval
-
-    gaps, vs = _members(scene, gaps, v_striker)
-    B = gaps.shape[0]
-    sdts = [sample_interval(scene, float(v)) for v in vs]
-    sample_si = min(sdts) if sdts else sample_interval(scene, 0.0)
-    every = max(1, int(round(sample_si / scene.dt)))
-    sdt = every * scene.dt
-    auto = scene.t_end is None
-    if not auto:
-        t_si, t_note = scene.t_end, "scene t_end"
-    else:
-        caps = [auto_t_max(scene, gaps[b], float(vs[b])) for b in range(B) if vs[b] > 0]
-        t_si = max(caps) if caps else 0.0
-        t_note = ("t_end auto: the reference engine's auto_t_max cap of the slowest member; "
-                  "fix halt stops earlier once the wave has left every chain"
-                  if caps else "t_end auto: no striker moves")
-    nsamples = int(math.ceil(t_si / sdt - 1e-9)) if t_si > 0 else 0
-    nsteps = nsamples * every
-    ledger = tuple(col for eff, (col, _) in LEDGER_INPUTS.items() if scene.has(eff))
-    return DeckPlan(n_chains=B, n=scene.n, every=every, nsteps=nsteps, sample_dt=sdt,
-                    dt=scene.dt, t_run=nsteps * scene.dt, auto=auto and nsteps > 0,
-                    t_note=t_note, dump_columns=DUMP_COLUMNS, ledger_columns=ledger,
-                    gaps=gaps, v_striker=vs)
 
 
 def _id_ranges(ids) -> str:
@@ -273,9 +148,9 @@ def _halt_block(n: int, vs: np.ndarray, every: int) -> str:
     return "\n".join(lines)
 
 
-def _plugin_path() -> str:
-    from granchain.lammps.plugin import build_plugin
-    return str(build_plugin())
+def needs_plugin(scene: Scene) -> bool:
+    """Does the scene's deck load the groove/drag plugin (groove friction or air drag)?"""
+    return scene.has("groove_friction") or scene.has("air_drag")
 
 
 def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None) -> tuple[str, str]:
@@ -285,8 +160,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
     file's title line), which must match ``granchain.scene.NAME_RE``: no newline, ``$``,
     ``&`` or quote can reach LAMMPS' input parser."""
     if not NAME_RE.fullmatch(scene.name):
-        raise GranchainError(f"deck: scene name {scene.name!r} is not a valid name; "
-                             "use 1-64 characters from A-Z a-z 0-9 . _ -")
+        raise GranchainError(f"deck: scene name {scene.name!r} is not a valid name; {NAME_RULE}")
     terms = physics_terms(scene)
     pl = plan(scene, gaps=gaps, v_striker=v_striker)
     gaps, vs = pl.gaps, pl.v_striker
@@ -365,10 +239,11 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
 
     rot = terms.rotation is not None
     gf, ad = terms.groove_friction, terms.air_drag
-    need_plugin = gf is not None or ad is not None
+    need_plugin = needs_plugin(scene)
     if need_plugin:
         if plugin is None:
-            plugin = _plugin_path()
+            raise GranchainError("deck: this scene needs the groove/drag plugin; pass "
+                                 "plugin=PATH (write_deck builds it)")
         plugin_variable = ("# path of the fix groove/drag plugin (cached build); 'index' style, so\n"
                            "# 'lmp -var plugin PATH -in deck.lmp' overrides it\n"
                            f"variable        plugin index {plugin}")
@@ -451,6 +326,9 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, force: 
     if outdir.is_dir():
         for t in targets:                     # refuse before rendering (plugin build, plan)
             check_output_path(t, force, "deck", probe=False)
+    if plugin is None and needs_plugin(scene):
+        from granchain.lammps.plugin import build_plugin
+        plugin = str(build_plugin())
     deck_text, data_text = render(scene, gaps=gaps, v_striker=v_striker, plugin=plugin)
     try:
         outdir.mkdir(parents=True, exist_ok=True)

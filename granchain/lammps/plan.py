@@ -1,0 +1,106 @@
+"""What a LAMMPS deck runs: its members (chains), run length and sample cadence.
+
+The plan is the reference engine's run plan (``granchain.schedule``: sample grid, time
+cap) applied to a batch of chains; the engine needs it again to read the output back.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from granchain.errors import GranchainError
+from granchain.gaps import member_gaps, members, realise
+from granchain.scene import Scene
+from granchain.schedule import auto_t_max, sample_interval
+
+# The files a deck writes, and what the engine reads back from them.
+DECK_NAME = "deck.lmp"
+DATA_NAME = "chain.data"
+DUMP_NAME = "traj.dump"
+ENERGY_NAME = "energy.txt"
+LEDGER_NAME = "ledger.txt"
+# the trajectory dump: MDAnalysis needs id and x y z; the engine reads x and vx
+DUMP_COLUMNS = ("id", "x", "y", "z", "vx")
+# the per-atom cumulative works of fix groove/drag (per-atom array columns 2 and 3;
+# column 1 is the spring history)
+WORK_COLUMNS = {"groove_friction": "f_gd[2]", "air_drag": "f_gd[3]"}
+# per-chain ledger (ledger.txt): effect -> (granchain.trajectory.ENERGY_COLUMNS entry,
+# the per-atom LAMMPS quantity summed over the chain), in the file's column order
+LEDGER_INPUTS = {"rotation": ("kinetic_rotational", "c_erot_atom"),
+                 "groove_friction": ("work_groove_friction", WORK_COLUMNS["groove_friction"]),
+                 "air_drag": ("work_air_drag", WORK_COLUMNS["air_drag"])}
+
+def batch_members(scene: Scene, gaps, v_striker):
+    if gaps is None and v_striker is None:
+        mem = members(scene)
+        return member_gaps(scene, mem), np.array([m.v_striker for m in mem], dtype=float)
+    if gaps is None:
+        v = np.atleast_1d(np.asarray(v_striker, dtype=float))
+        gaps = np.stack([realise(scene, 0)] * len(v))
+    gaps = np.atleast_2d(np.asarray(gaps, dtype=float))
+    if v_striker is None:
+        if len(scene.striker_velocities) != 1:
+            raise GranchainError("write_deck: give v_striker with gaps for a scene with several "
+                                 "striker speeds")
+        v_striker = np.full(gaps.shape[0], scene.striker_velocities[0])
+    v = np.broadcast_to(np.asarray(v_striker, dtype=float), (gaps.shape[0],)).copy()
+    if gaps.shape[1] != scene.n - 1:
+        raise GranchainError(f"write_deck: gaps has {gaps.shape[1]} columns; the chain has "
+                             f"n-1 = {scene.n - 1} contacts")
+    if not (np.all(np.isfinite(gaps)) and np.all(gaps >= 0)):
+        raise GranchainError("write_deck: gaps must be finite and >= 0 (m)")
+    if not (np.all(np.isfinite(v)) and np.all(v >= 0)):
+        raise GranchainError("write_deck: striker speeds must be finite and >= 0 (m/s)")
+    return gaps, v
+
+
+@dataclass(frozen=True)
+class DeckPlan:
+    """Run length, cadence and layout of a deck (what the engine needs to read it back)."""
+    n_chains: int
+    n: int
+    every: int                 # steps between samples
+    nsteps: int                # steps of the run (the cap, with t_end auto)
+    sample_dt: float           # s, = every * dt
+    dt: float                  # s
+    t_run: float               # s, = nsteps * dt
+    auto: bool                 # t_end auto: fix halt stops the run when every chain passed
+    t_note: str
+    dump_columns: tuple[str, ...]
+    ledger_columns: tuple[str, ...]   # ENERGY_COLUMNS entries of ledger.txt, in order
+    gaps: np.ndarray           # (B, n-1) m
+    v_striker: np.ndarray      # (B,) m/s
+
+    @property
+    def nsamples(self) -> int:
+        """Samples of a run that is not halted early (including t = 0)."""
+        return self.nsteps // self.every + 1
+
+
+def plan(scene: Scene, *, gaps=None, v_striker=None) -> DeckPlan:
+    """Run length and cadence of the deck for these members (as the reference engine)."""
+
+    gaps, vs = batch_members(scene, gaps, v_striker)
+    B = gaps.shape[0]
+    sdts = [sample_interval(scene, float(v)) for v in vs]
+    sample_si = min(sdts) if sdts else sample_interval(scene, 0.0)
+    every = max(1, int(round(sample_si / scene.dt)))
+    sdt = every * scene.dt
+    auto = scene.t_end is None
+    if not auto:
+        t_si, t_note = scene.t_end, "scene t_end"
+    else:
+        caps = [auto_t_max(scene, gaps[b], float(vs[b])) for b in range(B) if vs[b] > 0]
+        t_si = max(caps) if caps else 0.0
+        t_note = ("t_end auto: the auto_t_max cap (granchain.schedule) of the slowest member; "
+                  "fix halt stops earlier once the wave has left every chain"
+                  if caps else "t_end auto: no striker moves")
+    nsamples = int(math.ceil(t_si / sdt - 1e-9)) if t_si > 0 else 0
+    nsteps = nsamples * every
+    ledger = tuple(col for eff, (col, _) in LEDGER_INPUTS.items() if scene.has(eff))
+    return DeckPlan(n_chains=B, n=scene.n, every=every, nsteps=nsteps, sample_dt=sdt,
+                    dt=scene.dt, t_run=nsteps * scene.dt, auto=auto and nsteps > 0,
+                    t_note=t_note, dump_columns=DUMP_COLUMNS, ledger_columns=ledger,
+                    gaps=gaps, v_striker=vs)
