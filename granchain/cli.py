@@ -86,8 +86,11 @@ def _print_warnings(warnings, out) -> None:
 
 
 def _residual_note(scene, r) -> str:
-    if r.get("engine") == "lammps" and (scene.has("particle_friction") or scene.has("rolling_friction")):
-        return " (LAMMPS: contact friction work is the balance residual, not an independent check)"
+    from .effects import residual_work
+    missing = residual_work(scene.effects)
+    if r.get("engine") == "lammps" and missing:
+        return (f" (LAMMPS: {' + '.join(missing)} is the balance residual, not an "
+                "independent check)")
     return ""
 
 

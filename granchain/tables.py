@@ -36,27 +36,24 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .effects import SPECS
+
 FLOAT_FORMAT = "%.17g"
 NA_REP = "NaN"
 
+# Energy-ledger entries of observables.energy_ledger -> table columns (the works from the
+# effects' declarations).
+ENERGY_MAP = {"energy_initial_J": "initial",
+              **{s.table_column: s.work for s in SPECS.values() if s.work},
+              "balance_error": "balance_error"}
 # Columns before the per-particle peak velocities, in order.
 BASE_COLUMNS = (
     "study", "material", "engine", "method", "dt_s", "v_striker_m_s", "gap_distribution",
     "gap_mean_nm", "extra_length_um", "realisation", "seed", "scene_hash", "status",
     "wave_arrived", "peaks_not_final", "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio", "dt_peak_s", "v_g_m_s",
-    "v_g_front_m_s", "gap_mean_probes_nm", "v_g_bound_eq54_m_s", "energy_initial_J",
-    "work_groove_J", "work_air_J", "work_particle_friction_J", "work_rolling_J",
-    "balance_error", "steps", "warnings",
+    "v_g_front_m_s", "gap_mean_probes_nm", "v_g_bound_eq54_m_s", *ENERGY_MAP, "steps",
+    "warnings",
 )
-# Energy-ledger entries of observables.energy_ledger -> table columns.
-ENERGY_MAP = {
-    "energy_initial_J": "initial",
-    "work_groove_J": "work_groove_friction",
-    "work_air_J": "work_air_drag",
-    "work_particle_friction_J": "work_particle_friction",
-    "work_rolling_J": "work_rolling_friction",
-    "balance_error": "balance_error",
-}
 GROUP_COLUMNS = ("material", "engine", "v_striker_m_s", "gap_mean_nm", "extra_length_um")
 SUMMARY_OBSERVABLES = ("v_g_m_s", "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio",
                        "v_g_front_m_s", "v_g_bound_eq54_m_s")

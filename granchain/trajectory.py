@@ -5,10 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-# Names of the energy-ledger columns, in the order engines store them.
-ENERGY_COLUMNS = ("kinetic_translational", "kinetic_rotational", "hertz_potential",
-                  "work_groove_friction", "work_air_drag", "work_particle_friction",
-                  "work_rolling_friction")
+from .effects import ENERGY_COLUMNS   # the energy-ledger columns, in engine order
 
 
 @dataclass

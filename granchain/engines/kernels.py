@@ -26,6 +26,8 @@ import numpy as np
 from numba import njit, prange
 from scipy.integrate._ivp import dop853_coefficients as _dc
 
+from ..effects import air_drag, groove_friction, hertz, particle_friction, rolling_friction
+
 # parameter vector P
 P_N, P_R, P_M, P_I, P_K, P_S, P_FC, P_KG, P_T0, P_L, P_MU, P_KT, P_KR, P_GR, P_MUR, P_GG, P_LEN = range(17)
 # flags FL
@@ -53,41 +55,20 @@ def _overlap(y, ox, gaps, k):
     return y[ox + k] - y[ox + k + 1] - gaps[k]
 
 
-@njit(cache=True, inline="always")
-def _groove_slip(y, ov, ow, i, sR, rot):
-    return y[ov + i] - sR * y[ow + i] if rot else y[ov + i]
-
-
-@njit(cache=True, inline="always")
-def _groove_map(xi, u, kg, gam, Fc):
-    """Return mapping of a groove history when the trial force -kg xi - gam u exceeds
-    the Coulomb cap: the spring alone holds the cap (xi = Fc sgn / kg). The dashpot is
-    not stored in the history, so a fast slide (gam u >> Fc) cannot wind up a history
-    that would later cancel the friction; sliding friction is exactly Fc."""
-    Ft = -kg * xi - gam * u
-    if abs(Ft) > Fc:
-        return -math.copysign(Fc, Ft) / kg
-    return xi
-
-
-@njit(cache=True, inline="always")
-def _contact_map(xi, kt, cap):
-    """Return mapping of a contact history onto the Coulomb cap |kt xi| <= cap."""
-    if kt * abs(xi) > cap:
-        return math.copysign(cap / kt, xi)
-    return xi
-
-
-@njit(cache=True, inline="always")
-def _rolling_map(rho, vr, kr, gr, cap):
-    """LAMMPS ``rolling sds`` return mapping: when the trial moment -kr rho - gr vr
-    exceeds the cap, the moment is the cap and the history is mapped so that spring and
-    dashpot together hold it, rho = -(cap sgn + gr vr)/kr (LAMMPS stores the dashpot in
-    the rolling history; docs/lammps_laws.md section 5)."""
-    M = -kr * rho - gr * vr
-    if abs(M) > cap:
-        return -(math.copysign(cap, M) + gr * vr) / kr
-    return rho
+# The laws of the effects (granchain/effects/), compiled once here and used by every
+# integrator and by the return mapping.
+_law = njit(cache=True, inline="always")
+_hertz_force = _law(hertz.force)
+_hertz_energy = _law(hertz.energy)
+_drag_force = _law(air_drag.force)
+_groove_slip = _law(groove_friction.slip)
+_groove_map = _law(groove_friction.groove_map)
+_groove_force = _law(groove_friction.groove_force)
+_contact_map = _law(particle_friction.contact_map)
+_contact_force = _law(particle_friction.contact_force)
+_rolling_map = _law(rolling_friction.rolling_map)
+_rolling_moment = _law(rolling_friction.moment)
+_rolling_moment_lammps = _law(rolling_friction.moment_lammps_order)
 
 
 @njit(cache=True)
@@ -108,8 +89,7 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
     ow = LO[L_W]
     rot = FL[F_ROT] != 0
     for k in range(n - 1):
-        d = _overlap(y, ox, gaps, k)
-        f[k] = K * d * math.sqrt(d) if d > 0.0 else 0.0
+        f[k] = _hertz_force(K, _overlap(y, ox, gaps, k))
     for i in range(n):
         fi = 0.0
         if i > 0:
@@ -128,8 +108,7 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
         pw = 0.0
         for i in range(n):
             v = y[ov + i]
-            q = v * abs(v) if odd else v * v
-            F = -m * (v / T0 - q / L)
+            F = _drag_force(m, v, T0, L, odd)
             dy[ov + i] += F / m
             pw += F * v
         dy[LO[L_WD]] = pw
@@ -143,16 +122,13 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
         og = LO[L_XG]
         pw = 0.0
         for i in range(n):
-            u = _groove_slip(y, ov, ow, i, sR, rot)
+            u = _groove_slip(y[ov + i], y[ow + i] if rot else 0.0, sR, rot)
             xi = y[og + i]
             if hist_dt > 0.0:
                 xi = _groove_map(xi + u * hist_dt, u, kg, gam, Fc)
                 y[og + i] = xi
-            F = -kg * xi - gam * u
             # history rate: xi' = u in stick; held while sliding at the cap
-            dy[og + i] = 0.0 if (abs(F) >= Fc and F * u < 0.0) else u
-            if abs(F) >= Fc:
-                F = math.copysign(Fc, F)
+            F, dy[og + i] = _groove_force(xi, u, kg, gam, Fc)
             dy[ov + i] += F / m
             if rot:
                 dy[ow + i] += -sR * F / I
@@ -177,13 +153,7 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
                 if hist_dt > 0.0:
                     xi = _contact_map(xi + w * hist_dt, kt, cap)
                     y[ot + k] = xi
-                T = -kt * xi
-                rate = w
-                if abs(T) >= cap:
-                    T = math.copysign(cap, T)
-                    if w * xi > 0.0:
-                        rate = 0.0
-                dy[ot + k] = rate
+                T, dy[ot + k] = _contact_force(xi, w, kt, cap)
                 # LAMMPS applies the tangential force at the contact point: lever arm
                 # R - delta/2 (the slip above uses full radii, as LAMMPS does)
                 arm = R - 0.5 * d
@@ -215,26 +185,13 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
                 rho = y[op + k]
                 cap = mur * fn
                 if hist_dt > 0.0:
-                    # LAMMPS order: history += dt v_roll (half-step spins), trial moment,
-                    # strict cap test, return map with the dashpot stored in the history
-                    rho += vr * hist_dt
-                    M = -kr * rho - gr * vr
-                    if abs(M) > cap:
-                        if rho != 0.0:
-                            rho = _rolling_map(rho, vr, kr, gr, cap)
-                            M = math.copysign(cap, M)
-                        else:
-                            M = 0.0          # LAMMPS zeroes the moment of a zero history
+                    # Verlet: LAMMPS's order with the half-step spins
+                    rho, M = _rolling_moment_lammps(rho, vr, kr, gr, cap, hist_dt)
                     y[op + k] = rho
                 else:
-                    # continuous law (RK4, DOP853): rho' = v_roll, the moment clipped to
-                    # the cap inside the step, project() return-maps rho after the step
-                    # (catch-up). Not held at the cap: the cap mu_roll Fn(t) and the
-                    # dashpot part move during a slide, and a held history lags them
-                    # (first order in dt, 1e-5 at 1 ns; this way 2e-10, tests/test_rolling.py)
-                    M = -kr * rho - gr * vr
-                    if abs(M) > cap:
-                        M = math.copysign(cap, M)
+                    # continuous law (RK4, DOP853): rho' = v_roll, project() return-maps
+                    # rho after the step
+                    M = _rolling_moment(rho, vr, kr, gr, cap)
                 dy[op + k] = vr
                 tq = Reff * M / I
                 dy[ow + k] += tq
@@ -260,7 +217,8 @@ def project(y, gaps, P, FL, LO, f):
         ov = LO[L_V]
         ow = LO[L_W]
         for i in range(n):
-            u = _groove_slip(y, ov, ow, i, sR, FL[F_ROT] != 0)
+            rot = FL[F_ROT] != 0
+            u = _groove_slip(y[ov + i], y[ow + i] if rot else 0.0, sR, rot)
             y[og + i] = _groove_map(y[og + i], u, kg, gam, Fc)
     if FL[F_PP] != 0:
         ox = LO[L_X]
@@ -310,9 +268,7 @@ def energies(y, gaps, P, FL, LO, out):
     out[E_KR] = ekr
     eh = 0.0
     for k in range(n - 1):
-        d = _overlap(y, ox, gaps, k)
-        if d > 0.0:
-            eh += 0.4 * K * d * d * math.sqrt(d)
+        eh += _hertz_energy(K, _overlap(y, ox, gaps, k))
     out[E_H] = eh
     out[E_WG] = y[LO[L_WG]] if LO[L_WG] >= 0 else 0.0
     out[E_WD] = y[LO[L_WD]] if LO[L_WD] >= 0 else 0.0

@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..effects import physics_terms
+from ..effects import physics_terms, residual_work
 from ..errors import GranchainError
 from ..lammps import deck as deckmod
 from ..scene import Scene
@@ -156,7 +156,7 @@ def derive_scene(scene: Scene, changes: dict) -> Scene:
 
 def residual_balance(scene: Scene) -> bool:
     """True if some effect's work is not output by LAMMPS (it is the balance residual)."""
-    return scene.has("particle_friction") or scene.has("rolling_friction")
+    return bool(residual_work(scene.effects))
 
 
 def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: str = "float64",

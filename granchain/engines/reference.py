@@ -18,7 +18,7 @@ import numpy as np
 
 from .. import analytic
 from ..schedule import arrival_speed, auto_t_max, sample_interval
-from ..effects import Terms, physics_terms
+from ..effects import SPECS, Terms, physics_terms
 from ..scene import Scene
 from ..trajectory import Trajectory
 from . import kernels as K
@@ -48,22 +48,15 @@ class Layout:
             off += size
         take(K.L_X, n)
         take(K.L_V, n)
-        if terms.rotation is not None:
-            take(K.L_W, n)
-        if terms.groove_friction is not None:
-            take(K.L_XG, n)
-        if terms.particle_friction is not None:
-            take(K.L_XT, n - 1)
-        if terms.rolling_friction is not None:
-            take(K.L_PS, n - 1)
-        if terms.groove_friction is not None:
-            take(K.L_WG, 1)
-        if terms.air_drag is not None:
-            take(K.L_WD, 1)
-        if terms.particle_friction is not None:
-            take(K.L_WT, 1)
-        if terms.rolling_friction is not None:
-            take(K.L_WR, 1)
+        # the effects' blocks, then one work entry per effect that does work, in
+        # registry order (granchain.effects.MODULES)
+        on = [spec for name, spec in SPECS.items() if terms.has(name)]
+        for spec in on:
+            for slot, per in spec.state:
+                take(getattr(K, slot), n if per == "particle" else n - 1)
+        for spec in on:
+            if spec.work_slot:
+                take(getattr(K, spec.work_slot), 1)
         LO[K.L_NY] = off
         return cls(LO, off)
 

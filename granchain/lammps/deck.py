@@ -53,7 +53,8 @@ from string import Template
 
 import numpy as np
 
-from granchain.effects import physics_terms
+from granchain.effects import (air_drag, groove_friction, hertz, particle_friction, physics_terms,
+                               rolling_friction, rotation)
 from granchain.errors import GranchainError
 from granchain.fileio import atomic_write_text, check_output_path
 from granchain.scene import NAME_RE, NAME_RULE, Scene
@@ -212,29 +213,11 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
     data_text = "\n".join(data) + "\n"
 
     # ---- physics from the terms ------------------------------------------------------
-    h = terms.hertz
-    E = to_micro(h.E, "pressure")
-    parts = [f"pair_coeff      * * hertz/material {_r(E)} 0.0 {_r(h.nu)} damping viscoelastic"]
-    pf = terms.particle_friction
-    if pf is None:
-        parts.append("tangential linear_history 0.0 0.0 0.0")
-    elif pf.model == "mindlin":
-        parts.append(f"tangential mindlin NULL 0.0 {_r(pf.mu)}")
-    else:
-        parts.append(f"tangential linear_history {_r(to_micro(pf.kt, 'stiffness'))} 0.0 {_r(pf.mu)}")
-    rf = terms.rolling_friction
-    if rf is not None:
-        parts.append(f"rolling sds {_r(to_micro(rf.k_roll, 'stiffness'))} "
-                     f"{_r(to_micro(rf.gamma_roll, 'damping'))} {_r(rf.mu_roll)}")
-    pair_comment = ["# pair_coeff: hertz/material E eta_n0 nu (eta_n0 = 0: no damping; 'damping "
-                    "viscoelastic' is then exactly zero)"]
-    if pf is None:
-        pair_comment.append("# tangential: particle_friction off -> linear_history k_t = 0, "
-                            "mu = 0: zero tangential force")
-    else:
-        pair_comment.append(f"# tangential: particle_friction on, {pf.model} (mu_pp = {_r(pf.mu)})")
-    if rf is not None:
-        pair_comment.append("# rolling sds k_roll gamma_roll mu_roll: rolling_friction on")
+    pairs = [hertz.lammps_pair(terms.hertz), particle_friction.lammps_pair(terms.particle_friction)]
+    if terms.rolling_friction is not None:
+        pairs.append(rolling_friction.lammps_pair(terms.rolling_friction))
+    pair_comment = [c for c, _ in pairs]
+    parts = [p for _, p in pairs]
     pair_coeff = "\n".join(pair_comment) + "\n" + " &\n                ".join(parts)
 
     rot = terms.rotation is not None
@@ -247,18 +230,10 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
         plugin_variable = ("# path of the fix groove/drag plugin (cached build); 'index' style, so\n"
                            "# 'lmp -var plugin PATH -in deck.lmp' overrides it\n"
                            f"variable        plugin index {plugin}")
-        args = []
-        notes = []
-        if gf is not None:
-            args.append(f"groove s {_r(gf.s)} mu {_r(gf.mu)} g {_r(to_micro(gf.g, 'acceleration'))} "
-                        f"kt {_r(to_micro(gf.kt, 'stiffness'))} gamma {_r(to_micro(gf.gamma, 'damping'))}")
-            notes.append(f"# groove: Coulomb limit mu m g / s, stick spring kt ({gf.kt_source}) + "
-                         f"dashpot gamma ({_r(gf.damping)} x critical)")
-        if ad is not None:
-            args.append(f"drag T0 {_r(to_micro(ad.T0, 'time'))} L {_r(to_micro(ad.L, 'length'))} "
-                        f"form {'odd' if ad.odd else 'as_printed'}")
-            notes.append("# drag: F = -m (v/T0 - v^2/L)" + (" with v|v| (odd)" if ad.odd else
-                                                             " (as printed)"))
+        fixes = ([groove_friction.lammps_fix(gf)] if gf is not None else []) + \
+            ([air_drag.lammps_fix(ad)] if ad is not None else [])
+        notes = [c for c, _ in fixes]
+        args = [a for _, a in fixes]
         args.append(f"rotation {'yes' if rot else 'no'}")
         groove_fix = ("\n# groove friction / air drag: fix groove/drag (granchain plugin, "
                       "lammps_inputs/plugin/fix_groove_drag.md)\n"
@@ -268,12 +243,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
         plugin_variable = "# (this scene needs no LAMMPS plugin)"
         groove_fix = ""
 
-    if rot:
-        integrator = ("# rotation on: translation and rotation about y (I = 0.4 m R^2)\n"
-                      "fix             nve all nve/sphere")
-    else:
-        integrator = ("# rotation off: fix nve integrates translation only, omega stays exactly 0\n"
-                      "fix             nve all nve")
+    integrator = rotation.lammps_integrator(terms.rotation)
 
     dump_cols = " ".join(pl.dump_columns)
     computes = ["compute         ke all ke"]

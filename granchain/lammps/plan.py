@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from granchain.effects import SPECS
 from granchain.errors import GranchainError
 from granchain.gaps import member_gaps, members, realise
 from granchain.scene import Scene
@@ -23,14 +24,15 @@ ENERGY_NAME = "energy.txt"
 LEDGER_NAME = "ledger.txt"
 # the trajectory dump: MDAnalysis needs id and x y z; the engine reads x and vx
 DUMP_COLUMNS = ("id", "x", "y", "z", "vx")
-# the per-atom cumulative works of fix groove/drag (per-atom array columns 2 and 3;
-# column 1 is the spring history)
-WORK_COLUMNS = {"groove_friction": "f_gd[2]", "air_drag": "f_gd[3]"}
 # per-chain ledger (ledger.txt): effect -> (granchain.trajectory.ENERGY_COLUMNS entry,
-# the per-atom LAMMPS quantity summed over the chain), in the file's column order
-LEDGER_INPUTS = {"rotation": ("kinetic_rotational", "c_erot_atom"),
-                 "groove_friction": ("work_groove_friction", WORK_COLUMNS["groove_friction"]),
-                 "air_drag": ("work_air_drag", WORK_COLUMNS["air_drag"])}
+# the per-atom LAMMPS quantity summed over the chain), in the file's column order; from the
+# effects' declarations (rotation: its kinetic energy; groove and drag: the cumulative
+# works of fix groove/drag, its per-atom array columns 2 and 3)
+LEDGER_INPUTS = {name: (spec.work or "kinetic_rotational", spec.lammps_ledger)
+                 for name, spec in SPECS.items() if spec.lammps_ledger}
+# the per-atom cumulative works of the effects LAMMPS reports
+WORK_COLUMNS = {name: spec.lammps_ledger for name, spec in SPECS.items()
+                if spec.work and spec.lammps_ledger}
 
 def batch_members(scene: Scene, gaps, v_striker):
     if gaps is None and v_striker is None:

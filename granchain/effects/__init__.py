@@ -1,0 +1,84 @@
+"""Physical effects of chapter Eq. 5.1: one module each, and the registry that adds them up.
+
+Each effect module (``hertz``, ``rotation``, ``groove_friction``, ``air_drag``,
+``particle_friction``, ``rolling_friction``) declares, once:
+- ``SPEC`` (:class:`~granchain.effects.spec.EffectSpec`): its state blocks, its work
+  column in the energy ledger and results tables, and what LAMMPS reports of it;
+- its parameter record (a frozen dataclass, SI units) and ``build(scene)``;
+- its law as plain scalar functions (no law calls another), which the reference kernels
+  compile with numba (``engines/kernels.py``) and use in every integrator and in the
+  return mapping;
+- its LAMMPS deck fragment (``lammps_pair`` / ``lammps_fix`` / ``lammps_integrator``).
+
+``physics_terms(scene)`` returns a :class:`Terms` holding one record per enabled effect.
+Both engines take the physics from here; no engine reads scene fields for physics.
+
+Conventions (the project's physics notes): z along the chain, theta the rotation about the
+horizontal axis perpendicular to it (LAMMPS: x and omega_y); a sphere rolling forward has
+omega > 0. Slip at the groove: u = v - s R omega. Slip at the contact of spheres k, k+1:
+w = R (omega_k + omega_{k+1}).
+
+To add an effect: a module here with the four parts above, its entry in ``MODULES`` and
+``Terms``, its block in ``engines/kernels.forces`` (and ``project`` if it has a history),
+its parameters in ``engines/reference.pack``, and its scene keys in ``granchain/scene.py``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from . import air_drag, groove_friction, hertz, particle_friction, rolling_friction, rotation
+from .air_drag import AirDrag
+from .groove_friction import GrooveFriction
+from .hertz import Hertz
+from .particle_friction import ParticleFriction
+from .rolling_friction import RollingFriction
+from .rotation import Rotation
+from .spec import EffectSpec
+
+# Registry order is the order of the state blocks and of the work columns.
+MODULES = (hertz, rotation, groove_friction, air_drag, particle_friction, rolling_friction)
+SPECS: dict[str, EffectSpec] = {m.SPEC.name: m.SPEC for m in MODULES}
+
+# Energy ledger columns, in the order engines store them: the mechanical energies, then the
+# work done ON the particles by each effect that does work, accumulated from t = 0.
+ENERGY_COLUMNS = ("kinetic_translational", "kinetic_rotational", "hertz_potential") + tuple(
+    s.work for s in SPECS.values() if s.work)
+
+
+def residual_work(effects) -> tuple[str, ...]:
+    """Work columns LAMMPS cannot report for these effects (the balance residual there)."""
+    return tuple(SPECS[e].work for e in SPECS if e in effects and SPECS[e].work
+                 and not SPECS[e].lammps_reports_work)
+
+
+@dataclass(frozen=True)
+class Terms:
+    """The physics of one scene: the chain and its enabled effects."""
+    n: int
+    R: float
+    m: float
+    hertz: Hertz
+    air_drag: AirDrag | None = None
+    groove_friction: GrooveFriction | None = None
+    rotation: Rotation | None = None
+    particle_friction: ParticleFriction | None = None
+    rolling_friction: RollingFriction | None = None
+
+    def has(self, name: str) -> bool:
+        return getattr(self, name) is not None
+
+    @property
+    def dissipative(self) -> tuple[str, ...]:
+        """Effects that do work on the particles (each gets a work entry in the ledger)."""
+        return tuple(n for n, s in SPECS.items() if s.work and self.has(n))
+
+
+def physics_terms(scene) -> Terms:
+    kw = {m.SPEC.name: m.build(scene) for m in MODULES if scene.has(m.SPEC.name)}
+    kw["hertz"] = hertz.build(scene)
+    return Terms(n=scene.n, R=scene.radius, m=scene.mass, **kw)
+
+
+__all__ = ["MODULES", "SPECS", "ENERGY_COLUMNS", "EffectSpec", "Terms", "physics_terms",
+           "residual_work", "Hertz", "AirDrag", "GrooveFriction", "Rotation",
+           "ParticleFriction", "RollingFriction"]

@@ -1,0 +1,43 @@
+"""air_drag: the chapter's empirical air drag on every sphere.
+
+F = -m (v/T0 - v^2/L) (``as_printed``, the chapter's form) or -m (v/T0 - v|v|/L)
+(``odd``). The printed form turns propulsive for v > L/T0 ~ 0.048 m/s.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..lammps.units import lmp_float as _r, to_micro
+from .spec import EffectSpec
+
+SPEC = EffectSpec("air_drag", work="work_air_drag", work_slot="L_WD",
+                  table_column="work_air_J", lammps_ledger="f_gd[3]")
+
+
+def force(m, v, T0, L, odd):
+    """Drag force (N) on a sphere of mass m (kg) moving at v (m/s); scalar or array v."""
+    q = v * abs(v) if odd else v * v
+    return -m * (v / T0 - q / L)
+
+
+@dataclass(frozen=True)
+class AirDrag:
+    T0: float
+    L: float
+    odd: bool
+
+    def force(self, m, v):
+        return force(m, np.asarray(v, dtype=float), self.T0, self.L, self.odd)
+
+
+def build(scene) -> AirDrag:
+    return AirDrag(scene.drag_T0, scene.drag_L, scene.drag_form == "odd")
+
+
+def lammps_fix(ad: AirDrag) -> tuple[str, str]:
+    """(comment, fix groove/drag arguments) of the deck."""
+    return ("# drag: F = -m (v/T0 - v^2/L)" + (" with v|v| (odd)" if ad.odd else " (as printed)"),
+            f"drag T0 {_r(to_micro(ad.T0, 'time'))} L {_r(to_micro(ad.L, 'length'))} "
+            f"form {'odd' if ad.odd else 'as_printed'}")

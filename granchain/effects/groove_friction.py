@@ -1,0 +1,102 @@
+"""groove_friction: Coulomb friction of the groove walls on every sphere.
+
+Limit Fc = mu_pg m g / s, on the slip u = v - s R omega (u = v if rotation is off: the
+sphere slides without rolling). Stick is an elastic-plastic (Cundall-Strack)
+spring-dashpot: F = -k_g xi - gamma_g u with xi' = u, and when |F| would exceed Fc the
+force is Fc sgn(F) and the history is return-mapped to xi = -F/k_g: the spring alone
+holds the cap and the dashpot is not stored (unlike LAMMPS ``linear_history``, whose
+xi = -(F + gamma u)/k winds up a history during fast slides that later cancels the
+friction while still sliding; sliding friction here is exactly Fc, tested against
+-Fc * sum |slip|). gamma_g = 2 zeta sqrt(k_g m_u), zeta = groove.damping (default 1,
+critical), with m_u = m / (1 + s^2 m R^2 / I) the mass the slip u sees: stick settles
+within one period of the stick oscillator instead of ringing forever.
+
+No sgn() of a velocity is ever evaluated, so nothing chatters; a sphere at rest or rolling
+without slip feels exactly zero force. The chapter's F = -Fc sgn(u) is the limit
+k_g -> inf. Default k_g: Mindlin stiffness of the two wall contacts under the static wall
+load m g / (2 s) each: k_g = 2 * 8 G*_w a_w, a_w = (3 N R / (4 E*_w))^(1/3),
+E*_w = E / (2 (1 - nu^2)), G*_w = G / (2 (2 - nu)) (sphere on a flat of the same steel).
+Torque on the sphere: -s R F (with rotation on).
+
+The same law, in C++, is ``fix groove/drag`` (lammps_inputs/plugin/fix_groove_drag.md).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..lammps.units import lmp_float as _r, to_micro
+from .spec import EffectSpec
+
+SPEC = EffectSpec("groove_friction", state=(("L_XG", "particle"),), work="work_groove_friction",
+                  work_slot="L_WG", table_column="work_groove_J", lammps_ledger="f_gd[2]")
+
+
+def slip(v, omega, sR, rot):
+    """Slip velocity (m/s) of a sphere on the groove walls: v - s R omega."""
+    return v - sR * omega if rot else v
+
+
+def groove_map(xi, u, kg, gam, Fc):
+    """Return mapping of a groove history when the trial force -kg xi - gam u exceeds the
+    Coulomb cap: the spring alone holds the cap (xi = Fc sgn / kg)."""
+    Ft = -kg * xi - gam * u
+    if abs(Ft) > Fc:
+        return -math.copysign(Fc, Ft) / kg
+    return xi
+
+
+def groove_force(xi, u, kg, gam, Fc):
+    """(F, xi') of a groove contact: the capped spring-dashpot force (N) and the history
+    rate (u in stick, 0 while sliding at the cap)."""
+    F = -kg * xi - gam * u
+    rate = 0.0 if (abs(F) >= Fc and F * u < 0.0) else u
+    if abs(F) >= Fc:
+        F = math.copysign(Fc, F)
+    return F, rate
+
+
+@dataclass(frozen=True)
+class GrooveFriction:
+    s: float
+    mu: float
+    g: float
+    Fc: float         # Coulomb limit mu m g / s, N
+    kt: float         # stick spring stiffness, N/m
+    kt_source: str    # "mindlin" or "scene"
+    gamma: float      # stick dashpot, N s/m
+    damping: float    # its ratio to critical damping
+
+
+def mindlin_stiffness(scene) -> float:
+    """Tangential stiffness (N/m) of the two groove-wall contacts under the sphere's weight."""
+    E, nu = scene.material.E, scene.material.nu
+    G = scene.material.G
+    N_wall = scene.mass * scene.gravity / (2.0 * scene.groove_s)
+    E_w = E / (2.0 * (1.0 - nu * nu))
+    G_w = G / (2.0 * (2.0 - nu))
+    if N_wall <= 0:
+        raise ValueError("groove stiffness needs g > 0")
+    a = (3.0 * N_wall * scene.radius / (4.0 * E_w)) ** (1.0 / 3.0)
+    return 2.0 * 8.0 * G_w * a
+
+
+def build(scene) -> GrooveFriction:
+    m, R = scene.mass, scene.radius
+    Fc = scene.groove_mu * m * scene.gravity / scene.groove_s
+    if scene.groove_kt is None:
+        kt, src = (mindlin_stiffness(scene) if scene.gravity > 0 else 1.0), "mindlin"
+    else:
+        kt, src = scene.groove_kt, "scene"
+    m_u = m / (1.0 + scene.groove_s**2 * m * R * R / scene.inertia) if scene.has("rotation") else m
+    gamma = 2.0 * scene.groove_damping * math.sqrt(kt * m_u)
+    return GrooveFriction(scene.groove_s, scene.groove_mu, scene.gravity, Fc, kt, src, gamma,
+                          scene.groove_damping)
+
+
+def lammps_fix(gf: GrooveFriction) -> tuple[str, str]:
+    """(comment, fix groove/drag arguments) of the deck."""
+    return (f"# groove: Coulomb limit mu m g / s, stick spring kt ({gf.kt_source}) + "
+            f"dashpot gamma ({_r(gf.damping)} x critical)",
+            f"groove s {_r(gf.s)} mu {_r(gf.mu)} g {_r(to_micro(gf.g, 'acceleration'))} "
+            f"kt {_r(to_micro(gf.kt, 'stiffness'))} gamma {_r(to_micro(gf.gamma, 'damping'))}")

@@ -1,0 +1,70 @@
+"""particle_friction: Coulomb friction mu_pp at each loaded contact on the slip
+w = R (omega_k + omega_{k+1}).
+
+Stick through a tangential history spring exactly as LAMMPS ``tangential mindlin``
+(k_t = 8 G_eff a, a = sqrt(R* delta), G_eff = G/(2(2-nu))) or ``linear_history``
+(constant k_t): T = -k_t xi, xi' = w, |T| <= mu_pp f, history rescaled to the cap when
+exceeded and erased when the contact opens. Torque (R - delta/2) T on both spheres
+(LAMMPS's lever arm to the contact point; the slip w uses full radii, as LAMMPS does), so
+both particle-particle terms of Eq. 5.1 carry a minus sign (friction opposes slip on both
+sides). LAMMPS has no per-atom output of this work: its ledger closes by construction.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..lammps.units import lmp_float as _r, to_micro
+from .spec import EffectSpec
+
+SPEC = EffectSpec("particle_friction", state=(("L_XT", "contact"),),
+                  work="work_particle_friction", work_slot="L_WT",
+                  table_column="work_particle_friction_J", lammps_reports_work=False)
+
+
+def contact_map(xi, kt, cap):
+    """Return mapping of a contact history onto the Coulomb cap |kt xi| <= cap."""
+    if kt * abs(xi) > cap:
+        return math.copysign(cap / kt, xi)
+    return xi
+
+
+def contact_force(xi, w, kt, cap):
+    """(T, xi') of a loaded contact: the capped spring force (N) and the history rate
+    (w, or 0 while sliding at the cap away from the origin)."""
+    T = -kt * xi
+    rate = w
+    if abs(T) >= cap:
+        T = math.copysign(cap, T)
+        if w * xi > 0.0:
+            rate = 0.0
+    return T, rate
+
+
+@dataclass(frozen=True)
+class ParticleFriction:
+    mu: float
+    model: str        # "mindlin" | "linear_history"
+    kt: float         # linear_history: k_t (N/m); mindlin: 8 G_eff sqrt(R*) (N/m^1.5)
+    G_eff: float
+
+
+def build(scene) -> ParticleFriction:
+    mat = scene.material
+    G_eff = mat.G / (2.0 * (2.0 - mat.nu))
+    if scene.tangential == "mindlin":
+        kt = 8.0 * G_eff * math.sqrt(scene.radius / 2.0)
+    else:
+        kt = scene.contact_kt
+    return ParticleFriction(scene.mu_pp, scene.tangential, kt, G_eff)
+
+
+def lammps_pair(pf: ParticleFriction | None) -> tuple[str, str]:
+    """(comment, pair_coeff part) of the deck; a zero tangential law when off."""
+    if pf is None:
+        return ("# tangential: particle_friction off -> linear_history k_t = 0, mu = 0: zero "
+                "tangential force", "tangential linear_history 0.0 0.0 0.0")
+    comment = f"# tangential: particle_friction on, {pf.model} (mu_pp = {_r(pf.mu)})"
+    if pf.model == "mindlin":
+        return comment, f"tangential mindlin NULL 0.0 {_r(pf.mu)}"
+    return comment, f"tangential linear_history {_r(to_micro(pf.kt, 'stiffness'))} 0.0 {_r(pf.mu)}"

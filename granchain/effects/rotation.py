@@ -1,0 +1,29 @@
+"""rotation: adds the spins omega to the state, with I = (2/5) m R^2.
+
+Nothing else: the torques come from the friction effects.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .spec import EffectSpec
+
+SPEC = EffectSpec("rotation", state=(("L_W", "particle"),), lammps_ledger="c_erot_atom")
+
+
+@dataclass(frozen=True)
+class Rotation:
+    inertia: float    # kg m^2
+
+
+def build(scene) -> Rotation:
+    return Rotation(scene.inertia)
+
+
+def lammps_integrator(rot: Rotation | None) -> str:
+    """The deck's time integrator: translation and rotation, or translation only."""
+    if rot is not None:
+        return ("# rotation on: translation and rotation about y (I = 0.4 m R^2)\n"
+                "fix             nve all nve/sphere")
+    return ("# rotation off: fix nve integrates translation only, omega stays exactly 0\n"
+            "fix             nve all nve")

@@ -1,0 +1,31 @@
+"""What every physical effect declares, once (the registry in ``granchain.effects`` adds
+these up, as LAMMPS' granular sub-models declare their coefficients and history sizes)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class EffectSpec:
+    """Declaration of one effect of Eq. 5.1.
+
+    name: the scene's ``effects`` entry.
+    state: blocks the effect adds to a chain's state vector, as (kernel layout slot,
+        'particle' (n entries) or 'contact' (n-1 entries)), in state order.
+    work: the energy-ledger column of the work the effect does on the particles
+        (``granchain.trajectory.ENERGY_COLUMNS``), or None if it does none.
+    work_slot: the kernel layout slot accumulating that work.
+    table_column: the results-table column of that work (J).
+    lammps_ledger: the per-atom LAMMPS quantity summed per chain into the ledger for
+        this effect (its work, or for rotation the rotational kinetic energy), or None.
+    lammps_reports_work: False when LAMMPS has no per-atom output for the work (contact
+        friction inside ``pair granular``): the LAMMPS ledger then closes by construction
+        and that column is the balance residual.
+    """
+    name: str
+    state: tuple[tuple[str, str], ...] = ()
+    work: str | None = None
+    work_slot: str | None = None
+    table_column: str | None = None
+    lammps_ledger: str | None = None
+    lammps_reports_work: bool = True
