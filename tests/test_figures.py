@@ -428,3 +428,14 @@ def test_pulse_width_of_a_triangle():
     assert analysis.pulse_width(t, v) == pytest.approx(1.0, rel=1e-9)
     assert analysis.pulse_width(t, v, 0.05) == pytest.approx(1.9, rel=1e-9)
     assert math.isnan(analysis.pulse_width(t, np.ones_like(t)))
+
+
+def test_layers_import_one_way():
+    """analysis and thesis load without matplotlib; figures and thesis without the
+    workflow package."""
+    code = ("import sys, granchain.analysis, granchain.thesis; "
+            "assert 'matplotlib' not in sys.modules, 'matplotlib'; "
+            "import granchain.figures; "
+            "assert 'granchain.workflow' not in sys.modules, 'workflow'")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
