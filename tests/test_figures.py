@@ -1,4 +1,4 @@
-"""Figures and the thesis comparison table (issue 4, items 5 and 6).
+"""Figures, the table reductions behind them, and the thesis comparison table.
 
 The fixture ``tables`` builds small contract tables through the real engine
 (granchain.simulate.run_scene on tiny ensembles, converted to the contract's columns), so
@@ -15,7 +15,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from granchain import figures, thesis
+from granchain import analysis, figures, thesis
+from granchain.thesis import rows as thesis_rows
 from granchain import tables as gtables
 from granchain.analytic import eq54_group_velocity
 from granchain.errors import GranchainError
@@ -108,7 +109,7 @@ def tables(tmp_path_factory):
 
 
 def _read(tdir, study):
-    return figures.read_table(tdir / f"{study}.csv")
+    return analysis.read_table(tdir / f"{study}.csv")
 
 
 def _paths(tdir, rdir):
@@ -141,7 +142,7 @@ def test_figures_are_byte_identical_on_rerun(tables, tmp_path):
 
 def test_fit_slope_is_least_squares_through_origin(tables):
     packed = _read(tables[0], "packed_sweep")
-    fits = figures.vmax_fits(packed)
+    fits = analysis.vmax_fits(packed)
     assert set(fits) == set(MATERIALS)
     for mat in MATERIALS:
         d = packed[packed["material"] == mat]
@@ -157,8 +158,8 @@ def test_packed_vg_is_exact_on_the_sweep_and_interpolates_between(tables):
     packed = _read(tables[0], "packed_sweep")
     d = packed[packed["material"] == "ss440c"].sort_values("v_striker_m_s")
     v = d["v_striker_m_s"].to_numpy()
-    np.testing.assert_allclose(figures.packed_vg(packed, "ss440c", v), d["v_g_m_s"], rtol=1e-12)
-    mid = figures.packed_vg(packed, "ss440c", np.sqrt(v[0] * v[1]))[0]
+    np.testing.assert_allclose(analysis.packed_vg(packed, "ss440c", v), d["v_g_m_s"], rtol=1e-12)
+    mid = analysis.packed_vg(packed, "ss440c", np.sqrt(v[0] * v[1]))[0]
     assert d["v_g_m_s"].iloc[0] < mid < d["v_g_m_s"].iloc[1]
 
 
@@ -170,8 +171,8 @@ def test_gapped_chains_are_below_packed_and_the_eq54_bound(tables):
     peak-time v_g may exceed it slightly (peak timing of reshaped pulses; at most 1.4% over
     the 3360 chains of the default preset's gap_sweep, 10-190 nm at 0.01-1 m/s)."""
     packed, gs = _read(tables[0], "packed_sweep"), _read(tables[0], "gap_sweep")
-    b = thesis.bound_ratios(gs, packed, 150e-6)
-    assert len(b) == len(figures.arrived(gs)) > 0
+    b = analysis.bound_ratios(gs, packed, 150e-6)
+    assert len(b) == len(analysis.arrived(gs)) > 0
     assert (b["v_g_m_s"] < 0.97 * b["vg_packed"]).all()
     assert (b["r_front"] <= 1.0).all(), b["r_front"].max()
     assert (b["r_peak"] <= 1.02).all(), b["r_peak"].max()
@@ -183,7 +184,7 @@ def test_gapped_chains_are_below_packed_and_the_eq54_bound(tables):
 
 def test_oscillation_measure():
     prof = np.array([[1.0, 0.9, 1.1, 1.0], [1.0, 0.8, 0.8, 0.8]])
-    np.testing.assert_allclose(figures.oscillation(prof), [0.2, 0.0])
+    np.testing.assert_allclose(analysis.oscillation(prof), [0.2, 0.0])
 
 
 # --- clear errors ----------------------------------------------------------------------
@@ -225,8 +226,8 @@ def test_cli_prints_one_line_error(tmp_path):
 
 
 # --- thesis comparison -----------------------------------------------------------------
-# The numbers of ../shared/physics.md, "What the chapter reports", written out here
-# independently of granchain/thesis.py: row id -> (chapter value, chapter uncertainty).
+# The numbers the chapter reports, written out here independently of granchain/thesis/:
+# row id -> (chapter value, chapter uncertainty).
 CHAPTER = {
     "vmax_slope": (0.64, math.nan),             # v_max ~ 0.64 v_s, linear
     "vmax1_over_vs": (0.89, math.nan),          # v_max,1 = 0.89 v_s
@@ -244,7 +245,7 @@ CHAPTER = {
     "dE_coulomb_over_E": (-1e-3, math.nan),     # ~0.1% lost to groove friction
     "dE_air_over_E": (-5e-4, math.nan),         # ~0.05% lost to air drag
 }
-# 440C handbook values (physics.md, Materials), for an independent Nesterenko speed
+# 440C handbook values, for an independent Nesterenko speed
 E_440C, NU_440C, RHO_440C = 200e9, 0.28, 7800.0
 
 
@@ -320,7 +321,7 @@ def test_thesis_table_has_every_reported_number(tables, tmp_path):
         assert len(r["reason"]) > 20 and len(r["evidence"]) > 3, id_
     # physics sanity of the recomputed values: the packed chain's peaks are below the
     # striker and decay from particle 2 to 13; the printed drag is propulsive at 0.1 m/s
-    # (positive work, physics.md) and the groove friction takes energy
+    # (positive work) and the groove friction takes energy
     assert 0.5 < want["vmax2_over_vs"] < want["vmax1_over_vs"] < 1.0
     assert want["dE_air_over_E"] > 0 > want["dE_coulomb_over_E"]
     assert abs(want["vg_nesterenko"] - 1) < 0.05
@@ -344,19 +345,6 @@ def test_thesis_cli_missing_table_is_one_line(tmp_path):
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and "not found" in p.stderr
 
 
-
-def test_caption_sizes_and_probe_check(repo):
-    from granchain.workflow import load_config
-    name, preset = load_config(repo / "config" / "config.yaml", "tiny")
-    sizes = figures.caption_sizes(name, preset, "gap_sweep")
-    assert sizes["preset"] == "tiny" and sizes["n"] == str(preset["base"]["n"])
-    assert sizes["gap_mean_nm"] == ", ".join(f"{g:g}" for g in
-                                            preset["studies"]["gap_sweep"]["gap_mean_nm"])
-    bad = {**preset, "base": {**preset["base"], "probes": [3, 12]}}
-    with pytest.raises(GranchainError, match="probes"):
-        figures.caption_sizes(name, bad, "gap_sweep")
-
-
 def test_radius_enters_eq54(tables, tmp_path):
     with pytest.raises(GranchainError, match="radius"):
         figures.render("fig5_4b", _paths(*tables), tmp_path / "r", radius=-1.0)
@@ -365,3 +353,89 @@ def test_radius_enters_eq54(tables, tmp_path):
     b = thesis.comparison(**thesis.read_inputs(paths), radius=300e-6).set_index("id")
     row = "vg_bound_at_fitted_gap_440c"
     assert b.loc[row, "project_value"] > a.loc[row, "project_value"]
+
+
+# --- row builders of the thesis table and the Eq. 5.4 / trace reductions ---------------
+BUILDER_IDS = {
+    "packed_chain_rows": ["vmax_slope", "vmax1_over_vs", "vmax2_over_vs", "vmax_ratio"],
+    "group_velocity_rows": ["vg_nesterenko"],
+    "experiment_rows": ["exp_vmax_ratio", "exp_vmax1_over_vs", "exp_vmax2_over_vs",
+                        "exp_vg_below_packed"],
+    "gap_rows": ["gap20_oscillation", "gap20_vg_reduction"]
+    + [f"{p}fitted_gap_{m}" for m in ("316", "440c")
+       for p in ("", "vg_bound_at_", "vg_sim_at_")],
+    "bound_rows": ["bound_5_3c", "bound_5_4b"],
+    "energy_rows": ["dE_coulomb_over_E", "dE_air_over_E", "pulse_width"],
+}
+
+
+def test_comparison_is_the_row_builders_in_order(tables):
+    kw = thesis.read_inputs(_paths(*tables))
+    df = thesis.comparison(**kw)
+    pk = thesis_rows.packed_chain(kw["packed_sweep"])
+    built = {
+        "packed_chain_rows": thesis_rows.packed_chain_rows(pk),
+        "group_velocity_rows": thesis_rows.group_velocity_rows(pk),
+        "experiment_rows": thesis_rows.experiment_rows(pk, kw["gap_profile"], kw["gap_sweep"]),
+        "gap_rows": thesis_rows.gap_rows(pk, kw["gap_profile"], kw["gap_sweep"]),
+        "bound_rows": thesis_rows.bound_rows(pk, kw["gap_sweep"], kw["extra_length"]),
+        "energy_rows": thesis_rows.energy_rows(pk, kw["packed_trace"], kw["trace"]),
+    }
+    for name, rows in built.items():
+        assert [r["id"] for r in rows] == BUILDER_IDS[name], name
+    together = pd.DataFrame([r for rows in built.values() for r in rows],
+                            columns=thesis.COLUMNS)
+    pd.testing.assert_frame_equal(together, df)
+
+
+def test_row_builders_without_their_tables(tables):
+    kw = thesis.read_inputs(_paths(*tables))
+    pk = thesis_rows.packed_chain(kw["packed_sweep"])
+    full = thesis.comparison(**kw).set_index("id")
+    exp = {r["id"]: r for r in thesis_rows.experiment_rows(pk)}
+    assert exp["exp_vmax_ratio"]["project_value"] == full.loc["exp_vmax_ratio", "project_value"]
+    assert "gap_profile table not given" in exp["exp_vmax_ratio"]["reason"]
+    assert math.isnan(exp["exp_vg_below_packed"]["project_value"])
+    gaps = {r["id"]: r for r in thesis_rows.gap_rows(pk)}
+    for id_ in ("gap20_oscillation", "gap20_vg_reduction", "vg_sim_at_fitted_gap_440c"):
+        assert math.isnan(gaps[id_]["project_value"]), id_
+    # the Eq. 5.4 bound at the fitted gap needs the packed sweep only
+    assert gaps["vg_bound_at_fitted_gap_440c"]["project_value"] == \
+        full.loc["vg_bound_at_fitted_gap_440c", "project_value"]
+    bounds = thesis_rows.bound_rows(pk)
+    assert all(math.isnan(r["project_value"]) for r in bounds)
+    assert [r["reason"] for r in bounds] == ["gap_sweep table not given",
+                                             "extra_length table not given"]
+    energy = thesis_rows.energy_rows(pk)      # no trace: no pulse width; sweep's 0.1 m/s row
+    assert [r["id"] for r in energy] == ["dE_coulomb_over_E", "dE_air_over_E"]
+    assert "packed_sweep.csv" in energy[0]["evidence"]
+    ref = pk.ref.iloc[0]
+    assert energy[0]["project_value"] == ref["work_groove_J"] / ref["energy_initial_J"]
+
+
+def test_gap_for_reduction_inverts_eq54():
+    vg0, vs, radius = 480.0, 0.1, 150e-6
+    for red in (0.05, 1 / 3, 0.5):
+        g = analysis.gap_for_reduction(vg0, vs, red, radius)
+        assert g > 0
+        assert eq54_group_velocity(vg0, g, vs, radius) == pytest.approx((1 - red) * vg0,
+                                                                         rel=1e-12)
+
+
+def test_pulse_width_of_a_triangle():
+    t = np.linspace(0.0, 4.0, 401)
+    v = np.clip(1.0 - np.abs(t - 2.0), 0.0, None)        # peak 1 at t = 2, base 2 wide
+    assert analysis.pulse_width(t, v) == pytest.approx(1.0, rel=1e-9)
+    assert analysis.pulse_width(t, v, 0.05) == pytest.approx(1.9, rel=1e-9)
+    assert math.isnan(analysis.pulse_width(t, np.ones_like(t)))
+
+
+def test_layers_import_one_way():
+    """analysis and thesis load without matplotlib; figures and thesis without the
+    workflow package."""
+    code = ("import sys, granchain.analysis, granchain.thesis; "
+            "assert 'matplotlib' not in sys.modules, 'matplotlib'; "
+            "import granchain.figures; "
+            "assert 'granchain.workflow' not in sys.modules, 'workflow'")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr

@@ -7,8 +7,10 @@ from granchain.figures import caption_sizes as figures_sizes
 
 FIG_DIR = f"{RESULTS}/figures"
 # The drawing code is an input: a changed figure module redraws (the tables stay).
-FIG_CODE = str(Path(workflow.basedir) / "granchain" / "figures.py")
-THESIS_CODE = [FIG_CODE, str(Path(workflow.basedir) / "granchain" / "thesis.py")]
+FIG_CODE = [str(Path(workflow.basedir) / "granchain" / "analysis.py")] + sorted(
+    str(p) for p in (Path(workflow.basedir) / "granchain" / "figures").glob("*.py"))
+THESIS_CODE = [str(Path(workflow.basedir) / "granchain" / "analysis.py")] + sorted(
+    str(p) for p in (Path(workflow.basedir) / "granchain" / "thesis").glob("*.py"))
 
 
 rule fig5_1a:

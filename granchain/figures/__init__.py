@@ -1,0 +1,91 @@
+"""The chapter's figures, drawn from the workflow's tables.
+
+One function per chapter panel, grouped by chapter figure in one module each. Each takes
+pandas DataFrames read from ``results/{preset}/tables/{study}.csv`` (one row per chain,
+units in column names; the columns are written by granchain/tables.py) -- or, for
+Fig. 5.1a, the trace npz -- and writes ``{out}.png`` and ``{out}.pdf``. Nothing here
+simulates: figures only read tables, and every number they show comes from
+granchain.analysis.
+
+- :func:`fig5_1a`  particle velocities in time along the packed chain (one trace);
+- :func:`fig5_1b`  v_max vs striker velocity, linear fit through the origin (packed_sweep);
+- :func:`fig5_1c`  v_g vs striker velocity with Nesterenko's curve (packed_sweep);
+- :func:`fig5_3b`  peak velocity along a chain with 20 nm mean gaps (gap_profile);
+- :func:`fig5_3c`  v_g vs striker velocity for mean gaps 10..190 nm, bands and Eq. 5.4 (gap_sweep);
+- :func:`fig5_4b`  v_g vs the mean gap inferred from the extra chain length (extra_length).
+
+Modules: ``style`` (fixed rcParams, colours, deterministic saving), ``fig5_1`` (packed
+chain), ``fig5_3`` (random gaps), ``fig5_4`` (loose chains). Output is deterministic: a
+rerun on the same tables gives byte-identical PNG and PDF files.
+
+Command line (what the workflow's figure rules call)::
+
+    python -m granchain.figures fig5_3c --gap-sweep G.csv --packed-sweep P.csv --out DIR/fig5_3c
+
+A missing table or column is a one-line :class:`~granchain.errors.GranchainError`.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ..analysis import read_table, read_trace
+from ..errors import GranchainError
+from .fig5_1 import fig5_1a, fig5_1b, fig5_1c
+from .fig5_3 import fig5_3b, fig5_3c
+from .fig5_4 import fig5_4b
+
+# name -> (drawing function, the tables it reads, in argument order)
+FIGURES = {
+    "fig5_1a": (fig5_1a, ["trace"]),
+    "fig5_1b": (fig5_1b, ["packed_sweep"]),
+    "fig5_1c": (fig5_1c, ["packed_sweep"]),
+    "fig5_3b": (fig5_3b, ["gap_profile", "packed_sweep"]),
+    "fig5_3c": (fig5_3c, ["gap_sweep", "packed_sweep"]),
+    "fig5_4b": (fig5_4b, ["extra_length", "packed_sweep"]),
+}
+
+
+def render(name: str, paths: dict, out, radius: float | None = None) -> list[Path]:
+    """Draw figure ``name`` from {study: path} (trace: npz path) into ``out``.{png,pdf};
+    ``radius`` (m) for the figures that draw Eq. 5.4."""
+    if name not in FIGURES:
+        raise GranchainError(f"unknown figure '{name}'; use one of {', '.join(FIGURES)}")
+    func, needs = FIGURES[name]
+    args = []
+    for study in needs:
+        p = paths.get(study)
+        if p is None:
+            flag = "--" + study.replace("_", "-")
+            raise GranchainError(f"{name}: needs {flag} (the {study} "
+                                 f"{'npz' if study == 'trace' else 'table'})")
+        args.append(read_trace(p) if study == "trace" else read_table(p))
+    if name in ("fig5_3c", "fig5_4b"):
+        return func(*args, out, radius=radius)
+    return func(*args, out)
+
+
+def main(argv=None) -> int:
+    """``python -m granchain.figures NAME --<study> PATH ... --out PATH``; a missing or
+    invalid table, trace or column prints one line and returns 2."""
+    ap = argparse.ArgumentParser(prog="python -m granchain.figures",
+                                 description="Draw one of the chapter's figures from the "
+                                             "workflow's tables (PNG and PDF).")
+    ap.add_argument("name", help=", ".join(FIGURES))
+    for study in ("packed_sweep", "gap_profile", "gap_sweep", "extra_length"):
+        ap.add_argument("--" + study.replace("_", "-"), dest=study,
+                        help=f"results/<preset>/tables/{study}.csv")
+    ap.add_argument("--trace", help="results/<preset>/traces/packed_trace_<material>.npz")
+    ap.add_argument("--radius", type=float, help="sphere radius in m for Eq. 5.4 (default "
+                    "the chapter's 150e-6; the tables do not carry it)")
+    ap.add_argument("--out", required=True, help="output path (.png/.pdf or no extension)")
+    a = ap.parse_args(argv)
+    paths = {k: v for k, v in vars(a).items() if k not in ("name", "out", "radius") and v}
+    try:
+        for p in render(a.name, paths, a.out, a.radius):
+            print(p)
+    except GranchainError as exc:
+        print(f"granchain.figures: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
