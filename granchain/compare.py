@@ -32,7 +32,7 @@ V_TOL = 1e-6       # relative, v_max of every particle, v_max_1, v_max_2, v_g, v
 T_TOL = 1e-6       # relative, dt_peak, dt_front
 E_TOL = 1e-7       # |difference| / E0, every energy-ledger entry
 
-WHY_V = ("issue: 1e-3; same law and Verlet: rounding only (measured <= 1.3e-8 over 1000 chains); "
+WHY_V = ("not the 1e-3 of a loose cross-check: same law and Verlet, rounding only (measured <= 1.3e-8 over 1000 chains); "
          "1e-3 would miss a dropped groove/drag term (~1e-4)")
 WHY_T = "same integrator and sample grid: peak times differ by rounding only (measured <= 1e-10)"
 WHY_E = ("same steps: rounding only (measured <= 6e-10 E0); 1e-7 E0 still resolves "
