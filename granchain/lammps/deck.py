@@ -59,6 +59,7 @@ import numpy as np
 from granchain.effects import physics_terms
 from granchain.errors import GranchainError
 from granchain.fileio import atomic_write_text, check_output_path
+from granchain.guards import require_resolved
 from granchain.scene import NAME_RE, Scene
 from granchain.schedule import ARRIVAL_FRACTION, arrival_speed
 
@@ -176,10 +177,12 @@ class DeckPlan:
 
 
 def plan(scene: Scene, *, gaps=None, v_striker=None) -> DeckPlan:
-    """Run length and cadence of the deck for these members (as the reference engine)."""
+    """Run length and cadence of the deck for these members (as the reference engine);
+    the scene's method must not be auto (resolve it first)."""
     from granchain.engines.reference import auto_t_max
     from granchain.schedule import sample_interval
 
+    require_resolved(scene, "LAMMPS deck")
     gaps, vs = _members(scene, gaps, v_striker)
     B = gaps.shape[0]
     sdts = [sample_interval(scene, float(v)) for v in vs]
