@@ -25,7 +25,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from granchain.engines.lammps import derive_scene, read_dump  # noqa: E402
+from granchain.engines.lammps import read_dump  # noqa: E402
 from granchain.schedule import sample_interval  # noqa: E402
 from granchain.gaps import realise  # noqa: E402
 from granchain.lammps import deck as D  # noqa: E402
@@ -73,7 +73,7 @@ def main():
         gaps = realise(sc, 0)[None, :]
         every_default = int(round(sample_interval(sc, 0.1) / sc.dt))
         default_every = every_default
-        fine = derive_scene(sc, {"output.sample_dt": sc.dt})
+        fine = sc.derive(**{"output.sample_dt": sc.dt})
         pl = D.plan(fine, gaps=gaps, v_striker=[0.1])
         with tempfile.TemporaryDirectory(prefix="granchain-cadence-") as wd:
             deck = D.write_deck(fine, Path(wd), gaps=gaps, v_striker=[0.1])

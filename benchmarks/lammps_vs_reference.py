@@ -160,7 +160,7 @@ def main(argv=None):
         measure(scene, gaps, vs, args, tmp, "default")
         if args.coarser > 1:
             sdt = args.coarser * L.deckmod.plan(scene, gaps=gaps, v_striker=vs).sample_dt
-            coarse = L.derive_scene(scene, {"output.sample_dt": sdt})
+            coarse = scene.derive(**{"output.sample_dt": sdt})
             measure(coarse, gaps, vs, args, tmp, f"coarser{args.coarser}")
     print(f"load average at the end: {os.getloadavg()[0]:.1f}")
 

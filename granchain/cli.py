@@ -1,6 +1,8 @@
 """Command line: ``granchain validate|run|deck|compare SCENE.yaml``.
 
 Errors a user can cause print one line, ``granchain: error: ...``, and exit with 2.
+A scene with ``integrator.method: auto`` is resolved from the cost model as soon as it is
+loaded (``load``): every command shows and runs the resolved scene and its hash.
 """
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ import re
 import sys
 from pathlib import Path
 
+from .costmodel import describe_auto, resolve_auto
 from .errors import GranchainError
 from .fileio import atomic_write_text, check_output_path
 from .guards import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost, scene_warnings
@@ -94,18 +97,23 @@ def _residual_note(scene, r) -> str:
     return ""
 
 
+def load(args):
+    """The scene of a command's arguments, method auto resolved."""
+    return resolve_auto(load_scene(args.scene, args.set))
+
+
 def cmd_validate(args) -> int:
-    scene = load_scene(args.scene, args.set)
+    scene = load(args)
     print(f"{args.scene}: valid scene '{scene.name}' ({scene.hash}), {scene.n} particles, "
           f"{len(scene.striker_velocities)} striker speed(s) x {scene.realisations} realisation(s), "
-          f"effects: {', '.join(sorted(scene.effects))}, integrator {scene.method}")
+          f"effects: {', '.join(sorted(scene.effects))}, integrator {describe_auto(scene)}")
     _print_warnings(scene_warnings(scene), sys.stdout)
     return 0
 
 
 def cmd_run(args) -> int:
     from .simulate import run_scene
-    scene = load_scene(args.scene, args.set)
+    scene = load(args)
     if args.out:
         check_output_path(args.out, args.force, "--out")     # refuse before spending the compute
     check_cost(scene, args.max_steps, args.max_memory_gb)
@@ -182,7 +190,7 @@ def _print_comparison(cmp, out=None) -> None:
 
 def cmd_compare(args) -> int:
     from .compare import compare
-    scene = load_scene(args.scene, args.set)
+    scene = load(args)
     if args.out:
         check_output_path(args.out, args.force, "--out")
     if args.np < 1:
@@ -203,7 +211,7 @@ def cmd_compare(args) -> int:
 
 def cmd_deck(args) -> int:
     from .lammps.deck import write_deck
-    scene = load_scene(args.scene, args.set)
+    scene = load(args)
     path = write_deck(scene, Path(args.output), force=args.force)
     print(path)
     return 0

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .costmodel import resolve_auto
 from .errors import GranchainError
 from .observables import summarize
 from .schedule import arrival_speed
@@ -77,24 +78,27 @@ class Comparison:
 
 def comparison_scene(scene: Scene) -> Scene:
     """The scene both engines run: velocity Verlet, and the LAMMPS deck's sample grid
-    (its finest member's) fixed for every member, so the two records share one grid."""
-    from .engines.lammps import derive_scene
+    (its finest member's) fixed for every member, so the two records share one grid.
+    A scene with method auto is resolved first (its step is the one compared)."""
     from .lammps.deck import plan
     from .gaps import member_gaps, members
+    scene = resolve_auto(scene)
     mem = members(scene)
     pl = plan(scene, gaps=member_gaps(scene, mem), v_striker=[m.v_striker for m in mem])
-    return derive_scene(scene, {"integrator.method": "verlet", "output.sample_dt": pl.sample_dt})
+    return scene.derive(**{"integrator.method": "verlet", "output.sample_dt": pl.sample_dt})
 
 
 def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
             keep: bool = False) -> Comparison:
-    """Run both engines on every member of ``scene`` and tabulate the differences."""
+    """Run both engines on every member of ``scene`` and tabulate the differences (a
+    scene with method auto: resolved; ``meta["scene_hash"]`` is the resolved scene's)."""
     import pandas as pd
 
     from .engines import lammps as lmp_engine
     from .engines import reference
     from .gaps import member_gaps, members
 
+    scene = resolve_auto(scene)
     cs = comparison_scene(scene)
     mem = members(cs)
     if not mem:

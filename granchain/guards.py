@@ -8,6 +8,7 @@ No numba or scipy, so ``granchain validate`` stays light. The solitary wave come
   --max-steps / --max-memory-gb``).
 * :func:`physics_warnings`: where the scene leaves the model's range (Hertz overlap) or
   ends before its wave arrives.
+* :func:`require_resolved`: what needs the step refuses a scene still at method auto.
 """
 from __future__ import annotations
 
@@ -27,6 +28,14 @@ DEFAULT_MAX_STEPS = 1e8
 DEFAULT_MAX_MEMORY_GB = 4.0
 # columns of a chain's sample record besides the n velocities (kernels.E_LEN)
 RECORD_EXTRA_COLUMNS = 8
+
+
+def require_resolved(scene, who: str) -> None:
+    """Raise ValueError if the scene's method is still auto (a program error: the step
+    comes from ``granchain.costmodel.resolve_auto``, which every run applies first)."""
+    if scene.method == "auto":
+        raise ValueError(f"{who}: scene '{scene.name}' has integrator method auto; resolve "
+                         "it first with granchain.costmodel.resolve_auto")
 
 
 def max_sample_dt(scene) -> float | None:
@@ -72,7 +81,9 @@ def expected_duration(scene, v: float) -> float:
 
 
 def cost_estimate(scene, v: float) -> dict:
-    """Estimated duration (s), integration steps, samples and record bytes of one chain."""
+    """Estimated duration (s), integration steps, samples and record bytes of one chain
+    (of a resolved scene: method auto has no step yet)."""
+    require_resolved(scene, "cost_estimate")
     dur = expected_duration(scene, v)
     sdt = sample_interval(scene, v)
     samples = dur / sdt + 1.0 if (v > 0 or scene.t_end is not None) else 1.0

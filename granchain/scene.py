@@ -3,6 +3,11 @@
 ``load_scene(path, overrides)`` reads, applies ``--set key.sub=value`` overrides,
 fills defaults, validates, and returns a frozen :class:`Scene`. Every problem is a
 :class:`~granchain.errors.SceneError` naming the field and the fix, on one line.
+``Scene.derive(...)`` returns a validated copy with some fields changed.
+
+This layer parses and validates only. A scene with ``integrator.method: auto`` keeps
+``method == "auto"`` and its tolerance; the step it runs with comes from the cost model
+(``granchain.costmodel.resolve_auto``), applied where a run starts.
 
 Defaults and where they come from are listed in ``DEFAULTS`` below and in
 docs/scenes.md.
@@ -56,7 +61,8 @@ DEFAULTS: dict[str, Any] = {
     "ensemble": {"realisations": 1},
 }
 
-# Fewest integration steps that must fit in the shortest Hertz collision of a scene.
+# Fewest integration steps that must fit in the shortest Hertz collision of a scene (the
+# step guard; the accuracy study's coarsest setting).
 MIN_STEPS_PER_CONTACT = 20
 # Fewest samples per solitary-wave width that output.sample_dt must give:
 # MIN_SAMPLES_PER_PULSE (granchain/guards.py).
@@ -106,9 +112,11 @@ class Scene:
     sample_dt: float | None          # None: auto
     realisations: int
     spec: dict = field(repr=False, compare=False)   # normalised mapping (for hashing, decks)
-    # method auto: the requested relative error on v_g (method, dt, tolerance hold the
-    # setting it resolved to; granchain/cost.py resolve_auto)
+    # a scene resolved from method auto: the requested relative error on v_g (method, dt,
+    # tolerance and the spec's integrator block hold the setting it resolved to)
     auto_tolerance: float | None = None
+    # dotted keys the scene file (or a derive) gave, before defaults: 'integrator.dt', ...
+    given: frozenset = field(default=frozenset(), repr=False, compare=False)
 
     # --- derived quantities -------------------------------------------------------------
     @property
@@ -131,13 +139,60 @@ class Scene:
 
     @property
     def hash(self) -> str:
-        return scene_hash(self.spec)
+        """Hash of the normalised spec; for a scene resolved from method auto, of the spec
+        with the resolved integrator block and the requested tolerance."""
+        if self.auto_tolerance is None:
+            return scene_hash(self.spec)
+        integrator = dict(self.spec["integrator"], auto_tolerance=self.auto_tolerance)
+        return scene_hash(dict(self.spec, integrator=integrator))
+
+    def derive(self, changes: dict | None = None, /, **dotted) -> "Scene":
+        """A new validated scene with some fields of the spec changed.
+
+        Changes are dotted keys (``scene.derive(**{"integrator.method": "verlet",
+        "t_end": 1e-5})``) and/or sections given as mappings (``scene.derive({"integrator":
+        {"method": "verlet"}, "t_end": 1e-5})`` or ``scene.derive(integrator={...})``): a
+        section's mapping changes only the keys it names, the others keep their values.
+        Values are as in a scene file. A changed key that has no effect for the
+        new scene's settings is refused, as in a scene file; the keys of the scene itself
+        are not checked again. A scene resolved from method auto derives from its resolved
+        setting (the result is a plain scene with that integrator)."""
+        flat = _flatten(changes or {}) + _flatten(dotted)
+        spec = copy.deepcopy(self.spec)
+        for key, value in flat:
+            parts = str(key).split(".")
+            node = spec
+            for i, p in enumerate(parts[:-1]):
+                if not isinstance(node.get(p, {}), dict):
+                    raise SceneError(".".join(parts[:i + 1]), "is not a mapping",
+                                     f"change {'.'.join(parts[:i + 1])} as a whole")
+                node = node.setdefault(p, {})
+            node[parts[-1]] = copy.deepcopy(value)
+        changed = {str(k) for k, v in flat if v is not None}
+        changed |= {k.partition(".")[0] for k in changed}
+        scene = _validate(spec, changed)
+        return dataclasses.replace(scene, given=self.given | frozenset(changed))
 
     def contact_time(self, v: float) -> float:
         """Duration of a head-on Hertz collision of two free spheres at closing speed v."""
         mu = self.mass / 2.0
         delta_m = (5.0 * mu * v * v / (4.0 * self.hertz_k)) ** 0.4
         return 2.9432 * delta_m / v
+
+
+def _flatten(changes: dict) -> list[tuple[str, Any]]:
+    """(dotted key, value) of a changes mapping: a section's mapping (a key whose default
+    is a mapping, but not ``material``) gives one entry per key it names."""
+    if not isinstance(changes, dict):
+        raise SceneError("<derive>", f"changes must be a mapping, got {_short(changes)}",
+                         "give {'section': {'key': value}} or dotted keys")
+    out = []
+    for key, value in changes.items():
+        if isinstance(value, dict) and isinstance(DEFAULTS.get(key), dict) and key != "material":
+            out += [(f"{key}.{k}", v) for k, v in value.items()]
+        else:
+            out.append((str(key), value))
+    return out
 
 
 def scene_hash(spec: dict) -> str:
@@ -527,11 +582,17 @@ def scene_from_dict(raw: dict, *, check_unused: bool = True) -> Scene:
     """Validate a scene mapping (SI units) and return the Scene.
 
     ``check_unused``: refuse keys of ``raw`` that have no effect for its settings. Turn it
-    off only to rebuild a scene from a normalised ``Scene.spec`` (which holds every key).
+    off only to rebuild a scene from a normalised ``Scene.spec`` (which holds every key);
+    to change fields of a scene use :meth:`Scene.derive`.
     """
     if not isinstance(raw, dict):
         raise SceneError("<file>", "the top level is not a mapping", "write 'key: value' lines")
-    given = given_keys(raw) if check_unused else set()
+    return _validate(raw, given_keys(raw) if check_unused else set())
+
+
+def _validate(raw: dict, given: set[str]) -> Scene:
+    """The Scene of a mapping; ``given``: the dotted keys refused if they have no effect
+    (kept as ``Scene.given``)."""
     spec = _merge(DEFAULTS, raw)
     name = check_name(spec["name"], "name") if spec["name"] is not None else "scene"
     material = _material(spec["material"])
@@ -647,22 +708,9 @@ def scene_from_dict(raw: dict, *, check_unused: bool = True) -> Scene:
         drag_T0=T0, drag_L=L, drag_form=form, mu_pp=mu_pp, tangential=tangential,
         contact_kt=contact_kt, k_roll=k_roll, gamma_roll=gamma_roll, mu_roll=mu_roll,
         probes=tuple(pr), method=method, dt=dt, tolerance=tol, t_end=t_end,
-        sample_dt=sample_dt, realisations=realisations, spec=spec,
+        sample_dt=sample_dt, realisations=realisations, spec=spec, given=frozenset(given),
     )
-    if method == "auto":
-        # the cheapest setting meeting the tolerance on v_g, from the measured cost model
-        from .cost import resolve_auto
-        m, dt_r, rtol = resolve_auto(scene)
-        if "integrator.dt" in given and m in ("rk4", "verlet"):
-            raise SceneError("integrator.dt", f"has no effect: method auto chose {m} with its "
-                             f"own step ({dt_r:.3g} s) for tolerance {tol:g}",
-                             "drop dt, or choose method rk4 or verlet to set the step")
-        scene = dataclasses.replace(scene, method=m, dt=dt_r, tolerance=rtol, auto_tolerance=tol)
-    if scene.sample_dt is not None and scene.sample_dt < scene.dt * (1 - 1e-9):
-        raise SceneError("output.sample_dt",
-                         f"{scene.sample_dt:g} s is shorter than the step {scene.dt:g} s",
-                         "sample no faster than once per step")
-    _check_step(scene)
+    check_step(scene)
     _check_sampling(scene)
     return scene
 
@@ -681,8 +729,16 @@ def _check_sampling(scene: Scene) -> None:
                      f"use sample_dt <= {floor_sig(limit):.2g} or sample_dt: auto")
 
 
-def _check_step(scene: Scene) -> None:
-    """A fixed step must resolve the shortest Hertz collision the scene can produce."""
+def check_step(scene: Scene) -> None:
+    """Checks that need the step (none for method auto, whose step is not known here):
+    sample no faster than once per step, and a fixed step must resolve the shortest Hertz
+    collision the scene can produce."""
+    if scene.method == "auto":
+        return
+    if scene.sample_dt is not None and scene.sample_dt < scene.dt * (1 - 1e-9):
+        raise SceneError("output.sample_dt",
+                         f"{scene.sample_dt:g} s is shorter than the step {scene.dt:g} s",
+                         "sample no faster than once per step")
     if scene.method not in ("rk4", "verlet"):
         return
     vmax = max(scene.striker_velocities)

@@ -1,7 +1,7 @@
 """Run a scene: its members (striker speed x gap realisation) through an engine.
 
 This is the one entry point the CLI and the workflow use:
-scene -> physics terms -> engine -> trajectories -> observables.
+scene -> (method auto resolved) -> physics terms -> engine -> trajectories -> observables.
 """
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 
+from .costmodel import resolve_auto
 from .errors import GranchainError
 from .gaps import Member, member_gaps, members
 from .guards import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost, physics_warnings
@@ -19,7 +20,8 @@ ENGINES = ("reference", "lammps")
 
 
 def trajectories(scene: Scene, mem: list[Member], engine: str = "reference", **kw):
-    """Yield (member, Trajectory) in order."""
+    """Yield (member, Trajectory) in order (a scene with method auto runs resolved)."""
+    scene = resolve_auto(scene)
     g = member_gaps(scene, mem)
     vs = np.array([m.v_striker for m in mem])
     if engine == "reference":
@@ -41,10 +43,13 @@ def run_scene(scene: Scene, engine: str = "reference", realisations=None, *,
               **kw) -> list[dict]:
     """Observables of every member of the scene, one dict each (JSON-ready).
 
-    Before integrating, refuses (GranchainError) a scene whose chains need more than
-    ``max_steps`` integration steps or ``max_memory_gb`` GB of sample record each
-    (estimates: granchain/guards.py). Each dict carries ``warnings``: a list of one-line
-    physics warnings for its striker speed (empty when none)."""
+    A scene with method auto runs with the setting ``costmodel.resolve_auto`` gives it
+    (each dict's ``method`` and ``dt``). Before integrating, refuses (GranchainError) a
+    scene whose chains need more than ``max_steps`` integration steps or
+    ``max_memory_gb`` GB of sample record each (estimates: granchain/guards.py). Each dict
+    carries ``warnings``: a list of one-line physics warnings for its striker speed (empty
+    when none)."""
+    scene = resolve_auto(scene)
     check_cost(scene, max_steps, max_memory_gb)
     mem = members(scene, realisations)
     t0 = time.perf_counter()

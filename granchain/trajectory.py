@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .effects import ENERGY_COLUMNS   # the energy-ledger columns, in engine order
+from .effects import ENERGY_COLUMNS  # noqa: F401  (the energy-ledger columns, in engine order)
 
 
 @dataclass

@@ -1,4 +1,5 @@
-"""What accuracy costs in time (granchain/cost.py) and integrator.method auto.
+"""What accuracy costs in time (granchain.accuracy, through its granchain.cost shell) and
+integrator.method auto (granchain.costmodel).
 
 No timing assertions: wall times only rank settings; every check here is on errors,
 steps and settings."""
@@ -9,9 +10,11 @@ import re
 import sys
 
 import numpy as np
+import pandas as pd
 import pytest
 
-from granchain import cost
+from granchain import cost, costmodel
+from granchain.costmodel import resolve_auto
 from granchain.errors import GranchainError, SceneError
 from granchain.scene import load_scene, scene_from_dict
 from granchain.simulate import run_scene
@@ -204,8 +207,12 @@ def test_study_settings_are_validated():
 # ---------------------------------------------------------------------------------------
 # method: auto
 # ---------------------------------------------------------------------------------------
+def _model_frame():
+    return pd.DataFrame(costmodel.load_model().columns)
+
+
 def test_cost_model_is_package_data_with_provenance():
-    model, prov = cost.load_model()
+    model, prov = _model_frame(), costmodel.load_model().provenance
     assert list(model.columns) == list(cost.MODEL_COLUMNS)
     assert set(model.scene_class) == {"packed", "gapped"}
     assert set(model.method) == set(cost.SCENE_METHODS)
@@ -217,13 +224,14 @@ def test_cost_model_is_package_data_with_provenance():
     assert not re.search(r"\d{4}-\d{2}-\d{2}", text)          # date-free
 
 
-def _scene316(gap_nm=0.0, tol=1e-4, method="auto", **extra):
+def _scene316(gap_nm=0.0, tol=1e-4, method="auto", resolve=True, **extra):
     raw = {"name": "s316", "material": "ss316", "striker": {"velocity": 0.05},
            "effects": ALL_EFFECTS, "ensemble": {"realisations": 4},
            "integrator": {"method": method, "tolerance": tol}, **extra}
     if gap_nm:
         raw["gaps"] = {"distribution": "uniform", "mean": gap_nm * 1e-9, "seed": 7}
-    return scene_from_dict(raw)
+    scene = scene_from_dict(raw)
+    return resolve_auto(scene) if resolve else scene
 
 
 @pytest.mark.parametrize("gap_nm", [0.0, 30.0])
@@ -256,10 +264,11 @@ def test_auto_step_sits_on_the_sample_grid_and_is_pure():
         k = k if k >= 1 - 1e-9 else 1 / k       # steps per sample, or samples per step
         assert abs(k - round(k)) < 1e-9
     # a sweep has several sample intervals: below twice the misalignment floor, adaptive
-    _, prov = cost.load_model()
+    prov = costmodel.load_model().provenance
     tol = prov["sampling_floor_v_g"]["packed"] * cost.AUTO_SAFETY / 2
-    sweep = scene_from_dict({"striker": {"velocity": [0.05, 0.1]}, "effects": ALL_EFFECTS,
-                             "integrator": {"method": "auto", "tolerance": tol}})
+    sweep = resolve_auto(scene_from_dict({"striker": {"velocity": [0.05, 0.1]},
+                                          "effects": ALL_EFFECTS,
+                                          "integrator": {"method": "auto", "tolerance": tol}}))
     assert sweep.method == "adaptive"
 
 
@@ -270,8 +279,9 @@ def test_auto_in_cli_json_reports_the_resolved_setting(tmp_path, capsys):
                  "integrator: {method: auto, tolerance: 1.0e-4}\n")
     assert main(["run", str(p), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    sc = load_scene(p)
+    sc = resolve_auto(load_scene(p))
     assert doc["method"] == sc.method != "auto" and doc["dt"] == sc.dt
+    assert doc["scene_hash"] == sc.hash != load_scene(p).hash     # the resolved scene's
 
 
 def test_auto_rejects_a_tolerance_out_of_range(tmp_path, capsys):
@@ -279,7 +289,7 @@ def test_auto_rejects_a_tolerance_out_of_range(tmp_path, capsys):
         _scene316(0.0, 1e-14)
     msg = str(exc.value)
     assert exc.value.field == "integrator.tolerance" and "\n" not in msg
-    lo = cost.AUTO_SAFETY * cost.achievable(cost.load_model()[0], "v_g", scene_class="packed")
+    lo = cost.AUTO_SAFETY * cost.achievable(_model_frame(), "v_g", scene_class="packed")
     shown = float(re.search(r"give a tolerance in \[([0-9.e+-]+), 0\.1\]", msg).group(1))
     assert lo <= shown < 1.1 * lo
     assert _scene316(0.0, shown).auto_tolerance == shown      # the bound shown is accepted
@@ -291,3 +301,82 @@ def test_auto_rejects_a_tolerance_out_of_range(tmp_path, capsys):
     assert main(["validate", str(p)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "integrator.tolerance" in err
+
+
+def test_costmodel_lookup_agrees_with_the_pandas_analysis():
+    """costmodel repeats envelope / cheapest / achievable on the model's rows without
+    pandas: the same answers as granchain.accuracy.analysis on the same table."""
+    model, frame = costmodel.load_model(), _model_frame()
+    for cls in (None, "packed", "gapped"):
+        for obs in ("v_g", "v_g_front", "v_max_2", "balance"):
+            env = cost.envelope(frame, obs, cls)
+            mine = model.envelope(obs, cls)
+            assert [r["method"] for r in mine] == list(env["method"])
+            assert [r["envelope"] for r in mine] == list(env["envelope"])
+            for methods in (None, ["adaptive"], ["rk4", "verlet"]):
+                assert model.achievable(obs, methods=methods, scene_class=cls) == \
+                    cost.achievable(frame, obs, methods=methods, scene_class=cls)
+                for tol in np.logspace(-13, -1, 25):
+                    want = cost.cheapest(frame, tol, obs, methods=methods, scene_class=cls)
+                    got = model.cheapest(tol, obs, methods=methods, scene_class=cls)
+                    if want is None:
+                        assert got is None, (cls, obs, tol)
+                    else:
+                        want.pop("dt_s")
+                        assert got == want, (cls, obs, tol, methods)
+
+
+def test_auto_is_resolved_at_run_time_and_hashed_resolved():
+    """The scene layer keeps method auto; resolve_auto gives the scene that runs, whose
+    hash covers the resolved setting and the requested tolerance."""
+    raw = _scene316(0.0, 1e-5, resolve=False)
+    assert (raw.method, raw.tolerance, raw.auto_tolerance) == ("auto", 1e-5, None)
+    sc = resolve_auto(raw)
+    assert sc.method in cost.SCENE_METHODS and sc.auto_tolerance == 1e-5
+    assert sc.spec["integrator"] == {"method": sc.method, "dt": sc.dt, "tolerance": sc.tolerance}
+    assert resolve_auto(sc) is sc and sc.hash != raw.hash
+    assert sc.hash == resolve_auto(_scene316(0.0, 1e-5, resolve=False)).hash
+    # same setting for a nearby tolerance, but not the same request: another hash
+    near = resolve_auto(_scene316(0.0, 1.01e-5, resolve=False))
+    assert (near.method, near.dt, near.tolerance) == (sc.method, sc.dt, sc.tolerance)
+    assert near.hash != sc.hash
+    # the plain scene with the same setting differs from the auto one only by the request
+    plain = scene_from_dict(sc.spec, check_unused=False)
+    assert plain.spec == sc.spec and plain.auto_tolerance is None and plain.hash != sc.hash
+    # another cost model (slower RK4 and Verlet) resolves to another step: another hash
+    model = costmodel.load_model()
+    cols = dict(model.columns)
+    cols["wall_s_per_chain"] = np.where(cols["method"] == "adaptive",
+                                        cols["wall_s_per_chain"], 1.0)
+    other = resolve_auto(raw, costmodel.CostModel(cols, model.provenance))
+    assert other.method == "adaptive" != sc.method and other.hash != sc.hash
+
+
+def test_auto_scene_never_reaches_an_engine():
+    from granchain.engines import reference
+    from granchain.lammps.deck import plan
+    raw = _scene316(0.0, 1e-4, resolve=False)
+    for call in (lambda: list(reference.run(raw, np.zeros((1, 14)), [0.05])),
+                 lambda: plan(raw)):
+        with pytest.raises(ValueError, match="method auto"):
+            call()
+    runs = run_scene(raw.derive(**{"ensemble.realisations": 1}))    # resolved by run_scene
+    assert runs[0]["method"] == resolve_auto(raw).method
+
+
+def test_auto_step_guards_run_on_the_resolved_scene():
+    """dt with auto: refused when auto picks a fixed step of its own, kept as the first
+    step when it picks adaptive, and then checked against sample_dt."""
+    with pytest.raises(SceneError, match="integrator.dt.*has no effect"):
+        resolve_auto(scene_from_dict({"integrator": {"method": "auto", "dt": 1e-9}}))
+    model = costmodel.load_model()          # a model where adaptive is the cheapest
+    cols = dict(model.columns)
+    cols["wall_s_per_chain"] = np.where(cols["method"] == "adaptive", 1e-6, 1.0)
+    adaptive = costmodel.CostModel(cols, model.provenance)
+    raw = {"integrator": {"method": "auto", "dt": 2e-10}}
+    sc = resolve_auto(scene_from_dict(raw), adaptive)
+    assert sc.method == "adaptive" and sc.dt == 2e-10
+    unresolved = scene_from_dict(dict(raw, output={"sample_dt": 1e-10}))
+    assert unresolved.method == "auto"               # no step known: nothing to check yet
+    with pytest.raises(SceneError, match="output.sample_dt.*shorter than the step"):
+        resolve_auto(unresolved, adaptive)

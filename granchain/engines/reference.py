@@ -19,6 +19,7 @@ import numpy as np
 from .. import analytic
 from ..schedule import arrival_speed, auto_t_max, sample_interval
 from ..effects import SPECS, Terms, physics_terms
+from ..guards import require_resolved
 from ..scene import Scene
 from ..trajectory import Trajectory
 from . import kernels as K
@@ -92,7 +93,9 @@ def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
 
 def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | None = None,
         dt: float | None = None, tolerance: float | None = None, progress: bool | None = None):
-    """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s."""
+    """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s. The scene's
+    method must not be auto (``simulate`` resolves it)."""
+    require_resolved(scene, "reference engine")
     terms = physics_terms(scene)
     gaps = np.ascontiguousarray(np.atleast_2d(np.asarray(gaps, dtype=float)))
     vs = np.broadcast_to(np.asarray(v_striker, dtype=float), (gaps.shape[0],)).copy()

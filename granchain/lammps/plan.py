@@ -12,6 +12,7 @@ import numpy as np
 
 from granchain.effects import SPECS
 from granchain.errors import GranchainError
+from granchain.guards import require_resolved
 from granchain.gaps import member_gaps, members, realise
 from granchain.scene import Scene
 from granchain.schedule import auto_t_max, sample_interval
@@ -82,7 +83,9 @@ class DeckPlan:
 
 
 def plan(scene: Scene, *, gaps=None, v_striker=None) -> DeckPlan:
-    """Run length and cadence of the deck for these members (as the reference engine)."""
+    """Run length and cadence of the deck for these members (as the reference engine);
+    the scene's method must not be auto (resolve it first)."""
+    require_resolved(scene, "LAMMPS deck")
 
     gaps, vs = batch_members(scene, gaps, v_striker)
     B = gaps.shape[0]

@@ -1,0 +1,69 @@
+"""Command line of the accuracy-vs-cost study: ``python -m granchain.cost
+measure|figure|model`` (``python -m granchain.accuracy`` is the same)."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from ..costmodel import MODEL_FILE
+from ..errors import GranchainError
+from .measure import measure
+from .report import plot, write_model, write_outputs
+
+DESCRIPTION = "What accuracy costs in time, and the cost model behind method: auto."
+
+
+def preset_blocks(config: dict, preset: str | None = None) -> tuple[dict, dict, str]:
+    """(cost block, base, preset name) of a workflow configuration mapping."""
+    preset = preset or config.get("preset", "default")
+    p = config["presets"][preset]
+    return p.get("cost") or {}, p.get("base") or {}, preset
+
+
+def main(argv=None, prog: str = "python -m granchain.cost") -> int:
+    """Run a subcommand; errors a user can cause are one line on stderr, exit status 2."""
+    ap = argparse.ArgumentParser(prog=prog, description=DESCRIPTION)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    m = sub.add_parser("measure", help="run the accuracy-vs-cost study of a preset")
+    m.add_argument("--config", default="config/config.yaml",
+                   help="workflow configuration to take the preset's cost and base blocks from")
+    m.add_argument("--preset")
+    m.add_argument("--cost-json", help="the cost block as JSON (instead of --config)")
+    m.add_argument("--base-json", help="the base block as JSON (instead of --config)")
+    m.add_argument("--table", help="deterministic table (errors and steps, no wall times)")
+    m.add_argument("--provenance", help="provenance JSON of the deterministic table")
+    m.add_argument("--timing", help="the full table, with wall times")
+    m.add_argument("--cheapest", help="the cheapest settings for cost.cheapest_tolerances")
+    f = sub.add_parser("figure", help="plot a measured table (with wall times)")
+    f.add_argument("timing")
+    f.add_argument("png")
+    f.add_argument("pdf", nargs="?")
+    mo = sub.add_parser("model", help="write the packaged cost model from a measured table")
+    mo.add_argument("timing", help="timing/accuracy_cost.csv of a run (and its .provenance.json)")
+    mo.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / MODEL_FILE))
+    mo.add_argument("--force", action="store_true", help="replace the existing model")
+    args = ap.parse_args(argv)
+    try:
+        if args.cmd == "measure":
+            if args.cost_json is not None:
+                cost, base = json.loads(args.cost_json), json.loads(args.base_json or "{}")
+                preset = args.preset
+            else:
+                import yaml
+                cost, base, preset = preset_blocks(yaml.safe_load(Path(args.config).read_text()),
+                                                   args.preset)
+            rows, info = measure(cost, base)
+            write_outputs(rows, info, cost, base, preset=preset, table=args.table,
+                          provenance=args.provenance, timing=args.timing,
+                          cheapest_csv=args.cheapest)
+        elif args.cmd == "figure":
+            from ..tables import read_csv
+            plot(read_csv(args.timing), args.png, args.pdf)
+        else:
+            write_model(args.timing, args.out, force=args.force)
+    except GranchainError as exc:
+        print(f"{prog.split()[-1]}: error: {exc}", file=sys.stderr)
+        return 2
+    return 0

@@ -1,0 +1,247 @@
+"""``integrator.method: auto`` at run time: the packaged cost model and its lookup.
+
+numpy only (no pandas, numba or scipy), so ``granchain validate`` can show what auto
+resolves to.
+
+The cost model (``granchain/data/cost_model.csv``, provenance beside it) holds one row per
+(scene class, setting): class ``packed`` (no realisation has a gap) or ``gapped``; a setting
+is rk4 or verlet at N steps per contact time, or adaptive at a tolerance; the errors are
+the largest measured over the class's scenes, the wall time their mean. It is written by
+``python -m granchain.cost model`` from a measurement (``granchain.accuracy``).
+
+dt is stored as N steps per contact time: under Hertz scaling the error of a setting at
+given N transfers across striker speeds, materials and radii (the auto sample interval is
+a fixed fraction of the contact time t_c).
+
+:func:`resolve_auto` turns a scene with ``method == "auto"`` into the scene that runs: the
+cheapest setting of the scene's class whose v_g error meets ``integrator.tolerance`` with a
+margin (``AUTO_SAFETY``), and keeps meeting it at every finer setting of its method (the
+envelope: a lucky cancellation at a coarse step is never taken for accuracy).
+"""
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+
+import numpy as np
+
+from .errors import GranchainError, SceneError
+from .scene import Scene
+from .schedule import sample_interval
+
+SCENE_METHODS = ("rk4", "verlet", "adaptive")   # what ``method: auto`` may resolve to
+SCENE_CLASSES = ("packed", "gapped")
+# method auto takes the cheapest setting whose measured error is <= tolerance / AUTO_SAFETY:
+# on other scenes (316 and 440C, 0.03-0.5 m/s, packed and 10-190 nm gaps) the error of a
+# setting at the same N was up to 2.3x the model's (README, "method: auto").
+AUTO_SAFETY = 4.0
+MODEL_FILE = "data/cost_model.csv"
+MODEL_PROVENANCE = "data/cost_model.provenance.json"
+MODEL_COLUMNS = ("scene_class", "method", "steps_per_contact", "tolerance", "wall_s_per_chain",
+                 "err_v_max_2", "err_v_g", "err_v_g_front", "balance_error",
+                 "ref_uncertainty_v_max_2", "ref_uncertainty_v_g", "ref_uncertainty_v_g_front")
+_TEXT_COLUMNS = ("scene_class", "method")
+NA_TEXT = "NaN"                                  # how the tables write a missing number
+
+
+@dataclass(frozen=True)
+class CostModel:
+    """The cost model's columns (``MODEL_COLUMNS``: text columns as object arrays, the
+    others float64 with NaN where missing) and its provenance."""
+    columns: dict
+    provenance: dict
+
+    def __len__(self) -> int:
+        return len(self.columns["method"])
+
+    def envelope(self, observable: str = "v_g", scene_class: str | None = None) -> list[dict]:
+        """Per setting over the rows of ``scene_class`` (all rows if None), grouped by
+        method in order of first appearance and ordered finest first (more steps per
+        contact, tighter tolerance): method, steps_per_contact (None for adaptive),
+        tolerance (None for fixed steps), wall_s_per_chain (mean over the rows), err (the
+        largest over the rows; NaN read as inf), envelope (the largest err of this and
+        every finer setting of its method), ref_uncertainty (the largest; NaN read as 0)."""
+        c = self.columns
+        err_col = "balance_error" if observable == "balance" else f"err_{observable}"
+        unc_col = None if observable == "balance" else f"ref_uncertainty_{observable}"
+        groups: dict[tuple, list[int]] = {}
+        for i in range(len(self)):
+            if scene_class is None or c["scene_class"][i] == scene_class:
+                spc, tol = c["steps_per_contact"][i], c["tolerance"][i]
+                key = (str(c["method"][i]), None if math.isnan(spc) else int(spc),
+                       None if math.isnan(tol) else float(tol))
+                groups.setdefault(key, []).append(i)
+
+        def largest(col, rows):
+            vals = [c[col][i] for i in rows if not math.isnan(c[col][i])]
+            return max(vals) if vals else math.nan
+
+        out = []
+        for m in dict.fromkeys(k[0] for k in groups):
+            keys = [k for k in groups if k[0] == m]
+            keys.sort(key=(lambda k: k[2]) if m == "adaptive" else (lambda k: -k[1]))
+            err = np.array([largest(err_col, groups[k]) for k in keys], dtype=float)
+            err = np.where(np.isnan(err), np.inf, err)
+            env = np.maximum.accumulate(err) if len(err) else err
+            for k, e, v in zip(keys, err, env):
+                rows = groups[k]
+                unc = largest(unc_col, rows) if unc_col else 0.0
+                out.append({"method": m, "steps_per_contact": k[1], "tolerance": k[2],
+                            "wall_s_per_chain": sum(float(c["wall_s_per_chain"][i])
+                                                    for i in rows) / len(rows),
+                            "err": float(e), "envelope": float(v),
+                            "ref_uncertainty": 0.0 if math.isnan(unc) else float(unc)})
+        return out
+
+    def cheapest(self, tol: float, observable: str = "v_g", *, methods=None,
+                 scene_class: str | None = None) -> dict | None:
+        """The least wall time per chain among settings whose envelope and reference
+        uncertainty are <= ``tol`` (ties: by method name, then envelope order); None if
+        none is. method, steps_per_contact, tolerance, wall_s_per_chain, err, envelope."""
+        env = [r for r in self.envelope(observable, scene_class)
+               if (methods is None or r["method"] in methods)
+               and r["envelope"] <= tol and r["ref_uncertainty"] <= tol]
+        if not env:
+            return None
+        best = min(range(len(env)), key=lambda k: (env[k]["wall_s_per_chain"],
+                                                   env[k]["method"], k))
+        return {k: v for k, v in env[best].items() if k != "ref_uncertainty"}
+
+    def achievable(self, observable: str = "v_g", *, methods=None,
+                   scene_class: str | None = None) -> float:
+        """The tightest tolerance some setting meets that the reference can verify."""
+        env = [r for r in self.envelope(observable, scene_class)
+               if methods is None or r["method"] in methods]
+        if not env:
+            return math.inf
+        return max(min(r["envelope"] for r in env), max(r["ref_uncertainty"] for r in env))
+
+
+def read_model_csv(path) -> dict:
+    """The columns of a cost-model CSV (``MODEL_COLUMNS``, in any order)."""
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    head, body = rows[0], rows[1:]
+    missing = [c for c in MODEL_COLUMNS if c not in head]
+    if missing:
+        raise GranchainError(f"cost model {path}: columns {', '.join(missing)} are missing")
+    cols = {}
+    for c in MODEL_COLUMNS:
+        j = head.index(c)
+        if c in _TEXT_COLUMNS:
+            cols[c] = np.array([r[j] for r in body], dtype=object)
+        else:
+            cols[c] = np.array([math.nan if r[j] in (NA_TEXT, "") else float(r[j])
+                                for r in body], dtype=float)
+    return cols
+
+
+@lru_cache(maxsize=1)
+def load_model() -> CostModel:
+    """The packaged cost model and its provenance."""
+    root = resources.files("granchain")
+    if not root.joinpath(MODEL_FILE).is_file():
+        raise GranchainError("integrator.method auto: the cost model granchain/data/cost_model.csv "
+                             "is missing; run 'python -m granchain.cost model' or choose a method")
+    with resources.as_file(root.joinpath(MODEL_FILE)) as p:
+        cols = read_model_csv(p)
+    return CostModel(cols, json.loads(root.joinpath(MODEL_PROVENANCE).read_text()))
+
+
+def is_packed(scene) -> bool:
+    """True if no realisation of the scene has a gap (the cost model's class 'packed')."""
+    d = scene.gap_distribution
+    return (d == "none" or (d in ("fixed", "uniform", "exponential") and not scene.gap_mean)
+            or (d == "list" and not any(scene.gap_values))
+            or (d == "from_length" and not scene.gap_extra_length))
+
+
+def fixed_step(scene, steps_per_contact: int) -> float:
+    """The step of N steps per contact time on the scene's sample grid: t_c / N (t_c at
+    the fastest striker) snapped down to sample_dt / k (k steps per sample) or, for a step
+    longer than the auto sample interval, to k sample_dt (a sample every step, on the
+    grid). Under Hertz scaling sample_dt / t_c is the same for every scene (auto sampling:
+    400 samples per solitary-wave width, t_c / 163), so a given N gives the same dt / t_c
+    and the same sampling everywhere: the measurement and ``resolve_auto`` both use it."""
+    v = max(scene.striker_velocities)
+    dt = scene.contact_time(v) / steps_per_contact
+    sdt = sample_interval(scene, v)
+    if scene.sample_dt is not None or dt < sdt:
+        return sdt / math.ceil(sdt / dt * (1.0 - 1e-12))
+    return sdt * math.floor(dt / sdt * (1.0 + 1e-12))
+
+
+def _round_up(x: float) -> float:
+    """x rounded up to two significant digits (a bound that prints as what it is)."""
+    if not (x > 0 and math.isfinite(x)):
+        return x
+    e = math.floor(math.log10(x)) - 1
+    return math.ceil(round(x / 10.0**e, 9)) * 10.0**e
+
+
+def auto_setting(scene: Scene, model: CostModel | None = None) -> tuple[str, float, float | None]:
+    """(method, dt, tolerance) of the cheapest setting meeting ``scene.tolerance`` on v_g
+    with a margin: its measured error (envelope) is <= tolerance / AUTO_SAFETY.
+
+    Pure: reads only the scene and the cost model (rows of the scene's class, packed or
+    gapped). dt = ``fixed_step(scene, N)``, as in the measurement, so that the samples
+    fall on the reference's. With several sample intervals (a sweep of striker speeds at
+    auto sampling) that cannot hold for every member, so when the target is below the
+    measured misalignment floor only adaptive is used. Adaptive keeps the scene's dt as
+    its first step and gets the model's tolerance as its rtol."""
+    model = model or load_model()
+    tol = float(scene.tolerance)
+    target = tol / AUTO_SAFETY
+    cls = "packed" if is_packed(scene) else "gapped"
+    lo = _round_up(AUTO_SAFETY * model.achievable("v_g", scene_class=cls))
+    if tol < lo:
+        raise SceneError("integrator.tolerance",
+                         f"{tol:g} is tighter than method auto can deliver on v_g "
+                         f"({cls} chains: {lo:.2g} to 0.1, granchain/data/cost_model.csv)",
+                         f"give a tolerance in [{lo:.2g}, 0.1], or choose method adaptive "
+                         "with its own tolerance")
+    vs = [v for v in scene.striker_velocities if v > 0]
+    methods = list(SCENE_METHODS)
+    if (len({sample_interval(scene, v) for v in vs}) > 1
+            and target < float(model.provenance["sampling_floor_v_g"][cls])):
+        methods = ["adaptive"]
+    pick = model.cheapest(target, "v_g", methods=methods, scene_class=cls)
+    if pick is None:
+        raise SceneError("integrator.tolerance", f"{tol:g}: no setting of the cost model meets it",
+                         f"give a tolerance in [{lo:.2g}, 0.1]")
+    if pick["method"] == "adaptive":
+        return "adaptive", scene.dt, pick["tolerance"]
+    if not vs:                                   # nothing moves: any step will do
+        return pick["method"], scene.dt, None
+    return pick["method"], fixed_step(scene, pick["steps_per_contact"]), None
+
+
+def resolve_auto(scene: Scene, model: CostModel | None = None) -> Scene:
+    """The scene that runs: ``scene`` itself unless its method is auto; else the scene
+    with the setting of :func:`auto_setting` (method, dt, tolerance in its spec, hence in
+    its hash, with the requested tolerance as ``auto_tolerance``), checked like any scene
+    with that setting (the step guard, sample_dt >= dt). A dt the scene file gave is
+    refused when auto chooses a fixed step of its own."""
+    if scene.method != "auto":
+        return scene
+    m, dt, rtol = auto_setting(scene, model)
+    if "integrator.dt" in scene.given and m in ("rk4", "verlet"):
+        raise SceneError("integrator.dt", f"has no effect: method auto chose {m} with its "
+                         f"own step ({dt:.3g} s) for tolerance {scene.tolerance:g}",
+                         "drop dt, or choose method rk4 or verlet to set the step")
+    resolved = scene.derive({"integrator": {"method": m, "dt": dt, "tolerance": rtol}})
+    return dataclasses.replace(resolved, auto_tolerance=scene.tolerance, given=scene.given)
+
+
+def describe_auto(scene: Scene) -> str:
+    """'auto (tolerance 0.0001) -> rk4, dt 1.23e-09 s' for a resolved auto scene."""
+    if scene.auto_tolerance is None:
+        return scene.method
+    how = (f"tolerance {scene.tolerance:g}" if scene.method == "adaptive"
+           else f"dt {scene.dt:.6g} s")
+    return f"auto (tolerance {scene.auto_tolerance:g}) -> {scene.method}, {how}"
