@@ -18,9 +18,11 @@ horizontal axis perpendicular to it (LAMMPS: x and omega_y); a sphere rolling fo
 omega > 0. Slip at the groove: u = v - s R omega. Slip at the contact of spheres k, k+1:
 w = R (omega_k + omega_{k+1}).
 
-To add an effect: a module here with the four parts above, its entry in ``MODULES`` and
-``Terms``, its block in ``engines/kernels.forces`` (and ``project`` if it has a history),
-its parameters in ``engines/reference.pack``, and its scene keys in ``granchain/scene.py``.
+- its kernel parameters and flags by slot name (``kernel(term)``).
+
+To add an effect: a module here with these parts, its entry in ``MODULES`` and ``Terms``,
+its slots and its block in ``engines/kernels.py`` (``forces``, and ``project`` if it has a
+history), and its scene keys in ``granchain/scene.py``.
 """
 from __future__ import annotations
 

@@ -36,6 +36,11 @@ def build(scene) -> AirDrag:
     return AirDrag(scene.drag_T0, scene.drag_L, scene.drag_form == "odd")
 
 
+def kernel(ad: AirDrag) -> tuple[dict, dict]:
+    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    return {"P_T0": ad.T0, "P_L": ad.L}, {"F_DRAG": 1, "F_ODD": int(ad.odd)}
+
+
 def lammps_fix(ad: AirDrag) -> tuple[str, str]:
     """(comment, fix groove/drag arguments) of the deck."""
     return ("# drag: F = -m (v/T0 - v^2/L)" + (" with v|v| (odd)" if ad.odd else " (as printed)"),

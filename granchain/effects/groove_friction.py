@@ -94,6 +94,11 @@ def build(scene) -> GrooveFriction:
                           scene.groove_damping)
 
 
+def kernel(gf: GrooveFriction) -> tuple[dict, dict]:
+    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    return {"P_S": gf.s, "P_FC": gf.Fc, "P_KG": gf.kt, "P_GG": gf.gamma}, {"F_GROOVE": 1}
+
+
 def lammps_fix(gf: GrooveFriction) -> tuple[str, str]:
     """(comment, fix groove/drag arguments) of the deck."""
     return (f"# groove: Coulomb limit mu m g / s, stick spring kt ({gf.kt_source}) + "

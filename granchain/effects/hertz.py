@@ -50,6 +50,11 @@ def build(scene) -> Hertz:
     return Hertz(scene.hertz_k, scene.radius, scene.material.E, scene.material.nu)
 
 
+def kernel(h: Hertz) -> tuple[dict, dict]:
+    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    return {"P_K": h.K}, {}
+
+
 def lammps_pair(h: Hertz) -> tuple[str, str]:
     """(comment, pair_coeff part) of the deck."""
     return ("# pair_coeff: hertz/material E eta_n0 nu (eta_n0 = 0: no damping; 'damping "

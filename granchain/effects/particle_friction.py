@@ -59,6 +59,11 @@ def build(scene) -> ParticleFriction:
     return ParticleFriction(scene.mu_pp, scene.tangential, kt, G_eff)
 
 
+def kernel(pf: ParticleFriction) -> tuple[dict, dict]:
+    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    return {"P_MU": pf.mu, "P_KT": pf.kt}, {"F_PP": 1, "F_MINDLIN": int(pf.model == "mindlin")}
+
+
 def lammps_pair(pf: ParticleFriction | None) -> tuple[str, str]:
     """(comment, pair_coeff part) of the deck; a zero tangential law when off."""
     if pf is None:

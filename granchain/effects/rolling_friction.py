@@ -71,6 +71,11 @@ def build(scene) -> RollingFriction:
     return RollingFriction(scene.k_roll, scene.gamma_roll, scene.mu_roll)
 
 
+def kernel(rf: RollingFriction) -> tuple[dict, dict]:
+    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    return {"P_KR": rf.k_roll, "P_GR": rf.gamma_roll, "P_MUR": rf.mu_roll}, {"F_ROLL": 1}
+
+
 def lammps_pair(rf: RollingFriction) -> tuple[str, str]:
     """(comment, pair_coeff part) of the deck."""
     return ("# rolling sds k_roll gamma_roll mu_roll: rolling_friction on",

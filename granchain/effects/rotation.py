@@ -20,6 +20,11 @@ def build(scene) -> Rotation:
     return Rotation(scene.inertia)
 
 
+def kernel(rot: Rotation) -> tuple[dict, dict]:
+    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    return {"P_I": rot.inertia}, {"F_ROT": 1}
+
+
 def lammps_integrator(rot: Rotation | None) -> str:
     """The deck's time integrator: translation and rotation, or translation only."""
     if rot is not None:

@@ -18,7 +18,7 @@ import numpy as np
 
 from .. import analytic
 from ..schedule import arrival_speed, auto_t_max, sample_interval
-from ..effects import SPECS, Terms, physics_terms
+from ..effects import MODULES, SPECS, Terms, physics_terms
 from ..guards import require_resolved
 from ..scene import Scene
 from ..trajectory import Trajectory
@@ -66,27 +66,15 @@ def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
     """Parameter vector P and flag vector FL of the kernels, from the effect definitions."""
     P = np.zeros(K.P_LEN)
     FL = np.zeros(K.F_LEN, dtype=np.int64)
-    P[K.P_N], P[K.P_R], P[K.P_M], P[K.P_K] = terms.n, terms.R, terms.m, terms.hertz.K
-    if terms.rotation is not None:
-        FL[K.F_ROT] = 1
-        P[K.P_I] = terms.rotation.inertia
-    if terms.air_drag is not None:
-        FL[K.F_DRAG] = 1
-        FL[K.F_ODD] = int(terms.air_drag.odd)
-        P[K.P_T0], P[K.P_L] = terms.air_drag.T0, terms.air_drag.L
-    if terms.groove_friction is not None:
-        g = terms.groove_friction
-        FL[K.F_GROOVE] = 1
-        P[K.P_S], P[K.P_FC], P[K.P_KG], P[K.P_GG] = g.s, g.Fc, g.kt, g.gamma
-    if terms.particle_friction is not None:
-        pf = terms.particle_friction
-        FL[K.F_PP] = 1
-        FL[K.F_MINDLIN] = int(pf.model == "mindlin")
-        P[K.P_MU], P[K.P_KT] = pf.mu, pf.kt
-    if terms.rolling_friction is not None:
-        rf = terms.rolling_friction
-        FL[K.F_ROLL] = 1
-        P[K.P_KR], P[K.P_GR], P[K.P_MUR] = rf.k_roll, rf.gamma_roll, rf.mu_roll
+    P[K.P_N], P[K.P_R], P[K.P_M] = terms.n, terms.R, terms.m
+    for mod in MODULES:
+        term = getattr(terms, mod.SPEC.name)
+        if term is not None:
+            params, flags = mod.kernel(term)
+            for slot, value in params.items():
+                P[getattr(K, slot)] = value
+            for slot, value in flags.items():
+                FL[getattr(K, slot)] = value
     return P, FL
 
 
