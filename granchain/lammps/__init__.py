@@ -1,25 +1,22 @@
-"""LAMMPS engine support: the ``fix groove/drag`` plugin and the LAMMPS runner.
+"""LAMMPS support: micro units (``units``), deck plans and texts (``plan``, ``deck``), the
+``fix groove/drag`` plugin (``plugin``) and the LAMMPS runner (``runner``).
 
+The runner and plugin names below load on first use, so that ``granchain.lammps.units``
+(which the effects' deck fragments use) imports nothing of the engine.
 The granular contact laws that LAMMPS applies, and the exact Verlet sequence the
 reference integrator has to mirror, are written down in ``docs/lammps_laws.md``.
 """
+import importlib
 
-from granchain.lammps.plugin import PLUGIN_FIX_STYLE, PluginBuildError, build_plugin
-from granchain.lammps.runner import (
-    LammpsError,
-    LammpsRun,
-    lammps_version,
-    lammps_version_date,
-    run_lammps,
-)
+_LAZY = {"PLUGIN_FIX_STYLE": "plugin", "PluginBuildError": "plugin", "build_plugin": "plugin",
+         "LammpsError": "runner", "LammpsRun": "runner", "lammps_version": "runner",
+         "lammps_version_date": "runner", "run_lammps": "runner"}
 
-__all__ = [
-    "PLUGIN_FIX_STYLE",
-    "LammpsError",
-    "LammpsRun",
-    "PluginBuildError",
-    "build_plugin",
-    "lammps_version",
-    "lammps_version_date",
-    "run_lammps",
-]
+
+def __getattr__(name):
+    if name in _LAZY:
+        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = sorted(_LAZY)
