@@ -16,7 +16,8 @@ from pathlib import Path
 from .costmodel import describe_auto, resolve_auto
 from .errors import GranchainError
 from .fileio import atomic_write_text, check_output_path
-from .guards import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost, scene_warnings
+from .guards import scene_warnings
+from .schedule import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost
 from .scene import load_scene
 
 

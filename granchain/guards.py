@@ -1,11 +1,10 @@
-"""Guards on a scene before it runs: sampling accuracy, cost, physics warnings.
+"""Guards on a scene before it runs: sampling accuracy and physics warnings (the cost
+guard, which needs the run plan, is ``granchain.schedule.check_cost``).
 
 No numba or scipy, so ``granchain validate`` stays light. The solitary wave comes from
-``granchain.analytic``, the sample grid from ``granchain.schedule``.
+``granchain.analytic``.
 
-* :func:`cost_estimate` / :func:`check_cost`: integration steps per chain and memory of
-  one chain's sample record, refused above limits the caller can raise (``granchain run
-  --max-steps / --max-memory-gb``).
+* :func:`max_sample_dt`: the coarsest sampling that resolves the pulse.
 * :func:`physics_warnings`: where the scene leaves the model's range (Hertz overlap) or
   ends before its wave arrives.
 * :func:`require_resolved`: what needs the step refuses a scene still at method auto.
@@ -15,19 +14,12 @@ from __future__ import annotations
 import math
 
 from .analytic import nesterenko_speed, pulse_width
-from .errors import GranchainError
-from .schedule import sample_interval
 
 # Fewest samples per solitary-wave width a scene's output.sample_dt may give (v_max at
 # 25 samples per width is off by 6e-4, at 400 by 3e-8).
 MIN_SAMPLES_PER_PULSE = 20
 # Hertz theory holds for small overlaps: warn above this peak overlap / radius
 MAX_OVERLAP_RATIO = 1e-2
-# default cost limits (per chain)
-DEFAULT_MAX_STEPS = 1e8
-DEFAULT_MAX_MEMORY_GB = 4.0
-# columns of a chain's sample record besides the n velocities (kernels.E_LEN)
-RECORD_EXTRA_COLUMNS = 8
 
 
 def require_resolved(scene, who: str) -> None:
@@ -56,7 +48,7 @@ def floor_sig(x: float, digits: int = 2) -> float:
     return float(d.quantize(Decimal(1).scaleb(d.adjusted() - digits + 1), rounding=ROUND_FLOOR))
 
 
-def _gap_total(scene, contacts: int) -> float:
+def gap_total(scene, contacts: int) -> float:
     """Expected sum of the first ``contacts`` gaps (m)."""
     contacts = max(0, min(contacts, scene.n - 1))
     dist = scene.gap_distribution
@@ -69,73 +61,11 @@ def _gap_total(scene, contacts: int) -> float:
     return contacts * (scene.gap_mean or 0.0)
 
 
-def expected_duration(scene, v: float) -> float:
-    """Simulated time of one chain: t_end, or with t_end auto the time for the wave to
-    leave the whole chain: n-1 contacts at V_N(0.5 v) plus the flight over all gaps at v."""
-    if scene.t_end is not None:
-        return scene.t_end
-    if v <= 0:
-        return 0.0
-    travel = (scene.n - 1) * 2.0 * scene.radius / float(nesterenko_speed(scene.material, 0.5 * v))
-    return travel + _gap_total(scene, scene.n - 1) / v
-
-
-def cost_estimate(scene, v: float) -> dict:
-    """Estimated duration (s), integration steps, samples and record bytes of one chain
-    (of a resolved scene: method auto has no step yet)."""
-    require_resolved(scene, "cost_estimate")
-    dur = expected_duration(scene, v)
-    sdt = sample_interval(scene, v)
-    samples = dur / sdt + 1.0 if (v > 0 or scene.t_end is not None) else 1.0
-    if scene.method == "adaptive":
-        steps = samples                 # at least one step per sample
-    else:
-        steps = dur / scene.dt
-    return {"duration_s": dur, "steps": steps, "samples": samples,
-            "record_bytes": samples * (scene.n + RECORD_EXTRA_COLUMNS) * 8.0}
-
-
-def check_cost(scene, max_steps: float = DEFAULT_MAX_STEPS,
-               max_memory_gb: float = DEFAULT_MAX_MEMORY_GB) -> None:
-    """Refuse (one line) a scene whose chains exceed the step or memory limit."""
-    if not (max_steps > 0) or not (max_memory_gb > 0):
-        raise GranchainError(f"--max-steps / --max-memory-gb: limits must be > 0 (got "
-                             f"{max_steps:g}, {max_memory_gb:g}); give positive numbers")
-    worst = max((cost_estimate(scene, v) for v in scene.striker_velocities),
-                key=lambda c: (c["steps"], c["record_bytes"]))
-    how = ("t_end" if scene.t_end is not None else
-           "t_end auto: until the wave has left particle n")
-    if worst["steps"] > max_steps:
-        step = (f"dt = {scene.dt:g} s" if scene.method != "adaptive"
-                else "one adaptive step per sample")
-        raise GranchainError(
-            f"--max-steps: scene '{scene.name}' needs an estimated {worst['steps']:.3g} "
-            f"integration steps per chain ({worst['duration_s']:.3g} s simulated, {how}; {step}), "
-            f"above the limit {max_steps:.3g}; pass --max-steps {_ceil_sig(worst['steps'])} "
-            "if you mean it, or shorten the run (t_end, gaps, chain.n)")
-    gb = worst["record_bytes"] / 1e9
-    if gb > max_memory_gb:
-        raise GranchainError(
-            f"--max-memory-gb: scene '{scene.name}' needs an estimated {gb:.3g} GB per chain "
-            f"for its sample record ({worst['samples']:.3g} samples x {scene.n + RECORD_EXTRA_COLUMNS} "
-            f"values), above the limit {max_memory_gb:g} GB; pass --max-memory-gb "
-            f"{_ceil_sig(gb)} if you mean it, or sample less often (output.sample_dt) or "
-            "shorten the run (t_end, chain.n)")
-
-
-def _ceil_sig(x: float) -> str:
-    """x rounded up to 2 significant digits, as text (a limit that accepts x)."""
-    if not (x > 0 and math.isfinite(x)):
-        return f"{x:g}"
-    e = math.floor(math.log10(x)) - 1
-    return f"{math.ceil(x / 10.0**e) * 10.0**e:.2g}"
-
-
 def far_probe_arrival(scene, v: float) -> float:
     """Estimated time at which the wave reaches the far probe p2 (s)."""
     p2 = scene.probes[-1]
     travel = (p2 - 1) * 2.0 * scene.radius / float(nesterenko_speed(scene.material, 0.64 * v))
-    return travel + _gap_total(scene, p2 - 1) / v
+    return travel + gap_total(scene, p2 - 1) / v
 
 
 def physics_warnings(scene, v_striker: float) -> list[str]:

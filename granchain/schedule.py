@@ -2,6 +2,8 @@
 engines and the observables.
 
 Sampling: ``sample_interval`` (the scene's, or 400 samples per solitary-wave width).
+Cost: ``cost_estimate`` / ``check_cost``, the steps and sample record a run will need,
+refused above limits the caller can raise.
 
 A particle has *seen the wave* once its velocity exceeds ``ARRIVAL_FRACTION * v_s``.
 Its peak velocity is *final* (a measured maximum, inside the run) when:
@@ -26,11 +28,20 @@ these definitions with the constants below.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import analytic
+from .errors import GranchainError
+from .guards import gap_total, require_resolved
 
 SAMPLES_PER_PULSE = 400    # auto sampling: samples per solitary-wave width
+# default cost limits (per chain), raised with granchain run --max-steps / --max-memory-gb
+DEFAULT_MAX_STEPS = 1e8
+DEFAULT_MAX_MEMORY_GB = 4.0
+# columns of a chain's sample record besides the n velocities (kernels.E_LEN)
+RECORD_EXTRA_COLUMNS = 8
 ARRIVAL_FRACTION = 1e-3    # a particle has seen the wave once v > ARRIVAL_FRACTION * v_s
 PASS_FRACTION = 0.5        # the wave has passed an inner particle once v < this * its peak
 
@@ -72,3 +83,68 @@ def last_detached(v_last, overlap_last, v_striker):
 def inner_passed(v_after_peak: np.ndarray, v_peak: float) -> bool:
     """Has the wave passed an inner particle? v_after_peak: its samples after the peak."""
     return bool(np.any(np.asarray(v_after_peak) < PASS_FRACTION * v_peak))
+
+
+# ---------------------------------------------------------------------------------------
+# what a run will cost, estimated before it starts
+# ---------------------------------------------------------------------------------------
+def expected_duration(scene, v: float) -> float:
+    """Simulated time of one chain: t_end, or with t_end auto the time for the wave to
+    leave the whole chain: n-1 contacts at V_N(0.5 v) plus the flight over all gaps at v."""
+    if scene.t_end is not None:
+        return scene.t_end
+    if v <= 0:
+        return 0.0
+    travel = (scene.n - 1) * 2.0 * scene.radius / float(analytic.nesterenko_speed(scene.material, 0.5 * v))
+    return travel + gap_total(scene, scene.n - 1) / v
+
+
+def cost_estimate(scene, v: float) -> dict:
+    """Estimated duration (s), integration steps, samples and record bytes of one chain
+    (of a resolved scene: method auto has no step yet)."""
+    require_resolved(scene, "cost_estimate")
+    dur = expected_duration(scene, v)
+    sdt = sample_interval(scene, v)
+    samples = dur / sdt + 1.0 if (v > 0 or scene.t_end is not None) else 1.0
+    if scene.method == "adaptive":
+        steps = samples                 # at least one step per sample
+    else:
+        steps = dur / scene.dt
+    return {"duration_s": dur, "steps": steps, "samples": samples,
+            "record_bytes": samples * (scene.n + RECORD_EXTRA_COLUMNS) * 8.0}
+
+
+def check_cost(scene, max_steps: float = DEFAULT_MAX_STEPS,
+               max_memory_gb: float = DEFAULT_MAX_MEMORY_GB) -> None:
+    """Refuse (one line) a scene whose chains exceed the step or memory limit."""
+    if not (max_steps > 0) or not (max_memory_gb > 0):
+        raise GranchainError(f"--max-steps / --max-memory-gb: limits must be > 0 (got "
+                             f"{max_steps:g}, {max_memory_gb:g}); give positive numbers")
+    worst = max((cost_estimate(scene, v) for v in scene.striker_velocities),
+                key=lambda c: (c["steps"], c["record_bytes"]))
+    how = ("t_end" if scene.t_end is not None else
+           "t_end auto: until the wave has left particle n")
+    if worst["steps"] > max_steps:
+        step = (f"dt = {scene.dt:g} s" if scene.method != "adaptive"
+                else "one adaptive step per sample")
+        raise GranchainError(
+            f"--max-steps: scene '{scene.name}' needs an estimated {worst['steps']:.3g} "
+            f"integration steps per chain ({worst['duration_s']:.3g} s simulated, {how}; {step}), "
+            f"above the limit {max_steps:.3g}; pass --max-steps {_ceil_sig(worst['steps'])} "
+            "if you mean it, or shorten the run (t_end, gaps, chain.n)")
+    gb = worst["record_bytes"] / 1e9
+    if gb > max_memory_gb:
+        raise GranchainError(
+            f"--max-memory-gb: scene '{scene.name}' needs an estimated {gb:.3g} GB per chain "
+            f"for its sample record ({worst['samples']:.3g} samples x {scene.n + RECORD_EXTRA_COLUMNS} "
+            f"values), above the limit {max_memory_gb:g} GB; pass --max-memory-gb "
+            f"{_ceil_sig(gb)} if you mean it, or sample less often (output.sample_dt) or "
+            "shorten the run (t_end, chain.n)")
+
+
+def _ceil_sig(x: float) -> str:
+    """x rounded up to 2 significant digits, as text (a limit that accepts x)."""
+    if not (x > 0 and math.isfinite(x)):
+        return f"{x:g}"
+    e = math.floor(math.log10(x)) - 1
+    return f"{math.ceil(x / 10.0**e) * 10.0**e:.2g}"

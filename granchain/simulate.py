@@ -12,7 +12,8 @@ import numpy as np
 from .costmodel import resolve_auto
 from .errors import GranchainError
 from .gaps import Member, member_gaps, members
-from .guards import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost, physics_warnings
+from .guards import physics_warnings
+from .schedule import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost
 from .observables import summarize
 from .scene import Scene
 

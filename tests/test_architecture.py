@@ -97,6 +97,39 @@ def test_the_cycle_finder_finds_a_lazy_cycle(tmp_path):
     assert lazy and lazy[0].module == "granchain.simulate"
 
 
+# Layers, lowest first: a module may import its own layer and the layers before it.
+LAYERS = (
+    ("data", ("granchain", "granchain.errors", "granchain.materials", "granchain.fileio",
+              "granchain.analytic", "granchain.scene", "granchain.gaps", "granchain.guards")),
+    ("physics", ("granchain.effects", "granchain.lammps.units", "granchain.lammps")),
+    ("run plan", ("granchain.schedule",)),
+    ("engines", ("granchain.trajectory", "granchain.engines", "granchain.lammps.plan",
+                 "granchain.lammps.deck", "granchain.lammps.plugin", "granchain.lammps.runner")),
+    ("analysis", ("granchain.observables", "granchain.tables", "granchain.analysis")),
+    ("application", ("granchain.costmodel", "granchain.simulate", "granchain.compare",
+                     "granchain.accuracy", "granchain.cost", "granchain.figures",
+                     "granchain.thesis", "granchain.workflow", "granchain.cli")),
+)
+
+
+def layer_of(module: str) -> int:
+    """Index in LAYERS of the longest prefix naming the module."""
+    best, depth = None, -1
+    for k, (_, prefixes) in enumerate(LAYERS):
+        for p in prefixes:
+            if (module == p or module.startswith(p + ".")) and p.count(".") > depth:
+                best, depth = k, p.count(".")
+    assert best is not None, f"{module} is in no layer of tests/test_architecture.py"
+    return best
+
+
+def test_imports_point_down_the_layers():
+    graph = import_graph()
+    up = [f"{m} ({LAYERS[layer_of(m)][0]}) imports {t} ({LAYERS[layer_of(t)][0]})"
+          for m in sorted(graph) for t in sorted(graph[m]) if layer_of(t) > layer_of(m)]
+    assert not up, "\n".join(up)
+
+
 def test_scene_layer_loads_no_engine():
     code = ("import sys, granchain.scene, granchain.gaps, granchain.guards; "
             "print(sorted(m for m in ('numba', 'scipy', 'lammps', 'MDAnalysis', 'matplotlib') "

@@ -19,7 +19,7 @@ import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from granchain import analytic, guards
+from granchain import analytic, guards, schedule
 from granchain.cli import main
 from granchain.errors import GranchainError, SceneError
 from granchain.fileio import atomic_write_text
@@ -449,8 +449,8 @@ def test_runaway_scenes_are_refused_at_once(tmp_path, capsys, no_compute, text, 
 def test_cost_limits_can_be_raised():
     sc = load_scene(SCENES / "packed-440c.yaml", ["gaps={distribution: fixed, mean: 1.0e-3}"])
     with pytest.raises(GranchainError, match="--max-steps"):
-        guards.check_cost(sc)
-    guards.check_cost(sc, max_steps=2e8)
+        schedule.check_cost(sc)
+    schedule.check_cost(sc, max_steps=2e8)
     from granchain.simulate import run_scene
     with pytest.raises(GranchainError, match="--max-steps"):
         run_scene(packed(), max_steps=10)
@@ -462,8 +462,8 @@ def test_auto_duration_covers_the_whole_chain():
     sc = packed(**{"gaps": "{distribution: fixed, mean: 1.0e-8}"})
     v = 0.1
     travel = 14 * 2 * sc.radius / float(analytic.nesterenko_speed(sc.material, 0.05))
-    assert guards.expected_duration(sc, v) == pytest.approx(travel + 14 * 1e-8 / v)
-    est = guards.cost_estimate(sc, v)
+    assert schedule.expected_duration(sc, v) == pytest.approx(travel + 14 * 1e-8 / v)
+    est = schedule.cost_estimate(sc, v)
     assert est["steps"] == pytest.approx(est["duration_s"] / sc.dt)
     assert est["record_bytes"] == pytest.approx(est["samples"] * (15 + 8) * 8)
 
@@ -475,8 +475,8 @@ def test_workflow_presets_pass_the_default_limits():
         _, preset = W.load_config(REPO / "config" / "config.yaml", name)
         for study in W.STUDIES:
             for ss in W.study_scenes(preset, study):
-                guards.check_cost(ss.scene)
-                guards.check_cost(W.packed_scene(ss))
+                schedule.check_cost(ss.scene)
+                schedule.check_cost(W.packed_scene(ss))
 
 
 # ---------------------------------------------------------------------------------------
