@@ -276,10 +276,22 @@ def test_out_is_checked_before_any_computation(tmp_path, capsys, no_compute, cmd
     assert (tmp_path / "r.json").read_text() == "precious"
 
 
+def _fake_result():
+    """A ChainResult with placeholder values (a run that was never computed)."""
+    from granchain.observables import LEDGER_ENTRIES, ChainResult, EnergyLedger
+    nan = math.nan
+    return ChainResult(
+        v_striker=0.1, wave_arrived=False, status="done", v_max=(nan, nan), t_peak=(nan, nan),
+        t_front=(nan, nan), plateau=(False, False), final=(False, False), not_final=(1, 2),
+        probes=(1, 2), v_max_1=nan, v_max_2=nan, dt_peak=nan, dt_front=nan,
+        gap_mean_probes=0.0, v_g=nan, v_g_front=nan,
+        energy=EnergyLedger(**{k: 0.0 for k in LEDGER_ENTRIES}), steps=0, rejected_steps=0,
+        wall_s=0.0, t_end=0.0, samples=1)
+
+
 def _fake_runs(monkeypatch):
     import granchain.simulate
-    monkeypatch.setattr(granchain.simulate, "run_scene",
-                        lambda scene, **kw: [{"v_striker": 0.1, "warnings": []}])
+    monkeypatch.setattr(granchain.simulate, "run_scene", lambda scene, **kw: [_fake_result()])
 
 
 def test_out_force_replaces_and_leaves_other_files_alone(tmp_path, capsys, monkeypatch):
@@ -423,10 +435,10 @@ def test_run_attaches_warnings_to_results_and_tables(tmp_path, capsys):
             "extra_length_um": math.nan, "seed": 0, "scene_hash": "h"}
     from granchain.simulate import run_scene
     run, = run_scene(load_scene(scene))
-    assert run["warnings"] == doc["warnings"]
-    row = tables.member_row(meta, dict(run, warnings=["a", "b"]), 6)
+    assert list(run.warnings) == doc["warnings"]
+    row = tables.member_row(meta, dataclasses.replace(run, warnings=("a", "b")), 6)
     assert row["warnings"] == "a;b"
-    assert tables.member_row(meta, dict(run, warnings=[]), 6)["warnings"] == ""
+    assert tables.member_row(meta, dataclasses.replace(run, warnings=()), 6)["warnings"] == ""
     assert "warnings" in tables.columns(6)
 
 
