@@ -442,6 +442,41 @@ def test_run_attaches_warnings_to_results_and_tables(tmp_path, capsys):
     assert "warnings" in tables.columns(6)
 
 
+def test_results_are_frozen_typed_and_keep_their_json_and_row_layout():
+    import pickle
+
+    from granchain import tables
+    from granchain.effects import ENERGY_COLUMNS
+    from granchain.observables import ChainResult, EnergyLedger
+    from granchain.simulate import run_scene
+    run, = run_scene(packed(**{"chain.n": 6, "probes": "[2, 6]"}))
+    assert isinstance(run, ChainResult) and isinstance(run.energy, EnergyLedger)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        run.v_g = 0.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        run.energy.balance_error = 0.0
+    assert isinstance(run.v_max, tuple) and len(run.v_max) == run.n == 6
+    # the ledger's entries are the registry's columns, then the three derived ones
+    ledger = [f.name for f in dataclasses.fields(EnergyLedger)]
+    assert ledger == [*ENERGY_COLUMNS, "initial", "final_mechanical", "balance_error"]
+    assert pickle.loads(pickle.dumps(run)) == run
+    doc = run.to_json()
+    assert list(doc) == [f.name for f in dataclasses.fields(ChainResult)]
+    assert list(doc["energy"]) == ledger and isinstance(doc["v_max"], list)
+    assert doc["member"] == 0 and doc["engine"] == "reference" and doc["method"] == "rk4"
+    # to_row: the run's columns; member_row adds the study's, in table order
+    meta = {"study": "s", "material": "ss440c", "gap_distribution": "none", "gap_mean_nm": 0.0,
+            "extra_length_um": 0.0, "seed": 0, "scene_hash": "h"}
+    row = tables.member_row(meta, run, 6)
+    assert list(row) == tables.columns(6)
+    assert set(tables.columns(6)) - set(run.to_row()) == {
+        *meta, "v_g_bound_eq54_m_s"}
+    with pytest.raises(ValueError, match="particles"):
+        tables.member_row(meta, run, 7)
+    with pytest.raises(ValueError, match="run_scene"):
+        dataclasses.replace(run, realisation=None).to_row()
+
+
 # ---------------------------------------------------------------------------------------
 # cost guard
 # ---------------------------------------------------------------------------------------
