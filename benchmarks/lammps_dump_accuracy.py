@@ -92,20 +92,20 @@ def main():
                              sc.probes)
 
         base = observe(every_default, v64)
-        sharp = ~np.array(base["plateau"])          # particles with a sharp peak
+        sharp = ~np.array(base.plateau)          # particles with a sharp peak
         for k in (1, 4, 16):
             e = k * every_default
             s64, s32 = observe(e, v64), observe(e, v32)
-            vm64, vm32 = np.array(s64["v_max"]), np.array(s32["v_max"])
-            tp64, tp32 = np.array(s64["t_peak"]), np.array(s32["t_peak"])
+            vm64, vm32 = np.array(s64.v_max), np.array(s32.v_max)
+            tp64, tp32 = np.array(s64.t_peak), np.array(s32.t_peak)
             rows.append((sc.name, k, e, int(sharp.sum()),
                          float(np.max(np.abs(vm64 - vm_true)[sharp] / vm_true[sharp])),
                          float(np.max(np.abs(tp64 - tp_true)[sharp])) * 1e9,
-                         abs(s64["v_g"] - vg_true) / vg_true,
-                         abs(s64["v_g_front"] - base["v_g_front"]) / base["v_g_front"],
+                         abs(s64.v_g - vg_true) / vg_true,
+                         abs(s64.v_g_front - base.v_g_front) / base.v_g_front,
                          float(np.max(np.abs(vm32 - vm64) / vm64)),
                          float(np.max(np.abs(tp32 - tp64))) * 1e9,
-                         abs(s32["v_g"] - s64["v_g"]) / s64["v_g"]))
+                         abs(s32.v_g - s64.v_g) / s64.v_g))
     print(f"default cadence: every {default_every} steps (dt = 1 ns); truth: every step.")
     print("errors vs truth (float64 columns; v_max, t_peak over the sharp peaks), and what "
           "MDAnalysis' float32 velocities change at the same cadence")

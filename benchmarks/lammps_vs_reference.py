@@ -52,12 +52,12 @@ def worst(ref, lmp, probes):
     out = {"v_max": 0.0, "v_g": 0.0, "samples_differ": 0}
     for r, lt in zip(ref, lmp):
         a, b = summarize(r, probes), summarize(lt, probes)
-        va, vb = np.array(a["v_max"]), np.array(b["v_max"])
+        va, vb = np.array(a.v_max), np.array(b.v_max)
         floor = 1e-3 * r.v_striker
         out["v_max"] = max(out["v_max"], float(np.max(np.abs(vb - va) / np.maximum(va, floor))))
-        if np.isfinite(a["v_g"]):
-            out["v_g"] = max(out["v_g"], abs(b["v_g"] - a["v_g"]) / a["v_g"])
-        out["samples_differ"] += int(a["samples"] != b["samples"])
+        if np.isfinite(a.v_g):
+            out["v_g"] = max(out["v_g"], abs(b.v_g - a.v_g) / a.v_g)
+        out["samples_differ"] += int(a.samples != b.samples)
     return out
 
 

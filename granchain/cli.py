@@ -48,24 +48,23 @@ def _print_human(scene, runs, out=None):
           f"R = {scene.radius:g} m, effects: {', '.join(sorted(scene.effects))}", file=out)
     p1, p2 = scene.probes[:2]
     for r in runs:
-        vs = r["v_striker"]
-        head = f"v_s = {vs:g} m/s, realisation {r['realisation']}"
-        cut = r.get("not_final") or []
+        vs = r.v_striker
+        head = f"v_s = {vs:g} m/s, realisation {r.realisation}"
+        cut = list(r.not_final)
         note = (f"; peak not measured (n/a) for particle{'s' if len(cut) > 1 else ''} "
                 f"{_ranges(cut)}" if cut else "")
-        if not r["wave_arrived"]:
+        if not r.wave_arrived:
             missed = [p for p in (p1, p2) if p in cut]
             print(f"{head}: no measured peak at probe{'s' if len(missed) > 1 else ''} "
-                  f"{_ranges(missed)} (status {r['status']}){note}", file=out)
+                  f"{_ranges(missed)} (status {r.status}){note}", file=out)
             continue
-        e = r["energy"]
-        print(f"{head}: v_max,1 = {_fmt(r['v_max_1'])} m/s ({_fmt(r['v_max_1'] / vs)} v_s) at particle {p1}; "
-              f"v_max,2 = {_fmt(r['v_max_2'])} m/s ({_fmt(r['v_max_2'] / vs)} v_s) at {p2}; "
-              f"dt = {_fmt(r['dt_peak'])} s; v_g = {_fmt(r['v_g'])} m/s "
-              f"(front: {_fmt(r['v_g_front'])}); energy balance error {_fmt(e['balance_error'], digits=2)}"
+        print(f"{head}: v_max,1 = {_fmt(r.v_max_1)} m/s ({_fmt(r.v_max_1 / vs)} v_s) at particle {p1}; "
+              f"v_max,2 = {_fmt(r.v_max_2)} m/s ({_fmt(r.v_max_2 / vs)} v_s) at {p2}; "
+              f"dt = {_fmt(r.dt_peak)} s; v_g = {_fmt(r.v_g)} m/s "
+              f"(front: {_fmt(r.v_g_front)}); energy balance error {_fmt(r.energy.balance_error, digits=2)}"
               f"{_residual_note(scene, r)}; "
-              f"{r['steps']} steps, {_fmt(r['wall_s'], ' s', 3)}{note}", file=out)
-    _print_warnings([w for r in runs for w in r.get("warnings", ())], out)
+              f"{r.steps} steps, {_fmt(r.wall_s, ' s', 3)}{note}", file=out)
+    _print_warnings([w for r in runs for w in r.warnings], out)
 
 
 def _ranges(ps) -> str:
@@ -92,7 +91,7 @@ def _print_warnings(warnings, out) -> None:
 def _residual_note(scene, r) -> str:
     from .effects import residual_work
     missing = residual_work(scene.effects)
-    if r.get("engine") == "lammps" and missing:
+    if r.engine == "lammps" and missing:
         return (f" (LAMMPS: {' + '.join(missing)} is the balance residual, not an "
                 "independent check)")
     return ""
@@ -121,9 +120,10 @@ def cmd_run(args) -> int:
     runs = run_scene(scene, engine=args.engine, max_steps=args.max_steps,
                      max_memory_gb=args.max_memory_gb, **_engine_kw(args))
     if len(runs) == 1:
-        doc = dict(runs[0], scene=scene.name, scene_hash=scene.hash)
+        doc = dict(runs[0].to_json(), scene=scene.name, scene_hash=scene.hash)
     else:
-        doc = {"scene": scene.name, "scene_hash": scene.hash, "runs": runs}
+        doc = {"scene": scene.name, "scene_hash": scene.hash,
+               "runs": [r.to_json() for r in runs]}
     if not args.json:
         _print_human(scene, runs)
     elif not args.out:

@@ -149,28 +149,29 @@ def member_rows(scene: Scene, ref, lmp) -> list[dict]:
     vfloor = arrival_speed(max(ref.v_striker, 1e-300))
     out = [_row("samples", int(ref.t.size), int(lmp.t.size),
                 float(abs(int(ref.t.size) - int(lmp.t.size))), "exact", 0.0, WHY_SAMPLES)]
-    for i, (a, b) in enumerate(zip(sr["v_max"], sl["v_max"])):
+    for i, (a, b) in enumerate(zip(sr.v_max, sl.v_max)):
         out.append(_row(f"v_max[{i + 1}]", a, b, _rel(a, b, vfloor), "rel", V_TOL, WHY_V))
-    for q in ("v_max_1", "v_max_2"):
-        out.append(_row(q, sr[q], sl[q], _rel(sr[q], sl[q], vfloor), "rel", V_TOL, WHY_V))
-    for q in ("dt_peak", "dt_front"):
-        out.append(_row(q, sr[q], sl[q], _rel(sr[q], sl[q], 0.0), "rel", T_TOL, WHY_T))
-    for q in ("v_g", "v_g_front"):
-        out.append(_row(q, sr[q], sl[q], _rel(sr[q], sl[q], 0.0), "rel", V_TOL, WHY_V))
-    er, el = sr["energy"], sl["energy"]
-    e0 = er["initial"] if er["initial"] > 0 else 1.0
+    for q, a, b in (("v_max_1", sr.v_max_1, sl.v_max_1), ("v_max_2", sr.v_max_2, sl.v_max_2)):
+        out.append(_row(q, a, b, _rel(a, b, vfloor), "rel", V_TOL, WHY_V))
+    for q, a, b in (("dt_peak", sr.dt_peak, sl.dt_peak), ("dt_front", sr.dt_front, sl.dt_front)):
+        out.append(_row(q, a, b, _rel(a, b, 0.0), "rel", T_TOL, WHY_T))
+    for q, a, b in (("v_g", sr.v_g, sl.v_g), ("v_g_front", sr.v_g_front, sl.v_g_front)):
+        out.append(_row(q, a, b, _rel(a, b, 0.0), "rel", V_TOL, WHY_V))
+    er, el = sr.energy, sl.energy
+    e0 = er.initial if er.initial > 0 else 1.0
     residual = lmp.meta.get("balance") == "residual"
+    # the ledger's entries by name: ENERGY_COLUMNS comes from the effects registry
     for q in ENERGY_COLUMNS + ("initial", "final_mechanical"):
-        a, b = er[q], el[q]
+        a, b = getattr(er, q), getattr(el, q)
         if residual and q == "work_particle_friction":
-            a = er["work_particle_friction"] + er["work_rolling_friction"]
+            a = er.work_particle_friction + er.work_rolling_friction
             out.append(_row("work_particle_friction+work_rolling_friction", a, b,
                             abs(b - a) / e0, "abs/E0", None, WHY_RESIDUAL))
             continue
         if residual and q == "work_rolling_friction":
             continue
         out.append(_row(q, a, b, abs(b - a) / e0, "abs/E0", E_TOL, WHY_E))
-    a, b = er["balance_error"], el["balance_error"]
+    a, b = er.balance_error, el.balance_error
     if residual:
         out.append(_row("balance_error", a, b, abs(b - a), "abs (of /E0)", None,
                         WHY_BALANCE_RESIDUAL))

@@ -21,14 +21,25 @@ between the probes (11 for the chapter's probes). ``v_g`` uses peak times, as th
 chapter does; ``v_g_front`` uses arrival (half-peak) times and is the robust choice
 for gapped chains; both are always reported, with ``plateau`` flags per particle. They
 need both probes' peaks to be final; ``wave_arrived`` says whether they are.
+
+Results are typed: :func:`summarize` returns a frozen :class:`ChainResult` (per-particle
+values as tuples, the energy ledger as a frozen :class:`EnergyLedger` whose entries are
+``ENERGY_COLUMNS`` plus initial, final_mechanical and balance_error).
+``granchain.simulate.run_scene`` fills in the member fields with ``dataclasses.replace``.
+``ChainResult.to_json`` is the JSON document of one run, ``ChainResult.to_row`` the run's
+columns of the results table; the table's run-derived column names (``ENERGY_MAP``,
+``vmax_columns``) are defined here, and ``granchain.tables`` uses them.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from . import schedule
+from .effects import SPECS
 from .trajectory import ENERGY_COLUMNS, Trajectory
 
 PEAK_TOL = 1e-4
@@ -101,7 +112,156 @@ def peaks(traj: Trajectory):
     return v_max, t_peak, t_front, plateau.astype(bool), final
 
 
-def energy_ledger(traj: Trajectory) -> dict:
+# ---------------------------------------------------------------------------------------
+# typed results
+# ---------------------------------------------------------------------------------------
+# Entries of the energy ledger: the engines' columns (from the effects registry), then the
+# initial energy, the final mechanical energy and the balance error.
+LEDGER_ENTRIES = ENERGY_COLUMNS + ("initial", "final_mechanical", "balance_error")
+
+
+def _ledger_to_dict(self) -> dict[str, float]:
+    """The ledger as a dict, in ``LEDGER_ENTRIES`` order (the JSON form)."""
+    return {name: getattr(self, name) for name in LEDGER_ENTRIES}
+
+
+# A frozen dataclass whose float fields are LEDGER_ENTRIES: an effect added to the registry
+# adds its work field here. Read an entry as an attribute (``ledger.balance_error``), or
+# ``getattr(ledger, name)`` for a name taken from ENERGY_COLUMNS.
+EnergyLedger = dataclasses.make_dataclass(
+    "EnergyLedger", [(name, float) for name in LEDGER_ENTRIES], frozen=True,
+    namespace={"to_dict": _ledger_to_dict,
+               "__doc__": "Energy ledger of one chain (J; balance_error relative to the "
+                          "initial energy): the final value of every ENERGY_COLUMNS entry "
+                          "(works: done on the particles by that effect from t = 0), the "
+                          "initial energy, the final mechanical energy, the balance error."})
+EnergyLedger.__module__ = __name__
+
+# Results-table columns of a run (units in the names): the energy-ledger entries ->
+# table columns (the works from the effects' declarations), and one v_max column per
+# particle (``vmax_columns``). ``granchain.tables`` lays the table out with these.
+ENERGY_MAP = {"energy_initial_J": "initial",
+              **{s.table_column: s.work for s in SPECS.values() if s.work},
+              "balance_error": "balance_error"}
+
+
+def vmax_columns(n: int) -> list[str]:
+    """``vmax_p01_m_s`` ... one per particle, zero-padded to the width of n (at least 2)."""
+    width = max(2, len(str(n)))
+    return [f"vmax_p{i:0{width}d}_m_s" for i in range(1, n + 1)]
+
+
+def _ratio(a: float, b: float) -> float:
+    return a / b if b > 0 and math.isfinite(a) and math.isfinite(b) else math.nan
+
+
+@dataclass(frozen=True)
+class ChainResult:
+    """Observables of one chain (SI units; NaN where not measured), and, from
+    ``simulate.run_scene``, which member of its scene it is and how it was run.
+
+    Per particle (tuples of n, particle i at index i - 1): v_max, t_peak, t_front (NaN
+    where the peak is not final), plateau, final. not_final: the particles (1-based)
+    whose peak is not final. probes: the probe particles (1-based). v_max_1, v_max_2,
+    dt_peak, dt_front, v_g, v_g_front: the probes' observables (module docstring);
+    gap_mean_probes: mean gap between the probes (m). energy: the energy ledger.
+    steps, rejected_steps: integration steps taken and rejected (adaptive); wall_s: the
+    engine's wall time of this chain; t_end: time of the last sample; samples: their count.
+
+    Member fields (None or empty from ``summarize`` alone): member (index in the scene),
+    realisation (gap realisation), engine, method, dt (the integrator's step, s),
+    warnings (one-line physics warnings for this striker speed), batch_wall_s (wall
+    time of the whole ``run_scene`` call).
+
+    The field order is the key order of :meth:`to_json`.
+    """
+    v_striker: float
+    wave_arrived: bool
+    status: str
+    v_max: tuple[float, ...]
+    t_peak: tuple[float, ...]
+    t_front: tuple[float, ...]
+    plateau: tuple[bool, ...]
+    final: tuple[bool, ...]
+    not_final: tuple[int, ...]
+    probes: tuple[int, ...]
+    v_max_1: float
+    v_max_2: float
+    dt_peak: float
+    dt_front: float
+    gap_mean_probes: float
+    v_g: float
+    v_g_front: float
+    energy: EnergyLedger
+    steps: int
+    rejected_steps: int
+    wall_s: float
+    t_end: float
+    samples: int
+    member: int | None = None
+    realisation: int | None = None
+    engine: str | None = None
+    method: str | None = None
+    dt: float | None = None
+    warnings: tuple[str, ...] = ()
+    batch_wall_s: float | None = None
+
+    @property
+    def n(self) -> int:
+        """Number of particles."""
+        return len(self.v_max)
+
+    def to_json(self) -> dict:
+        """The JSON document of this run: a dict of plain Python values, keys in field
+        order, tuples as lists, the ledger as a dict. Non-finite floats stay NaN/inf (the
+        writer decides how to encode them; ``granchain run --json`` writes null)."""
+        out = {}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, tuple):
+                v = list(v)
+            elif isinstance(v, EnergyLedger):
+                v = v.to_dict()
+            out[f.name] = v
+        return out
+
+    def to_row(self) -> dict:
+        """This run's columns of the results table (``granchain.tables``): engine,
+        method, dt_s, v_striker_m_s, realisation, status, wave_arrived, peaks_not_final,
+        the probes' observables, gap_mean_probes_nm, the ``ENERGY_MAP`` columns, steps,
+        warnings, and ``vmax_columns(n)``. Needs the member fields (``run_scene``)."""
+        if self.realisation is None or self.dt is None:
+            raise ValueError("a table row needs a run of simulate.run_scene (realisation "
+                             "and dt are not set)")
+        row = {
+            "engine": self.engine,
+            "method": self.method,
+            "dt_s": float(self.dt),
+            "v_striker_m_s": float(self.v_striker),
+            "realisation": int(self.realisation),
+            "status": self.status,
+            "wave_arrived": bool(self.wave_arrived),
+            # particles (1-based, ';'-separated) whose peak the run did not measure: their
+            # vmax_p columns are NaN (granchain.schedule)
+            "peaks_not_final": ";".join(str(i) for i in self.not_final),
+            "v_max_1_m_s": float(self.v_max_1),
+            "v_max_2_m_s": float(self.v_max_2),
+            "v_max_ratio": _ratio(float(self.v_max_2), float(self.v_max_1)),
+            "dt_peak_s": float(self.dt_peak),
+            "v_g_m_s": float(self.v_g),
+            "v_g_front_m_s": float(self.v_g_front),
+            "gap_mean_probes_nm": float(self.gap_mean_probes) * 1e9,
+            "steps": int(self.steps),
+            "warnings": ";".join(self.warnings or ()),
+        }
+        for col, entry in ENERGY_MAP.items():
+            row[col] = float(getattr(self.energy, entry))
+        for col, v in zip(vmax_columns(self.n), self.v_max):
+            row[col] = float(v)
+        return row
+
+
+def energy_ledger(traj: Trajectory) -> EnergyLedger:
     """Energy ledger: final values, work by each effect, and the balance error.
 
     balance(t) = [E_kin,trans + E_kin,rot + E_hertz](t) - E(0) - sum of work done on the
@@ -116,11 +276,11 @@ def energy_ledger(traj: Trajectory) -> dict:
     out["initial"] = e0
     out["final_mechanical"] = float(total[-1])
     out["balance_error"] = float(np.max(np.abs(bal)) / e0) if e0 > 0 else 0.0
-    return out
+    return EnergyLedger(**out)
 
 
-def summarize(traj: Trajectory, probes=(2, 13)) -> dict:
-    """All observables of one chain as plain Python (JSON-ready) values."""
+def summarize(traj: Trajectory, probes=(2, 13)) -> ChainResult:
+    """All observables of one chain (member fields unset: ``simulate.run_scene`` sets them)."""
     v_max, t_peak, t_front, plateau, final = peaks(traj)
     p1, p2 = probes[0], probes[1]
     i1, i2 = p1 - 1, p2 - 1
@@ -133,28 +293,28 @@ def summarize(traj: Trajectory, probes=(2, 13)) -> dict:
     dt_front = float(t_front[i2] - t_front[i1]) if arrived else math.nan
     v_g = span / dt_peak if arrived and dt_peak > 0 else math.nan
     v_g_front = span / dt_front if arrived and dt_front > 0 else math.nan
-    return {
-        "v_striker": traj.v_striker,
-        "wave_arrived": bool(arrived),
-        "status": traj.status,
-        "v_max": v_max.tolist(),
-        "t_peak": t_peak.tolist(),
-        "t_front": t_front.tolist(),
-        "plateau": plateau.tolist(),
-        "final": final.tolist(),
-        "not_final": [i + 1 for i in range(traj.n) if not final[i]],
-        "probes": list(probes),
-        "v_max_1": float(v_max[i1]),
-        "v_max_2": float(v_max[i2]),
-        "dt_peak": dt_peak,
-        "dt_front": dt_front,
-        "gap_mean_probes": gbar,
-        "v_g": v_g,
-        "v_g_front": v_g_front,
-        "energy": energy_ledger(traj),
-        "steps": traj.steps,
-        "rejected_steps": traj.rejected,
-        "wall_s": traj.wall_s,
-        "t_end": float(traj.t[-1]),
-        "samples": int(traj.t.size),
-    }
+    return ChainResult(
+        v_striker=float(traj.v_striker),
+        wave_arrived=bool(arrived),
+        status=str(traj.status),
+        v_max=tuple(v_max.tolist()),
+        t_peak=tuple(t_peak.tolist()),
+        t_front=tuple(t_front.tolist()),
+        plateau=tuple(plateau.tolist()),
+        final=tuple(final.tolist()),
+        not_final=tuple(i + 1 for i in range(traj.n) if not final[i]),
+        probes=tuple(int(p) for p in probes),
+        v_max_1=float(v_max[i1]),
+        v_max_2=float(v_max[i2]),
+        dt_peak=dt_peak,
+        dt_front=dt_front,
+        gap_mean_probes=gbar,
+        v_g=v_g,
+        v_g_front=v_g_front,
+        energy=energy_ledger(traj),
+        steps=int(traj.steps),
+        rejected_steps=int(traj.rejected),
+        wall_s=float(traj.wall_s),
+        t_end=float(traj.t[-1]),
+        samples=int(traj.t.size),
+    )

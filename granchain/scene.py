@@ -710,9 +710,31 @@ def _validate(raw: dict, given: set[str]) -> Scene:
         probes=tuple(pr), method=method, dt=dt, tolerance=tol, t_end=t_end,
         sample_dt=sample_dt, realisations=realisations, spec=spec, given=frozenset(given),
     )
+    _check_derived(scene)
     check_step(scene)
     _check_sampling(scene)
     return scene
+
+
+def _check_derived(scene: Scene) -> None:
+    """Mass, inertia, Hertz constant and the collision time of the fastest striker must be
+    finite positive numbers: extreme but finite inputs (a radius of 1e300 m, a density of
+    1e308) overflow them."""
+    try:
+        values = {"mass": scene.mass, "inertia": scene.inertia, "Hertz constant": scene.hertz_k}
+        vmax = max(scene.striker_velocities)
+        if vmax > 0:
+            values["collision time"] = scene.contact_time(vmax)
+    except (OverflowError, ZeroDivisionError, ValueError):
+        values = {"mass": math.inf}
+    for what, x in values.items():
+        if not (math.isfinite(x) and x > 0):
+            field = "chain.radius" if ("chain.radius" in scene.given
+                                       or "material" not in scene.given) else "material"
+            raise SceneError(field, f"with material {scene.material.name!r} and striker "
+                             f"speeds up to {max(scene.striker_velocities):g} m/s the {what} is "
+                             f"{x:g}, not a finite positive number",
+                             "use physical values (radius in metres, E in Pa, rho in kg/m^3)")
 
 
 def _check_sampling(scene: Scene) -> None:

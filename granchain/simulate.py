@@ -5,6 +5,7 @@ scene -> (method auto resolved) -> physics terms -> engine -> trajectories -> ob
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -13,8 +14,8 @@ from .costmodel import resolve_auto
 from .errors import GranchainError
 from .gaps import Member, member_gaps, members
 from .guards import physics_warnings
+from .observables import ChainResult, summarize
 from .schedule import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost
-from .observables import summarize
 from .scene import Scene
 
 ENGINES = ("reference", "lammps")
@@ -39,17 +40,22 @@ def trajectories(scene: Scene, mem: list[Member], engine: str = "reference", **k
     yield from zip(mem, it)
 
 
+def _float_or_none(x) -> float | None:
+    return None if x is None else float(x)
+
+
 def run_scene(scene: Scene, engine: str = "reference", realisations=None, *,
               max_steps: float = DEFAULT_MAX_STEPS, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
-              **kw) -> list[dict]:
-    """Observables of every member of the scene, one dict each (JSON-ready).
+              **kw) -> list[ChainResult]:
+    """Observables of every member of the scene, one :class:`~granchain.observables.ChainResult`
+    each, with its member fields set.
 
     A scene with method auto runs with the setting ``costmodel.resolve_auto`` gives it
-    (each dict's ``method`` and ``dt``). Before integrating, refuses (GranchainError) a
+    (each result's ``method`` and ``dt``). Before integrating, refuses (GranchainError) a
     scene whose chains need more than ``max_steps`` integration steps or
-    ``max_memory_gb`` GB of sample record each (estimates: granchain/guards.py). Each dict
-    carries ``warnings``: a list of one-line physics warnings for its striker speed (empty
-    when none)."""
+    ``max_memory_gb`` GB of sample record each (estimates: granchain/guards.py). Each
+    result carries ``warnings``: the one-line physics warnings for its striker speed (empty
+    when none), and ``batch_wall_s``, the wall time of the whole call."""
     scene = resolve_auto(scene)
     check_cost(scene, max_steps, max_memory_gb)
     mem = members(scene, realisations)
@@ -58,11 +64,9 @@ def run_scene(scene: Scene, engine: str = "reference", realisations=None, *,
     warn = {v: physics_warnings(scene, v) for v in scene.striker_velocities}
     for m, traj in trajectories(scene, mem, engine, **kw):
         s = summarize(traj, scene.probes)
-        s.update(member=m.index, realisation=m.realisation, engine=engine,
-                 method=traj.meta.get("method"), dt=traj.meta.get("dt"),
-                 warnings=list(warn.get(m.v_striker) or physics_warnings(scene, m.v_striker)))
-        out.append(s)
+        out.append(dataclasses.replace(
+            s, member=m.index, realisation=m.realisation, engine=engine,
+            method=traj.meta.get("method"), dt=_float_or_none(traj.meta.get("dt")),
+            warnings=tuple(warn.get(m.v_striker) or physics_warnings(scene, m.v_striker))))
     wall = time.perf_counter() - t0
-    for s in out:
-        s["batch_wall_s"] = wall
-    return out
+    return [dataclasses.replace(s, batch_wall_s=wall) for s in out]

@@ -2,8 +2,9 @@
 
 Every table the workflow writes goes through this module, so its layout is defined once:
 
-- ``member_row(meta, run, n)``: one member's row from the observables dict that
-  :func:`granchain.simulate.run_scene` returns, plus the member's study metadata.
+- ``member_row(meta, run, n)``: one member's row: the run's columns
+  (``ChainResult.to_row`` of a result of :func:`granchain.simulate.run_scene`) plus the
+  member's study metadata.
 - ``study_table(rows, n)``: the rows as a DataFrame with exactly the columns
   :func:`columns` lists, in that order (units in the column names).
 - ``summary_table(df)``: per (material, engine, v_striker_m_s, gap_mean_nm,
@@ -36,17 +37,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .effects import SPECS
+from .observables import ENERGY_MAP, ChainResult, vmax_columns
 
 FLOAT_FORMAT = "%.17g"
 NA_REP = "NaN"
 
-# Energy-ledger entries of observables.energy_ledger -> table columns (the works from the
-# effects' declarations).
-ENERGY_MAP = {"energy_initial_J": "initial",
-              **{s.table_column: s.work for s in SPECS.values() if s.work},
-              "balance_error": "balance_error"}
-# Columns before the per-particle peak velocities, in order.
+# The run-derived column names (ENERGY_MAP: energy-ledger entry of each energy/work
+# column; vmax_columns) come from granchain.observables, whose ChainResult.to_row fills
+# them. Columns before the per-particle peak velocities, in order.
 BASE_COLUMNS = (
     "study", "material", "engine", "method", "dt_s", "v_striker_m_s", "gap_distribution",
     "gap_mean_nm", "extra_length_um", "realisation", "seed", "scene_hash", "status",
@@ -62,65 +60,36 @@ TIMING_COLUMNS = ("study", "engine", "batch", "scene_hash", "members", "steps", 
                   "wall_per_member_s")
 
 
-def vmax_columns(n: int) -> list[str]:
-    """``vmax_p01_m_s`` ... one per particle, zero-padded to the width of n (at least 2)."""
-    width = max(2, len(str(n)))
-    return [f"vmax_p{i:0{width}d}_m_s" for i in range(1, n + 1)]
-
-
 def columns(n: int) -> list[str]:
     return list(BASE_COLUMNS) + vmax_columns(n)
 
 
-def _ratio(a: float, b: float) -> float:
-    return a / b if b > 0 and math.isfinite(a) and math.isfinite(b) else math.nan
-
-
-def member_row(meta: dict, run: dict, n: int) -> dict:
-    """One table row.
+def member_row(meta: dict, run: ChainResult, n: int) -> dict:
+    """One table row, its keys in ``columns(n)`` order.
 
     meta: study, material, gap_distribution, gap_mean_nm, extra_length_um, seed, scene_hash
-    (from the study's scene); run: one dict of ``simulate.run_scene`` (observables, engine,
-    method, dt, realisation). The Eq. 5.4 bound is filled in later (``add_eq54_bound``).
+    (from the study's scene); run: one result of ``simulate.run_scene``, whose
+    ``to_row()`` gives the run's columns. The Eq. 5.4 bound is filled in later
+    (``add_eq54_bound``).
     """
-    e = run["energy"]
-    v_max = list(run["v_max"])
-    if len(v_max) != n:
-        raise ValueError(f"run has {len(v_max)} particles, the table {n}")
-    row = {
+    if run.n != n:
+        raise ValueError(f"run has {run.n} particles, the table {n}")
+    row = run.to_row()
+    row.update({
         "study": meta["study"],
         "material": meta["material"],
-        "engine": run["engine"],
-        "method": run["method"],
-        "dt_s": float(run["dt"]),
-        "v_striker_m_s": float(run["v_striker"]),
         "gap_distribution": meta["gap_distribution"],
         "gap_mean_nm": float(meta["gap_mean_nm"]),
         "extra_length_um": float(meta["extra_length_um"]),
-        "realisation": int(run["realisation"]),
         "seed": int(meta["seed"]),
         "scene_hash": meta["scene_hash"],
-        "status": run["status"],
-        "wave_arrived": bool(run["wave_arrived"]),
-        # particles (1-based, ';'-separated) whose peak the run did not measure: their
-        # vmax_p columns are NaN (granchain.schedule)
-        "peaks_not_final": ";".join(str(i) for i in run["not_final"]),
-        "v_max_1_m_s": float(run["v_max_1"]),
-        "v_max_2_m_s": float(run["v_max_2"]),
-        "v_max_ratio": _ratio(float(run["v_max_2"]), float(run["v_max_1"])),
-        "dt_peak_s": float(run["dt_peak"]),
-        "v_g_m_s": float(run["v_g"]),
-        "v_g_front_m_s": float(run["v_g_front"]),
-        "gap_mean_probes_nm": float(run["gap_mean_probes"]) * 1e9,
         "v_g_bound_eq54_m_s": math.nan,
-        "steps": int(run["steps"]),
-        "warnings": ";".join(run.get("warnings") or ()),
-    }
-    for col, key in ENERGY_MAP.items():
-        row[col] = float(e[key])
-    for col, v in zip(vmax_columns(n), v_max):
-        row[col] = float(v)
-    return row
+    })
+    cols = columns(n)
+    if set(row) != set(cols):
+        raise ValueError(f"row columns differ from the table's: missing "
+                         f"{sorted(set(cols) - set(row))}, extra {sorted(set(row) - set(cols))}")
+    return {c: row[c] for c in cols}
 
 
 def study_table(rows: list[dict], n: int) -> pd.DataFrame:

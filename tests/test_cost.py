@@ -245,8 +245,8 @@ def test_auto_meets_its_tolerance_on_another_scene(gap_nm):
         sc = _scene316(gap_nm, tol)
         assert sc.auto_tolerance == tol and sc.method in cost.SCENE_METHODS
         runs = run_scene(sc)
-        assert {r["method"] for r in runs} == {sc.method}      # resolved, in run output
-        assert {r["dt"] for r in runs} == {sc.dt}
+        assert {r.method for r in runs} == {sc.method}      # resolved, in run output
+        assert {r.dt for r in runs} == {sc.dt}
         err = cost.rel_err(runs, ref, "v_g")
         assert err <= tol, (gap_nm, tol, sc.method, sc.dt, sc.tolerance, err)
         seen.add((sc.method, sc.dt, sc.tolerance))
@@ -361,7 +361,7 @@ def test_auto_scene_never_reaches_an_engine():
         with pytest.raises(ValueError, match="method auto"):
             call()
     runs = run_scene(raw.derive(**{"ensemble.realisations": 1}))    # resolved by run_scene
-    assert runs[0]["method"] == resolve_auto(raw).method
+    assert runs[0].method == resolve_auto(raw).method
 
 
 def test_auto_step_guards_run_on_the_resolved_scene():

@@ -276,10 +276,22 @@ def test_out_is_checked_before_any_computation(tmp_path, capsys, no_compute, cmd
     assert (tmp_path / "r.json").read_text() == "precious"
 
 
+def _fake_result():
+    """A ChainResult with placeholder values (a run that was never computed)."""
+    from granchain.observables import LEDGER_ENTRIES, ChainResult, EnergyLedger
+    nan = math.nan
+    return ChainResult(
+        v_striker=0.1, wave_arrived=False, status="done", v_max=(nan, nan), t_peak=(nan, nan),
+        t_front=(nan, nan), plateau=(False, False), final=(False, False), not_final=(1, 2),
+        probes=(1, 2), v_max_1=nan, v_max_2=nan, dt_peak=nan, dt_front=nan,
+        gap_mean_probes=0.0, v_g=nan, v_g_front=nan,
+        energy=EnergyLedger(**{k: 0.0 for k in LEDGER_ENTRIES}), steps=0, rejected_steps=0,
+        wall_s=0.0, t_end=0.0, samples=1)
+
+
 def _fake_runs(monkeypatch):
     import granchain.simulate
-    monkeypatch.setattr(granchain.simulate, "run_scene",
-                        lambda scene, **kw: [{"v_striker": 0.1, "warnings": []}])
+    monkeypatch.setattr(granchain.simulate, "run_scene", lambda scene, **kw: [_fake_result()])
 
 
 def test_out_force_replaces_and_leaves_other_files_alone(tmp_path, capsys, monkeypatch):
@@ -423,11 +435,46 @@ def test_run_attaches_warnings_to_results_and_tables(tmp_path, capsys):
             "extra_length_um": math.nan, "seed": 0, "scene_hash": "h"}
     from granchain.simulate import run_scene
     run, = run_scene(load_scene(scene))
-    assert run["warnings"] == doc["warnings"]
-    row = tables.member_row(meta, dict(run, warnings=["a", "b"]), 6)
+    assert list(run.warnings) == doc["warnings"]
+    row = tables.member_row(meta, dataclasses.replace(run, warnings=("a", "b")), 6)
     assert row["warnings"] == "a;b"
-    assert tables.member_row(meta, dict(run, warnings=[]), 6)["warnings"] == ""
+    assert tables.member_row(meta, dataclasses.replace(run, warnings=()), 6)["warnings"] == ""
     assert "warnings" in tables.columns(6)
+
+
+def test_results_are_frozen_typed_and_keep_their_json_and_row_layout():
+    import pickle
+
+    from granchain import tables
+    from granchain.effects import ENERGY_COLUMNS
+    from granchain.observables import ChainResult, EnergyLedger
+    from granchain.simulate import run_scene
+    run, = run_scene(packed(**{"chain.n": 6, "probes": "[2, 6]"}))
+    assert isinstance(run, ChainResult) and isinstance(run.energy, EnergyLedger)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        run.v_g = 0.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        run.energy.balance_error = 0.0
+    assert isinstance(run.v_max, tuple) and len(run.v_max) == run.n == 6
+    # the ledger's entries are the registry's columns, then the three derived ones
+    ledger = [f.name for f in dataclasses.fields(EnergyLedger)]
+    assert ledger == [*ENERGY_COLUMNS, "initial", "final_mechanical", "balance_error"]
+    assert pickle.loads(pickle.dumps(run)) == run
+    doc = run.to_json()
+    assert list(doc) == [f.name for f in dataclasses.fields(ChainResult)]
+    assert list(doc["energy"]) == ledger and isinstance(doc["v_max"], list)
+    assert doc["member"] == 0 and doc["engine"] == "reference" and doc["method"] == "rk4"
+    # to_row: the run's columns; member_row adds the study's, in table order
+    meta = {"study": "s", "material": "ss440c", "gap_distribution": "none", "gap_mean_nm": 0.0,
+            "extra_length_um": 0.0, "seed": 0, "scene_hash": "h"}
+    row = tables.member_row(meta, run, 6)
+    assert list(row) == tables.columns(6)
+    assert set(tables.columns(6)) - set(run.to_row()) == {
+        *meta, "v_g_bound_eq54_m_s"}
+    with pytest.raises(ValueError, match="particles"):
+        tables.member_row(meta, run, 7)
+    with pytest.raises(ValueError, match="run_scene"):
+        dataclasses.replace(run, realisation=None).to_row()
 
 
 # ---------------------------------------------------------------------------------------
@@ -650,3 +697,12 @@ def test_uncreatable_lammps_workdir_is_one_line(tmp_path, capsys):
     refused(capsys, ["run", scene, "--engine", "lammps", "--workdir", str(blocker / "sub")],
             "workdir")
     assert blocker.read_text() == "x"
+
+
+@pytest.mark.parametrize("text, field", [
+    ("chain: {radius: 1.0e300}\n", "'chain.radius'"),
+    ("chain: {radius: 1.0e-200}\n", "'chain.radius'"),
+    ("material: {E: 1.0e-300, nu: 0.3, rho: 1.0e300}\n", "'material'"),
+])
+def test_inputs_that_overflow_the_derived_quantities_are_one_line(tmp_path, capsys, text, field):
+    refused(capsys, ["validate", write(tmp_path, text)], field)

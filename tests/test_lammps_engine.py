@@ -118,7 +118,7 @@ def test_per_chain_ledger_matches_lammps_global_ledger(tmp_path):
         mech = e[:, 0] + e[:, 1] + e[:, 2]
         np.testing.assert_allclose(e[:, 5], mech - mech[0] - e[:, 3] - e[:, 4], rtol=0,
                                    atol=1e-15 * mech[0])
-        assert summarize(t)["energy"]["balance_error"] < 1e-12
+        assert summarize(t).energy.balance_error < 1e-12
         assert t.meta["balance"] == "residual" and t.meta["deck"] == str(tmp_path / "deck.lmp")
 
 
@@ -157,11 +157,11 @@ def test_two_mpi_ranks_give_the_same_observables(tmp_path):
     assert two[0].meta["nprocs"] == 2
     for a, b in zip(one, two):
         sa, sb = summarize(a, scene.probes), summarize(b, scene.probes)
-        assert sa["wave_arrived"] and sa["status"] == sb["status"] == "passed"
-        assert sa["samples"] == sb["samples"]
-        np.testing.assert_allclose(sb["v_max"], sa["v_max"], rtol=1e-12, atol=0)
+        assert sa.wave_arrived and sa.status == sb.status == "passed"
+        assert sa.samples == sb.samples
+        np.testing.assert_allclose(sb.v_max, sa.v_max, rtol=1e-12, atol=0)
         for k in ("v_max_1", "v_max_2", "dt_peak", "v_g", "v_g_front"):
-            assert sb[k] == pytest.approx(sa[k], rel=1e-12, abs=0)
+            assert getattr(sb, k) == pytest.approx(getattr(sa, k), rel=1e-12, abs=0)
         np.testing.assert_allclose(b.energy, a.energy, rtol=1e-12, atol=1e-12 * a.energy[0, 0])
 
 

@@ -68,21 +68,21 @@ def test_hertz_chain_conserves_momentum_and_energy_at_method_order(method, order
 
 
 def test_vmax_over_vs_is_scale_free_for_hertz_chain():
-    ref = np.array(run1(packed())["v_max"]) / 0.1
+    ref = np.array(run1(packed()).v_max) / 0.1
     cases = [{"material": "ss316"}, {"chain.radius": 1e-3}, {"striker.velocity": 2.0},
              {"material": "{E: 70e9, nu: 0.33, rho: 2700}", "striker.velocity": 0.01}]
     for over in cases:
         r = run1(packed(**over))
-        vs = r["v_striker"]
-        got = np.array(r["v_max"][:13]) / vs
+        vs = r.v_striker
+        got = np.array(r.v_max[:13]) / vs
         assert np.allclose(got, ref[:13], rtol=2e-5, atol=0), over
 
 
 def test_group_velocity_matches_nesterenko():
     for vs in (0.01, 0.1, 1.0):
         r = run1(packed(**{"striker.velocity": vs}))
-        V = analytic.nesterenko_speed(packed().material, r["v_max_2"])
-        assert abs(r["v_g"] / V - 1) < 0.03, (vs, r["v_g"], V)
+        V = analytic.nesterenko_speed(packed().material, r.v_max_2)
+        assert abs(r.v_g / V - 1) < 0.03, (vs, r.v_g, V)
 
 
 def test_particle_friction_opposes_slip_on_both_spheres():
@@ -149,12 +149,12 @@ def test_eq54_is_an_upper_bound_for_gapped_chains():
             runs = run_scene(packed(**{"striker.velocity": vs, "gaps": spec,
                                        "ensemble.realisations": 4}))
             for r in runs:
-                bound_front = analytic.eq54_group_velocity(pk["v_g_front"], r["gap_mean_probes"], vs, 150e-6)
-                bound_peak = analytic.eq54_group_velocity(pk["v_g"], r["gap_mean_probes"], vs, 150e-6)
-                assert r["v_g_front"] <= bound_front
+                bound_front = analytic.eq54_group_velocity(pk.v_g_front, r.gap_mean_probes, vs, 150e-6)
+                bound_peak = analytic.eq54_group_velocity(pk.v_g, r.gap_mean_probes, vs, 150e-6)
+                assert r.v_g_front <= bound_front
                 # peak-to-peak timing also feels the pulse reshaping at particle 2
-                assert r["v_g"] <= 1.005 * bound_peak
-                assert r["v_g"] < 0.97 * pk["v_g"]             # gaps slow the wave
+                assert r.v_g <= 1.005 * bound_peak
+                assert r.v_g < 0.97 * pk.v_g             # gaps slow the wave
 
 
 def test_energy_estimates_of_chapter_order_of_magnitude():
@@ -162,10 +162,10 @@ def test_energy_estimates_of_chapter_order_of_magnitude():
     from conftest import SCENES
     from granchain.scene import load_scene
     r = run_scene(load_scene(SCENES / "packed-440c.yaml"))[0]
-    e = r["energy"]
-    frac = e["work_groove_friction"] / e["initial"]
+    e = r.energy
+    frac = e.work_groove_friction / e.initial
     assert -2e-3 < frac < -5e-4          # chapter Eq. 5.2 estimate: ~0.1 %
-    assert e["balance_error"] < 1e-8
+    assert e.balance_error < 1e-8
 
 
 @pytest.mark.parametrize("method", ["rk4", "verlet", "adaptive"])

@@ -214,9 +214,9 @@ def test_scene_energy_balance_with_rolling(method):
     """Whole pipeline (scene -> terms -> engine -> ledger), every effect with rolling on:
     measured 6.1e-10 (rk4) and 1.0e-9 (adaptive)."""
     r = run1(packed(effects=ALL, **ROLL_PARAMS, **{"integrator.method": method}))
-    assert r["wave_arrived"]
-    assert r["energy"]["balance_error"] < 1e-8
-    assert r["energy"]["work_rolling_friction"] < 0
+    assert r.wave_arrived
+    assert r.energy.balance_error < 1e-8
+    assert r.energy.work_rolling_friction < 0
 
 
 def test_rk4_converges_to_the_lammps_law():
@@ -244,13 +244,13 @@ def test_chain_with_rolling_is_stable_at_scene_dt():
     runs = {m: run1(packed(effects=ALL, **over, **{"integrator.method": m}))
             for m in ("rk4", "verlet", "adaptive")}
     for m, r in runs.items():
-        assert r["wave_arrived"] and r["status"] == "passed", (m, r["status"])
-        assert all(math.isfinite(v) and 0 <= v <= 0.1 for v in r["v_max"])
-        e = r["energy"]
-        assert e["final_mechanical"] <= e["initial"]
-        assert e["work_rolling_friction"] <= 0
-    assert runs["rk4"]["v_max_2"] == pytest.approx(runs["adaptive"]["v_max_2"], rel=1e-6)
-    assert runs["verlet"]["v_max_2"] == pytest.approx(runs["adaptive"]["v_max_2"], rel=1e-5)
+        assert r.wave_arrived and r.status == "passed", (m, r.status)
+        assert all(math.isfinite(v) and 0 <= v <= 0.1 for v in r.v_max)
+        e = r.energy
+        assert e.final_mechanical <= e.initial
+        assert e.work_rolling_friction <= 0
+    assert runs["rk4"].v_max_2 == pytest.approx(runs["adaptive"].v_max_2, rel=1e-6)
+    assert runs["verlet"].v_max_2 == pytest.approx(runs["adaptive"].v_max_2, rel=1e-5)
 
 
 def test_spinning_chain_with_rolling_stays_bounded():

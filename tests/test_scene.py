@@ -84,10 +84,10 @@ def test_cli_refuses_to_overwrite_results(tmp_path):
 def test_zero_striker_is_valid_and_reports_no_wave():
     from granchain.simulate import run_scene
     r = run_scene(packed(**{"striker.velocity": 0.0}))[0]
-    assert r["wave_arrived"] is False
+    assert r.wave_arrived is False
     # no wave, no peak: every particle's v_max is NaN and flagged, not a measured 0
-    assert all(v != v for v in r["v_max"]) and r["not_final"] == list(range(1, 16))
-    assert r["v_g"] != r["v_g"]        # NaN: no group velocity without a wave
+    assert all(v != v for v in r.v_max) and r.not_final == tuple(range(1, 16))
+    assert r.v_g != r.v_g        # NaN: no group velocity without a wave
 
 
 def test_yaml_syntax_error_is_one_line(tmp_path):

@@ -17,12 +17,12 @@ ALL = "[hertz,groove_friction,air_drag,rotation,particle_friction]"
 def _stable(over, dts, tol_conv, tol_bal, method="rk4"):
     outs = [run1(packed(**over, **{"integrator.dt": dt, "integrator.method": method})) for dt in dts]
     for r in outs:
-        assert r["wave_arrived"], r["status"]
-        assert all(math.isfinite(v) for v in r["v_max"])
-        assert r["energy"]["balance_error"] < tol_bal, r["energy"]
+        assert r.wave_arrived, r.status
+        assert all(math.isfinite(v) for v in r.v_max)
+        assert r.energy.balance_error < tol_bal, r.energy
     a, b = outs[-2], outs[-1]
-    assert abs(a["v_max_2"] / b["v_max_2"] - 1) < tol_conv
-    assert abs(a["v_g"] / b["v_g"] - 1) < tol_conv
+    assert abs(a.v_max_2 / b.v_max_2 - 1) < tol_conv
+    assert abs(a.v_g / b.v_g - 1) < tol_conv
     return outs
 
 
@@ -170,24 +170,24 @@ def test_striker_at_5_m_per_s():
 def test_striker_at_1e_minus_4_m_per_s():
     # Hertz alone: the scale-free solitary wave (same v_max/v_s as at 0.1 m/s)
     outs = _stable({"striker.velocity": 1e-4}, (4e-9, 2e-9), 1e-5, 1e-7)
-    assert outs[-1]["v_max_2"] / 1e-4 == pytest.approx(0.6817, abs=2e-4)
+    assert outs[-1].v_max_2 / 1e-4 == pytest.approx(0.6817, abs=2e-4)
     # All effects: groove Coulomb friction (mu g / s ~ 4 m/s^2) removes more than v_s
     # during the ~30 us transit (Eq. 5.2 grows as 1/v_s^2), so the wave dies before
     # particle 13. Stable, converged, ledger closed, and reported as no arrival.
     runs = [run1(packed(effects=ALL, **{"striker.velocity": 1e-4, "integrator.dt": dt}))
             for dt in (4e-9, 2e-9)]
     for r in runs:
-        assert not r["wave_arrived"] and r["status"] == "timeout"
-        assert math.isnan(r["v_g"])
-        assert r["energy"]["balance_error"] < 1e-7
-        assert r["energy"]["work_groove_friction"] < -0.5 * r["energy"]["initial"]
-    assert runs[0]["v_max"][2] == pytest.approx(runs[1]["v_max"][2], rel=1e-5)
+        assert not r.wave_arrived and r.status == "timeout"
+        assert math.isnan(r.v_g)
+        assert r.energy.balance_error < 1e-7
+        assert r.energy.work_groove_friction < -0.5 * r.energy.initial
+    assert runs[0].v_max[2] == pytest.approx(runs[1].v_max[2], rel=1e-5)
 
 
 def test_micron_gaps_at_1_cm_per_s():
     outs = _stable({"effects": "[hertz]", "striker.velocity": 0.01,
                     "gaps": "{distribution: fixed, mean: 1.0e-6}"}, (4e-9, 2e-9), 1e-4, 1e-6)
-    assert outs[-1]["v_g"] < 0.2 * run1(packed(**{"striker.velocity": 0.01}))["v_g"]
+    assert outs[-1].v_g < 0.2 * run1(packed(**{"striker.velocity": 0.01})).v_g
 
 
 # Convergence of the friction run on micron gaps (RK4; reference: adaptive DOP853 at
@@ -211,20 +211,20 @@ def test_micron_gaps_with_friction_use_plateau_timing():
             "gaps": "{distribution: fixed, mean: 1.0e-6}"}
     runs = [run1(packed(**base, **{"integrator.dt": dt})) for dt in (MICRON_DT, MICRON_DT / 2)]
     for r in runs:
-        assert r["wave_arrived"] and any(r["plateau"])
-        assert r["plateau"][1]                  # the near probe's peak is a plateau
-        assert r["energy"]["balance_error"] < 1e-6
+        assert r.wave_arrived and any(r.plateau)
+        assert r.plateau[1]                  # the near probe's peak is a plateau
+        assert r.energy.balance_error < 1e-6
     coarse, fine = runs
     for key, tol in MICRON_TOL.items():
-        change = abs(coarse[key] / fine[key] - 1)
+        change = abs(getattr(coarse, key) / getattr(fine, key) - 1)
         assert change < (2**RK4_ORDER_LOW - 1) * tol, (key, change, tol)
 
 
 def test_subnanometre_gaps():
     outs = _stable({"effects": ALL, "gaps": "{distribution: uniform, mean: 0.3e-9, seed: 5}"},
                    (2e-9, 1e-9), 1e-5, 5e-8)
-    packed_vg = run1(packed(effects=ALL))["v_g"]
-    assert 0.9 * packed_vg < outs[-1]["v_g"] < packed_vg
+    packed_vg = run1(packed(effects=ALL)).v_g
+    assert 0.9 * packed_vg < outs[-1].v_g < packed_vg
 
 
 @pytest.mark.slow
@@ -234,5 +234,5 @@ def test_500_particle_chain():
     r = outs[-1]
     # a long chain carries the fully formed solitary wave: Nesterenko's speed
     from granchain import analytic
-    V = analytic.nesterenko_speed(packed().material, r["v_max_2"])
-    assert abs(r["v_g"] / V - 1) < 0.02
+    V = analytic.nesterenko_speed(packed().material, r.v_max_2)
+    assert abs(r.v_g / V - 1) < 0.02

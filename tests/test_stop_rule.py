@@ -3,6 +3,7 @@ only when the peak lies inside the run, and t_end auto runs until the wave has l
 whole chain, whichever particle the probes name."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -60,47 +61,48 @@ def test_auto_run_measures_every_particle_of_the_chapter_chain():
     run long enough for every pulse to be over, on the same step and sample grid."""
     for gaps in ({"distribution": "none"}, {"distribution": "uniform", "mean": 20e-9, "seed": 5}):
         auto = run_scene(_scene(gaps=gaps))[0]
-        assert auto["status"] == "passed" and auto["not_final"] == [], auto["not_final"]
-        long = run_scene(_scene(gaps=gaps, t_end=auto["t_end"] + 20e-6))[0]
-        assert long["not_final"] == []
-        np.testing.assert_allclose(auto["v_max"], long["v_max"], rtol=1e-12)
-        vs = auto["v_striker"]
-        assert 0.5 < auto["v_max"][13] / vs < 1.0 and 0.9 < auto["v_max"][14] / vs < 1.05
+        assert auto.status == "passed" and auto.not_final == (), auto.not_final
+        long = run_scene(_scene(gaps=gaps, t_end=auto.t_end + 20e-6))[0]
+        assert long.not_final == ()
+        np.testing.assert_allclose(auto.v_max, long.v_max, rtol=1e-12)
+        vs = auto.v_striker
+        assert 0.5 < auto.v_max[13] / vs < 1.0 and 0.9 < auto.v_max[14] / vs < 1.05
         if gaps["distribution"] == "none":               # packed: the solitary wave's peak
-            assert auto["v_max"][13] / vs == pytest.approx(0.682, abs=0.005)
-        assert auto["t_peak"][14] <= auto["t_end"]   # the moment its contact opened
+            assert auto.v_max[13] / vs == pytest.approx(0.682, abs=0.005)
+        assert auto.t_peak[14] <= auto.t_end   # the moment its contact opened
 
 
 def test_probe_on_the_last_particle_stops_once_it_has_left():
     base = run_scene(_scene(chain={"n": 5}, probes=[2, 4]))[0]
     last = run_scene(_scene(chain={"n": 5}, probes=[2, 5]))[0]
-    assert last["status"] == "passed" and last["wave_arrived"]
+    assert last.status == "passed" and last.wave_arrived
     # the same run: t_end auto watches the last particle whichever probes are named
-    assert last["steps"] == base["steps"] and last["v_max"] == base["v_max"]
+    assert last.steps == base.steps and last.v_max == base.v_max
     # the pulse crosses 4 contacts in a few microseconds: no 30x overrun to a cap
-    assert last["t_end"] < 4 * 4 * 300e-6 / 300.0
-    assert math.isfinite(last["v_g"]) and 200 < last["v_g"] < 600
+    assert last.t_end < 4 * 4 * 300e-6 / 300.0
+    assert math.isfinite(last.v_g) and 200 < last.v_g < 600
 
 
 def test_fixed_t_end_marks_unmeasured_peaks_everywhere(tmp_path, capsys):
     sc = _scene(t_end=8e-6)
     r = run_scene(sc)[0]
-    nf = r["not_final"]
-    assert nf and nf == list(range(nf[0], sc.n + 1)) and nf[0] > 2
-    assert all(math.isnan(r["v_max"][p - 1]) for p in nf)
-    assert all(math.isfinite(r["v_max"][p - 1]) for p in range(1, nf[0]))
-    assert not r["wave_arrived"] and math.isnan(r["v_g"]) and math.isnan(r["v_max_2"])
+    nf = r.not_final
+    assert nf and nf == tuple(range(nf[0], sc.n + 1)) and nf[0] > 2
+    assert all(math.isnan(r.v_max[p - 1]) for p in nf)
+    assert all(math.isfinite(r.v_max[p - 1]) for p in range(1, nf[0]))
+    assert not r.wave_arrived and math.isnan(r.v_g) and math.isnan(r.v_max_2)
     # JSON: null, never a number
     path = tmp_path / "s.yaml"
     path.write_text("name: cut\nt_end: 8.0e-6\n")
     assert main(["run", str(path), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["v_max"][sc.n - 1] is None and doc["v_g"] is None and doc["not_final"] == nf
+    assert doc["v_max"][sc.n - 1] is None and doc["v_g"] is None and doc["not_final"] == list(nf)
     # tables: NaN in the per-particle columns and the flag column naming them
     meta = {"study": "s", "material": "ss440c", "gap_distribution": "none", "gap_mean_nm": 0.0,
             "extra_length_um": 0.0, "seed": 0, "scene_hash": sc.hash}
-    row = tables.member_row(meta, dict(r, member=0, realisation=0, engine="reference",
-                                       method="verlet", dt=1e-9), sc.n)
+    row = tables.member_row(meta, dataclasses.replace(r, member=0, realisation=0,
+                                                      engine="reference", method="verlet",
+                                                      dt=1e-9), sc.n)
     assert row["peaks_not_final"] == ";".join(map(str, nf))
     cols = tables.vmax_columns(sc.n)
     assert all(math.isnan(row[cols[p - 1]]) for p in nf)
@@ -112,10 +114,10 @@ def test_no_member_of_a_gapped_ensemble_loses_a_peak():
                 ensemble={"realisations": 4})
     for m, traj in trajectories(sc, members(sc)):
         s = summarize(traj, sc.probes)
-        assert s["status"] == "passed" and s["not_final"] == [], (m, s["not_final"])
+        assert s.status == "passed" and s.not_final == (), (m, s.not_final)
         # the run stops at the first sample after the last particle left: its peak is
         # within the last few samples' reach, not at the cap
-        assert s["t_peak"][-1] <= s["t_end"]
+        assert s.t_peak[-1] <= s.t_end
 
 
 @pytest.mark.lammps

@@ -16,13 +16,15 @@ import math
 import numpy as np
 
 from ..costmodel import MODEL_COLUMNS, SCENE_METHODS
+from ..observables import ChainResult
 
 
-def rel_err(runs: list[dict], ref: list[dict], key: str) -> float:
-    """Largest |x / x_ref - 1| over the chains; inf where a run lost what the reference has."""
+def rel_err(runs: list[ChainResult], ref: list[ChainResult], observable: str) -> float:
+    """Largest |x / x_ref - 1| over the chains of the result field ``observable`` (one of
+    ``measure.OBSERVABLES``); inf where a run lost what the reference has."""
     worst = 0.0
     for r, q in zip(runs, ref):
-        x, x0 = r[key], q[key]
+        x, x0 = getattr(r, observable), getattr(q, observable)
         if x0 is None or not math.isfinite(x0):
             continue
         if x is None or not math.isfinite(x):

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..costmodel import fixed_step
 from ..errors import GranchainError
+from ..observables import ChainResult
 from ..scene import MIN_STEPS_PER_CONTACT, scene_from_dict
 from .analysis import rel_err
 
@@ -138,7 +139,7 @@ def scene_for(raw: dict, setting: Setting, *, batch: int = 1):
                                    "dt": dt})
 
 
-def _run(scene, setting: Setting, batch: int) -> list[dict]:
+def _run(scene, setting: Setting, batch: int) -> list[ChainResult]:
     from ..simulate import run_scene
     return run_scene(scene, engine=setting.engine, realisations=range(batch))
 
@@ -163,7 +164,7 @@ def _balance_is_residual(scene) -> bool:
 
 
 
-def reference_runs(raw: dict, cost: dict, batch: int, log=_log) -> tuple[list[dict], dict]:
+def reference_runs(raw: dict, cost: dict, batch: int, log=_log) -> tuple[list[ChainResult], dict]:
     """Reference observables of ``batch`` chains, and the reference's own uncertainty:
     adaptive at ``reference_tolerance`` against RK4 at the finest N of the grid."""
     from ..schedule import sample_interval
@@ -176,9 +177,9 @@ def reference_runs(raw: dict, cost: dict, batch: int, log=_log) -> tuple[list[di
     unc = {k: rel_err(chk, ref, k) for k in OBSERVABLES}
     info = {"name": raw["name"], "scene_hash": ref_scene.hash, "method": "adaptive",
             "tolerance": ref_set.tolerance, "cross_check": f"rk4 at {n_fine} steps per contact time",
-            "uncertainty": unc, "balance_error": max(r["energy"]["balance_error"] for r in ref),
-            "status": sorted({r["status"] for r in ref}),
-            "plateau_at_probes": sum(bool(r["plateau"][p - 1]) for r in ref for p in r["probes"]),
+            "uncertainty": unc, "balance_error": max(r.energy.balance_error for r in ref),
+            "status": sorted({r.status for r in ref}),
+            "plateau_at_probes": sum(bool(r.plateau[p - 1]) for r in ref for p in r.probes),
             "contact_time_s": contact_time(raw),
             "sample_dt_s": sample_interval(ref_scene, max(ref_scene.striker_velocities)),
             "realisations": batch, "seed": ref_scene.gap_seed}
@@ -255,7 +256,7 @@ def measure(cost: dict | None = None, base: dict | None = None, *, log=_log):
             t0 = time.perf_counter()
             runs = _run(scenes[k], k[1], b)
             walls[k].append((time.perf_counter() - t0) / b)
-            engine[k].append(float(np.mean([r["wall_s"] for r in runs])))
+            engine[k].append(float(np.mean([r.wall_s for r in runs])))
             results.setdefault(k, runs)
         log(f"round {rep + 1}/{rounds} timed")
 
@@ -263,7 +264,7 @@ def measure(cost: dict | None = None, base: dict | None = None, *, log=_log):
     for name, s in keys:
         runs, sc = results[name, s], scenes[name, s]
         ref, rinfo = refs[name][:len(runs)], info["scenes"][name]
-        balance = max(r["energy"]["balance_error"] for r in runs)
+        balance = max(r.energy.balance_error for r in runs)
         if s.method == "lammps" and _balance_is_residual(sc):
             balance = math.nan          # the ledger closes by construction
         row = {
@@ -277,9 +278,9 @@ def measure(cost: dict | None = None, base: dict | None = None, *, log=_log):
             "err_v_g": rel_err(runs, ref, "v_g"),
             "err_v_g_front": rel_err(runs, ref, "v_g_front"),
             "balance_error": balance,
-            "steps_per_chain": float(np.mean([r["steps"] for r in runs])),
-            "rejected_per_chain": float(np.mean([r.get("rejected_steps", 0) for r in runs])),
-            "status": "+".join(sorted({r["status"] for r in runs})),
+            "steps_per_chain": float(np.mean([r.steps for r in runs])),
+            "rejected_per_chain": float(np.mean([r.rejected_steps for r in runs])),
+            "status": "+".join(sorted({r.status for r in runs})),
             **{f"ref_uncertainty_{k}": rinfo["uncertainty"][k] for k in OBSERVABLES},
             "batch": len(runs), "repeats": len(walls[name, s]), "scene_hash": sc.hash,
         }
