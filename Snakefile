@@ -3,7 +3,7 @@
 # table, trace and figure under results/<preset>/. On a cluster:
 #     snakemake --profile workflow/profiles/slurm --config preset=full
 # Rules live in workflow/rules/*.smk; their logic in the granchain package
-# (granchain/workflow.py, tables.py, figures.py, cost.py); scripts in workflow/scripts/.
+# (granchain/workflow/, tables.py, figures.py, cost.py); scripts in workflow/scripts/.
 from snakemake.utils import min_version
 
 min_version("9.0")

@@ -688,27 +688,6 @@ def fig5_4b(extra: pd.DataFrame, packed: pd.DataFrame, out, radius=None) -> list
     return save(fig, out)
 
 
-def caption_sizes(preset_name: str, preset: dict, study: str) -> dict:
-    """What a report caption says about a study's sizes, as plain strings (the figure
-    rules pass it as a param; workflow/report/*.rst render it)."""
-    from .workflow import study_scenes
-    spec = preset["studies"][study]
-    base = preset["base"]
-    if list(base.get("probes", PROBES)) != list(PROBES):
-        raise GranchainError(f"base.probes {base['probes']}: the figures label and measure "
-                             f"the chapter's probes {PROBES[0]} and {PROBES[1]}; remove "
-                             "base.probes from the preset")
-    out = {"preset": preset_name, "n": str(base["n"]), "radius_um": f"{base['radius'] * 1e6:g}",
-           "method": str(base["method"]), "dt_s": f"{base['dt']:g}",
-           "materials": ", ".join(sorted({ss.material for ss in study_scenes(preset, study)}))}
-    for key in ("v_striker", "gap_mean_nm", "extra_length_um", "realisations"):
-        if key in spec:
-            v = spec[key]
-            out[key] = ", ".join(f"{x:g}" for x in v) if isinstance(v, (list, tuple)) \
-                else f"{v:g}"
-    return out
-
-
 # ---------------------------------------------------------------------------------------
 # command line
 # ---------------------------------------------------------------------------------------

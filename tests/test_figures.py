@@ -345,18 +345,6 @@ def test_thesis_cli_missing_table_is_one_line(tmp_path):
 
 
 
-def test_caption_sizes_and_probe_check(repo):
-    from granchain.workflow import load_config
-    name, preset = load_config(repo / "config" / "config.yaml", "tiny")
-    sizes = figures.caption_sizes(name, preset, "gap_sweep")
-    assert sizes["preset"] == "tiny" and sizes["n"] == str(preset["base"]["n"])
-    assert sizes["gap_mean_nm"] == ", ".join(f"{g:g}" for g in
-                                            preset["studies"]["gap_sweep"]["gap_mean_nm"])
-    bad = {**preset, "base": {**preset["base"], "probes": [3, 12]}}
-    with pytest.raises(GranchainError, match="probes"):
-        figures.caption_sizes(name, bad, "gap_sweep")
-
-
 def test_radius_enters_eq54(tables, tmp_path):
     with pytest.raises(GranchainError, match="radius"):
         figures.render("fig5_4b", _paths(*tables), tmp_path / "r", radius=-1.0)

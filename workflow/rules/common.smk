@@ -1,4 +1,4 @@
-# Configuration, preset, plan of jobs, and the names every rule file shares.
+# Configuration, the preset's plan, and the names every rule file shares.
 # A bad configuration stops here with one message, before any job runs.
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
@@ -10,10 +10,16 @@ try:
     validate(config, "../schemas/config.schema.yaml")
 except WorkflowError as exc:
     raise WorkflowError(gw.config_error_message(exc)) from None
+# The plan: every study's scenes and job batches, built once (granchain.workflow.plan);
+# batches, trace materials and report captions all come from it.
 try:
-    PRESET, P = gw.check_config(config)
+    PLAN = gw.Plan.build(config)
+    # Sizes for the report's captions: tables (describe) and figures (caption_sizes).
+    DESCRIBE = {study: gw.describe(PLAN, study) for study in gw.STUDIES}
+    SIZES = {study: gw.caption_sizes(PLAN, study) for study in gw.STUDIES}
 except GranchainError as exc:
     raise WorkflowError(str(exc)) from None
+PRESET, P = PLAN.name, PLAN.preset
 
 # Everything of a preset lives under results/<preset>/.
 RESULTS = f"results/{PRESET}"
@@ -21,8 +27,6 @@ RESULTS = f"results/{PRESET}"
 ALL_TARGETS = []
 
 STUDIES = gw.STUDIES
-# Job batches of every study: {study: [Batch, ...]} (granchain.workflow.batches).
-PLAN = gw.plan(P)
 BATCH_THREADS = int(P["batch"]["threads"])
 BATCH_MEM_MB = int(P["batch"]["mem_mb"])
 
@@ -42,22 +46,21 @@ def trace_path(material):
 
 
 def trace_materials():
-    return [ss.material for ss in gw.study_scenes(P, "packed_trace")]
+    return PLAN.materials("packed_trace")
 
 
 def batch_of(study, engine, index):
-    name = f"{engine}_{index}"
-    for b in PLAN[study]:
-        if b.name == name:
-            return b
-    raise WorkflowError(f"study {study} has no batch {name} in preset {PRESET}")
+    try:
+        return PLAN.batch(study, f"{engine}_{index}")
+    except GranchainError as exc:
+        raise WorkflowError(str(exc)) from None
 
 
 def batch_outputs(study, suffix=".csv"):
     """The batch tables (suffix .csv) or timings (.timing.csv) a study's gather needs."""
     if study == "packed_trace":
         return [f"{RESULTS}/work/packed_trace/trace{suffix}"]
-    return [f"{RESULTS}/work/{study}/{b.name}{suffix}" for b in PLAN[study]]
+    return [f"{RESULTS}/work/{study}/{b.name}{suffix}" for b in PLAN.batches[study]]
 
 
 def batch_runtime(study, engine, index):

@@ -1,9 +1,8 @@
 # Figures (the chapter's panels) and the thesis comparison table, drawn from the contract's
 # tables and traces. Logic: granchain/figures.py and granchain/thesis.py; each rule is one
 # `python -m` call. Every output goes into the report (`snakemake --report report.html`)
-# with a caption from workflow/report/ (rendered with this preset's sizes).
-
-from granchain.figures import caption_sizes as figures_sizes
+# with a caption from workflow/report/ (rendered with this preset's sizes, SIZES in
+# common.smk).
 
 FIG_DIR = f"{RESULTS}/figures"
 # The drawing code is an input: a changed figure module redraws (the tables stay).
@@ -25,7 +24,7 @@ rule fig5_1a:
         ),
         pdf=f"{FIG_DIR}/fig5_1a_{{material}}.pdf",
     params:
-        sizes=figures_sizes(PRESET, P, "packed_trace"),
+        sizes=SIZES["packed_trace"],
     log:
         f"{RESULTS}/logs/figures/fig5_1a_{{material}}.log",
     threads: 1
@@ -53,7 +52,7 @@ rule fig5_1b:
         ),
         pdf=f"{FIG_DIR}/fig5_1b.pdf",
     params:
-        sizes=figures_sizes(PRESET, P, "packed_sweep"),
+        sizes=SIZES["packed_sweep"],
     log:
         f"{RESULTS}/logs/figures/fig5_1b.log",
     threads: 1
@@ -81,7 +80,7 @@ rule fig5_1c:
         ),
         pdf=f"{FIG_DIR}/fig5_1c.pdf",
     params:
-        sizes=figures_sizes(PRESET, P, "packed_sweep"),
+        sizes=SIZES["packed_sweep"],
     log:
         f"{RESULTS}/logs/figures/fig5_1c.log",
     threads: 1
@@ -110,7 +109,7 @@ rule fig5_3b:
         ),
         pdf=f"{FIG_DIR}/fig5_3b.pdf",
     params:
-        sizes=figures_sizes(PRESET, P, "gap_profile"),
+        sizes=SIZES["gap_profile"],
     log:
         f"{RESULTS}/logs/figures/fig5_3b.log",
     threads: 1
@@ -140,7 +139,7 @@ rule fig5_3c:
         pdf=f"{FIG_DIR}/fig5_3c.pdf",
     params:
         radius=P["base"]["radius"],
-        sizes=figures_sizes(PRESET, P, "gap_sweep"),
+        sizes=SIZES["gap_sweep"],
     log:
         f"{RESULTS}/logs/figures/fig5_3c.log",
     threads: 1
@@ -171,7 +170,7 @@ rule fig5_4b:
         pdf=f"{FIG_DIR}/fig5_4b.pdf",
     params:
         radius=P["base"]["radius"],
-        sizes=figures_sizes(PRESET, P, "extra_length"),
+        sizes=SIZES["extra_length"],
     log:
         f"{RESULTS}/logs/figures/fig5_4b.log",
     threads: 1
