@@ -38,8 +38,8 @@ localrules:
     accuracy_cost_figure,
 
 
-# Every .smk file appends its final outputs to ALL_TARGETS (common.smk).
+# Every final output, listed in one place: all_targets() (common.smk).
 rule all:
     default_target: True
     input:
-        ALL_TARGETS,
+        all_targets(),

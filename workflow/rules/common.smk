@@ -1,4 +1,4 @@
-# Configuration, the preset's plan, and the names every rule file shares.
+# Configuration, the preset's plan, path helpers, and every final target.
 # A bad configuration stops here with one message, before any job runs.
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
@@ -23,10 +23,9 @@ PRESET, P = PLAN.name, PLAN.preset
 
 # Everything of a preset lives under results/<preset>/.
 RESULTS = f"results/{PRESET}"
-# Final outputs of every rule file; `rule all` (Snakefile) asks for all of them.
-ALL_TARGETS = []
-
+FIG_DIR = f"{RESULTS}/figures"
 STUDIES = gw.STUDIES
+FIGURES = ["fig5_1b", "fig5_1c", "fig5_3b", "fig5_3c", "fig5_4b"]   # fig5_1a: one per material
 BATCH_THREADS = int(P["batch"]["threads"])
 BATCH_MEM_MB = int(P["batch"]["mem_mb"])
 
@@ -66,3 +65,25 @@ def batch_outputs(study, suffix=".csv"):
 def batch_runtime(study, engine, index):
     """SLURM wall-clock limit (minutes) of a batch, from its estimated cost."""
     return gw.runtime_minutes(batch_of(study, engine, index).est_seconds, BATCH_THREADS)
+
+
+def all_targets():
+    """Every final output, which the Snakefile's default target asks for: tables and
+    summaries, traces, figures, the engine and thesis comparisons, accuracy vs cost."""
+    return [
+        *[table_path(s) for s in STUDIES],
+        *[f"{RESULTS}/tables/{s}_summary.csv" for s in STUDIES],
+        *[trace_path(m) for m in trace_materials()],
+        f"{RESULTS}/tables/lammps_vs_reference.csv",
+        *expand(f"{FIG_DIR}/fig5_1a_{{material}}.{{ext}}", material=trace_materials(),
+                ext=["png", "pdf"]),
+        *expand(f"{FIG_DIR}/{{name}}.{{ext}}", name=FIGURES, ext=["png", "pdf"]),
+        f"{RESULTS}/tables/thesis_comparison.csv",
+        f"{RESULTS}/tables/thesis_comparison.md",
+        f"{RESULTS}/tables/accuracy_cost.csv",
+        f"{RESULTS}/tables/accuracy_cost.provenance.json",
+        f"{RESULTS}/timing/accuracy_cost.csv",
+        f"{RESULTS}/timing/accuracy_cost_cheapest.csv",
+        f"{FIG_DIR}/accuracy_cost.png",
+        f"{FIG_DIR}/accuracy_cost.pdf",
+    ]

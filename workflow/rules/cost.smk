@@ -72,13 +72,3 @@ rule accuracy_cost_figure:
         "../envs/granchain.yaml"
     shell:
         "python -m granchain.cost figure {input.timing} {output.png} {output.pdf} > {log} 2>&1"
-
-
-ALL_TARGETS += [
-    f"{RESULTS}/tables/accuracy_cost.csv",
-    f"{RESULTS}/tables/accuracy_cost.provenance.json",
-    f"{RESULTS}/timing/accuracy_cost.csv",
-    f"{RESULTS}/timing/accuracy_cost_cheapest.csv",
-    f"{RESULTS}/figures/accuracy_cost.png",
-    f"{RESULTS}/figures/accuracy_cost.pdf",
-]

@@ -43,6 +43,3 @@ rule packed_trace:
         "../envs/granchain.yaml"
     script:
         "../scripts/packed_trace.py"
-
-
-ALL_TARGETS += [trace_path(m) for m in trace_materials()]

@@ -4,7 +4,6 @@
 # with a caption from workflow/report/ (rendered with this preset's sizes, SIZES in
 # common.smk).
 
-FIG_DIR = f"{RESULTS}/figures"
 # The drawing code is an input: a changed figure module redraws (the tables stay).
 FIG_CODE = str(Path(workflow.basedir) / "granchain" / "figures.py")
 THESIS_CODE = [FIG_CODE, str(Path(workflow.basedir) / "granchain" / "thesis.py")]
@@ -228,12 +227,3 @@ rule thesis_comparison:
         " --gap-sweep {input.gap_sweep} --extra-length {input.extra_length} {params.trace}"
         " --radius {params.radius} --title '{params.title}' --out-csv {output.csv}"
         " --out-md {output.md} > {log} 2>&1"
-
-
-ALL_TARGETS += expand(f"{FIG_DIR}/fig5_1a_{{material}}.{{ext}}", material=trace_materials(),
-                      ext=["png", "pdf"])
-ALL_TARGETS += expand(f"{FIG_DIR}/{{name}}.{{ext}}",
-                      name=["fig5_1b", "fig5_1c", "fig5_3b", "fig5_3c", "fig5_4b"],
-                      ext=["png", "pdf"])
-ALL_TARGETS += [f"{RESULTS}/tables/thesis_comparison.csv",
-                f"{RESULTS}/tables/thesis_comparison.md"]

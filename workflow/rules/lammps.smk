@@ -50,6 +50,3 @@ rule compare_engines:
         "../envs/granchain.yaml"
     script:
         "../scripts/compare_engines.py"
-
-
-ALL_TARGETS += [f"{RESULTS}/tables/lammps_vs_reference.csv"]

@@ -41,7 +41,3 @@ rule gather_study:
         "../envs/granchain.yaml"
     script:
         "../scripts/gather_study.py"
-
-
-ALL_TARGETS += [table_path(s) for s in STUDIES]
-ALL_TARGETS += [f"{RESULTS}/tables/{s}_summary.csv" for s in STUDIES]
