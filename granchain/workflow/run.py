@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import os
 import sys
 import time
 from pathlib import Path
@@ -32,13 +33,29 @@ def set_threads(threads: int | None) -> None:
 
 @contextlib.contextmanager
 def log_to(path):
-    """Send this process's stderr (progress, warnings) to a job's log file."""
+    """Send this process's stdout and stderr (progress, warnings, and what compiled code
+    such as LAMMPS prints) to a job's log file, as a shell rule's ``> {log} 2>&1``."""
     if path is None:
         yield
         return
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w") as f, contextlib.redirect_stderr(f):
-        yield
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = os.dup(1), os.dup(2)
+    try:
+        with open(path, "w") as f:
+            os.dup2(f.fileno(), 1)
+            os.dup2(f.fileno(), 2)
+            try:
+                yield
+            finally:
+                sys.stdout.flush()
+                sys.stderr.flush()
+                os.dup2(saved[0], 1)
+                os.dup2(saved[1], 2)
+    finally:
+        os.close(saved[0])
+        os.close(saved[1])
 
 
 def engine_options(engine: str, threads: int | None) -> dict:

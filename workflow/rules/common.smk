@@ -1,5 +1,6 @@
 # Configuration, the preset's plan, path helpers, and every final target.
 # A bad configuration stops here with one message, before any job runs.
+# Every rule calls the granchain package through a script (workflow/scripts/*.py).
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 

@@ -1,8 +1,8 @@
 # Figures (the chapter's panels) and the thesis comparison table, drawn from the contract's
-# tables and traces. Logic: granchain/figures.py and granchain/thesis.py; each rule is one
-# `python -m` call. Every output goes into the report (`snakemake --report report.html`)
-# with a caption from workflow/report/ (rendered with this preset's sizes, SIZES in
-# common.smk).
+# tables and traces. Logic: granchain/figures.py (figures.render, through
+# scripts/figure.py) and granchain/thesis.py (scripts/thesis_comparison.py). Every output
+# goes into the report (`snakemake --report report.html`) with a caption from
+# workflow/report/ (rendered with this preset's sizes, SIZES in common.smk).
 
 # The drawing code is an input: a changed figure module redraws (the tables stay).
 FIG_CODE = str(Path(workflow.basedir) / "granchain" / "figures.py")
@@ -23,6 +23,7 @@ rule fig5_1a:
         ),
         pdf=f"{FIG_DIR}/fig5_1a_{{material}}.pdf",
     params:
+        figure="fig5_1a",
         sizes=SIZES["packed_trace"],
     log:
         f"{RESULTS}/logs/figures/fig5_1a_{{material}}.log",
@@ -32,9 +33,8 @@ rule fig5_1a:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.figures fig5_1a --trace {input.trace} --out {output.png}"
-        " > {log} 2>&1"
+    script:
+        "../scripts/figure.py"
 
 
 rule fig5_1b:
@@ -51,6 +51,7 @@ rule fig5_1b:
         ),
         pdf=f"{FIG_DIR}/fig5_1b.pdf",
     params:
+        figure="fig5_1b",
         sizes=SIZES["packed_sweep"],
     log:
         f"{RESULTS}/logs/figures/fig5_1b.log",
@@ -60,9 +61,8 @@ rule fig5_1b:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.figures fig5_1b --packed-sweep {input.packed_sweep}"
-        " --out {output.png} > {log} 2>&1"
+    script:
+        "../scripts/figure.py"
 
 
 rule fig5_1c:
@@ -79,6 +79,7 @@ rule fig5_1c:
         ),
         pdf=f"{FIG_DIR}/fig5_1c.pdf",
     params:
+        figure="fig5_1c",
         sizes=SIZES["packed_sweep"],
     log:
         f"{RESULTS}/logs/figures/fig5_1c.log",
@@ -88,9 +89,8 @@ rule fig5_1c:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.figures fig5_1c --packed-sweep {input.packed_sweep}"
-        " --out {output.png} > {log} 2>&1"
+    script:
+        "../scripts/figure.py"
 
 
 rule fig5_3b:
@@ -108,6 +108,7 @@ rule fig5_3b:
         ),
         pdf=f"{FIG_DIR}/fig5_3b.pdf",
     params:
+        figure="fig5_3b",
         sizes=SIZES["gap_profile"],
     log:
         f"{RESULTS}/logs/figures/fig5_3b.log",
@@ -117,9 +118,8 @@ rule fig5_3b:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.figures fig5_3b --gap-profile {input.gap_profile}"
-        " --packed-sweep {input.packed_sweep} --out {output.png} > {log} 2>&1"
+    script:
+        "../scripts/figure.py"
 
 
 rule fig5_3c:
@@ -137,6 +137,7 @@ rule fig5_3c:
         ),
         pdf=f"{FIG_DIR}/fig5_3c.pdf",
     params:
+        figure="fig5_3c",
         radius=P["base"]["radius"],
         sizes=SIZES["gap_sweep"],
     log:
@@ -147,10 +148,8 @@ rule fig5_3c:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.figures fig5_3c --gap-sweep {input.gap_sweep}"
-        " --packed-sweep {input.packed_sweep} --radius {params.radius} --out {output.png}"
-        " > {log} 2>&1"
+    script:
+        "../scripts/figure.py"
 
 
 rule fig5_4b:
@@ -168,6 +167,7 @@ rule fig5_4b:
         ),
         pdf=f"{FIG_DIR}/fig5_4b.pdf",
     params:
+        figure="fig5_4b",
         radius=P["base"]["radius"],
         sizes=SIZES["extra_length"],
     log:
@@ -178,10 +178,8 @@ rule fig5_4b:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.figures fig5_4b --extra-length {input.extra_length}"
-        " --packed-sweep {input.packed_sweep} --radius {params.radius} --out {output.png}"
-        " > {log} 2>&1"
+    script:
+        "../scripts/figure.py"
 
 
 rule thesis_comparison:
@@ -210,7 +208,6 @@ rule thesis_comparison:
         ),
     params:
         radius=P["base"]["radius"],
-        trace=lambda w, input: f"--trace {input.trace}" if input.trace else "",
         title=f"Thesis comparison (preset {PRESET})",
         sizes={"preset": PRESET},
     log:
@@ -221,9 +218,5 @@ rule thesis_comparison:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.thesis --packed-sweep {input.packed_sweep}"
-        " --packed-trace {input.packed_trace} --gap-profile {input.gap_profile}"
-        " --gap-sweep {input.gap_sweep} --extra-length {input.extra_length} {params.trace}"
-        " --radius {params.radius} --title '{params.title}' --out-csv {output.csv}"
-        " --out-md {output.md} > {log} 2>&1"
+    script:
+        "../scripts/thesis_comparison.py"
