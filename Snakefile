@@ -2,8 +2,8 @@
 # config/config.yaml (`--config preset=tiny|default|full` picks another) and writes every
 # table, trace and figure under results/<preset>/. On a cluster:
 #     snakemake --profile workflow/profiles/slurm --config preset=full
-# Rules live in workflow/rules/*.smk; their logic in the granchain package
-# (granchain/workflow.py, tables.py, figures.py, cost.py); scripts in workflow/scripts/.
+# Rules live in workflow/rules/*.smk; each calls the granchain package through a script in
+# workflow/scripts/ (logic: granchain/workflow/, tables.py, figures.py, thesis.py, cost.py).
 from snakemake.utils import min_version
 
 min_version("9.0")
@@ -38,8 +38,8 @@ localrules:
     accuracy_cost_figure,
 
 
-# Every .smk file appends its final outputs to ALL_TARGETS (common.smk).
+# Every final output, listed in one place: all_targets() (common.smk).
 rule all:
     default_target: True
     input:
-        ALL_TARGETS,
+        all_targets(),

@@ -1,4 +1,4 @@
-"""The Snakemake workflow (issue 4): configuration, batching, tiny preset end to end.
+"""The Snakemake workflow: configuration, batching, tiny preset end to end.
 
 Every snakemake run happens in a temporary folder (the repo's Snakefile with
 ``--directory``), never in the repo's results/. The ``tiny`` preset is run once and
@@ -85,12 +85,20 @@ def assert_same_results(a: Path, b: Path) -> None:
 # ---------------------------------------------------------------------------------------
 # configuration and plan (no snakemake)
 # ---------------------------------------------------------------------------------------
+def _plan(preset: str) -> gw.Plan:
+    return gw.Plan.build(gw.read_config(CONFIG, preset))
+
+
 @pytest.mark.parametrize("preset", PRESETS)
 def test_every_member_is_in_exactly_one_batch(preset):
     _, P = gw.load_config(CONFIG, preset)
+    plan = _plan(preset)
     k = P["batch"]["members_per_job"]
     for study in gw.STUDIES:
         scenes = gw.study_scenes(P, study)
+        # the plan the Snakefile builds once holds the same scenes and batches
+        assert plan.scene_hashes(study) == [ss.scene.hash for ss in scenes]
+        assert plan.batches[study] == gw.batches(P, study)
         seen = []
         for b in gw.batches(P, study):
             assert b.members == sum(len(scenes[i].scene.striker_velocities) * len(r)
@@ -106,7 +114,7 @@ def test_every_member_is_in_exactly_one_batch(preset):
 
 
 def test_default_preset_is_meaningful():
-    """The default preset's sizes make every figure meaningful (issue 4)."""
+    """The default preset's sizes make every figure meaningful."""
     _, P = gw.load_config(CONFIG, "default")
     s = P["studies"]
     assert set(P["materials"]) == {"ss316", "ss440c"}
@@ -132,6 +140,20 @@ def test_unknown_preset_and_bad_values_are_one_line_errors():
     assert "\n" not in msg and "presets.tiny.batch.members_per_job" in msg, msg
 
 
+def test_caption_sizes_and_probe_check():
+    plan = _plan("tiny")
+    preset = plan.preset
+    sizes = gw.caption_sizes(plan, "gap_sweep")
+    assert sizes["preset"] == "tiny" and sizes["n"] == str(preset["base"]["n"])
+    assert sizes["gap_mean_nm"] == ", ".join(f"{g:g}" for g in
+                                            preset["studies"]["gap_sweep"]["gap_mean_nm"])
+    d = gw.describe(plan, "gap_sweep")
+    assert d["jobs"] == len(plan.batches["gap_sweep"]) and d["preset"] == "tiny"
+    bad = {**preset, "base": {**preset["base"], "probes": [3, 12]}}
+    with pytest.raises(GranchainError, match="probes"):
+        gw.caption_sizes(gw.Plan(plan.name, bad, plan.scenes, plan.batches), "gap_sweep")
+
+
 # ---------------------------------------------------------------------------------------
 # snakemake: lint, dry runs, schema rejection
 # ---------------------------------------------------------------------------------------
@@ -145,8 +167,7 @@ def test_dry_run(tmp_path, preset):
     proc = snakemake(_workdir(tmp_path), "-n", "--quiet", "rules", "--config", f"preset={preset}",
                      timeout=300)
     text = proc.stdout + proc.stderr
-    _, P = gw.load_config(CONFIG, preset)
-    plan = gw.plan(P)
+    plan = _plan(preset).batches
     runs = sum(1 for s in gw.STUDIES if s != "packed_trace" for b in plan[s]
                if b.engine == "reference")
     assert f"run_batch {runs}" in " ".join(text.split()), text

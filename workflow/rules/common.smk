@@ -1,5 +1,6 @@
-# Configuration, preset, plan of jobs, and the names every rule file shares.
+# Configuration, the preset's plan, path helpers, and every final target.
 # A bad configuration stops here with one message, before any job runs.
+# Every rule calls the granchain package through a script (workflow/scripts/*.py).
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
@@ -10,19 +11,22 @@ try:
     validate(config, "../schemas/config.schema.yaml")
 except WorkflowError as exc:
     raise WorkflowError(gw.config_error_message(exc)) from None
+# The plan: every study's scenes and job batches, built once (granchain.workflow.plan);
+# batches, trace materials and report captions all come from it.
 try:
-    PRESET, P = gw.check_config(config)
+    PLAN = gw.Plan.build(config)
+    # Sizes for the report's captions: tables (describe) and figures (caption_sizes).
+    DESCRIBE = {study: gw.describe(PLAN, study) for study in gw.STUDIES}
+    SIZES = {study: gw.caption_sizes(PLAN, study) for study in gw.STUDIES}
 except GranchainError as exc:
     raise WorkflowError(str(exc)) from None
+PRESET, P = PLAN.name, PLAN.preset
 
 # Everything of a preset lives under results/<preset>/.
 RESULTS = f"results/{PRESET}"
-# Final outputs of every rule file; `rule all` (Snakefile) asks for all of them.
-ALL_TARGETS = []
-
+FIG_DIR = f"{RESULTS}/figures"
 STUDIES = gw.STUDIES
-# Job batches of every study: {study: [Batch, ...]} (granchain.workflow.batches).
-PLAN = gw.plan(P)
+FIGURES = ["fig5_1b", "fig5_1c", "fig5_3b", "fig5_3c", "fig5_4b"]   # fig5_1a: one per material
 BATCH_THREADS = int(P["batch"]["threads"])
 BATCH_MEM_MB = int(P["batch"]["mem_mb"])
 
@@ -42,24 +46,45 @@ def trace_path(material):
 
 
 def trace_materials():
-    return [ss.material for ss in gw.study_scenes(P, "packed_trace")]
+    return PLAN.materials("packed_trace")
 
 
 def batch_of(study, engine, index):
-    name = f"{engine}_{index}"
-    for b in PLAN[study]:
-        if b.name == name:
-            return b
-    raise WorkflowError(f"study {study} has no batch {name} in preset {PRESET}")
+    try:
+        return PLAN.batch(study, f"{engine}_{index}")
+    except GranchainError as exc:
+        raise WorkflowError(str(exc)) from None
 
 
 def batch_outputs(study, suffix=".csv"):
     """The batch tables (suffix .csv) or timings (.timing.csv) a study's gather needs."""
     if study == "packed_trace":
         return [f"{RESULTS}/work/packed_trace/trace{suffix}"]
-    return [f"{RESULTS}/work/{study}/{b.name}{suffix}" for b in PLAN[study]]
+    return [f"{RESULTS}/work/{study}/{b.name}{suffix}" for b in PLAN.batches[study]]
 
 
 def batch_runtime(study, engine, index):
     """SLURM wall-clock limit (minutes) of a batch, from its estimated cost."""
     return gw.runtime_minutes(batch_of(study, engine, index).est_seconds, BATCH_THREADS)
+
+
+def all_targets():
+    """Every final output, which the Snakefile's default target asks for: tables and
+    summaries, traces, figures, the engine and thesis comparisons, accuracy vs cost."""
+    return [
+        *[table_path(s) for s in STUDIES],
+        *[f"{RESULTS}/tables/{s}_summary.csv" for s in STUDIES],
+        *[trace_path(m) for m in trace_materials()],
+        f"{RESULTS}/tables/lammps_vs_reference.csv",
+        *expand(f"{FIG_DIR}/fig5_1a_{{material}}.{{ext}}", material=trace_materials(),
+                ext=["png", "pdf"]),
+        *expand(f"{FIG_DIR}/{{name}}.{{ext}}", name=FIGURES, ext=["png", "pdf"]),
+        f"{RESULTS}/tables/thesis_comparison.csv",
+        f"{RESULTS}/tables/thesis_comparison.md",
+        f"{RESULTS}/tables/accuracy_cost.csv",
+        f"{RESULTS}/tables/accuracy_cost.provenance.json",
+        f"{RESULTS}/timing/accuracy_cost.csv",
+        f"{RESULTS}/timing/accuracy_cost_cheapest.csv",
+        f"{FIG_DIR}/accuracy_cost.png",
+        f"{FIG_DIR}/accuracy_cost.pdf",
+    ]

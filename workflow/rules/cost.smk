@@ -1,6 +1,6 @@
-# What accuracy costs in time (issue 4, item 7; granchain/cost.py): every integration
-# setting (RK4, velocity Verlet, adaptive DOP853, LAMMPS) on the packed chain and gapped
-# chains, errors against a converged reference, wall time per chain.
+# What accuracy costs in time (granchain/cost.py, called through granchain.cost.main): every
+# integration setting (RK4, velocity Verlet, adaptive DOP853, LAMMPS) on the packed chain
+# and gapped chains, errors against a converged reference, wall time per chain.
 #   tables/accuracy_cost.csv (+ .provenance.json): errors and steps, deterministic
 #   timing/accuracy_cost.csv (+ .provenance.json with the machine): the same rows with
 #       wall times; timing/accuracy_cost_cheapest.csv: the cheapest setting per tolerance
@@ -43,11 +43,8 @@ rule accuracy_cost:
         runtime=30 if PRESET == "full" else 10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "NUMBA_NUM_THREADS={threads} python -m granchain.cost measure --preset {params.preset}"
-        " --cost-json {params.cost:q} --base-json {params.base:q}"
-        " --table {output.table} --provenance {output.provenance}"
-        " --timing {output.timing} --cheapest {output.cheapest} > {log} 2>&1"
+    script:
+        "../scripts/accuracy_cost.py"
 
 
 rule accuracy_cost_figure:
@@ -70,15 +67,5 @@ rule accuracy_cost_figure:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.cost figure {input.timing} {output.png} {output.pdf} > {log} 2>&1"
-
-
-ALL_TARGETS += [
-    f"{RESULTS}/tables/accuracy_cost.csv",
-    f"{RESULTS}/tables/accuracy_cost.provenance.json",
-    f"{RESULTS}/timing/accuracy_cost.csv",
-    f"{RESULTS}/timing/accuracy_cost_cheapest.csv",
-    f"{RESULTS}/figures/accuracy_cost.png",
-    f"{RESULTS}/figures/accuracy_cost.pdf",
-]
+    script:
+        "../scripts/accuracy_cost_figure.py"

@@ -1,5 +1,6 @@
 # Ensembles: each job runs a batch of members (striker speed x gap realisation) of one
-# study with the reference engine and writes a partial table; see granchain.workflow.
+# study with the reference engine and writes a partial table (granchain.workflow.run);
+# packed_trace runs each material's packed chain and saves its v(t) trace.
 
 
 rule run_batch:
@@ -31,7 +32,7 @@ rule packed_trace:
         traces=[trace_path(m) for m in trace_materials()],
     params:
         materials=trace_materials(),
-        scenes=[ss.scene.hash for ss in gw.study_scenes(P, "packed_trace")],
+        scenes=PLAN.scene_hashes("packed_trace"),
     log:
         f"{RESULTS}/logs/packed_trace/trace.log",
     threads: 1
@@ -42,6 +43,3 @@ rule packed_trace:
         "../envs/granchain.yaml"
     script:
         "../scripts/packed_trace.py"
-
-
-ALL_TARGETS += [trace_path(m) for m in trace_materials()]

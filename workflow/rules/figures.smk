@@ -1,11 +1,10 @@
 # Figures (the chapter's panels) and the thesis comparison table, drawn from the contract's
-# tables and traces. Logic: granchain/figures.py and granchain/thesis.py; each rule is one
-# `python -m` call. Every output goes into the report (`snakemake --report report.html`)
-# with a caption from workflow/report/ (rendered with this preset's sizes).
+# tables and traces. Logic: granchain/figures/ (figures.render, through
+# scripts/figure.py) and granchain/thesis/ (scripts/thesis_comparison.py), both built on
+# granchain/analysis.py. Every output
+# goes into the report (`snakemake --report report.html`) with a caption from
+# workflow/report/ (rendered with this preset's sizes, SIZES in common.smk).
 
-from granchain.figures import caption_sizes as figures_sizes
-
-FIG_DIR = f"{RESULTS}/figures"
 # The drawing code is an input: a changed figure module redraws (the tables stay).
 FIG_CODE = [str(Path(workflow.basedir) / "granchain" / "analysis.py")] + sorted(
     str(p) for p in (Path(workflow.basedir) / "granchain" / "figures").glob("*.py"))
@@ -27,7 +26,8 @@ rule fig5_1a:
         ),
         pdf=f"{FIG_DIR}/fig5_1a_{{material}}.pdf",
     params:
-        sizes=figures_sizes(PRESET, P, "packed_trace"),
+        figure="fig5_1a",
+        sizes=SIZES["packed_trace"],
     log:
         f"{RESULTS}/logs/figures/fig5_1a_{{material}}.log",
     threads: 1
@@ -36,9 +36,8 @@ rule fig5_1a:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.figures fig5_1a --trace {input.trace} --out {output.png}"
-        " > {log} 2>&1"
+    script:
+        "../scripts/figure.py"
 
 
 rule fig5_1b:
@@ -55,7 +54,8 @@ rule fig5_1b:
         ),
         pdf=f"{FIG_DIR}/fig5_1b.pdf",
     params:
-        sizes=figures_sizes(PRESET, P, "packed_sweep"),
+        figure="fig5_1b",
+        sizes=SIZES["packed_sweep"],
     log:
         f"{RESULTS}/logs/figures/fig5_1b.log",
     threads: 1
@@ -64,9 +64,8 @@ rule fig5_1b:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.figures fig5_1b --packed-sweep {input.packed_sweep}"
-        " --out {output.png} > {log} 2>&1"
+    script:
+        "../scripts/figure.py"
 
 
 rule fig5_1c:
@@ -83,7 +82,8 @@ rule fig5_1c:
         ),
         pdf=f"{FIG_DIR}/fig5_1c.pdf",
     params:
-        sizes=figures_sizes(PRESET, P, "packed_sweep"),
+        figure="fig5_1c",
+        sizes=SIZES["packed_sweep"],
     log:
         f"{RESULTS}/logs/figures/fig5_1c.log",
     threads: 1
@@ -92,9 +92,8 @@ rule fig5_1c:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.figures fig5_1c --packed-sweep {input.packed_sweep}"
-        " --out {output.png} > {log} 2>&1"
+    script:
+        "../scripts/figure.py"
 
 
 rule fig5_3b:
@@ -112,7 +111,8 @@ rule fig5_3b:
         ),
         pdf=f"{FIG_DIR}/fig5_3b.pdf",
     params:
-        sizes=figures_sizes(PRESET, P, "gap_profile"),
+        figure="fig5_3b",
+        sizes=SIZES["gap_profile"],
     log:
         f"{RESULTS}/logs/figures/fig5_3b.log",
     threads: 1
@@ -121,9 +121,8 @@ rule fig5_3b:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.figures fig5_3b --gap-profile {input.gap_profile}"
-        " --packed-sweep {input.packed_sweep} --out {output.png} > {log} 2>&1"
+    script:
+        "../scripts/figure.py"
 
 
 rule fig5_3c:
@@ -141,8 +140,9 @@ rule fig5_3c:
         ),
         pdf=f"{FIG_DIR}/fig5_3c.pdf",
     params:
+        figure="fig5_3c",
         radius=P["base"]["radius"],
-        sizes=figures_sizes(PRESET, P, "gap_sweep"),
+        sizes=SIZES["gap_sweep"],
     log:
         f"{RESULTS}/logs/figures/fig5_3c.log",
     threads: 1
@@ -151,10 +151,8 @@ rule fig5_3c:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.figures fig5_3c --gap-sweep {input.gap_sweep}"
-        " --packed-sweep {input.packed_sweep} --radius {params.radius} --out {output.png}"
-        " > {log} 2>&1"
+    script:
+        "../scripts/figure.py"
 
 
 rule fig5_4b:
@@ -172,8 +170,9 @@ rule fig5_4b:
         ),
         pdf=f"{FIG_DIR}/fig5_4b.pdf",
     params:
+        figure="fig5_4b",
         radius=P["base"]["radius"],
-        sizes=figures_sizes(PRESET, P, "extra_length"),
+        sizes=SIZES["extra_length"],
     log:
         f"{RESULTS}/logs/figures/fig5_4b.log",
     threads: 1
@@ -182,10 +181,8 @@ rule fig5_4b:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.figures fig5_4b --extra-length {input.extra_length}"
-        " --packed-sweep {input.packed_sweep} --radius {params.radius} --out {output.png}"
-        " > {log} 2>&1"
+    script:
+        "../scripts/figure.py"
 
 
 rule thesis_comparison:
@@ -214,7 +211,6 @@ rule thesis_comparison:
         ),
     params:
         radius=P["base"]["radius"],
-        trace=lambda w, input: f"--trace {input.trace}" if input.trace else "",
         title=f"Thesis comparison (preset {PRESET})",
         sizes={"preset": PRESET},
     log:
@@ -225,18 +221,5 @@ rule thesis_comparison:
         runtime=10,
     conda:
         "../envs/granchain.yaml"
-    shell:
-        "python -m granchain.thesis --packed-sweep {input.packed_sweep}"
-        " --packed-trace {input.packed_trace} --gap-profile {input.gap_profile}"
-        " --gap-sweep {input.gap_sweep} --extra-length {input.extra_length} {params.trace}"
-        " --radius {params.radius} --title '{params.title}' --out-csv {output.csv}"
-        " --out-md {output.md} > {log} 2>&1"
-
-
-ALL_TARGETS += expand(f"{FIG_DIR}/fig5_1a_{{material}}.{{ext}}", material=trace_materials(),
-                      ext=["png", "pdf"])
-ALL_TARGETS += expand(f"{FIG_DIR}/{{name}}.{{ext}}",
-                      name=["fig5_1b", "fig5_1c", "fig5_3b", "fig5_3c", "fig5_4b"],
-                      ext=["png", "pdf"])
-ALL_TARGETS += [f"{RESULTS}/tables/thesis_comparison.csv",
-                f"{RESULTS}/tables/thesis_comparison.md"]
+    script:
+        "../scripts/thesis_comparison.py"

@@ -36,20 +36,17 @@ rule compare_engines:
         ),
         provenance=f"{RESULTS}/tables/lammps_vs_reference.provenance.json",
     params:
-        scenes=[ss.scene.hash for ss in gw.study_scenes(P, "lammps_check")],
-        describe=gw.describe(PRESET, P, "lammps_check"),
+        scenes=PLAN.scene_hashes("lammps_check"),
+        describe=DESCRIBE["lammps_check"],
     log:
         f"{RESULTS}/logs/lammps_check/compare.log",
     threads: BATCH_THREADS
     resources:
         mem_mb=BATCH_MEM_MB,
         runtime=gw.runtime_minutes(
-            sum(b.est_seconds for b in PLAN["lammps_check"]), BATCH_THREADS
+            sum(b.est_seconds for b in PLAN.batches["lammps_check"]), BATCH_THREADS
         ),
     conda:
         "../envs/granchain.yaml"
     script:
         "../scripts/compare_engines.py"
-
-
-ALL_TARGETS += [f"{RESULTS}/tables/lammps_vs_reference.csv"]

@@ -29,8 +29,8 @@ rule gather_study:
         provenance=f"{RESULTS}/tables/{{study}}.provenance.json",
         timing=f"{RESULTS}/timing/{{study}}.csv",
     params:
-        plan=lambda w: [b.key() for b in PLAN[w.study]],
-        describe=lambda w: gw.describe(PRESET, P, w.study),
+        plan=lambda w: [b.key() for b in PLAN.batches[w.study]],
+        describe=lambda w: DESCRIBE[w.study],
     log:
         f"{RESULTS}/logs/{{study}}/gather.log",
     threads: 1
@@ -41,7 +41,3 @@ rule gather_study:
         "../envs/granchain.yaml"
     script:
         "../scripts/gather_study.py"
-
-
-ALL_TARGETS += [table_path(s) for s in STUDIES]
-ALL_TARGETS += [f"{RESULTS}/tables/{s}_summary.csv" for s in STUDIES]

@@ -1,4 +1,4 @@
-# LAMMPS vs reference on the lammps_check scenes (granchain.compare). Logic: granchain.workflow.
+# LAMMPS vs reference on the lammps_check scenes. Logic: granchain.workflow.comparison.
 from granchain import workflow as gw
 
 with gw.log_to(snakemake.log[0]):

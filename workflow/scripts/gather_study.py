@@ -1,4 +1,4 @@
-# A study's batch tables -> table, summary, provenance, timing. Logic: granchain.workflow.
+# A study's batch tables -> table, summary, provenance, timing. Logic: granchain.workflow.gather.
 from granchain import workflow as gw
 
 with gw.log_to(snakemake.log[0]):

@@ -1,4 +1,4 @@
-# packed_trace: each material's row and its v(t) trace (.npz). Logic: granchain.workflow.
+# packed_trace: each material's row and its v(t) trace (.npz). Logic: granchain.workflow.run.
 from granchain import workflow as gw
 
 with gw.log_to(snakemake.log[0]):

@@ -1,4 +1,4 @@
-# One batch of a study (one engine): its rows and timings. Logic: granchain.workflow.
+# One batch of a study (one engine): its rows and timings. Logic: granchain.workflow.run.
 from granchain import workflow as gw
 
 with gw.log_to(snakemake.log[0]):

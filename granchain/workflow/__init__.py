@@ -1,0 +1,46 @@
+"""The workflow's logic: configuration -> preset -> study scenes -> job batches -> tables.
+
+The Snakemake rules (workflow/rules/*.smk) and their scripts (workflow/scripts/*.py) call
+only this package, through the names re-exported here (``from granchain import workflow
+as gw``). One job per module; each imports only those above it:
+
+- ``config``      schema validation, preset selection, :class:`ConfigError`
+- ``studies``     a study -> its :class:`StudyScene` list; packed and trace scenes
+- ``batches``     cost estimates, :class:`Batch`, cutting a study into jobs, runtimes
+- ``plan``        :class:`Plan`: a preset's scenes and batches, built once (the check)
+- ``captions``    study sizes for the report's captions
+- ``run``         a job: one batch, the traces, the packed reference; threads and logs
+- ``gather``      batch tables -> a study's table, summary, provenance and timing
+- ``comparison``  LAMMPS against the reference engine (granchain.compare)
+- ``rerun``       one member alone, reproducing its row
+"""
+from __future__ import annotations
+
+from .batches import (JOB_OVERHEAD_S, STEP_SECONDS, Batch, batches, estimated_steps,
+                      find_batch, members_per_job, realisation_cost, runtime_minutes)
+from .captions import FIGURES, caption_sizes, describe
+from .comparison import COMPARISON_META, engine_comparison, write_engine_comparison
+from .config import (SCHEMA, ConfigError, config_error_message, read_config, select_preset,
+                     validate_config)
+from .gather import gather, study_provenance
+from .plan import Plan, load_config
+from .rerun import rerun_member
+from .run import (engine_options, log_to, member_rows, packed_reference, run_batch,
+                  run_traces, set_threads, write_batch)
+from .studies import (ENGINE_ORDER, STUDIES, StudyScene, packed_scene, study_scenes,
+                      trace_scene)
+
+__all__ = [
+    "JOB_OVERHEAD_S", "STEP_SECONDS", "Batch", "batches", "estimated_steps", "find_batch",
+    "members_per_job", "realisation_cost", "runtime_minutes",
+    "FIGURES", "caption_sizes", "describe",
+    "COMPARISON_META", "engine_comparison", "write_engine_comparison",
+    "SCHEMA", "ConfigError", "config_error_message", "read_config", "select_preset",
+    "validate_config",
+    "gather", "study_provenance",
+    "Plan", "load_config",
+    "rerun_member",
+    "engine_options", "log_to", "member_rows", "packed_reference", "run_batch", "run_traces",
+    "set_threads", "write_batch",
+    "ENGINE_ORDER", "STUDIES", "StudyScene", "packed_scene", "study_scenes", "trace_scene",
+]

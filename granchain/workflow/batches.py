@@ -1,0 +1,139 @@
+"""Job batches: many members per job, balanced by estimated cost.
+
+The members of a study (per engine) are cut into ``ceil(members / batch.members_per_job)``
+jobs of about equal *estimated cost* (integration steps, which grow like gap / v_striker),
+in whole realisations of a scene, so a job calls :func:`granchain.simulate.run_scene` with
+``realisations=[...]`` once per scene it holds. The estimates balance jobs and set their
+runtime limits; they never enter a result.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import analytic
+from ..errors import GranchainError
+from ..scene import Scene
+from .studies import ENGINE_ORDER, StudyScene, study_scenes
+
+# Rough cost of one integration step of one chain on one core (s), per engine: used only
+# to balance batches and to declare runtimes, never for results.
+STEP_SECONDS = {"reference": 2.0e-6, "lammps": 1.5e-5}   # LAMMPS: dump writing and reading dominate
+JOB_OVERHEAD_S = 5.0       # interpreter start, imports, numba cache load
+
+
+def estimated_steps(scene: Scene, v: float, gap_mean: float) -> float:
+    """Rough number of integration steps of one chain (for balancing batches only)."""
+    if v <= 0:
+        return 1.0
+    p = scene.probes[-1]
+    travel = (p + 2) * 2.0 * scene.radius / float(analytic.nesterenko_speed(scene.material, 0.64 * v))
+    flight = (p - 1) * gap_mean / (0.7 * v)
+    return (travel + flight) / scene.dt
+
+
+def _gap_mean_m(ss: StudyScene) -> float:
+    s = ss.scene
+    if s.gap_distribution == "none":
+        return 0.0
+    if s.gap_distribution == "from_length":
+        return s.gap_extra_length / (s.n - 1)
+    if s.gap_distribution == "list":
+        return float(np.mean(s.gap_values))
+    return s.gap_mean or 0.0
+
+
+def realisation_cost(ss: StudyScene, engine: str) -> float:
+    """Estimated seconds of one realisation (all striker speeds) of a study scene."""
+    g = _gap_mean_m(ss)
+    steps = sum(estimated_steps(ss.scene, v, g) for v in ss.scene.striker_velocities)
+    return steps * STEP_SECONDS[engine]
+
+
+@dataclass(frozen=True)
+class Batch:
+    """One job: consecutive realisations of one or more scenes of a study, one engine."""
+    study: str
+    engine: str
+    index: int
+    units: tuple[tuple[int, tuple[int, ...]], ...]   # (scene index, realisations)
+    members: int
+    est_seconds: float
+    hashes: tuple[str, ...] = ()                      # scene hash of each unit
+
+    @property
+    def name(self) -> str:
+        return f"{self.engine}_{self.index:03d}"
+
+    def key(self) -> str:
+        """Its scenes (hash: any change of physics, speeds, seed...) and realisations: a
+        Snakemake param, so a changed plan or scene re-runs the job."""
+        parts = []
+        for (i, reals), h in zip(self.units, self.hashes):
+            lo, hi = reals[0], reals[-1]
+            parts.append(f"{h}:r{lo}-{hi}" if len(reals) > 1 else f"{h}:r{lo}")
+        return f"{self.study}/{self.name}[" + ",".join(parts) + "]"
+
+
+def members_per_job(preset: dict) -> int:
+    return int(preset["batch"]["members_per_job"])
+
+
+def batches(preset: dict, study: str, engine: str | None = None,
+            scenes: list[StudyScene] | None = None) -> list[Batch]:
+    """Job batches of a study (every engine, or one), balanced by estimated cost;
+    ``scenes``: the study's scenes if already built (``study_scenes(preset, study)``)."""
+    if scenes is None:
+        scenes = study_scenes(preset, study)
+    engs = [e for e in ENGINE_ORDER if any(e in s.engines for s in scenes)]
+    if engine is not None:
+        engs = [e for e in engs if e == engine]
+    k = members_per_job(preset)
+    out: list[Batch] = []
+    for eng in engs:
+        units = []          # (scene index, realisation, members, cost)
+        for ss in scenes:
+            if eng not in ss.engines:
+                continue
+            c = realisation_cost(ss, eng)
+            nv = len(ss.scene.striker_velocities)
+            units += [(ss.index, r, nv, c) for r in range(ss.scene.realisations)]
+        total_members = sum(u[2] for u in units)
+        total_cost = sum(u[3] for u in units)
+        njobs = max(1, math.ceil(total_members / k))
+        target = total_cost / njobs
+        bins: list[list] = [[] for _ in range(njobs)]
+        cum = 0.0
+        for u in units:
+            j = min(njobs - 1, int((cum + 0.5 * u[3]) / target)) if target > 0 else 0
+            bins[j].append(u)
+            cum += u[3]
+        index = 0
+        for b in bins:
+            if not b:
+                continue
+            grouped: dict[int, list[int]] = {}
+            for si, r, _, _ in b:
+                grouped.setdefault(si, []).append(r)
+            out.append(Batch(study, eng, index,
+                             tuple((si, tuple(rs)) for si, rs in grouped.items()),
+                             sum(u[2] for u in b), sum(u[3] for u in b),
+                             tuple(scenes[si].scene.hash for si in grouped)))
+            index += 1
+    return out
+
+
+def find_batch(preset: dict, study: str, name: str,
+               scenes: list[StudyScene] | None = None) -> Batch:
+    """The batch called ``name`` (e.g. reference_000) of a study."""
+    for b in batches(preset, study, scenes=scenes):
+        if b.name == name:
+            return b
+    raise GranchainError(f"study '{study}' has no batch '{name}' in this configuration")
+
+
+def runtime_minutes(seconds: float, threads: int = 1) -> int:
+    """A generous wall-clock limit (minutes) for a job estimated at ``seconds`` on 1 core."""
+    return int(max(10, math.ceil(3.0 * (JOB_OVERHEAD_S + seconds / max(1, threads)) / 60.0)))

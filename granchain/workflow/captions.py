@@ -1,0 +1,65 @@
+"""Sizes of a preset's studies for the report's captions (workflow/report/*.rst).
+
+The rules pass them as params: ``describe`` to the table captions, ``caption_sizes`` to
+the figure captions; both read a :class:`~granchain.workflow.plan.Plan`.
+"""
+from __future__ import annotations
+
+import math
+
+from ..errors import GranchainError
+from ..scene import DEFAULTS
+from .plan import Plan
+from .studies import ENGINE_ORDER
+
+FIGURES = {"packed_sweep": "chapter Fig. 5.1b, 5.1c", "packed_trace": "chapter Fig. 5.1a",
+           "gap_profile": "chapter Fig. 5.3b", "gap_sweep": "chapter Fig. 5.3c",
+           "extra_length": "chapter Fig. 5.4b", "lammps_check": "LAMMPS cross-validation"}
+# The probes the figures label and measure: the chapter's (the scene default).
+PROBES = tuple(DEFAULTS["probes"])
+
+
+def describe(plan: Plan, study: str) -> dict:
+    """Sizes of a study for the report's table captions."""
+    scenes = plan.scenes[study]
+    s0 = scenes[0].scene
+    speeds = sorted({v for ss in scenes for v in ss.scene.striker_velocities})
+    gaps = sorted({ss.gap_mean_nm for ss in scenes})
+    extra = sorted({ss.extra_length_um for ss in scenes if not math.isnan(ss.extra_length_um)})
+    if extra:
+        gap_text = f"gaps from an extra chain length of {', '.join(f'{x:g}' for x in extra)} um"
+    elif gaps == [0.0]:
+        gap_text = "packed (no gaps)"
+    else:
+        dist = s0.gap_distribution if s0.gap_distribution != "none" else \
+            plan.preset["base"]["gap_distribution"]
+        gap_text = f"{dist} gaps of mean {', '.join(f'{g:g}' for g in gaps)} nm"
+    engines = [e for e in ENGINE_ORDER if any(e in ss.engines for ss in scenes)]
+    return {"preset": plan.name, "figure": FIGURES[study], "scenes": len(scenes),
+            "materials": ", ".join(dict.fromkeys(ss.material for ss in scenes)),
+            "v_striker": ", ".join(f"{v:g}" for v in speeds),
+            "gaps": gap_text if study != "lammps_check" else ", ".join(f"{g:g}" for g in gaps),
+            "members": sum(ss.members * len(ss.engines) for ss in scenes),
+            "jobs": len(plan.batches[study]), "engines": engines,
+            "method": ", ".join(dict.fromkeys(ss.scene.method for ss in scenes)),
+            "dt_s": f"{s0.dt:g}", "seed": s0.gap_seed, "probes": list(s0.probes[:2])}
+
+
+def caption_sizes(plan: Plan, study: str) -> dict:
+    """What a figure caption says about a study's sizes, as plain strings. The figures
+    measure the chapter's probes, so a preset with other ``base.probes`` is refused."""
+    spec = plan.preset["studies"][study]
+    base = plan.preset["base"]
+    if list(base.get("probes", PROBES)) != list(PROBES):
+        raise GranchainError(f"base.probes {base['probes']}: the figures label and measure "
+                             f"the chapter's probes {PROBES[0]} and {PROBES[1]}; remove "
+                             "base.probes from the preset")
+    out = {"preset": plan.name, "n": str(base["n"]), "radius_um": f"{base['radius'] * 1e6:g}",
+           "method": str(base["method"]), "dt_s": f"{base['dt']:g}",
+           "materials": ", ".join(sorted(set(plan.materials(study))))}
+    for key in ("v_striker", "gap_mean_nm", "extra_length_um", "realisations"):
+        if key in spec:
+            v = spec[key]
+            out[key] = ", ".join(f"{x:g}" for x in v) if isinstance(v, (list, tuple)) \
+                else f"{v:g}"
+    return out

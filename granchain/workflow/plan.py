@@ -1,0 +1,60 @@
+"""The plan of a preset: every study's scenes and job batches, built once.
+
+The Snakefile builds one :class:`Plan` when it is parsed; the rules take their jobs
+(batch names, keys, runtimes), trace materials and report captions from it, so no scene is
+built twice. Building the plan is also the configuration check: a bad value stops it with
+the scene's one-line message, before anything runs.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..errors import GranchainError
+from .batches import Batch, batches
+from .config import ConfigError, read_config, select_preset
+from .studies import STUDIES, StudyScene, study_scenes
+
+
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """A preset (``name``, validated ``preset`` mapping) with the study scenes and job
+    batches of every study, in table order."""
+    name: str
+    preset: dict
+    scenes: dict[str, list[StudyScene]]
+    batches: dict[str, list[Batch]]
+
+    @classmethod
+    def build(cls, config: dict) -> Plan:
+        """The plan of the preset ``config['preset']`` of a validated configuration."""
+        name, preset = select_preset(config)
+        scenes, jobs = {}, {}
+        for study in STUDIES:
+            try:
+                scenes[study] = study_scenes(preset, study)
+                jobs[study] = batches(preset, study, scenes=scenes[study])
+            except ConfigError as exc:
+                raise ConfigError(str(exc).replace("at 'studies.", f"at 'presets.{name}.studies.",
+                                                   1)) from None
+        return cls(name, preset, scenes, jobs)
+
+    def batch(self, study: str, name: str) -> Batch:
+        """The batch called ``name`` (e.g. reference_000) of a study."""
+        for b in self.batches[study]:
+            if b.name == name:
+                return b
+        raise GranchainError(f"study '{study}' has no batch '{name}' in preset '{self.name}'")
+
+    def materials(self, study: str) -> list[str]:
+        """The material of each scene of a study, in table order."""
+        return [ss.material for ss in self.scenes[study]]
+
+    def scene_hashes(self, study: str) -> list[str]:
+        return [ss.scene.hash for ss in self.scenes[study]]
+
+
+def load_config(path, preset: str | None = None) -> tuple[str, dict]:
+    """(name, validated preset) of a workflow configuration file, e.g. config/config.yaml;
+    every study scene and batch of the preset is built, so a bad value fails here."""
+    plan = Plan.build(read_config(path, preset))
+    return plan.name, plan.preset

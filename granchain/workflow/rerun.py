@@ -1,0 +1,27 @@
+"""One member of a study alone: a chain with only its striker speed and only its gap
+realisation, which reproduces its table row bit for bit."""
+from __future__ import annotations
+
+
+from ..errors import GranchainError
+from ..simulate import run_scene
+from .run import member_rows
+from .studies import study_scenes
+
+
+def rerun_member(preset: dict, study: str, *, material: str, v_striker: float, realisation: int,
+                 engine: str = "reference", gap_mean_nm: float | None = None,
+                 extra_length_um: float | None = None) -> dict:
+    """Re-run one member of a study alone and return its table row (with the Eq. 5.4
+    bound)."""
+    cands = [ss for ss in study_scenes(preset, study) if ss.material == material
+             and v_striker in ss.scene.striker_velocities
+             and (gap_mean_nm is None or ss.gap_mean_nm == gap_mean_nm)
+             and (extra_length_um is None or ss.extra_length_um == extra_length_um)]
+    if len(cands) != 1:
+        raise GranchainError(f"{len(cands)} scenes of study '{study}' match; give its "
+                             "material, v_striker and gap_mean_nm or extra_length_um")
+    ss = cands[0]
+    alone = ss.scene.derive(**{"striker.velocity": float(v_striker)})
+    run, = run_scene(alone, engine=engine, realisations=[int(realisation)])
+    return member_rows(ss, [run]).iloc[0].to_dict()

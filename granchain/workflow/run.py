@@ -1,0 +1,146 @@
+"""Running jobs: one batch of a study, the packed_trace study, and the packed reference.
+
+A batch's rows are complete when it ends (with the Eq. 5.4 bound from its own packed
+reference), so gathering a study is pure table work (:mod:`granchain.workflow.gather`).
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .. import tables
+from ..gaps import members as scene_members
+from ..observables import ChainResult
+from ..simulate import run_scene, trajectories
+from .batches import find_batch
+from .studies import StudyScene, packed_scene, study_scenes, trace_scene
+
+
+def set_threads(threads: int | None) -> None:
+    """Threads for the numba kernels of this process (a job's ``threads``)."""
+    if not threads:
+        return
+    import numba
+    numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+
+
+@contextlib.contextmanager
+def log_to(path):
+    """Send this process's stdout and stderr (progress, warnings, and what compiled code
+    such as LAMMPS prints) to a job's log file, as a shell rule's ``> {log} 2>&1``."""
+    if path is None:
+        yield
+        return
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = os.dup(1), os.dup(2)
+    try:
+        with open(path, "w") as f:
+            os.dup2(f.fileno(), 1)
+            os.dup2(f.fileno(), 2)
+            try:
+                yield
+            finally:
+                sys.stdout.flush()
+                sys.stderr.flush()
+                os.dup2(saved[0], 1)
+                os.dup2(saved[1], 2)
+    finally:
+        os.close(saved[0])
+        os.close(saved[1])
+
+
+def engine_options(engine: str, threads: int | None) -> dict:
+    """Keyword arguments of ``run_scene`` for an engine in a job with ``threads`` cores:
+    LAMMPS gets that many MPI ranks; the reference engine's numba threads are set per
+    process (``set_threads``)."""
+    return {"nprocs": max(1, int(threads or 1))} if engine == "lammps" else {}
+
+
+def packed_reference(scenes: list[StudyScene], velocities=None) -> pd.DataFrame:
+    """Group velocity of the packed chain (reference engine, arrival-time definition
+    ``v_g_front``) per (material, striker speed): the v_g(no gaps) of chapter Eq. 5.4.
+
+    ``velocities`` restricts the speeds (e.g. to re-run one member alone).
+    """
+    rows, done = [], set()
+    for ss in scenes:
+        ps = packed_scene(ss)
+        if velocities is not None:
+            ps = ps.derive(**{"striker.velocity": [float(v) for v in velocities]})
+        if ps.hash in done:
+            continue
+        done.add(ps.hash)
+        for r in run_scene(ps):
+            rows.append({"material": ss.material, "v_striker_m_s": float(r.v_striker),
+                         "v_g_packed_m_s": float(r.v_g_front)})
+    return pd.DataFrame(rows, columns=["material", "v_striker_m_s", "v_g_packed_m_s"]) \
+        .drop_duplicates(["material", "v_striker_m_s"]).reset_index(drop=True)
+
+
+def member_rows(ss: StudyScene, runs: list[ChainResult]) -> pd.DataFrame:
+    """Table rows of a study scene's runs, with the Eq. 5.4 bound from its packed chain
+    (run here for the speeds these runs have: a few cheap chains)."""
+    df = tables.study_table([tables.member_row(ss.meta, r, ss.scene.n) for r in runs],
+                            ss.scene.n)
+    speeds = sorted({float(r.v_striker) for r in runs})
+    return tables.add_eq54_bound(df, packed_reference([ss], velocities=speeds), ss.scene.radius)
+
+
+def _timing_row(study: str, engine: str, batch: str, ss: StudyScene, runs: list[ChainResult],
+                wall: float) -> dict:
+    return {"study": study, "engine": engine, "batch": batch, "scene_hash": ss.scene.hash,
+            "members": len(runs), "steps": int(sum(r.steps for r in runs)), "wall_s": wall,
+            "wall_per_member_s": wall / max(1, len(runs))}
+
+
+def run_batch(preset: dict, study: str, name: str, threads: int | None = None
+              ) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Run one batch: (its rows, complete with the Eq. 5.4 bound; timing rows)."""
+    scenes = study_scenes(preset, study)
+    batch = find_batch(preset, study, name, scenes)
+    rows, timing = [], []
+    for si, reals in batch.units:
+        ss = scenes[si]
+        t0 = time.perf_counter()
+        runs = run_scene(ss.scene, engine=batch.engine, realisations=list(reals),
+                         **engine_options(batch.engine, threads))
+        wall = time.perf_counter() - t0
+        rows.append(member_rows(ss, runs))
+        timing.append(_timing_row(study, batch.engine, batch.name, ss, runs, wall))
+        print(f"[granchain] {study} {batch.name}: {ss.scene.name} {len(runs)} members "
+              f"in {wall:.2f} s", file=sys.stderr, flush=True)
+    return pd.concat(rows, ignore_index=True), tables.timing_table(timing)
+
+
+def write_batch(preset: dict, study: str, name: str, out_csv, timing_csv,
+                threads: int | None = None) -> None:
+    df, timing = run_batch(preset, study, name, threads)
+    tables.write_csv(timing, timing_csv)
+    tables.write_csv(df, out_csv)
+
+
+def run_traces(preset: dict, trace_paths: dict[str, str], out_csv, timing_csv) -> None:
+    """packed_trace: each material's row, and its v(t) trace as .npz
+    (t_s (S,), v_m_s (S, n), v_striker_m_s, material)."""
+    rows, timing = [], []
+    for ss in study_scenes(preset, "packed_trace"):
+        t0 = time.perf_counter()
+        runs = run_scene(ss.scene)
+        rows.append(member_rows(ss, runs))
+        # The table row stops once the wave has left the chain (t_end auto); the trace
+        # for Fig. 5.1a runs for a fixed 1.5x the crossing time, the same for every speed.
+        (m, traj), = list(trajectories(trace_scene(ss), scene_members(ss.scene)))
+        tables.write_npz(trace_paths[ss.material], t_s=traj.t, v_m_s=traj.v,
+                         v_striker_m_s=np.float64(m.v_striker), material=np.str_(ss.material))
+        wall = time.perf_counter() - t0
+        timing.append(_timing_row("packed_trace", "reference", ss.material, ss, runs, wall))
+    tables.write_csv(tables.timing_table(timing), timing_csv)
+    tables.write_csv(pd.concat(rows, ignore_index=True), out_csv)

@@ -1,0 +1,168 @@
+"""Study expansion: a preset's study -> its *study scenes*, in table order.
+
+A study expands into one :class:`~granchain.scene.Scene` per material and gap setting,
+built with :func:`granchain.scene.scene_from_dict`, so a bad value gets the scene's own
+one-line message. A scene's *members* are (striker speed x gap realisation), as in
+:func:`granchain.simulate.members`; realisation r of a scene draws its gaps from
+``rng([seed, r])`` (:func:`granchain.gaps.realise`), so any member re-runs alone and
+reproduces bit for bit.
+
+Studies (chapter figure in brackets):
+- packed_sweep  [5.1b, 5.1c] packed chain, striker-speed sweep, per material
+- packed_trace  [5.1a] packed chain at one speed, per material; also saves v(t)
+- gap_profile   [5.3b] random gaps of one mean, one speed, R realisations
+- gap_sweep     [5.3c] mean gaps x striker speeds x R realisations, per material
+- extra_length  [5.4b] chains longer than packed by L_extra (gaps from_length)
+- lammps_check  both engines on the same members (LAMMPS cross-validation)
+"""
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+
+from .. import analytic
+from ..errors import GranchainError
+from ..costmodel import resolve_auto
+from ..scene import RANDOM_GAPS, Scene, apply_overrides, scene_from_dict
+from .config import ConfigError
+
+STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length",
+           "lammps_check")
+ENGINE_ORDER = ("reference", "lammps")
+
+
+@dataclass(frozen=True)
+class StudyScene:
+    """One scene of a study: a material and a gap setting, with its striker speeds and
+    realisations; ``raw`` is the scene mapping it was built from."""
+    study: str
+    index: int
+    material: str
+    gap_mean_nm: float          # nominal mean gap (0: packed)
+    extra_length_um: float      # NaN unless the gaps come from an extra chain length
+    engines: tuple[str, ...]
+    scene: Scene
+    raw: dict
+
+    @property
+    def meta(self) -> dict:
+        return {"study": self.study, "material": self.material,
+                "gap_distribution": self.scene.gap_distribution,
+                "gap_mean_nm": self.gap_mean_nm, "extra_length_um": self.extra_length_um,
+                "seed": self.scene.gap_seed, "scene_hash": self.scene.hash}
+
+    @property
+    def members(self) -> int:
+        return len(self.scene.striker_velocities) * self.scene.realisations
+
+
+def _as_list(x):
+    return list(x) if isinstance(x, (list, tuple)) else [x]
+
+
+def _fmt_num(x: float) -> str:
+    return f"{x:g}".replace("+", "")
+
+
+def _study_materials(preset: dict, spec: dict) -> list[str]:
+    if "material" in spec:
+        return [spec["material"]]
+    return list(spec.get("materials") or preset["materials"])
+
+
+def _raw_scene(preset: dict, spec: dict, name: str, material: str, velocities, gaps: dict,
+               realisations: int) -> dict:
+    base = preset["base"]
+    raw = {
+        "name": name,
+        "material": material,
+        "chain": {"n": base["n"], "radius": base["radius"]},
+        "striker": {"velocity": list(velocities) if len(velocities) > 1 else velocities[0]},
+        # the seed only where gaps are drawn at random (elsewhere it has no effect)
+        "gaps": dict(gaps, seed=base["seed"]) if gaps.get("distribution") in RANDOM_GAPS
+        else dict(gaps),
+        "effects": list(base["effects"]),
+        "integrator": {"method": spec.get("method", base["method"]),
+                       "dt": spec.get("dt", base["dt"])},
+        "ensemble": {"realisations": int(realisations)},
+    }
+    if raw["integrator"]["method"] == "auto" and "dt" not in spec:
+        del raw["integrator"]["dt"]          # auto chooses its own step
+    if "probes" in base:
+        raw["probes"] = list(base["probes"])
+    return apply_overrides(raw, list(base.get("overrides", [])) + list(spec.get("overrides", [])))
+
+
+def _build(raw: dict, where: str) -> Scene:
+    """The study scene, with method auto resolved (its hash covers the setting it runs)."""
+    try:
+        return resolve_auto(scene_from_dict(raw))
+    except GranchainError as exc:
+        raise ConfigError(f"invalid configuration at '{where}' (scene {raw['name']}): {exc}") \
+            from None
+
+
+def study_scenes(preset: dict, study: str) -> list[StudyScene]:
+    """The scenes of one study of a preset, in table order."""
+    if study not in STUDIES:
+        raise ConfigError(f"unknown study '{study}'; use one of {', '.join(STUDIES)}")
+    spec = preset["studies"][study]
+    where = f"studies.{study}"
+    dist = preset["base"]["gap_distribution"]
+    out: list[StudyScene] = []
+
+    def add(material, velocities, gaps, realisations, gap_nm, extra_um, suffix, engines):
+        name = f"{study}-{material}" + (f"-{suffix}" if suffix else "")
+        raw = _raw_scene(preset, spec, name, material, velocities, gaps, realisations)
+        out.append(StudyScene(study, len(out), material, float(gap_nm), float(extra_um),
+                              tuple(engines), _build(raw, where), raw))
+
+    engines = ("reference",)
+    if study == "lammps_check":
+        engines = tuple(e for e in ENGINE_ORDER if e in spec["engines"])
+    for material in _study_materials(preset, spec):
+        v = _as_list(spec["v_striker"])
+        if study in ("packed_sweep", "packed_trace"):
+            add(material, v, {"distribution": "none"}, 1, 0.0, math.nan, "", engines)
+        elif study in ("gap_profile", "gap_sweep", "lammps_check"):
+            for g in _as_list(spec["gap_mean_nm"]):
+                gaps = {"distribution": "none"} if g == 0 else \
+                    {"distribution": dist, "mean": float(g) * 1e-9}
+                reals = 1 if g == 0 else spec["realisations"]
+                if study != "lammps_check":
+                    add(material, v, gaps, reals, g, math.nan, f"gap{_fmt_num(g)}nm", engines)
+                    continue
+                # One scene per striker speed: a LAMMPS run samples all its chains on the
+                # grid of its fastest one, so one speed per run keeps both engines on the
+                # same grid (each chain's own) whatever the batching.
+                for vi in v:
+                    add(material, [vi], gaps, reals, g, math.nan,
+                        f"gap{_fmt_num(g)}nm-v{_fmt_num(vi)}", engines)
+        elif study == "extra_length":
+            n = preset["base"]["n"]
+            for L in _as_list(spec["extra_length_um"]):
+                gaps = {"distribution": "from_length", "extra_length": float(L) * 1e-6}
+                add(material, v, gaps, spec["realisations"], float(L) * 1e3 / (n - 1), L,
+                    f"extra{_fmt_num(L)}um", engines)
+    return out
+
+
+def packed_scene(ss: StudyScene) -> Scene:
+    """The packed chain of a study scene: same physics, striker speeds, method and dt."""
+    raw = copy.deepcopy(ss.raw)
+    raw["name"] = f"{ss.study}-{ss.material}-packed"
+    raw["gaps"] = {"distribution": "none"}
+    raw["ensemble"] = {"realisations": 1}
+    return scene_from_dict(raw)
+
+
+def trace_scene(ss: StudyScene) -> Scene:
+    """The packed_trace scene with t_end long enough for the pulse to cross all n spheres
+    (1.5x the Nesterenko travel time of n + 1 diameters at 0.64 v_s, the chapter's v_max)."""
+    sc = ss.scene
+    v = float(sc.striker_velocities[0])
+    travel = (sc.n + 1) * 2.0 * sc.radius / float(analytic.nesterenko_speed(sc.material, 0.64 * v))
+    raw = copy.deepcopy(ss.raw)
+    raw["t_end"] = 1.5 * travel
+    return _build(raw, "studies.packed_trace")
