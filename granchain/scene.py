@@ -9,8 +9,8 @@ This layer parses and validates only. A scene with ``integrator.method: auto`` k
 ``method == "auto"`` and its tolerance; the step it runs with comes from the cost model
 (``granchain.costmodel.resolve_auto``), applied where a run starts.
 
-Defaults and where they come from are listed in ``DEFAULTS`` below and in
-docs/scenes.md.
+Defaults and where they come from are listed in ``DEFAULTS`` below and in the
+README's Scenes section.
 """
 from __future__ import annotations
 

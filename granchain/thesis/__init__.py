@@ -78,7 +78,7 @@ def markdown(df: pd.DataFrame, title: str = "Thesis comparison") -> str:
     """The table as Markdown under ``# {title}``: quantity, kind, chapter, this
     project's value (percent for fractions), ratio, evidence, reason."""
     lines = [f"# {title}", "",
-             "Chapter numbers (../shared/physics.md, 'What the chapter reports') beside this "
+             "The numbers the chapter reports (its simulations and measurements) beside this "
              "project's values computed from the workflow's tables; ratio = project/chapter. "
              "`experiment` rows compare the chapter's measurements with this model.", "",
              "| quantity | kind | chapter | this project | ratio | evidence | reason |",
