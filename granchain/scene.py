@@ -40,7 +40,7 @@ TANGENTIAL_MODELS = ("mindlin", "linear_history")
 
 # Default scene: the chapter's packed 440C chain (15 spheres, R = 150 um, v_s = 0.1 m/s,
 # RK4 with a 1 ns step). Constants of Eq. 5.1 are the chapter's Chapter-4 values;
-# s = sin(90deg/2) for a 90-degree groove (physics.md: chapter 4 is not available).
+# s = sin(90deg/2) for a 90-degree groove (the thesis's chapter 4, which fixes s, is not available).
 DEFAULTS: dict[str, Any] = {
     "name": None,                       # defaults to the file stem
     "material": "ss440c",
