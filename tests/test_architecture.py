@@ -100,7 +100,8 @@ def test_the_cycle_finder_finds_a_lazy_cycle(tmp_path):
 # Layers, lowest first: a module may import its own layer and the layers before it.
 LAYERS = (
     ("data", ("granchain", "granchain.errors", "granchain.materials", "granchain.fileio",
-              "granchain.analytic", "granchain.scene", "granchain.gaps", "granchain.guards")),
+              "granchain.analytic", "granchain.scenefile", "granchain.scene", "granchain.gaps",
+              "granchain.guards")),
     ("physics", ("granchain.effects", "granchain.lammps.units", "granchain.lammps")),
     ("run plan", ("granchain.schedule",)),
     ("engines", ("granchain.trajectory", "granchain.engines", "granchain.lammps.plan",
