@@ -18,7 +18,8 @@ horizontal axis perpendicular to it (LAMMPS: x and omega_y); a sphere rolling fo
 omega > 0. Slip at the groove: u = v - s R omega. Slip at the contact of spheres k, k+1:
 w = R (omega_k + omega_{k+1}).
 
-- its kernel parameters and flags by slot name (``kernel(term)``).
+- its kernel parameters and flags by slot name (``kernel(term)``), and for an effect with
+  a history the error scale the adaptive method judges it on (``error_scale``).
 
 To add an effect: a module here with these parts, its entry in ``MODULES`` and ``Terms``,
 its slots and its block in ``engines/kernels.py`` (``forces``, and ``project`` if it has a

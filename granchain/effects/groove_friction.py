@@ -99,6 +99,12 @@ def kernel(gf: GrooveFriction) -> tuple[dict, dict]:
     return {"P_S": gf.s, "P_FC": gf.Fc, "P_KG": gf.kt, "P_GG": gf.gamma}, {"F_GROOVE": 1}
 
 
+def error_scale(gf: GrooveFriction, terms, delta: float, v: float) -> float:
+    """Absolute error scale of the groove histories for the adaptive method: the spring
+    stretch at the Coulomb cap (m)."""
+    return gf.Fc / gf.kt
+
+
 def lammps_fix(gf: GrooveFriction) -> tuple[str, str]:
     """(comment, fix groove/drag arguments) of the deck."""
     return (f"# groove: Coulomb limit mu m g / s, stick spring kt ({gf.kt_source}) + "

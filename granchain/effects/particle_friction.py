@@ -64,6 +64,12 @@ def kernel(pf: ParticleFriction) -> tuple[dict, dict]:
     return {"P_MU": pf.mu, "P_KT": pf.kt}, {"F_PP": 1, "F_MINDLIN": int(pf.model == "mindlin")}
 
 
+def error_scale(pf: ParticleFriction, terms, delta: float, v: float) -> float:
+    """Absolute error scale of the contact histories for the adaptive method: the peak
+    overlap delta (m)."""
+    return delta
+
+
 def lammps_pair(pf: ParticleFriction | None) -> tuple[str, str]:
     """(comment, pair_coeff part) of the deck; a zero tangential law when off."""
     if pf is None:

@@ -76,6 +76,13 @@ def kernel(rf: RollingFriction) -> tuple[dict, dict]:
     return {"P_KR": rf.k_roll, "P_GR": rf.gamma_roll, "P_MUR": rf.mu_roll}, {"F_ROLL": 1}
 
 
+def error_scale(rf: RollingFriction, terms, delta: float, v: float) -> float:
+    """Absolute error scale of the rolling histories for the adaptive method: their value
+    at the cap, mu_roll f(delta) / k_roll, at most the peak overlap delta (m)."""
+    rho_cap = rf.mu_roll * terms.hertz.K * delta**1.5 / rf.k_roll
+    return min(delta, rho_cap) if rho_cap > 0 else delta
+
+
 def lammps_pair(rf: RollingFriction) -> tuple[str, str]:
     """(comment, pair_coeff part) of the deck."""
     return ("# rolling sds k_roll gamma_roll mu_roll: rolling_friction on",

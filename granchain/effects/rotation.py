@@ -25,6 +25,11 @@ def kernel(rot: Rotation) -> tuple[dict, dict]:
     return {"P_I": rot.inertia}, {"F_ROT": 1}
 
 
+def error_scale(rot: Rotation, terms, delta: float, v: float) -> float:
+    """Absolute error scale of the spins for the adaptive method (rad/s)."""
+    return v / terms.R
+
+
 def lammps_integrator(rot: Rotation | None) -> str:
     """The deck's time integrator: translation and rotation, or translation only."""
     if rot is not None:

@@ -214,19 +214,14 @@ def _error_scales(scene, terms, layout, v):
     scale[LO[K.L_X]:LO[K.L_X] + n] = delta
     rel[LO[K.L_X]:LO[K.L_X] + n] = 0
     scale[LO[K.L_V]:LO[K.L_V] + n] = v
-    if LO[K.L_W] >= 0:
-        scale[LO[K.L_W]:LO[K.L_W] + n] = v / terms.R
-    if LO[K.L_XG] >= 0:
-        g = terms.groove_friction
-        scale[LO[K.L_XG]:LO[K.L_XG] + n] = g.Fc / g.kt
-    if LO[K.L_XT] >= 0:
-        scale[LO[K.L_XT]:LO[K.L_XT] + n - 1] = delta
-    if LO[K.L_PS] >= 0:
-        # rolling history: judged on its value at the cap, mu_roll Fn / k_roll
-        rf = terms.rolling_friction
-        rho_cap = rf.mu_roll * terms.hertz.K * delta**1.5 / rf.k_roll
-        scale[LO[K.L_PS]:LO[K.L_PS] + n - 1] = min(delta, rho_cap) if rho_cap > 0 else delta
-    for c in (K.L_WG, K.L_WD, K.L_WT, K.L_WR):
-        if LO[c] >= 0:
-            scale[LO[c]] = e0
+    # each effect's history blocks, on the scale the effect declares; its work on E0
+    for mod in MODULES:
+        term = getattr(terms, mod.SPEC.name)
+        if term is None:
+            continue
+        for slot, per in mod.SPEC.state:
+            o = LO[getattr(K, slot)]
+            scale[o:o + (n if per == "particle" else n - 1)] = mod.error_scale(term, terms, delta, v)
+        if mod.SPEC.work_slot:
+            scale[LO[getattr(K, mod.SPEC.work_slot)]] = e0
     return scale, rel
