@@ -65,6 +65,15 @@ def engine_options(engine: str, threads: int | None) -> dict:
     return {"nprocs": max(1, int(threads or 1))} if engine == "lammps" else {}
 
 
+def local_mpi(nprocs: int) -> None:
+    """In a SLURM job, have mpich's mpirun start a LAMMPS run's ranks on the job's own node
+    (``HYDRA_LAUNCHER=fork``, unless set): inside a SLURM job it would otherwise launch
+    them through a nested srun, which waits for the CPUs the job's own step holds. A
+    workflow job is one node and ``threads`` CPUs, so its ranks belong there."""
+    if nprocs > 1 and "SLURM_JOB_ID" in os.environ:
+        os.environ.setdefault("HYDRA_LAUNCHER", "fork")
+
+
 def run_members(scene, engine: str, realisations=None, threads: int | None = None
                 ) -> list[ChainResult]:
     """``run_scene`` of a scene's members (``realisations``: all if None) on ``engine``.
@@ -75,6 +84,7 @@ def run_members(scene, engine: str, realisations=None, threads: int | None = Non
     own grid by either engine. Results come in ``run_scene``'s order (speed, then
     realisation)."""
     opts = engine_options(engine, threads)
+    local_mpi(opts.get("nprocs", 1))
     if engine != "lammps" or len(scene.striker_velocities) == 1:
         return run_scene(scene, engine=engine, realisations=realisations, **opts)
     out: list[ChainResult] = []
@@ -164,8 +174,10 @@ def run_traces(preset: dict, trace_paths: dict[str, str], out_csv, timing_csv,
         rows.append(member_rows(ss, runs, threads))
         # The table row stops once the wave has left the chain (t_end auto); the trace
         # for Fig. 5.1a runs for a fixed 1.5x the crossing time, the same for every speed.
+        opts = engine_options(engine, threads)
+        local_mpi(opts.get("nprocs", 1))
         (m, traj), = list(trajectories(trace_scene(ss), scene_members(ss.scene), engine,
-                                       **engine_options(engine, threads)))
+                                       **opts))
         tables.write_npz(trace_paths[ss.material], t_s=traj.t, v_m_s=traj.v,
                          v_striker_m_s=np.float64(m.v_striker), material=np.str_(ss.material))
         wall = time.perf_counter() - t0
