@@ -154,6 +154,41 @@ def test_caption_sizes_and_probe_check():
         gw.caption_sizes(gw.Plan(plan.name, bad, plan.scenes, plan.batches), "gap_sweep")
 
 
+def test_engine_override_plans_every_ensemble_study_on_lammps():
+    """--config engine=lammps: every ensemble study's batches are LAMMPS batches, costed at
+    the LAMMPS step cost, their scenes verlet; lammps_check keeps both engines;
+    engine=reference is the default preset, config hash included."""
+    cfg = gw.read_config(CONFIG, "tiny")
+    ref, lmp = gw.Plan.build(cfg), gw.Plan.build({**cfg, "engine": "lammps"})
+    same = gw.Plan.build({**cfg, "engine": "reference"})
+    assert tables.config_hash(same.preset) == tables.config_hash(ref.preset)
+    assert tables.config_hash(lmp.preset) != tables.config_hash(ref.preset)
+    ratio = gw.STEP_SECONDS["lammps"] / gw.STEP_SECONDS["reference"]
+    for study in gw.ENSEMBLE_STUDIES:
+        assert ref.engines(study) == ["reference"] and lmp.engines(study) == ["lammps"]
+        assert all(ss.scene.method == "verlet" and ss.packed_engine == "lammps"
+                   for ss in lmp.scenes[study])
+        assert same.scene_hashes(study) == ref.scene_hashes(study)
+        if study == "packed_trace":
+            continue
+        assert [b.name for b in lmp.batches[study]] == \
+            [b.name.replace("reference", "lammps") for b in ref.batches[study]]
+        # same members, same steps: the estimate differs by the engines' step costs only
+        est = [b.est_seconds for b in ref.batches[study]]
+        assert [b.est_seconds for b in lmp.batches[study]] == pytest.approx(
+            [e * ratio for e in est], rel=1e-12)
+    assert lmp.batches["lammps_check"] == ref.batches["lammps_check"]
+    assert [ss.packed_engine for ss in lmp.scenes["lammps_check"]] == \
+        ["reference"] * len(lmp.scenes["lammps_check"])
+    # the study key alone does the same for one study
+    one = gw.with_engine(ref.preset)
+    one["studies"]["gap_sweep"]["engine"] = "lammps"
+    assert [b.engine for b in gw.batches(one, "gap_sweep")] == ["lammps"]
+    assert [b.engine for b in gw.batches(one, "gap_profile")] == ["reference"]
+    with pytest.raises(GranchainError, match="at 'engine'"):
+        gw.with_engine(ref.preset, "lamps")
+
+
 # ---------------------------------------------------------------------------------------
 # snakemake: lint, dry runs, schema rejection
 # ---------------------------------------------------------------------------------------
@@ -184,6 +219,20 @@ def _one_error(proc, *needles):
         assert n in lines[0], text
 
 
+def test_dry_run_with_lammps_engine(tmp_path):
+    """--config engine=lammps: every ensemble batch is a run_lammps_batch job."""
+    proc = snakemake(_workdir(tmp_path), "-n", "--quiet", "rules", "--config", "preset=tiny",
+                     "engine=lammps", timeout=300)
+    text = " ".join((proc.stdout + proc.stderr).split())
+    plan = gw.Plan.build({**gw.read_config(CONFIG, "tiny"), "engine": "lammps"}).batches
+    lammps = sum(1 for s in gw.STUDIES if s != "packed_trace" for b in plan[s]
+                 if b.engine == "lammps")
+    refs = sum(1 for s in gw.STUDIES if s != "packed_trace" for b in plan[s]
+               if b.engine == "reference")
+    assert lammps > len(plan["lammps_check"]), plan
+    assert f"run_lammps_batch {lammps}" in text and f"run_batch {refs}" in text, text
+
+
 def test_unknown_preset_is_rejected(tmp_path):
     proc = snakemake(_workdir(tmp_path), "-n", "--config", "preset=nope", check=False)
     _one_error(proc, "'preset'", "unknown preset 'nope'", "tiny")
@@ -210,6 +259,9 @@ def test_preset_and_material_names_cannot_leave_results(tmp_path):
     ("presets: {tiny: {studies: {gap_sweep: {materials: [ss44c]}}}}",
      ("presets.tiny.studies.gap_sweep", "unknown material 'ss44c'", "did you mean 'ss440c'")),
     ("presets: {tiny: {base: {dt: 2.0e-7}}}", ("presets.tiny.studies", "integrator.dt", "too large")),
+    ("presets: {tiny: {studies: {gap_sweep: {engine: lamps}}}}",
+     ("presets.tiny.studies.gap_sweep.engine", "'lamps' is not one of", "reference")),
+    ("engine: lamps", ("'engine'", "'lamps' is not one of", "--config engine=")),
 ])
 def test_bad_preset_value_is_rejected_before_anything_runs(tmp_path, bad, needles):
     wd = _workdir(tmp_path)
@@ -416,6 +468,88 @@ def test_killed_run_resumes_to_the_same_tables(tiny_run, tmp_path):
     proc = snakemake(wd, "--cores", "2", "--config", "preset=tiny", "--rerun-incomplete",
                      timeout=900)
     assert_same_results(tiny_run / "results" / "tiny", root)
+
+
+# ---------------------------------------------------------------------------------------
+# tiny end to end on the LAMMPS engine
+# ---------------------------------------------------------------------------------------
+# a member: the same chain in both runs (the scene hashes differ: the method is part of it)
+MEMBER_KEY = ["study", "material", "v_striker_m_s", "gap_mean_nm", "extra_length_um",
+              "realisation"]
+
+
+@pytest.fixture(scope="module")
+def tiny_lammps_run(tmp_path_factory):
+    """tiny with --config engine=lammps, end to end; and the ensemble study tables of tiny
+    on the reference engine with velocity Verlet (what LAMMPS integrates), to compare."""
+    wd = _workdir(tmp_path_factory.mktemp("tiny_lammps"))
+    t0 = time.monotonic()
+    snakemake(wd, "--cores", "2", "--config", "preset=tiny", "engine=lammps", timeout=900)
+    print(f"tiny preset, engine=lammps: {time.monotonic() - t0:.1f} s")
+    vv = _workdir(tmp_path_factory.mktemp("tiny_verlet"))
+    (vv / "verlet.yaml").write_text("presets: {tiny: {base: {method: verlet}}}\n")
+    targets = [f"results/tiny/tables/{s}.csv" for s in gw.ENSEMBLE_STUDIES]
+    t0 = time.monotonic()
+    snakemake(vv, "--cores", "2", *targets, "--configfile", "verlet.yaml",
+              "--config", "preset=tiny", timeout=900)
+    print(f"tiny ensemble tables, reference engine, verlet: {time.monotonic() - t0:.1f} s")
+    return wd, vv
+
+
+def test_tiny_on_lammps_agrees_with_reference_verlet(tiny_lammps_run):
+    """Every ensemble study's rows through LAMMPS agree, member by member, with the
+    reference engine's velocity Verlet rows within granchain.compare's tolerances (same
+    law, integrator and step: rounding only), and every row says engine lammps."""
+    from granchain import compare as cmp
+    lmp_wd, ref_wd = tiny_lammps_run
+    root = lmp_wd / "results" / "tiny"
+    P = gw.load_config(CONFIG, "tiny", engine="lammps")[1]
+    for study in gw.ENSEMBLE_STUDIES:
+        lmp, ref = _tables(lmp_wd, study), _tables(ref_wd, study)
+        assert list(lmp.columns) == list(ref.columns) == tables.columns(P["base"]["n"])
+        assert len(lmp) == len(ref) == sum(ss.members for ss in gw.study_scenes(P, study))
+        assert (lmp["engine"] == "lammps").all() and (lmp["method"] == "lammps-verlet").all()
+        assert (ref["engine"] == "reference").all() and (ref["method"] == "verlet").all()
+        prov = json.loads((root / "tables" / f"{study}.provenance.json").read_text())
+        assert prov["engines"] == ["lammps"] and prov["methods"] == ["lammps-verlet"]
+        assert "LAMMPS engine" in prov["eq54_bound"] and prov["lammps_version"]
+        # members matched by what they are: NaN extra lengths (gap studies) made comparable
+        lmp = lmp.fillna({"extra_length_um": -1.0}).set_index(MEMBER_KEY).sort_index()
+        ref = ref.fillna({"extra_length_um": -1.0}).set_index(MEMBER_KEY).sort_index()
+        assert lmp.index.equals(ref.index) and lmp.index.is_unique, study
+        for col in ("status", "wave_arrived", "steps", "gap_mean_probes_nm", "seed",
+                    "dt_s", "gap_distribution"):
+            assert (lmp[col] == ref[col]).all(), (study, col)
+        v = [c for c in lmp.columns if c.startswith("vmax_p")] + \
+            ["v_max_1_m_s", "v_max_2_m_s", "v_g_m_s", "v_g_front_m_s", "v_g_bound_eq54_m_s"]
+        rel_v = ((lmp[v] - ref[v]).abs() / ref[v].abs()).max().max()
+        rel_t = ((lmp["dt_peak_s"] - ref["dt_peak_s"]).abs() / ref["dt_peak_s"]).max()
+        # the works LAMMPS outputs itself; particle (+ rolling) friction and the balance
+        # error are the residual of its ledger (granchain.compare checks them no tighter)
+        e0 = ref["energy_initial_J"]
+        e = ["energy_initial_J", "work_groove_J", "work_air_J"]
+        rel_e = (lmp[e] - ref[e]).abs().div(e0, axis=0).max().max()
+        assert rel_v < cmp.V_TOL and rel_t < cmp.T_TOL and rel_e < cmp.E_TOL, \
+            (study, rel_v, rel_t, rel_e)
+    # lammps_check still runs both engines, with the same rows as a reference-engine run
+    chk = _tables(lmp_wd, "lammps_check")
+    assert list(dict.fromkeys(chk["engine"])) == ["reference", "lammps"]
+    assert (root / "tables" / "lammps_vs_reference.csv").is_file()
+    for m in P["materials"]:
+        tr = np.load(root / "traces" / f"packed_trace_{m}.npz")
+        assert tr["v_m_s"].shape == (tr["t_s"].size, P["base"]["n"])
+
+
+def test_lammps_member_rerun_alone_reproduces_its_row(tiny_lammps_run):
+    lmp_wd, _ = tiny_lammps_run
+    P = gw.load_config(CONFIG, "tiny", engine="lammps")[1]
+    row = _tables(lmp_wd, "gap_sweep").iloc[-1].to_dict()
+    new = gw.rerun_member(P, "gap_sweep", material=row["material"],
+                          v_striker=row["v_striker_m_s"], realisation=int(row["realisation"]),
+                          gap_mean_nm=row["gap_mean_nm"])
+    a = tables.csv_text(tables.study_table([row], P["base"]["n"]))
+    b = tables.csv_text(tables.study_table([new], P["base"]["n"]))
+    assert a == b
 
 
 # ---------------------------------------------------------------------------------------

@@ -4,7 +4,7 @@ The Snakemake rules (workflow/rules/*.smk) and their scripts (workflow/scripts/*
 only this package, through the names re-exported here (``from granchain import workflow
 as gw``). One job per module; each imports only those above it:
 
-- ``config``      schema validation, preset selection, :class:`ConfigError`
+- ``config``      schema validation, preset selection (and its engine), :class:`ConfigError`
 - ``studies``     a study -> its :class:`StudyScene` list; packed and trace scenes
 - ``batches``     cost estimates, :class:`Batch`, cutting a study into jobs, runtimes
 - ``plan``        :class:`Plan`: a preset's scenes and batches, built once (the check)
@@ -20,13 +20,13 @@ from .batches import (JOB_OVERHEAD_S, STEP_SECONDS, Batch, batches, estimated_st
                       find_batch, members_per_job, realisation_cost, runtime_minutes)
 from .captions import FIGURES, caption_sizes, describe
 from .comparison import COMPARISON_META, engine_comparison, write_engine_comparison
-from .config import (SCHEMA, ConfigError, config_error_message, read_config, select_preset,
-                     validate_config)
+from .config import (ENGINES, ENSEMBLE_STUDIES, SCHEMA, ConfigError, config_error_message,
+                     read_config, select_preset, study_engine, validate_config, with_engine)
 from .gather import gather, study_provenance
 from .plan import Plan, load_config
 from .rerun import rerun_member
 from .run import (engine_options, log_to, member_rows, packed_reference, run_batch,
-                  run_traces, set_threads, write_batch)
+                  run_members, run_traces, set_threads, write_batch)
 from .studies import (ENGINE_ORDER, STUDIES, StudyScene, packed_scene, study_scenes,
                       trace_scene)
 
@@ -35,12 +35,12 @@ __all__ = [
     "members_per_job", "realisation_cost", "runtime_minutes",
     "FIGURES", "caption_sizes", "describe",
     "COMPARISON_META", "engine_comparison", "write_engine_comparison",
-    "SCHEMA", "ConfigError", "config_error_message", "read_config", "select_preset",
-    "validate_config",
+    "ENGINES", "ENSEMBLE_STUDIES", "SCHEMA", "ConfigError", "config_error_message",
+    "read_config", "select_preset", "study_engine", "validate_config", "with_engine",
     "gather", "study_provenance",
     "Plan", "load_config",
     "rerun_member",
-    "engine_options", "log_to", "member_rows", "packed_reference", "run_batch", "run_traces",
-    "set_threads", "write_batch",
+    "engine_options", "log_to", "member_rows", "packed_reference", "run_batch", "run_members",
+    "run_traces", "set_threads", "write_batch",
     "ENGINE_ORDER", "STUDIES", "StudyScene", "packed_scene", "study_scenes", "trace_scene",
 ]

@@ -45,6 +45,14 @@ def describe(plan: Plan, study: str) -> dict:
             "dt_s": f"{s0.dt:g}", "seed": s0.gap_seed, "probes": list(s0.probes[:2])}
 
 
+def _method(plan: Plan, study: str) -> str:
+    """The integrator a figure caption names: the preset's method, or velocity Verlet in
+    LAMMPS for a study on the LAMMPS engine."""
+    if any("lammps" in ss.engines for ss in plan.scenes[study]) and study != "lammps_check":
+        return "verlet (LAMMPS)"
+    return str(plan.preset["base"]["method"])
+
+
 def caption_sizes(plan: Plan, study: str) -> dict:
     """What a figure caption says about a study's sizes, as plain strings. The figures
     measure the chapter's probes, so a preset with other ``base.probes`` is refused."""
@@ -55,7 +63,7 @@ def caption_sizes(plan: Plan, study: str) -> dict:
                              f"the chapter's probes {PROBES[0]} and {PROBES[1]}; remove "
                              "base.probes from the preset")
     out = {"preset": plan.name, "n": str(base["n"]), "radius_um": f"{base['radius'] * 1e6:g}",
-           "method": str(base["method"]), "dt_s": f"{base['dt']:g}",
+           "method": _method(plan, study), "dt_s": f"{base['dt']:g}",
            "materials": ", ".join(sorted(set(plan.materials(study))))}
     for key in ("v_striker", "gap_mean_nm", "extra_length_um", "realisations"):
         if key in spec:

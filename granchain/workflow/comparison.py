@@ -5,6 +5,7 @@ from __future__ import annotations
 import pandas as pd
 
 from .. import tables
+from .run import local_mpi
 from .studies import study_scenes
 
 COMPARISON_META = ("scene_hash", "compared_scene_hash", "chains", "dt", "sample_dt", "nprocs",
@@ -16,6 +17,7 @@ def engine_comparison(preset: dict, threads: int | None = None) -> tuple[pd.Data
     engines' values, the difference, its tolerance, ok and why; plus each scene's meta
     (wall times and temporary paths left out, so the table is deterministic)."""
     from .. import compare as cmp
+    local_mpi(max(1, int(threads or 1)))
     frames, metas = [], []
     for ss in study_scenes(preset, "lammps_check"):
         c = cmp.compare(ss.scene, nprocs=max(1, int(threads or 1)))

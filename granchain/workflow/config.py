@@ -3,14 +3,22 @@
 A configuration (config/config.yaml, schema workflow/schemas/config.schema.yaml) has a
 ``preset`` name and ``presets``; each preset has ``materials``, ``base`` (the chain and
 integrator shared by every study), ``studies``, ``batch`` and optionally ``cost``.
+
+Each ensemble study runs on one engine, its ``engine`` key (reference unless set); a
+top-level ``engine`` (``--config engine=lammps``) sets it for every ensemble study of the
+preset. ``lammps_check`` runs the engines its ``engines`` list names and ignores both.
 """
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 
 from ..errors import GranchainError
 
 SCHEMA = Path(__file__).resolve().parents[2] / "workflow" / "schemas" / "config.schema.yaml"
+ENGINES = ("reference", "lammps")
+# Studies whose rows one engine makes (the study's ``engine`` key or the top-level override).
+ENSEMBLE_STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length")
 
 
 class ConfigError(GranchainError):
@@ -46,22 +54,49 @@ def validate_config(config: dict, schema=SCHEMA) -> dict:
     return config
 
 
-def read_config(path, preset: str | None = None) -> dict:
+def read_config(path, preset: str | None = None, engine: str | None = None) -> dict:
     """A workflow configuration file (e.g. config/config.yaml), validated against the
-    schema with its defaults filled; ``preset`` replaces its ``preset`` name."""
+    schema with its defaults filled; ``preset`` replaces its ``preset`` name, ``engine``
+    its top-level engine (as ``--config preset=... engine=...``)."""
     from snakemake.common.configfile import load_configfile
     config = load_configfile(str(path))
     if preset is not None:
         config["preset"] = preset
+    if engine is not None:
+        config["engine"] = engine
     return validate_config(config)
 
 
+def study_engine(spec: dict) -> str:
+    """The engine of an ensemble study's rows: its ``engine`` key, reference by default."""
+    return spec.get("engine", "reference")
+
+
+def with_engine(preset: dict, engine: str | None = None) -> dict:
+    """A copy of ``preset`` whose ensemble studies run on ``engine`` (None: each study's
+    own key). The default engine is written by leaving the key out, so a preset means the
+    same, and has the same config hash, whether or not it spells out ``engine: reference``."""
+    if engine is not None and engine not in ENGINES:
+        raise ConfigError(f"invalid configuration at 'engine': unknown engine '{engine}'; "
+                          f"use --config engine=NAME with one of: {', '.join(ENGINES)}")
+    out = copy.deepcopy(preset)
+    for study, spec in (out.get("studies") or {}).items():
+        if study not in ENSEMBLE_STUDIES or not isinstance(spec, dict):
+            continue
+        if engine is not None:
+            spec["engine"] = engine
+        if spec.get("engine") == "reference":
+            del spec["engine"]
+    return out
+
+
 def select_preset(config: dict) -> tuple[str, dict]:
-    """(name, preset mapping) chosen by ``config['preset']``."""
+    """(name, preset mapping) chosen by ``config['preset']``, its ensemble studies sent to
+    ``config['engine']`` if given (:func:`with_engine`)."""
     name = config.get("preset", "default")
     presets = config.get("presets") or {}
     if name not in presets:
         known = ", ".join(sorted(presets)) or "none"
         raise ConfigError(f"invalid configuration at 'preset': unknown preset '{name}'; "
                           f"use --config preset=NAME with one of: {known}")
-    return str(name), presets[name]
+    return str(name), with_engine(presets[name], config.get("engine"))

@@ -32,6 +32,13 @@ def _order(df: pd.DataFrame, scenes: list[StudyScene]) -> pd.DataFrame:
     return keyed.drop(columns=["_s", "_e", "_v", "_r"]).reset_index(drop=True)
 
 
+def _packed_engines(scenes: list[StudyScene]) -> str:
+    """The engine(s) of a study's packed references, as the provenance says it."""
+    names = {"reference": "reference engine", "lammps": "LAMMPS engine"}
+    return " and ".join(names[e] for e in ENGINE_ORDER
+                        if any(ss.packed_engine == e for ss in scenes))
+
+
 def study_provenance(preset_name: str, preset: dict, study: str, scenes: list[StudyScene],
                      df: pd.DataFrame) -> dict:
     """What a study's provenance JSON records besides the environment."""
@@ -49,7 +56,8 @@ def study_provenance(preset_name: str, preset: dict, study: str, scenes: list[St
         "rows": int(len(df)),
         "eq54_bound": "v_g_bound_eq54_m_s: (2R + gbar)/v = 2R/v_g_packed + gbar/v_s with gbar "
                       "the row's mean gap between the probes and v_g_packed the arrival-time "
-                      "group velocity of the packed chain (reference engine, same scene)",
+                      f"group velocity of the packed chain ({_packed_engines(scenes)}, "
+                      "same scene)",
     }
 
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from ..errors import GranchainError
 from .batches import Batch, batches
 from .config import ConfigError, read_config, select_preset
-from .studies import STUDIES, StudyScene, study_scenes
+from .studies import ENGINE_ORDER, STUDIES, StudyScene, study_scenes
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,12 +49,18 @@ class Plan:
         """The material of each scene of a study, in table order."""
         return [ss.material for ss in self.scenes[study]]
 
+    def engines(self, study: str) -> list[str]:
+        """The engines a study runs, in table order."""
+        return [e for e in ENGINE_ORDER if any(e in ss.engines for ss in self.scenes[study])]
+
     def scene_hashes(self, study: str) -> list[str]:
         return [ss.scene.hash for ss in self.scenes[study]]
 
 
-def load_config(path, preset: str | None = None) -> tuple[str, dict]:
-    """(name, validated preset) of a workflow configuration file, e.g. config/config.yaml;
-    every study scene and batch of the preset is built, so a bad value fails here."""
-    plan = Plan.build(read_config(path, preset))
+def load_config(path, preset: str | None = None, engine: str | None = None
+                ) -> tuple[str, dict]:
+    """(name, validated preset) of a workflow configuration file, e.g. config/config.yaml,
+    with its ensemble studies on ``engine`` if given (as ``--config engine=...``); every
+    study scene and batch of the preset is built, so a bad value fails here."""
+    plan = Plan.build(read_config(path, preset, engine))
     return plan.name, plan.preset

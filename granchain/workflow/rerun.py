@@ -10,10 +10,10 @@ from .studies import study_scenes
 
 
 def rerun_member(preset: dict, study: str, *, material: str, v_striker: float, realisation: int,
-                 engine: str = "reference", gap_mean_nm: float | None = None,
+                 engine: str | None = None, gap_mean_nm: float | None = None,
                  extra_length_um: float | None = None) -> dict:
     """Re-run one member of a study alone and return its table row (with the Eq. 5.4
-    bound)."""
+    bound); ``engine``: the study's engine if None (the first of lammps_check's)."""
     cands = [ss for ss in study_scenes(preset, study) if ss.material == material
              and v_striker in ss.scene.striker_velocities
              and (gap_mean_nm is None or ss.gap_mean_nm == gap_mean_nm)
@@ -23,5 +23,8 @@ def rerun_member(preset: dict, study: str, *, material: str, v_striker: float, r
                              "material, v_striker and gap_mean_nm or extra_length_um")
     ss = cands[0]
     alone = ss.scene.derive(**{"striker.velocity": float(v_striker)})
+    engine = engine or ss.engines[0]
+    if engine not in ss.engines:
+        raise GranchainError(f"study '{study}' runs on {', '.join(ss.engines)}, not '{engine}'")
     run, = run_scene(alone, engine=engine, realisations=[int(realisation)])
     return member_rows(ss, [run]).iloc[0].to_dict()

@@ -1,7 +1,8 @@
 """Running jobs: one batch of a study, the packed_trace study, and the packed reference.
 
 A batch's rows are complete when it ends (with the Eq. 5.4 bound from its own packed
-reference), so gathering a study is pure table work (:mod:`granchain.workflow.gather`).
+reference, run on the same engine as the rows), so gathering a study is pure table work
+(:mod:`granchain.workflow.gather`). LAMMPS jobs run with ``threads`` MPI ranks.
 """
 from __future__ import annotations
 
@@ -64,9 +65,41 @@ def engine_options(engine: str, threads: int | None) -> dict:
     return {"nprocs": max(1, int(threads or 1))} if engine == "lammps" else {}
 
 
-def packed_reference(scenes: list[StudyScene], velocities=None) -> pd.DataFrame:
-    """Group velocity of the packed chain (reference engine, arrival-time definition
-    ``v_g_front``) per (material, striker speed): the v_g(no gaps) of chapter Eq. 5.4.
+def local_mpi(nprocs: int) -> None:
+    """In a SLURM job, have mpich's mpirun start a LAMMPS run's ranks on the job's own node
+    (``HYDRA_LAUNCHER=fork``, unless set): inside a SLURM job it would otherwise launch
+    them through a nested srun, which waits for the CPUs the job's own step holds. A
+    workflow job is one node and ``threads`` CPUs, so its ranks belong there."""
+    if nprocs > 1 and "SLURM_JOB_ID" in os.environ:
+        os.environ.setdefault("HYDRA_LAUNCHER", "fork")
+
+
+def run_members(scene, engine: str, realisations=None, threads: int | None = None
+                ) -> list[ChainResult]:
+    """``run_scene`` of a scene's members (``realisations``: all if None) on ``engine``.
+
+    A LAMMPS run samples all its chains on the grid of its fastest one, the reference
+    engine each chain on its own; so LAMMPS runs each striker speed of the scene apart
+    (one run per speed, its realisations side by side) and every chain is sampled on its
+    own grid by either engine. Results come in ``run_scene``'s order (speed, then
+    realisation)."""
+    opts = engine_options(engine, threads)
+    local_mpi(opts.get("nprocs", 1))
+    if engine != "lammps" or len(scene.striker_velocities) == 1:
+        return run_scene(scene, engine=engine, realisations=realisations, **opts)
+    out: list[ChainResult] = []
+    for v in scene.striker_velocities:
+        one = scene.derive(**{"striker.velocity": float(v)})
+        out += run_scene(one, engine=engine, realisations=realisations, **opts)
+    return out
+
+
+def packed_reference(scenes: list[StudyScene], velocities=None, threads: int | None = None
+                     ) -> pd.DataFrame:
+    """Group velocity of the packed chain (arrival-time definition ``v_g_front``) per
+    (material, striker speed): the v_g(no gaps) of chapter Eq. 5.4, run on each study
+    scene's ``packed_engine`` (the engine of its rows; the reference engine for
+    lammps_check) with ``threads`` cores.
 
     ``velocities`` restricts the speeds (e.g. to re-run one member alone).
     """
@@ -75,23 +108,26 @@ def packed_reference(scenes: list[StudyScene], velocities=None) -> pd.DataFrame:
         ps = packed_scene(ss)
         if velocities is not None:
             ps = ps.derive(**{"striker.velocity": [float(v) for v in velocities]})
-        if ps.hash in done:
+        if (ps.hash, ss.packed_engine) in done:
             continue
-        done.add(ps.hash)
-        for r in run_scene(ps):
+        done.add((ps.hash, ss.packed_engine))
+        for r in run_members(ps, ss.packed_engine, threads=threads):
             rows.append({"material": ss.material, "v_striker_m_s": float(r.v_striker),
                          "v_g_packed_m_s": float(r.v_g_front)})
     return pd.DataFrame(rows, columns=["material", "v_striker_m_s", "v_g_packed_m_s"]) \
         .drop_duplicates(["material", "v_striker_m_s"]).reset_index(drop=True)
 
 
-def member_rows(ss: StudyScene, runs: list[ChainResult]) -> pd.DataFrame:
+def member_rows(ss: StudyScene, runs: list[ChainResult], threads: int | None = None
+                ) -> pd.DataFrame:
     """Table rows of a study scene's runs, with the Eq. 5.4 bound from its packed chain
-    (run here for the speeds these runs have: a few cheap chains)."""
+    (run here, on the scene's ``packed_engine``, for the speeds these runs have: a few
+    cheap chains)."""
     df = tables.study_table([tables.member_row(ss.meta, r, ss.scene.n) for r in runs],
                             ss.scene.n)
     speeds = sorted({float(r.v_striker) for r in runs})
-    return tables.add_eq54_bound(df, packed_reference([ss], velocities=speeds), ss.scene.radius)
+    return tables.add_eq54_bound(df, packed_reference([ss], velocities=speeds, threads=threads),
+                                 ss.scene.radius)
 
 
 def _timing_row(study: str, engine: str, batch: str, ss: StudyScene, runs: list[ChainResult],
@@ -110,10 +146,9 @@ def run_batch(preset: dict, study: str, name: str, threads: int | None = None
     for si, reals in batch.units:
         ss = scenes[si]
         t0 = time.perf_counter()
-        runs = run_scene(ss.scene, engine=batch.engine, realisations=list(reals),
-                         **engine_options(batch.engine, threads))
+        runs = run_members(ss.scene, batch.engine, list(reals), threads)
         wall = time.perf_counter() - t0
-        rows.append(member_rows(ss, runs))
+        rows.append(member_rows(ss, runs, threads))
         timing.append(_timing_row(study, batch.engine, batch.name, ss, runs, wall))
         print(f"[granchain] {study} {batch.name}: {ss.scene.name} {len(runs)} members "
               f"in {wall:.2f} s", file=sys.stderr, flush=True)
@@ -127,20 +162,25 @@ def write_batch(preset: dict, study: str, name: str, out_csv, timing_csv,
     tables.write_csv(df, out_csv)
 
 
-def run_traces(preset: dict, trace_paths: dict[str, str], out_csv, timing_csv) -> None:
+def run_traces(preset: dict, trace_paths: dict[str, str], out_csv, timing_csv,
+               threads: int | None = None) -> None:
     """packed_trace: each material's row, and its v(t) trace as .npz
-    (t_s (S,), v_m_s (S, n), v_striker_m_s, material)."""
+    (t_s (S,), v_m_s (S, n), v_striker_m_s, material), on the study's engine."""
     rows, timing = [], []
     for ss in study_scenes(preset, "packed_trace"):
+        engine = ss.engines[0]
         t0 = time.perf_counter()
-        runs = run_scene(ss.scene)
-        rows.append(member_rows(ss, runs))
+        runs = run_members(ss.scene, engine, threads=threads)
+        rows.append(member_rows(ss, runs, threads))
         # The table row stops once the wave has left the chain (t_end auto); the trace
         # for Fig. 5.1a runs for a fixed 1.5x the crossing time, the same for every speed.
-        (m, traj), = list(trajectories(trace_scene(ss), scene_members(ss.scene)))
+        opts = engine_options(engine, threads)
+        local_mpi(opts.get("nprocs", 1))
+        (m, traj), = list(trajectories(trace_scene(ss), scene_members(ss.scene), engine,
+                                       **opts))
         tables.write_npz(trace_paths[ss.material], t_s=traj.t, v_m_s=traj.v,
                          v_striker_m_s=np.float64(m.v_striker), material=np.str_(ss.material))
         wall = time.perf_counter() - t0
-        timing.append(_timing_row("packed_trace", "reference", ss.material, ss, runs, wall))
+        timing.append(_timing_row("packed_trace", engine, ss.material, ss, runs, wall))
     tables.write_csv(tables.timing_table(timing), timing_csv)
     tables.write_csv(pd.concat(rows, ignore_index=True), out_csv)

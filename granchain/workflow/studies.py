@@ -14,6 +14,10 @@ Studies (chapter figure in brackets):
 - gap_sweep     [5.3c] mean gaps x striker speeds x R realisations, per material
 - extra_length  [5.4b] chains longer than packed by L_extra (gaps from_length)
 - lammps_check  both engines on the same members (LAMMPS cross-validation)
+
+Every other study runs on one engine (``engine`` key, :func:`.config.study_engine`).
+LAMMPS integrates with velocity Verlet, so the scenes of a LAMMPS study say so: their
+integrator method is verlet (at the study's dt), and their hashes name what ran.
 """
 from __future__ import annotations
 
@@ -25,7 +29,7 @@ from .. import analytic
 from ..errors import GranchainError
 from ..costmodel import resolve_auto
 from ..scene import RANDOM_GAPS, Scene, apply_overrides, scene_from_dict
-from .config import ConfigError
+from .config import ConfigError, study_engine
 
 STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length",
            "lammps_check")
@@ -44,6 +48,14 @@ class StudyScene:
     engines: tuple[str, ...]
     scene: Scene
     raw: dict
+
+    @property
+    def packed_engine(self) -> str:
+        """The engine of the packed chain behind the rows' Eq. 5.4 bound: the study's
+        engine, so a row and its bound come from one engine; lammps_check, which runs
+        both engines on the same members, gives both engines' rows the reference
+        engine's packed chain (one shared input, so the bound column compares equal)."""
+        return self.engines[0] if len(self.engines) == 1 else "reference"
 
     @property
     def meta(self) -> dict:
@@ -72,8 +84,10 @@ def _study_materials(preset: dict, spec: dict) -> list[str]:
 
 
 def _raw_scene(preset: dict, spec: dict, name: str, material: str, velocities, gaps: dict,
-               realisations: int) -> dict:
+               realisations: int, engine: str = "reference") -> dict:
     base = preset["base"]
+    # LAMMPS integrates velocity Verlet at the study's dt, whatever the preset's method
+    method = "verlet" if engine == "lammps" else spec.get("method", base["method"])
     raw = {
         "name": name,
         "material": material,
@@ -83,8 +97,7 @@ def _raw_scene(preset: dict, spec: dict, name: str, material: str, velocities, g
         "gaps": dict(gaps, seed=base["seed"]) if gaps.get("distribution") in RANDOM_GAPS
         else dict(gaps),
         "effects": list(base["effects"]),
-        "integrator": {"method": spec.get("method", base["method"]),
-                       "dt": spec.get("dt", base["dt"])},
+        "integrator": {"method": method, "dt": spec.get("dt", base["dt"])},
         "ensemble": {"realisations": int(realisations)},
     }
     if raw["integrator"]["method"] == "auto" and "dt" not in spec:
@@ -114,11 +127,12 @@ def study_scenes(preset: dict, study: str) -> list[StudyScene]:
 
     def add(material, velocities, gaps, realisations, gap_nm, extra_um, suffix, engines):
         name = f"{study}-{material}" + (f"-{suffix}" if suffix else "")
-        raw = _raw_scene(preset, spec, name, material, velocities, gaps, realisations)
+        raw = _raw_scene(preset, spec, name, material, velocities, gaps, realisations,
+                         engines[0] if len(engines) == 1 else "reference")
         out.append(StudyScene(study, len(out), material, float(gap_nm), float(extra_um),
                               tuple(engines), _build(raw, where), raw))
 
-    engines = ("reference",)
+    engines = (study_engine(spec),)
     if study == "lammps_check":
         engines = tuple(e for e in ENGINE_ORDER if e in spec["engines"])
     for material in _study_materials(preset, spec):

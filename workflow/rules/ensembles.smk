@@ -1,6 +1,8 @@
 # Ensembles: each job runs a batch of members (striker speed x gap realisation) of one
 # study with the reference engine and writes a partial table (granchain.workflow.run);
-# packed_trace runs each material's packed chain and saves its v(t) trace.
+# batches of studies on the LAMMPS engine go through run_lammps_batch (lammps.smk).
+# packed_trace runs each material's packed chain, on its study's engine, and saves its v(t)
+# trace (a LAMMPS packed_trace takes the batch threads as MPI ranks).
 
 
 rule run_batch:
@@ -35,7 +37,7 @@ rule packed_trace:
         scenes=PLAN.scene_hashes("packed_trace"),
     log:
         f"{RESULTS}/logs/packed_trace/trace.log",
-    threads: 1
+    threads: BATCH_THREADS if PLAN.engines("packed_trace") == ["lammps"] else 1
     resources:
         mem_mb=BATCH_MEM_MB,
         runtime=10,

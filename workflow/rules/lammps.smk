@@ -1,24 +1,29 @@
-# LAMMPS cross-validation: the lammps_check study runs both engines on the same members.
-# Reference batches go through run_batch (ensembles.smk), LAMMPS batches (many chains side
-# by side in one LAMMPS run) through run_lammps_batch; gather_study (tables.smk) puts both
-# engines' rows into tables/lammps_check.csv. compare_engines runs granchain.compare on
-# every lammps_check scene: tables/lammps_vs_reference.csv (differences and tolerances).
+# LAMMPS batches: many chains side by side in one LAMMPS run per striker speed, on as many
+# MPI ranks as the rule's threads (the preset's batch.threads; on SLURM its cpus-per-task).
+# They serve the lammps_check study (both engines on the same members; its reference
+# batches go through run_batch, ensembles.smk) and every ensemble study whose engine is
+# lammps (the study's `engine` key, or `--config engine=lammps` for all of them).
+# gather_study (tables.smk) puts a study's rows into tables/<study>.csv. compare_engines
+# runs granchain.compare on every lammps_check scene: tables/lammps_vs_reference.csv
+# (differences and tolerances).
 
 
 rule run_lammps_batch:
     output:
-        table=f"{RESULTS}/work/lammps_check/lammps_{{index}}.csv",
-        timing=f"{RESULTS}/work/lammps_check/lammps_{{index}}.timing.csv",
+        table=f"{RESULTS}/work/{{study}}/lammps_{{index}}.csv",
+        timing=f"{RESULTS}/work/{{study}}/lammps_{{index}}.timing.csv",
+    wildcard_constraints:
+        study="packed_sweep|gap_profile|gap_sweep|extra_length|lammps_check",
     params:
-        batch=lambda w: batch_of("lammps_check", "lammps", w.index).key(),
-        study="lammps_check",
+        batch=lambda w: batch_of(w.study, "lammps", w.index).key(),
+        study=lambda w: w.study,
         name=lambda w: f"lammps_{w.index}",
     log:
-        f"{RESULTS}/logs/lammps_check/lammps_{{index}}.log",
+        f"{RESULTS}/logs/{{study}}/lammps_{{index}}.log",
     threads: BATCH_THREADS
     resources:
         mem_mb=BATCH_MEM_MB,
-        runtime=lambda w: batch_runtime("lammps_check", "lammps", w.index),
+        runtime=lambda w: batch_runtime(w.study, "lammps", w.index),
     conda:
         "../envs/granchain.yaml"
     script:

@@ -5,4 +5,4 @@ with gw.log_to(snakemake.log[0]):
     gw.set_threads(snakemake.threads)
     _, preset = gw.select_preset(snakemake.config)
     gw.run_traces(preset, dict(zip(snakemake.params.materials, snakemake.output.traces)),
-                  snakemake.output.table, snakemake.output.timing)
+                  snakemake.output.table, snakemake.output.timing, snakemake.threads)
