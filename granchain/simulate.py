@@ -53,7 +53,7 @@ def run_scene(scene: Scene, engine: str = "reference", realisations=None, *,
     A scene with method auto runs with the setting ``costmodel.resolve_auto`` gives it
     (each result's ``method`` and ``dt``). Before integrating, refuses (GranchainError) a
     scene whose chains need more than ``max_steps`` integration steps or
-    ``max_memory_gb`` GB of sample record each (estimates: granchain/guards.py). Each
+    ``max_memory_gb`` GB of sample record each (estimates: ``schedule.check_cost``). Each
     result carries ``warnings``: the one-line physics warnings for its striker speed (empty
     when none), and ``batch_wall_s``, the wall time of the whole call."""
     scene = resolve_auto(scene)
