@@ -2,12 +2,23 @@
 
 ``run(scene, gaps, v_striker)`` writes one deck holding every chain side by side
 (``granchain.lammps.deck.write_deck``), runs it once through
-``granchain.lammps.runner.run_lammps`` (``nprocs`` MPI ranks), reads the dump back with
-MDAnalysis and yields a :class:`~granchain.trajectory.Trajectory` per chain, in order,
-like ``granchain.engines.reference.run``. LAMMPS always integrates with velocity Verlet
+``granchain.lammps.runner.run_lammps`` (``nprocs`` MPI ranks), reads its output back and
+yields a :class:`~granchain.trajectory.Trajectory` per chain, in order, like
+``granchain.engines.reference.run``. LAMMPS always integrates with velocity Verlet
 (``fix nve`` / ``nve/sphere``) at the scene's dt; ``meta["method"] = "lammps-verlet"``.
 
-Reading the output (``read_dump``). The trajectory dump holds ``id x y z vx`` only. It is
+Two output paths, the same Trajectory objects (tested bit for bit on v):
+
+* ``output="binary"`` (default: ``granchain run --engine lammps``, ``granchain compare``):
+  the deck writes LAMMPS binary dumps, ``traj.bin`` (``x vx`` of every atom, sorted by
+  id) and ``ledger.bin`` (the per-chain ledger on each chain's first atom), read with
+  numpy (``read_binary``): the doubles LAMMPS holds, at ~1/10 of the text dump's cost to
+  write and nothing like MDAnalysis' per-line cost to read.
+* ``output="dump"``: the text dump ``traj.dump`` (``id x y z vx``, ``%.17g``) and
+  ``ledger.txt``, read with MDAnalysis (``read_dump``): the path for full trajectories
+  that other tools read (``granchain deck`` writes this deck by default).
+
+Reading the text dump (``read_dump``). The trajectory dump holds ``id x y z vx`` only. It is
 read with MDAnalysis' ``LAMMPSDUMP`` reader (2.11), which parses positions as float32 and
 shifts them by the box's xlo; its ``additional_columns`` are parsed as float64 and not
 shifted, so the observables are built from the float64 columns ``x`` and ``vx``, written
@@ -38,6 +49,7 @@ rule, same per-chain cap), status ``passed`` (or ``timeout`` at the cap).
 from __future__ import annotations
 
 import math
+import os
 import shutil
 import sys
 import tempfile
@@ -57,6 +69,8 @@ from ..trajectory import ENERGY_COLUMNS, Trajectory
 
 METHOD = "lammps-verlet"
 DUMP_READ = ("x", "vx")   # the dump columns read as MDAnalysis additional (float64) columns
+# output path -> (trajectory file, reader)
+READERS = {"binary": ("traj.bin", "read_binary"), "dump": ("traj.dump", "read_dump")}
 E_KT, E_KR, E_H, E_WG, E_WD, E_WT, E_WR = range(len(ENERGY_COLUMNS))
 # SI factors of 'units micro' values (docs/lammps_laws.md section 1)
 UM = 1e-6          # um -> m
@@ -65,14 +79,21 @@ ENERGY = 1e-15     # 1e-15 J -> J
 
 def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: bool = False,
         force: bool = False, dt: float | None = None, progress: bool | None = None,
-        timeout: float | None = None, velocities: str = "float64", readers: int = 1):
+        timeout: float | None = None, velocities: str = "float64", readers: int = 1,
+        output: str = "binary"):
     """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s.
+
+    output: ``"binary"`` (default) the deck writes LAMMPS binary dumps read with numpy
+    (:func:`read_binary`); ``"dump"`` the text dump read with MDAnalysis
+    (:func:`read_dump`), for full trajectories kept in ``workdir``. Both give the same
+    Trajectory objects.
 
     workdir: directory for deck, dump and log; default a temporary directory, removed
     afterwards unless ``keep`` (and kept when the run fails, for the error message names
     its deck or dump). A given directory is kept; it must be empty or absent unless
     ``force``. ``dt`` overrides the scene's time step. ``nprocs``: MPI ranks of the
-    one LAMMPS run. ``velocities``, ``readers``: see :func:`read_dump`. The scene's
+    one LAMMPS run. ``velocities``, ``readers``: see :func:`read_dump` (output "dump"
+    only). The scene's
     method must not be auto (``simulate`` and ``compare`` resolve it).
     """
     require_resolved(scene, "LAMMPS engine")
@@ -83,6 +104,12 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         scene = scene.derive(**{"integrator.dt": float(dt)})
     if nprocs < 1:
         raise GranchainError(f"LAMMPS engine: nprocs must be >= 1 (got {nprocs})")
+    if output not in READERS:
+        raise GranchainError(f"LAMMPS engine: output must be one of {', '.join(READERS)} "
+                             f"(got {output!r})")
+    if output != "dump" and (velocities != "float64" or readers != 1):
+        raise GranchainError("LAMMPS engine: velocities and readers are options of the text "
+                             "dump (output='dump')")
     if progress is None:
         progress = sys.stderr.isatty() and B > 1
     if B == 0:
@@ -105,9 +132,10 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
     try:
         from ..lammps.runner import lammps_version, run_lammps
         t0 = time.perf_counter()
-        pl = deckmod.plan(scene, gaps=gaps, v_striker=vs)
-        deck = deckmod.write_deck(scene, wd, gaps=gaps, v_striker=vs, force=True)
-        for stale in (deckmod.DUMP_NAME, deckmod.ENERGY_NAME, deckmod.LEDGER_NAME):
+        pl = deckmod.plan(scene, gaps=gaps, v_striker=vs, output=output)
+        deck = deckmod.write_deck(scene, wd, gaps=gaps, v_striker=vs, force=True, output=output)
+        for stale in (deckmod.DUMP_NAME, deckmod.ENERGY_NAME, deckmod.LEDGER_NAME,
+                      deckmod.BINARY_NAME, deckmod.LEDGER_BINARY_NAME):
             (wd / stale).unlink(missing_ok=True)
         if progress:
             print(f"[granchain] {scene.name}: LAMMPS, {B} chain(s) x {scene.n} spheres, "
@@ -115,15 +143,18 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         lrun = run_lammps(deck, wd, nprocs=nprocs, timeout=timeout)
         if progress:
             print(f"[granchain] {scene.name}: LAMMPS done in {lrun.wall_time:.1f} s; reading "
-                  f"{wd / deckmod.DUMP_NAME} ...", file=sys.stderr, flush=True)
-        data = read_dump(wd / deckmod.DUMP_NAME, scene, pl, velocities=velocities,
-                         readers=readers)
+                  f"{wd / READERS[output][0]} ...", file=sys.stderr, flush=True)
+        if output == "binary":
+            data = read_binary(wd / deckmod.BINARY_NAME, scene, pl)
+        else:
+            data = read_dump(wd / deckmod.DUMP_NAME, scene, pl, velocities=velocities,
+                             readers=readers)
         wall = time.perf_counter() - t0
         meta_common = {"method": METHOD, "dt": scene.dt, "sample_dt": pl.sample_dt,
                        "nprocs": nprocs, "lammps_version": lammps_version(),
                        "lammps_wall_s": lrun.wall_time, "batch_wall_s": wall,
                        "read_wall_s": wall - lrun.wall_time, "readers": readers,
-                       "velocities": velocities,
+                       "velocities": velocities, "output": output,
                        "balance": "residual" if residual_balance(scene) else "independent"}
         if keep or not tmp:
             meta_common["deck"] = str(deck)
@@ -184,29 +215,183 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
         # caller's __main__ (and fail in scripts without a __main__ guard)
         with ProcessPoolExecutor(readers, mp_context=mp.get_context("fork")) as ex:
             parts = list(ex.map(_read_part, [job] * readers, range(readers), [readers] * readers))
-    S = parts[0][0]
     step = np.concatenate([p[1] for p in parts])
     V = np.concatenate([p[2] for p in parts])
+    _check_steps(f"LAMMPS dump {path}", pl, step, path.parent)
+    EH = np.concatenate([p[3] for p in parts])
+    last_overlap = np.concatenate([p[4] for p in parts])
+    ledger = read_ledger(path.with_name(deckmod.LEDGER_NAME), pl, step) if pl.ledger_columns else None
+    return {"step": step, "v": V, "energy": _energies(scene, V, EH, pl, ledger),
+            "last_overlap": last_overlap}
+
+
+def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
+    """Read a deck's binary output (``output="binary"``) into per-chain arrays: the
+    trajectory ``traj.bin`` and the per-chain ledger ``ledger.bin`` next to it (if the
+    deck writes one), both LAMMPS binary ``dump custom`` files sorted by id.
+
+    Returns the dict of :func:`read_dump`, from the same doubles: ``step`` (S,), ``v``
+    (S, B, n) m/s, ``energy`` (S, B, 7) J and ``last_overlap`` (S, B) m. Raises
+    GranchainError (one line, naming the file) if a file is missing, truncated or does
+    not match the plan.
+    """
+    path = Path(path)
+    B, n = pl.n_chains, pl.n
+    what = f"LAMMPS binary dump {path}"
+    missing = [c for c in DUMP_READ if c not in pl.dump_columns]
+    if pl.output != "binary" or missing:
+        raise GranchainError(f"{what}: the deck does not write the binary trajectory "
+                             f"(output {pl.output!r}, columns {' '.join(pl.dump_columns)})")
+    step, cols = read_binary_dump(path, pl.dump_columns, B * n, pl.nsamples, what)
+    _check_steps(what, pl, step, path.parent)
+    S = len(step)
+    V = cols["vx"].reshape(S, B, n)
+    X = cols["x"].reshape(S, B, n)
+    terms = physics_terms(scene)
+    D = 2.0 * deckmod.to_micro(scene.radius, "length")
+    EH, OL = np.empty((S, B)), np.empty((S, B))
+    for lo in range(0, S, 64):                       # in blocks: bounded temporaries
+        EH[lo:lo + 64], OL[lo:lo + 64] = _hertz(X[lo:lo + 64], D, terms.hertz)
+    ledger = None
+    if pl.ledger_columns:
+        lpath = path.with_name(deckmod.LEDGER_BINARY_NAME)
+        lwhat = f"LAMMPS ledger {lpath}"
+        lstep, lcols = read_binary_dump(lpath, deckmod.ledger_binary_columns(pl), B,
+                                        pl.nsamples, lwhat)
+        if not np.array_equal(lstep, step):
+            raise GranchainError(f"{lwhat} does not match the trajectory: {len(lstep)} samples; "
+                                 f"{path.name} has {S}")
+        ledger = np.stack([lcols[c] for c in deckmod.ledger_binary_columns(pl)], axis=2)
+    return {"step": step, "v": V, "energy": _energies(scene, V, EH, pl, ledger),
+            "last_overlap": OL}
+
+
+_BIN_MAGIC = b"DUMPCUSTOM"
+
+
+def read_binary_dump(path: Path, columns, natoms: int, max_frames: int, what: str):
+    """Frames of a LAMMPS binary ``dump custom`` file (format revision 2, this machine's
+    byte order, rows sorted by id): ``(step (S,) int64, {column: (S, natoms) float64})``.
+
+    Each frame: a header (magic string, endianness, revision, step, atom count, box,
+    columns per atom, unit style, time flag, column names, number of chunks) and one
+    chunk per writing rank (its count of doubles, then the doubles, one row per atom).
+    Checks the atom count and column names against ``columns``/``natoms`` and that there
+    are at most ``max_frames``; ``what`` names the file in the one-line errors.
+    """
+    import mmap
+    import struct
+
+    path = Path(path)
+    columns = tuple(columns)
+    ncol = len(columns)
+    names = " ".join(columns).encode()
+    try:
+        fh = open(path, "rb")
+    except OSError:
+        fh = None
+    if fh is None or os.fstat(fh.fileno()).st_size == 0:
+        if fh is not None:
+            fh.close()
+        raise GranchainError(f"{what} is missing or empty: the run wrote no output (see "
+                             "log.lammps next to it)")
+    with fh:
+        size = os.fstat(fh.fileno()).st_size
+        mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
+    out = {c: np.empty((max_frames, natoms)) for c in columns}
+    steps = []
+    off = 0
+    try:
+        while off < size:
+            s = len(steps)
+            mlen, = struct.unpack_from("<q", mm, off)
+            mlen = -mlen
+            magic = mm[off + 8:off + 8 + mlen]
+            off += 8 + mlen
+            endian, rev, step, nat, tric = struct.unpack_from("=iiqqi", mm, off)
+            off += 28 + 24 + 48 + (24 if tric else 0)      # ..., boundary 6i, box 6d (+3d)
+            if magic != _BIN_MAGIC or endian != 1 or rev != 2:
+                raise GranchainError(f"{what} is not a LAMMPS binary dump custom file of "
+                                     f"revision 2 in this byte order (magic {magic!r}, "
+                                     f"endian {endian}, revision {rev})")
+            size_one, ulen = struct.unpack_from("=ii", mm, off)
+            off += 8 + ulen                                # unit style (its name if given)
+            off += 1 + (8 if mm[off] else 0)               # time flag (and time)
+            clen, = struct.unpack_from("=i", mm, off)
+            cols = mm[off + 4:off + 4 + clen]
+            off += 4 + clen
+            nchunk, = struct.unpack_from("=i", mm, off)
+            off += 4
+            if nat != natoms or size_one != ncol or cols != names:
+                raise GranchainError(f"{what} does not match the deck: frame {s} has {nat} "
+                                     f"atoms x columns {cols.decode(errors='replace')!r}; "
+                                     f"expected {natoms} x {names.decode()!r}")
+            if s == max_frames:
+                raise GranchainError(f"{what} does not match the deck: more than {max_frames} "
+                                     "samples")
+            row = 0
+            for _ in range(nchunk):
+                m, = struct.unpack_from("=i", mm, off)
+                off += 4
+                if m % ncol or row + m // ncol > natoms or off + 8 * m > size:
+                    raise EOFError(f"frame {s} (step {step}) ends early")
+                a = np.frombuffer(mm, np.float64, m, off).reshape(-1, ncol)
+                for j, c in enumerate(columns):
+                    out[c][s, row:row + len(a)] = a[:, j]
+                del a
+                row += m // ncol
+                off += 8 * m
+            if row != natoms:
+                raise EOFError(f"frame {s} (step {step}) holds {row} of {natoms} atoms")
+            steps.append(step)
+    except (struct.error, ValueError, EOFError, IndexError) as exc:
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise GranchainError(f"{what} is truncated or unreadable: {msg}") from None
+    finally:
+        try:
+            mm.close()
+        except BufferError:                           # a view still alive: closed by GC
+            pass
+    S = len(steps)
+    return np.array(steps, dtype=np.int64), {c: a[:S] for c, a in out.items()}
+
+
+def _check_steps(what: str, pl: "deckmod.DeckPlan", step, rundir: Path) -> None:
+    """The samples of a run: 0, every, 2 every, ... up to the plan's, or fewer if the run
+    was halted by its stop rule (log.lammps in ``rundir``)."""
+    S = len(step)
     if S > pl.nsamples or (not pl.auto and S != pl.nsamples) or (
-            pl.auto and S < pl.nsamples and not _halted(path)):
-        raise GranchainError(f"LAMMPS dump {path} is truncated: {S} of {pl.nsamples} "
+            pl.auto and S < pl.nsamples and not _halted(rundir / "log.lammps")):
+        raise GranchainError(f"{what} is truncated: {S} of {pl.nsamples} "
                              "samples and the run was not halted by its stop rule")
     expected = np.arange(S, dtype=np.int64) * pl.every
     if S == 0 or not np.array_equal(step, expected):
-        raise GranchainError(f"LAMMPS dump {path}: its steps are not 0, {pl.every}, "
+        raise GranchainError(f"{what}: its steps are not 0, {pl.every}, "
                              f"{2 * pl.every}, ... (was it written by this deck?)")
+
+
+def _hertz(x, D: float, hertz):
+    """Hertz energy per chain (J) and overlap of each chain's last contact (m) from the
+    positions x (..., B, n) in um."""
+    overlap = (D - (x[..., 1:] - x[..., :-1])) * UM
+    return np.sum(hertz.energy(overlap), axis=-1), overlap[..., -1]
+
+
+def _energies(scene: Scene, V, EH, pl: "deckmod.DeckPlan", ledger) -> np.ndarray:
+    """The energy ledger (S, B, 7) J from the velocities (S, B, n), the Hertz energies
+    (S, B) and the per-chain LAMMPS ledger (S, B, k) in 1e-15 J (or None)."""
+    S, B = EH.shape
+    terms = physics_terms(scene)
     E = np.zeros((S, B, len(ENERGY_COLUMNS)))
     E[:, :, E_KT] = 0.5 * terms.m * np.sum(V * V, axis=2)
-    E[:, :, E_H] = np.concatenate([p[3] for p in parts])
-    last_overlap = np.concatenate([p[4] for p in parts])
-    if pl.ledger_columns:
-        ledger = read_ledger(path.with_name(deckmod.LEDGER_NAME), pl, step)
+    E[:, :, E_H] = EH
+    if ledger is not None:
         for j, name in enumerate(pl.ledger_columns):
             E[:, :, ENERGY_COLUMNS.index(name)] = ledger[:, :, j] * ENERGY
     if residual_balance(scene):
         mech = E[:, :, E_KT] + E[:, :, E_KR] + E[:, :, E_H]
         E[:, :, E_WT] = mech - mech[0] - E[:, :, E_WG] - E[:, :, E_WD]
-    return {"step": step, "v": V, "energy": E, "last_overlap": last_overlap}
+    return E
 
 
 def read_ledger(path: Path, pl: "deckmod.DeckPlan", step) -> np.ndarray:
@@ -247,10 +432,10 @@ def read_ledger(path: Path, pl: "deckmod.DeckPlan", step) -> np.ndarray:
     return rows[:, :, 1:]
 
 
-def _halted(dump: Path) -> bool:
-    """Did the run that wrote ``dump`` stop by its fix halt (log.lammps next to it)?"""
+def _halted(log: Path) -> bool:
+    """Did the run that wrote ``log`` (its log.lammps) stop by its fix halt?"""
     try:
-        return "Fix halt condition" in (dump.parent / "log.lammps").read_text(errors="replace")
+        return "Fix halt condition" in Path(log).read_text(errors="replace")
     except OSError:
         return False
 
@@ -283,10 +468,7 @@ def _read_part(job: dict, part: int, nparts: int):
                 if job["velocities"] == "float32":
                     v = v.astype(np.float32).astype(np.float64)
                 V[s] = v
-                x = data["x"].reshape(B, n)
-                overlap = (D - (x[:, 1:] - x[:, :-1])) * UM
-                EH[s] = np.sum(hertz.energy(overlap), axis=1)
-                OL[s] = overlap[:, -1]
+                EH[s], OL[s] = _hertz(data["x"].reshape(B, n), D, hertz)
     except GranchainError:
         raise
     except (ValueError, IndexError, EOFError, OSError, KeyError, TypeError) as exc:
