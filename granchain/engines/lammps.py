@@ -245,13 +245,14 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
     step, cols = read_binary_dump(path, pl.dump_columns, B * n, pl.nsamples, what)
     _check_steps(what, pl, step, path.parent)
     S = len(step)
-    V = cols["vx"].reshape(S, B, n)
-    X = cols["x"].reshape(S, B, n)
+    X = cols.pop("x").reshape(S, B, n)
     terms = physics_terms(scene)
     D = 2.0 * deckmod.to_micro(scene.radius, "length")
     EH, OL = np.empty((S, B)), np.empty((S, B))
     for lo in range(0, S, 64):                       # in blocks: bounded temporaries
         EH[lo:lo + 64], OL[lo:lo + 64] = _hertz(X[lo:lo + 64], D, terms.hertz)
+    del X
+    V = _chain_major(cols.pop("vx"), B, n)
     ledger = None
     if pl.ledger_columns:
         lpath = path.with_name(deckmod.LEDGER_BINARY_NAME)
@@ -298,12 +299,13 @@ def read_binary_dump(path: Path, columns, natoms: int, max_frames: int, what: st
     with fh:
         size = os.fstat(fh.fileno()).st_size
         mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
-    out = {c: np.empty((max_frames, natoms)) for c in columns}
+    out = None
     steps = []
     off = 0
     try:
         while off < size:
             s = len(steps)
+            start = off
             mlen, = struct.unpack_from("<q", mm, off)
             mlen = -mlen
             magic = mm[off + 8:off + 8 + mlen]
@@ -329,6 +331,9 @@ def read_binary_dump(path: Path, columns, natoms: int, max_frames: int, what: st
             if s == max_frames:
                 raise GranchainError(f"{what} does not match the deck: more than {max_frames} "
                                      "samples")
+            if out is None:   # every frame has the first one's size (header + chunks)
+                frames = min(max_frames, size // (off - start + nchunk * 4 + 8 * natoms * ncol) + 1)
+                out = {c: np.empty((frames, natoms)) for c in columns}
             row = 0
             for _ in range(nchunk):
                 m, = struct.unpack_from("=i", mm, off)
@@ -353,7 +358,18 @@ def read_binary_dump(path: Path, columns, natoms: int, max_frames: int, what: st
         except BufferError:                           # a view still alive: closed by GC
             pass
     S = len(steps)
-    return np.array(steps, dtype=np.int64), {c: a[:S] for c, a in out.items()}
+    return np.array(steps, dtype=np.int64), {c: a[:S] for c, a in (out or {}).items()}
+
+
+def _chain_major(a, B: int, n: int):
+    """(S, B*n) sample-major values -> the same values as an (S, B, n) view of a
+    chain-major (B, S, n) array, so that each chain's record is contiguous. Transposed in
+    blocks of samples (cache-friendly)."""
+    S = a.shape[0]
+    out = np.empty((B, S, n))
+    for lo in range(0, S, 64):
+        out[:, lo:lo + 64] = a[lo:lo + 64].reshape(-1, B, n).transpose(1, 0, 2)
+    return out.transpose(1, 0, 2)
 
 
 def _check_steps(what: str, pl: "deckmod.DeckPlan", step, rundir: Path) -> None:
@@ -382,7 +398,7 @@ def _energies(scene: Scene, V, EH, pl: "deckmod.DeckPlan", ledger) -> np.ndarray
     (S, B) and the per-chain LAMMPS ledger (S, B, k) in 1e-15 J (or None)."""
     S, B = EH.shape
     terms = physics_terms(scene)
-    E = np.zeros((S, B, len(ENERGY_COLUMNS)))
+    E = np.zeros((B, S, len(ENERGY_COLUMNS))).transpose(1, 0, 2)   # each chain contiguous
     E[:, :, E_KT] = 0.5 * terms.m * np.sum(V * V, axis=2)
     E[:, :, E_H] = EH
     if ledger is not None:
