@@ -216,8 +216,8 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
         with ProcessPoolExecutor(readers, mp_context=mp.get_context("fork")) as ex:
             parts = list(ex.map(_read_part, [job] * readers, range(readers), [readers] * readers))
     step = np.concatenate([p[1] for p in parts])
-    V = np.concatenate([p[2] for p in parts])
     _check_steps(f"LAMMPS dump {path}", pl, step, path.parent)
+    V = _chain_major(np.concatenate([p[2] for p in parts]).reshape(len(step), B * n), B, n)
     EH = np.concatenate([p[3] for p in parts])
     last_overlap = np.concatenate([p[4] for p in parts])
     ledger = read_ledger(path.with_name(deckmod.LEDGER_NAME), pl, step) if pl.ledger_columns else None
@@ -505,8 +505,9 @@ def _trajectories(scene, pl, data, wall_each, meta_common):
         bad = np.flatnonzero(~np.all(np.isfinite(v[:keep]), axis=1))
         if bad.size:
             keep, status = int(bad[0]) + 1, "nonfinite"
+        # v and energy: views of the chain's contiguous block of the batch arrays
         yield Trajectory(
-            t=step[:keep] * scene.dt, v=v[:keep].copy(), energy=E[:keep, b, :].copy(),
+            t=step[:keep] * scene.dt, v=v[:keep], energy=E[:keep, b, :],
             gaps=pl.gaps[b].copy(), radius=scene.radius, v_striker=vsb, effects=eff,
             steps=int(step[keep - 1]), rejected=0, status=status, wall_s=wall_each,
             meta=dict(meta_common), last_overlap=float(OL[keep - 1, b]))
