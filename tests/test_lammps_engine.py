@@ -191,7 +191,7 @@ def test_binary_and_text_dump_paths_give_identical_trajectories(nprocs, tmp_path
         assert np.any(b.energy[-1, [1, 3, 4]] != 0)               # the ledger columns are there
 
 
-def test_binary_reader_reads_what_lammps_holds(tmp_path):
+def test_binary_reader_reads_what_lammps_holds(tmp_path, monkeypatch):
     """traj.bin holds x and vx of every atom, sorted by id; ledger.bin the per-chain sums
     (the values of ledger.txt of the same deck, bit for bit)."""
     scene = packed(effects="[hertz, groove_friction, air_drag]", t_end=2e-6,
@@ -211,6 +211,16 @@ def test_binary_reader_reads_what_lammps_holds(tmp_path):
                                       D.ledger_binary_columns(pl), 2, pl.nsamples, "ledger")
     assert lstep.tolist() == step.tolist()
     assert np.stack([lcols[c] for c in D.ledger_binary_columns(pl)], axis=2).tobytes() == ledger_txt.tobytes()
+    # frames read one by one (the reader's path for files whose frames differ in layout)
+    # and in blocks of strided views (the regular layout LAMMPS writes): the same arrays
+    whole = L.read_binary(tmp_path / "b" / D.BINARY_NAME, scene, pl)
+    monkeypatch.setattr(L, "_frame_layout", lambda *a: None)
+    frames = L.read_binary(tmp_path / "b" / D.BINARY_NAME, scene, pl)
+    for k in ("step", "v", "energy", "last_overlap"):
+        assert frames[k].tobytes() == whole[k].tobytes()
+    step2, cols2 = L.read_binary_dump(tmp_path / "b" / D.BINARY_NAME, ("x", "vx"), 2 * scene.n,
+                                      pl.nsamples, "traj")
+    assert step2.tolist() == step.tolist() and cols2["x"].tobytes() == cols["x"].tobytes()
 
 
 def test_missing_and_truncated_binary_output(tmp_path):

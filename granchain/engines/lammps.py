@@ -12,8 +12,8 @@ Two output paths, the same Trajectory objects (tested bit for bit on v):
 * ``output="binary"`` (default: ``granchain run --engine lammps``, ``granchain compare``):
   the deck writes LAMMPS binary dumps, ``traj.bin`` (``x vx`` of every atom, sorted by
   id) and ``ledger.bin`` (the per-chain ledger on each chain's first atom), read with
-  numpy (``read_binary``): the doubles LAMMPS holds, at ~1/10 of the text dump's cost to
-  write and nothing like MDAnalysis' per-line cost to read.
+  numpy (``read_binary``): the doubles LAMMPS holds, without the text dump's printing
+  and per-line parsing (costs: docs/lammps_engine.md).
 * ``output="dump"``: the text dump ``traj.dump`` (``id x y z vx``, ``%.17g``) and
   ``ledger.txt``, read with MDAnalysis (``read_dump``): the path for full trajectories
   that other tools read (``granchain deck`` writes this deck by default).
@@ -35,7 +35,8 @@ sample:
 * kinetic rotational and the works of the groove friction and of the air drag: summed
   per chain inside LAMMPS (``compute chunk/atom`` + ``reduce/chunk`` of
   ``erotate/sphere/atom`` and of the per-atom cumulative works of ``fix groove/drag``),
-  read from ``ledger.txt`` (``read_ledger``); ``energy.txt`` holds the same sums over all
+  read from ``ledger.bin`` (binary path) or ``ledger.txt`` (``read_ledger``, text dump
+  path), the same doubles; ``energy.txt`` holds the same sums over all
   chains, from LAMMPS' global computes and the fix's global vector;
 * the tangential (particle-particle) and rolling contact friction have no per-atom work
   output in LAMMPS: their sum is reported as the residual of the energy balance in
@@ -51,6 +52,7 @@ from __future__ import annotations
 import math
 import os
 import shutil
+import struct
 import sys
 import tempfile
 import time
@@ -220,8 +222,9 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     V = _chain_major(np.concatenate([p[2] for p in parts]).reshape(len(step), B * n), B, n)
     EH = np.concatenate([p[3] for p in parts])
     last_overlap = np.concatenate([p[4] for p in parts])
+    V2 = np.concatenate([p[5] for p in parts])
     ledger = read_ledger(path.with_name(deckmod.LEDGER_NAME), pl, step) if pl.ledger_columns else None
-    return {"step": step, "v": V, "energy": _energies(scene, V, EH, pl, ledger),
+    return {"step": step, "v": V, "energy": _energies(scene, V2, EH, pl, ledger),
             "last_overlap": last_overlap}
 
 
@@ -242,17 +245,27 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
     if pl.output != "binary" or missing:
         raise GranchainError(f"{what}: the deck does not write the binary trajectory "
                              f"(output {pl.output!r}, columns {' '.join(pl.dump_columns)})")
-    step, cols = read_binary_dump(path, pl.dump_columns, B * n, pl.nsamples, what)
-    _check_steps(what, pl, step, path.parent)
-    S = len(step)
-    X = cols.pop("x").reshape(S, B, n)
     terms = physics_terms(scene)
     D = 2.0 * deckmod.to_micro(scene.radius, "length")
-    EH, OL = np.empty((S, B)), np.empty((S, B))
-    for lo in range(0, S, 64):                       # in blocks: bounded temporaries
-        EH[lo:lo + 64], OL[lo:lo + 64] = _hertz(X[lo:lo + 64], D, terms.hertz)
-    del X
-    V = _chain_major(cols.pop("vx"), B, n)
+    out = {}
+
+    def consume(lo, block, frames):
+        """A block of samples: Hertz energy and last overlap from x, vx into each chain's
+        contiguous record (the arrays sized for ``frames`` samples at the first block)."""
+        if not out:
+            out.update(V=np.empty((B, frames, n)), EH=np.empty((frames, B)),
+                       OL=np.empty((frames, B)), V2=np.empty((frames, B)))
+        hi = lo + len(block["x"])
+        out["EH"][lo:hi], out["OL"][lo:hi] = _hertz(block["x"].reshape(-1, B, n), D, terms.hertz)
+        v = block["vx"].reshape(-1, B, n)
+        out["V2"][lo:hi] = np.sum(v * v, axis=2)
+        out["V"][:, lo:hi] = v.transpose(1, 0, 2)
+
+    step, _ = read_binary_dump(path, pl.dump_columns, B * n, pl.nsamples, what, consume=consume)
+    _check_steps(what, pl, step, path.parent)
+    S = len(step)
+    V = out["V"][:, :S].transpose(1, 0, 2)           # (S, B, n) view, each chain contiguous
+    EH, OL, V2 = out["EH"][:S], out["OL"][:S], out["V2"][:S]
     ledger = None
     if pl.ledger_columns:
         lpath = path.with_name(deckmod.LEDGER_BINARY_NAME)
@@ -263,14 +276,15 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
             raise GranchainError(f"{lwhat} does not match the trajectory: {len(lstep)} samples; "
                                  f"{path.name} has {S}")
         ledger = np.stack([lcols[c] for c in deckmod.ledger_binary_columns(pl)], axis=2)
-    return {"step": step, "v": V, "energy": _energies(scene, V, EH, pl, ledger),
+    return {"step": step, "v": V, "energy": _energies(scene, V2, EH, pl, ledger),
             "last_overlap": OL}
 
 
 _BIN_MAGIC = b"DUMPCUSTOM"
 
 
-def read_binary_dump(path: Path, columns, natoms: int, max_frames: int, what: str):
+def read_binary_dump(path: Path, columns, natoms: int, max_frames: int, what: str, *,
+                     consume=None, block: int = 64):
     """Frames of a LAMMPS binary ``dump custom`` file (format revision 2, this machine's
     byte order, rows sorted by id): ``(step (S,) int64, {column: (S, natoms) float64})``.
 
@@ -279,14 +293,18 @@ def read_binary_dump(path: Path, columns, natoms: int, max_frames: int, what: st
     chunk per writing rank (its count of doubles, then the doubles, one row per atom).
     Checks the atom count and column names against ``columns``/``natoms`` and that there
     are at most ``max_frames``; ``what`` names the file in the one-line errors.
+
+    With ``consume``, the columns are handed over in blocks of ``block`` samples instead,
+    ``consume(first_sample, {column: (k, natoms)}, frames)`` (``frames``: an upper bound
+    on the number of samples, known from the first frame), and the returned dict is
+    empty. When every frame has the first one's header (but its step) and chunk sizes,
+    as LAMMPS writes them sorted by id on any number of ranks, the doubles are copied
+    block by block from strided views of the file; otherwise frame by frame.
     """
     import mmap
-    import struct
 
     path = Path(path)
     columns = tuple(columns)
-    ncol = len(columns)
-    names = " ".join(columns).encode()
     try:
         fh = open(path, "rb")
     except OSError:
@@ -296,59 +314,14 @@ def read_binary_dump(path: Path, columns, natoms: int, max_frames: int, what: st
             fh.close()
         raise GranchainError(f"{what} is missing or empty: the run wrote no output (see "
                              "log.lammps next to it)")
-    with fh:
-        size = os.fstat(fh.fileno()).st_size
-        mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
-    out = None
-    steps = []
-    off = 0
+    with fh:     # MAP_POPULATE: the file's pages mapped in one go, not fault by fault
+        mm = mmap.mmap(fh.fileno(), 0, flags=mmap.MAP_SHARED | getattr(mmap, "MAP_POPULATE", 0),
+                       prot=mmap.PROT_READ)
     try:
-        while off < size:
-            s = len(steps)
-            start = off
-            mlen, = struct.unpack_from("<q", mm, off)
-            mlen = -mlen
-            magic = mm[off + 8:off + 8 + mlen]
-            off += 8 + mlen
-            endian, rev, step, nat, tric = struct.unpack_from("=iiqqi", mm, off)
-            off += 28 + 24 + 48 + (24 if tric else 0)      # ..., boundary 6i, box 6d (+3d)
-            if magic != _BIN_MAGIC or endian != 1 or rev != 2:
-                raise GranchainError(f"{what} is not a LAMMPS binary dump custom file of "
-                                     f"revision 2 in this byte order (magic {magic!r}, "
-                                     f"endian {endian}, revision {rev})")
-            size_one, ulen = struct.unpack_from("=ii", mm, off)
-            off += 8 + ulen                                # unit style (its name if given)
-            off += 1 + (8 if mm[off] else 0)               # time flag (and time)
-            clen, = struct.unpack_from("=i", mm, off)
-            cols = mm[off + 4:off + 4 + clen]
-            off += 4 + clen
-            nchunk, = struct.unpack_from("=i", mm, off)
-            off += 4
-            if nat != natoms or size_one != ncol or cols != names:
-                raise GranchainError(f"{what} does not match the deck: frame {s} has {nat} "
-                                     f"atoms x columns {cols.decode(errors='replace')!r}; "
-                                     f"expected {natoms} x {names.decode()!r}")
-            if s == max_frames:
-                raise GranchainError(f"{what} does not match the deck: more than {max_frames} "
-                                     "samples")
-            if out is None:   # every frame has the first one's size (header + chunks)
-                frames = min(max_frames, size // (off - start + nchunk * 4 + 8 * natoms * ncol) + 1)
-                out = {c: np.empty((frames, natoms)) for c in columns}
-            row = 0
-            for _ in range(nchunk):
-                m, = struct.unpack_from("=i", mm, off)
-                off += 4
-                if m % ncol or row + m // ncol > natoms or off + 8 * m > size:
-                    raise EOFError(f"frame {s} (step {step}) ends early")
-                a = np.frombuffer(mm, np.float64, m, off).reshape(-1, ncol)
-                for j, c in enumerate(columns):
-                    out[c][s, row:row + len(a)] = a[:, j]
-                del a
-                row += m // ncol
-                off += 8 * m
-            if row != natoms:
-                raise EOFError(f"frame {s} (step {step}) holds {row} of {natoms} atoms")
-            steps.append(step)
+        layout = _frame_layout(mm, columns, natoms, max_frames, what)
+        if layout is not None:
+            return _read_regular(mm, columns, natoms, layout, consume, block)
+        return _read_frames(mm, columns, natoms, max_frames, what, consume, block)
     except (struct.error, ValueError, EOFError, IndexError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise GranchainError(f"{what} is truncated or unreadable: {msg}") from None
@@ -357,8 +330,130 @@ def read_binary_dump(path: Path, columns, natoms: int, max_frames: int, what: st
             mm.close()
         except BufferError:                           # a view still alive: closed by GC
             pass
+
+
+def _frame_header(mm, off: int, columns, natoms: int, s: int, what: str):
+    """Parse the header of the frame at ``off``: (step, number of chunks, offset of the
+    first chunk, offset of the step field)."""
+    mlen, = struct.unpack_from("<q", mm, off)
+    mlen = -mlen
+    magic = mm[off + 8:off + 8 + mlen]
+    off += 8 + mlen
+    endian, rev = struct.unpack_from("=ii", mm, off)
+    step_at = off + 8
+    step, nat, tric = struct.unpack_from("=qqi", mm, step_at)
+    off += 28 + 24 + 48 + (24 if tric else 0)          # ..., boundary 6i, box 6d (+3d)
+    if magic != _BIN_MAGIC or endian != 1 or rev != 2:
+        raise GranchainError(f"{what} is not a LAMMPS binary dump custom file of revision 2 "
+                             f"in this byte order (magic {magic!r}, endian {endian}, "
+                             f"revision {rev})")
+    size_one, ulen = struct.unpack_from("=ii", mm, off)
+    off += 8 + ulen                                    # unit style (its name if given)
+    off += 1 + (8 if mm[off] else 0)                   # time flag (and time)
+    clen, = struct.unpack_from("=i", mm, off)
+    cols = mm[off + 4:off + 4 + clen]
+    off += 4 + clen
+    nchunk, = struct.unpack_from("=i", mm, off)
+    off += 4
+    names = " ".join(columns).encode()
+    if nat != natoms or size_one != len(columns) or cols != names:
+        raise GranchainError(f"{what} does not match the deck: frame {s} has {nat} atoms x "
+                             f"columns {cols.decode(errors='replace')!r}; expected {natoms} x "
+                             f"{names.decode()!r}")
+    return step, nchunk, off, step_at
+
+
+def _frame_layout(mm, columns, natoms: int, max_frames: int, what: str):
+    """(steps, chunks [(offset, rows)], frame size) if every frame repeats the first
+    one's layout, else None."""
+    size = len(mm)
+    ncol = len(columns)
+    _, nchunk, off, step_at = _frame_header(mm, 0, columns, natoms, 0, what)
+    chunks, rows_total = [], 0
+    for _ in range(nchunk):
+        m, = struct.unpack_from("=i", mm, off)
+        if m % ncol or rows_total + m // ncol > natoms:
+            return None
+        chunks.append((off, off + 4, m // ncol))
+        rows_total += m // ncol
+        off += 4 + 8 * m
+    fb = off
+    if rows_total != natoms or size % fb or size // fb > max_frames:
+        return None
+    S = size // fb
+    frames = np.ndarray((S, fb), np.uint8, buffer=mm)
+    same = np.ones(fb, dtype=bool)                     # bytes every frame repeats:
+    same[chunks[0][1] if chunks else fb:] = False      # not the doubles ...
+    for at, _, rows in chunks:
+        same[at:at + 4] = True                         # ... but the chunk sizes
+    same[step_at:step_at + 8] = False                  # ... nor the step
+    idx = np.flatnonzero(same)
+    ok = bool(np.all(frames[:, idx] == frames[0, idx]))
+    steps = np.ndarray((S,), np.int64, buffer=mm, offset=step_at, strides=(fb,)).copy()
+    del frames
+    if not ok:
+        return None
+    return steps, [(data, rows) for _, data, rows in chunks], fb
+
+
+def _read_regular(mm, columns, natoms: int, layout, consume, block: int):
+    steps, chunks, fb = layout
+    S, ncol = len(steps), len(columns)
+    full = {} if consume else {c: np.empty((S, natoms)) for c in columns}
+    buf = {c: np.empty((min(block, S), natoms)) for c in columns} if consume else None
+    for lo in range(0, S, block):
+        hi = min(S, lo + block)
+        dst = {c: buf[c][:hi - lo] for c in columns} if consume else \
+            {c: full[c][lo:hi] for c in columns}
+        r = 0
+        for data, rows in chunks:
+            view = np.ndarray((hi - lo, rows, ncol), np.float64, buffer=mm,
+                              offset=data + lo * fb, strides=(fb, 8 * ncol, 8))
+            for j, c in enumerate(columns):
+                dst[c][:, r:r + rows] = view[:, :, j]
+            del view
+            r += rows
+        if consume:
+            consume(lo, dst, S)
+    return steps, full
+
+
+def _read_frames(mm, columns, natoms: int, max_frames: int, what: str, consume, block: int):
+    size, ncol = len(mm), len(columns)
+    out, steps, off, lo = None, [], 0, 0
+    while off < size:
+        s = len(steps)
+        start = off
+        step, nchunk, off, _ = _frame_header(mm, off, columns, natoms, s, what)
+        if s == max_frames:
+            raise GranchainError(f"{what} does not match the deck: more than {max_frames} "
+                                 "samples")
+        if out is None:   # every frame has the first one's size (header + chunks)
+            frames = min(max_frames, size // (off - start + nchunk * 4 + 8 * natoms * ncol) + 1)
+            out = {c: np.empty((min(block, frames) if consume else frames, natoms))
+                   for c in columns}
+        row_s = s - lo if consume else s
+        row = 0
+        for _ in range(nchunk):
+            m, = struct.unpack_from("=i", mm, off)
+            off += 4
+            if m % ncol or row + m // ncol > natoms or off + 8 * m > size:
+                raise EOFError(f"frame {s} (step {step}) ends early")
+            a = np.frombuffer(mm, np.float64, m, off).reshape(-1, ncol)
+            for j, c in enumerate(columns):
+                out[c][row_s, row:row + len(a)] = a[:, j]
+            del a
+            row += m // ncol
+            off += 8 * m
+        if row != natoms:
+            raise EOFError(f"frame {s} (step {step}) holds {row} of {natoms} atoms")
+        steps.append(step)
+        if consume and (row_s + 1 == len(out[columns[0]]) or off >= size):
+            consume(lo, {c: a[:row_s + 1] for c, a in out.items()}, frames)
+            lo = s + 1
     S = len(steps)
-    return np.array(steps, dtype=np.int64), {c: a[:S] for c, a in (out or {}).items()}
+    full = {} if consume else {c: a[:S] for c, a in (out or {}).items()}
+    return np.array(steps, dtype=np.int64), full
 
 
 def _chain_major(a, B: int, n: int):
@@ -393,13 +488,13 @@ def _hertz(x, D: float, hertz):
     return np.sum(hertz.energy(overlap), axis=-1), overlap[..., -1]
 
 
-def _energies(scene: Scene, V, EH, pl: "deckmod.DeckPlan", ledger) -> np.ndarray:
-    """The energy ledger (S, B, 7) J from the velocities (S, B, n), the Hertz energies
-    (S, B) and the per-chain LAMMPS ledger (S, B, k) in 1e-15 J (or None)."""
+def _energies(scene: Scene, V2, EH, pl: "deckmod.DeckPlan", ledger) -> np.ndarray:
+    """The energy ledger (S, B, 7) J from the sums of v^2 per chain (S, B), the Hertz
+    energies (S, B) and the per-chain LAMMPS ledger (S, B, k) in 1e-15 J (or None)."""
     S, B = EH.shape
     terms = physics_terms(scene)
     E = np.zeros((B, S, len(ENERGY_COLUMNS))).transpose(1, 0, 2)   # each chain contiguous
-    E[:, :, E_KT] = 0.5 * terms.m * np.sum(V * V, axis=2)
+    E[:, :, E_KT] = 0.5 * terms.m * V2
     E[:, :, E_H] = EH
     if ledger is not None:
         for j, name in enumerate(pl.ledger_columns):
@@ -458,7 +553,7 @@ def _halted(log: Path) -> bool:
 
 def _read_part(job: dict, part: int, nparts: int):
     """Frames [part*S/nparts, (part+1)*S/nparts) of a dump: (S, step, V, E_hertz,
-    overlap of the last contact in m)."""
+    overlap of the last contact in m, sum of v^2 per chain)."""
     import MDAnalysis as mda
 
     path, B, n, D, hertz = job["path"], job["B"], job["n"], job["D"], job["hertz"]
@@ -477,6 +572,7 @@ def _read_part(job: dict, part: int, nparts: int):
             V = np.empty((hi - lo, B, n))
             EH = np.empty((hi - lo, B))
             OL = np.empty((hi - lo, B))
+            V2 = np.empty((hi - lo, B))
             for s, ts in enumerate(traj[lo:hi]):
                 data = ts.data
                 step[s] = data["step"]
@@ -484,13 +580,14 @@ def _read_part(job: dict, part: int, nparts: int):
                 if job["velocities"] == "float32":
                     v = v.astype(np.float32).astype(np.float64)
                 V[s] = v
+                V2[s] = np.sum(v * v, axis=1)
                 EH[s], OL[s] = _hertz(data["x"].reshape(B, n), D, hertz)
     except GranchainError:
         raise
     except (ValueError, IndexError, EOFError, OSError, KeyError, TypeError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise GranchainError(f"LAMMPS dump {path} is truncated or unreadable: {msg}") from None
-    return S, step, V, EH, OL
+    return S, step, V, EH, OL, V2
 
 
 def _trajectories(scene, pl, data, wall_each, meta_common):
