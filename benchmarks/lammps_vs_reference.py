@@ -155,21 +155,26 @@ def main(argv=None):
                   f"v_g {d['v_g']:.1e}, chains with another sample count {d['samples_differ']}",
                   flush=True)
             del binary
-            rows.append((nprocs, {k: float(np.mean(v)) for k, v in times.items()}))
+            rows.append((nprocs, times))
     finally:
         if not args.workdir:
             shutil.rmtree(tmp, ignore_errors=True)
 
-    print(f"\n{B} chains, wall times (s; means of the repeated runs) and ratios; load average "
-          f"at the end {os.getloadavg()[0]:.1f}")
+    print(f"\n{B} chains, wall times (s) and ratios; load average at the end "
+          f"{os.getloadavg()[0]:.1f}. 'none' and 'binary' ran twice (before and after the text "
+          "dump): their mean, and the ratio of the faster runs (the ones least disturbed by "
+          "other jobs on the shared cores)")
     print("| ranks | LAMMPS, no output | run --engine lammps (binary) | text dump + MDAnalysis "
-          "| reference engine | binary / no output | dump / no output | binary / reference |")
+          "| reference engine | binary / no output: means (fastest) | dump / no output "
+          "| binary / reference |")
     print("|---|---|---|---|---|---|---|---|")
     for nprocs, t in rows:
-        dump = t.get("dump", float("nan"))
-        print(f"| {nprocs} | {t['none']:.2f} | {t['binary']:.2f} | {dump:.1f} | {t_ref:.2f} | "
-              f"**{t['binary'] / t['none']:.2f}** | {dump / t['none']:.1f} | "
-              f"{t['binary'] / t_ref:.1f} |")
+        none, binary = np.mean(t["none"]), np.mean(t["binary"])
+        dump = np.mean(t["dump"]) if "dump" in t else float("nan")
+        print(f"| {nprocs} | {none:.2f} ({' / '.join(f'{x:.2f}' for x in t['none'])}) | "
+              f"{binary:.2f} ({' / '.join(f'{x:.2f}' for x in t['binary'])}) | {dump:.1f} | "
+              f"{t_ref:.2f} | **{binary / none:.2f}** ({min(t['binary']) / min(t['none']):.2f}) | "
+              f"{dump / none:.1f} | {binary / t_ref:.1f} |")
 
 
 if __name__ == "__main__":
