@@ -27,19 +27,26 @@ Choices (also stated in the deck's comments):
   record where the reference engine would have stopped that chain.
 * Cadence: every = round(sample_interval / dt) (as the reference engine), from the
   member with the finest sampling.
-* Trajectory dump (``traj.dump``, every sample, sorted by id, ``%.17g``): ``id x y z
-  vx`` only (:data:`DUMP_COLUMNS`). The engine reads it with MDAnalysis (x and vx as
-  float64 additional columns): the velocities, and the Hertz energy from the positions.
-  y and z are constant and print in a few characters; vy, vz and omega are not dumped.
-* Per-chain ledger (``ledger.txt``, :data:`LEDGER_NAME`), computed inside LAMMPS at every
-  sample: the atoms are binned by chain (``compute chunk/atom`` of the atom-style
-  variable floor((id-1)/n)+1) and ``compute reduce/chunk`` sums, per chain, the
-  rotational kinetic energy (``compute erotate/sphere/atom``, rotation on) and the
-  per-atom cumulative works of ``fix groove/drag`` (``f_gd[2]`` groove, ``f_gd[3]``
-  drag), written by ``fix ave/time ... mode vector`` (one row per chain, ``%.17g``); see
-  :data:`LEDGER_INPUTS`. Only the enabled effects' columns; no ledger file when there
-  are none (Hertz only). The translational kinetic energy and the Hertz potential come
-  from the dumped vx and x.
+* Per-sample output, by the deck option ``output`` (:data:`OUTPUTS`, default ``"dump"``):
+  ``"dump"`` the text trajectory dump (``traj.dump``, every sample, sorted by id,
+  ``%.17g``: ``id x y z vx`` only, :data:`DUMP_COLUMNS`; the engine's ``output="dump"``
+  reads it with MDAnalysis, x and vx as float64 additional columns) and the per-chain
+  ledger ``ledger.txt``; ``"binary"`` the LAMMPS binary dumps ``traj.bin`` (``x vx``,
+  sorted by id, :data:`BINARY_COLUMNS`) and ``ledger.bin``, what the engine reads by
+  default (numpy); ``"none"`` neither (LAMMPS' own cost, for benchmarks). The physics
+  lines are the same in all three.
+* Per-chain ledger, computed inside LAMMPS at every sample: the atoms are binned by chain
+  (``compute chunk/atom`` of the atom-style variable floor((id-1)/n)+1) and ``compute
+  reduce/chunk`` sums, per chain, the rotational kinetic energy (``compute
+  erotate/sphere/atom``, rotation on) and the per-atom cumulative works of ``fix
+  groove/drag`` (``f_gd[2]`` groove, ``f_gd[3]`` drag); see :data:`LEDGER_INPUTS`.
+  Output "dump": written by ``fix ave/time ... mode vector`` (``ledger.txt``, one row per
+  chain, ``%.17g``); output "binary": spread back onto the atoms (``compute
+  chunk/spread/atom``) and dumped for each chain's first atom (``ledger.bin``). Only the
+  enabled effects' columns; no ledger when there are none (Hertz only). The
+  translational kinetic energy and the Hertz potential come from vx and x.
+* Box: room on each side for twice :func:`max_travel` (the farthest a sphere can move in
+  the run, a propulsive air drag included) plus a diameter, so no sphere leaves it.
 * The global energy ledger (``energy.txt``) holds sums over all chains: kinetic
   translational (``compute ke``), rotational (``compute erotate/sphere``, rotation
   only) and the cumulative works of ``fix groove/drag`` (groove, drag); a cross-check
