@@ -1,30 +1,36 @@
-"""Cost of the LAMMPS engine against the reference engine on one ensemble, side by side.
+"""Cost of the LAMMPS engine's output paths against LAMMPS alone and the reference engine,
+side by side in one run.
 
-    python benchmarks/lammps_vs_reference.py [--chains 1000] [--per-process 10] [--np 1]
-                                             [--readers 1] [--coarser 4]
+    python benchmarks/lammps_vs_reference.py [--chains 1000] [--np 1,2] [--skip-dump]
+                                             [--workdir DIR]
 
 The ensemble: gaps-20nm-440c (440C, v_s = 0.1 m/s, uniform gaps of mean 20 nm) with
 ``--chains`` realisations and every effect both engines implement (hertz, groove
 friction, air drag, rotation, particle friction, rolling friction with k_roll = 1e3 N/m),
-velocity Verlet at dt = 1 ns in both, t_end auto (each engine's own stop: the reference
-stops every chain once the wave has passed probe 13; LAMMPS stops the batch once every
-chain has, and cuts each chain's record where the reference would).
+velocity Verlet at dt = 1 ns, t_end auto, the default sample grid.
 
-Timed in one run, at the default sample grid and again with ``output.sample_dt``
-``--coarser`` times coarser (0: skip): (a) the reference engine, batched (numba,
-parallel over chains, after a warm-up compile); (b) one batched LAMMPS run of all chains
-(the LAMMPS process, with its loop's Pair / Modify / Output split from log.lammps, then
-the dump read with MDAnalysis and the per-chain ledger); (c) LAMMPS run one process per
-chain for ``--per-process`` chains, extrapolated linearly to the whole ensemble. Prints
-wall times, the simulated particle-steps and the ratios, and how far the two engines'
-observables differ over the whole ensemble. Not a test (minutes, a GB of dump); the
-machines are shared: the ratios measured side by side are what to compare.
+For each rank count in ``--np``, timed one after the other:
+
+* ``none``: LAMMPS alone, the same deck with no per-sample output (``write_deck(...,
+  output="none")``: no trajectory, no per-chain ledger; thermo and energy.txt as in every
+  deck), run by ``run_lammps``: the process' wall time;
+* ``binary``: ``granchain.engines.lammps.run(..., output="binary")`` end to end (deck,
+  LAMMPS writing traj.bin and ledger.bin, numpy reading them, Trajectory objects): what
+  ``granchain run --engine lammps`` does;
+* ``dump``: the same with ``output="dump"`` (text dump read by MDAnalysis, ledger.txt);
+* ``none`` and ``binary`` again after it, so that a drift of the machine's load shows.
+
+and once the reference engine, batched (numba, after a warm-up compile). Prints the wall
+times, the ratios and the agreement: binary against dump (bit for bit on v, energies),
+binary against the reference (v_max, v_g, sample counts). Not a test: the machines are
+shared, so only the ratios measured side by side in the one run are worth comparing.
 """
 from __future__ import annotations
 
 import argparse
 import os
 import re
+import shutil
 import sys
 import tempfile
 import time
@@ -36,16 +42,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from granchain.engines import lammps as L  # noqa: E402
 from granchain.engines import reference  # noqa: E402
+from granchain.lammps import deck as D  # noqa: E402
+from granchain.lammps.runner import run_lammps  # noqa: E402
 from granchain.observables import summarize  # noqa: E402
 from granchain.scene import load_scene  # noqa: E402
 from granchain.simulate import member_gaps, members  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 EFFECTS = "[hertz, groove_friction, air_drag, rotation, particle_friction, rolling_friction]"
-
-
-def particle_steps(trajs, n):
-    return sum(t.steps for t in trajs) * n
 
 
 def worst(ref, lmp, probes):
@@ -61,108 +65,116 @@ def worst(ref, lmp, probes):
     return out
 
 
-def lammps_batched(scene, gaps, vs, args, wd):
-    """One batched LAMMPS run: trajectories and its timings (log.lammps sections)."""
+def sections(log: Path) -> str:
+    text = log.read_text()
+    m = re.search(r"Loop time of (\S+) on (\d+) procs for (\d+) steps", text)
+    sec = {k: float(v) for k, v in re.findall(r"^(\w+)\s+\|\s*\S+\s*\|\s*(\S+)", text, re.M)}
+    return (f"loop {float(m.group(1)):.2f} s for {m.group(3)} steps: Pair {sec.get('Pair', 0):.2f}, "
+            f"Modify {sec.get('Modify', 0):.2f}, Output {sec.get('Output', 0):.2f}")
+
+
+def lammps_alone(scene, gaps, vs, nprocs, wd):
+    """The deck without per-sample output, run once: wall time of the LAMMPS process."""
+    wd.mkdir(parents=True)
+    deck = D.write_deck(scene, wd, gaps=gaps, v_striker=vs, output="none")
     t0 = time.perf_counter()
-    lmp = list(L.run(scene, gaps, vs, nprocs=args.np, workdir=wd, force=True,
-                     readers=args.readers, progress=True))
+    run_lammps(deck, wd, nprocs=nprocs)
     wall = time.perf_counter() - t0
-    log = (wd / "log.lammps").read_text()
-    m = re.search(r"Loop time of (\S+) on (\d+) procs for (\d+) steps", log)
-    sec = {k: float(v) for k, v in re.findall(r"^(\w+)\s+\|\s*\S+\s*\|\s*(\S+)", log, re.M)}
-    size = {f.name: f.stat().st_size / 1e6 for f in wd.iterdir()}
-    for f in ("traj.dump", "ledger.txt"):
-        if not args.workdir:
-            (wd / f).unlink(missing_ok=True)
-    return lmp, {"wall": wall, "loop": float(m.group(1)), "steps": int(m.group(3)), "sec": sec,
-                 "size": size, "meta": lmp[0].meta}
+    return wall, sections(wd / "log.lammps")
 
 
-def per_process(scene, gaps, vs, k):
-    """LAMMPS one process per chain for the first k chains: (wall, LAMMPS, read, trajs)."""
+def engine(scene, gaps, vs, nprocs, output, wd):
     t0 = time.perf_counter()
-    lrun = rd = 0.0
-    single = []
-    for i in range(k):
-        tr = next(L.run(scene, gaps[i:i + 1], vs[i:i + 1], nprocs=1, readers=1))
-        lrun += tr.meta["lammps_wall_s"]
-        rd += tr.meta["read_wall_s"]
-        single.append(tr)
-    return time.perf_counter() - t0, lrun, rd, single
-
-
-def measure(scene, gaps, vs, args, tmp, label):
-    B, n = len(vs), scene.n
-    print(f"--- {label}: sample_dt {L.deckmod.plan(scene, gaps=gaps[:1], v_striker=vs[:1]).sample_dt:.3g} s",
-          flush=True)
-    t0 = time.perf_counter()
-    ref = list(reference.run(scene, gaps, vs, method="verlet", progress=False))
-    t_ref = time.perf_counter() - t0
-    ps_ref = particle_steps(ref, n)
-    print(f"reference batched : {t_ref:8.2f} s  {ps_ref:.3g} particle-steps  "
-          f"{ps_ref / t_ref:.3g} particle-steps/s", flush=True)
-
-    wd = Path(args.workdir) / label if args.workdir else Path(tmp) / label
-    lmp, b = lammps_batched(scene, gaps, vs, args, wd)
-    meta, sec = b["meta"], b["sec"]
-    lines = B * n * (b["steps"] // round(meta["sample_dt"] / scene.dt) + 1)
-    print(f"LAMMPS batched    : {b['wall']:8.2f} s  = LAMMPS process {meta['lammps_wall_s']:.2f} s "
-          f"(loop {b['loop']:.2f} s: Pair {sec.get('Pair', 0):.2f}, Modify {sec.get('Modify', 0):.2f} "
-          f"incl. the per-chain ledger, Output {sec.get('Output', 0):.2f} = dump writing; "
-          f"{args.np} rank(s)) + deck, MDAnalysis read and ledger {meta['read_wall_s']:.2f} s "
-          f"({meta['readers']} reader(s)); dump {b['size'].get('traj.dump', 0):.0f} MB "
-          f"({lines:.3g} atom-lines: {sec.get('Output', 0) / lines * 1e6:.2f} us/line to write, "
-          f"{meta['read_wall_s'] / lines * 1e6:.2f} us/line to read), ledger "
-          f"{b['size'].get('ledger.txt', 0):.0f} MB; {b['steps']} steps for all chains = "
-          f"{B * n * b['steps']:.3g} particle-steps ({particle_steps(lmp, n):.3g} kept)", flush=True)
-
-    k = min(args.per_process, B)
-    t_single, lrun, rd, single = per_process(scene, gaps, vs, k)
-    t_single_all = t_single / k * B
-    same = all(np.array_equal(a.v, s.v) and np.array_equal(a.energy, s.energy)
-               for a, s in zip(lmp[:k], single))
-    print(f"LAMMPS per process: {t_single:8.2f} s for {k} chains (LAMMPS processes {lrun:.2f} s, "
-          f"deck and read {rd:.2f} s) -> {t_single_all:.1f} s extrapolated to {B} chains; "
-          f"records identical to the batched run's: {same}", flush=True)
-
-    d = worst(ref, lmp, scene.probes)
-    print(f"agreement over the {B} chains: max rel diff v_max {d['v_max']:.2e}, v_g {d['v_g']:.2e}; "
-          f"chains with a different number of samples: {d['samples_differ']}")
-    print("ratios (wall time):")
-    print(f"  LAMMPS batched / reference batched           : {b['wall'] / t_ref:8.2f}")
-    print(f"  LAMMPS process only (batched) / reference    : {meta['lammps_wall_s'] / t_ref:8.2f}")
-    print(f"  LAMMPS one process per chain / LAMMPS batched: {t_single_all / b['wall']:8.2f}  "
-          f"(LAMMPS processes alone: {lrun / k * B / meta['lammps_wall_s']:.2f})", flush=True)
+    trajs = list(L.run(scene, gaps, vs, nprocs=nprocs, output=output, workdir=wd))
+    wall = time.perf_counter() - t0
+    size = sum(f.stat().st_size for f in wd.iterdir()) / 1e6
+    note = (f"LAMMPS process {trajs[0].meta['lammps_wall_s']:.2f} s, deck and read "
+            f"{trajs[0].meta['read_wall_s']:.2f} s, files {size:.0f} MB; "
+            + sections(wd / "log.lammps"))
+    return wall, note, trajs
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--chains", type=int, default=1000)
-    ap.add_argument("--per-process", type=int, default=10, help="chains run one LAMMPS process each")
-    ap.add_argument("--np", type=int, default=1, help="MPI ranks of the batched LAMMPS run")
-    ap.add_argument("--readers", type=int, default=1, help="dump reader processes (default 1)")
-    ap.add_argument("--coarser", type=int, default=4,
-                    help="also time output.sample_dt this many times the default (0: skip)")
-    ap.add_argument("--workdir", default=None, help="where the batched runs write (default: a temp dir)")
+    ap.add_argument("--np", default="1,2", help="MPI rank counts, comma separated (default 1,2)")
+    ap.add_argument("--skip-dump", action="store_true", help="do not time the text dump path")
+    ap.add_argument("--workdir", default=None, help="keep the runs' directories here")
     args = ap.parse_args(argv)
+    ranks = [int(x) for x in args.np.split(",")]
     scene = load_scene(REPO / "granchain/scenes/gaps-20nm-440c.yaml",
                        [f"ensemble.realisations={args.chains}", f"effects={EFFECTS}",
                         "rolling.k_roll=1000.0", "integrator.method=verlet"])
     mem = members(scene)
     gaps = member_gaps(scene, mem)
     vs = np.array([m.v_striker for m in mem])
-    print(f"scene {scene.name}: {len(mem)} chains x {scene.n} particles, effects "
-          f"{','.join(sorted(scene.effects))}, verlet dt {scene.dt:g} s, t_end auto; load average "
-          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores", flush=True)
+    B, n = len(vs), scene.n
+    pl = D.plan(scene, gaps=gaps, v_striker=vs)
+    print(f"scene {scene.name}: {B} chains x {n} particles, effects {','.join(sorted(scene.effects))}, "
+          f"verlet dt {scene.dt:g} s, t_end auto (at most {pl.nsteps} steps), samples every "
+          f"{pl.every} steps; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores",
+          flush=True)
     list(reference.run(scene, gaps[:2], vs[:2], method="verlet", progress=False))   # compile
-    import MDAnalysis  # noqa: F401  (imported once before timing, as the compile above)
-    with tempfile.TemporaryDirectory(prefix="granchain-bench-") as tmp:
-        measure(scene, gaps, vs, args, tmp, "default")
-        if args.coarser > 1:
-            sdt = args.coarser * L.deckmod.plan(scene, gaps=gaps, v_striker=vs).sample_dt
-            coarse = scene.derive(**{"output.sample_dt": sdt})
-            measure(coarse, gaps, vs, args, tmp, f"coarser{args.coarser}")
-    print(f"load average at the end: {os.getloadavg()[0]:.1f}")
+    import MDAnalysis  # noqa: F401  (imported before timing, as the compile above)
+
+    t0 = time.perf_counter()
+    ref = list(reference.run(scene, gaps, vs, method="verlet", progress=False))
+    t_ref = time.perf_counter() - t0
+    print(f"reference engine, batched (numba): {t_ref:.2f} s", flush=True)
+
+    rows = []
+    tmp = Path(args.workdir) if args.workdir else Path(tempfile.mkdtemp(prefix="granchain-bench-"))
+    try:
+        for nprocs in ranks:
+            times = {}
+
+            def step(label, fn):
+                wd = tmp / f"np{nprocs}-{label}"
+                out = fn(wd)
+                times.setdefault(label.rstrip("2"), []).append(out[0])
+                print(f"np {nprocs} {label:7s}: {out[0]:8.2f} s  ({out[1]})", flush=True)
+                if not args.workdir:
+                    shutil.rmtree(wd, ignore_errors=True)
+                return out
+
+            step("none", lambda wd: lammps_alone(scene, gaps, vs, nprocs, wd))
+            _, _, binary = step("binary", lambda wd: engine(scene, gaps, vs, nprocs, "binary", wd))
+            if not args.skip_dump:
+                _, _, dump = step("dump", lambda wd: engine(scene, gaps, vs, nprocs, "dump", wd))
+                same_v = all(np.array_equal(a.v, b.v) and np.array_equal(a.t, b.t)
+                             for a, b in zip(binary, dump))
+                de = max(float(np.abs(a.energy - b.energy).max() / b.energy[0, :3].sum())
+                         for a, b in zip(binary, dump))
+                print(f"np {nprocs} binary vs dump: v bit for bit {same_v}, energies max "
+                      f"|diff|/E0 {de:.1e}", flush=True)
+                del dump
+            step("binary2", lambda wd: engine(scene, gaps, vs, nprocs, "binary", wd))
+            step("none2", lambda wd: lammps_alone(scene, gaps, vs, nprocs, wd))
+            d = worst(ref, binary, scene.probes)
+            print(f"np {nprocs} binary vs reference over {B} chains: v_max {d['v_max']:.1e}, "
+                  f"v_g {d['v_g']:.1e}, chains with another sample count {d['samples_differ']}",
+                  flush=True)
+            del binary
+            rows.append((nprocs, times))
+    finally:
+        if not args.workdir:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+    print(f"\n{B} chains, wall times (s) and ratios; load average at the end "
+          f"{os.getloadavg()[0]:.1f}. 'none' and 'binary' ran twice (before and after the text "
+          "dump): their mean, and the ratio of the faster runs (the ones least disturbed by "
+          "other jobs on the shared cores)")
+    print("| ranks | LAMMPS, no output | run --engine lammps (binary) | text dump + MDAnalysis "
+          "| reference engine | binary / no output: means (fastest) | dump / no output "
+          "| binary / reference |")
+    print("|---|---|---|---|---|---|---|---|")
+    for nprocs, t in rows:
+        none, binary = np.mean(t["none"]), np.mean(t["binary"])
+        dump = np.mean(t["dump"]) if "dump" in t else float("nan")
+        print(f"| {nprocs} | {none:.2f} ({' / '.join(f'{x:.2f}' for x in t['none'])}) | "
+              f"{binary:.2f} ({' / '.join(f'{x:.2f}' for x in t['binary'])}) | {dump:.1f} | "
+              f"{t_ref:.2f} | **{binary / none:.2f}** ({min(t['binary']) / min(t['none']):.2f}) | "
+              f"{dump / none:.1f} | {binary / t_ref:.1f} |")
 
 
 if __name__ == "__main__":

@@ -136,10 +136,12 @@ def cmd_run(args) -> int:
 def _engine_kw(args) -> dict:
     """Options of the LAMMPS engine (refused with the reference engine)."""
     kw = {}
-    if args.np is not None or args.workdir is not None:
+    if args.np is not None or args.workdir is not None or args.lammps_output is not None:
         if args.engine != "lammps":
-            raise GranchainError("--np and --workdir are options of the LAMMPS engine; add "
-                                 "--engine lammps or drop them")
+            raise GranchainError("--np, --workdir and --lammps-output are options of the LAMMPS "
+                                 "engine; add --engine lammps or drop them")
+        if args.lammps_output is not None:
+            kw["output"] = args.lammps_output
         if args.np is not None:
             if args.np < 1:
                 raise GranchainError(f"--np: must be >= 1 (got {args.np})")
@@ -213,7 +215,7 @@ def cmd_compare(args) -> int:
 def cmd_deck(args) -> int:
     from .lammps.deck import write_deck
     scene = load(args)
-    path = write_deck(scene, Path(args.output), force=args.force)
+    path = write_deck(scene, Path(args.output), force=args.force, output=args.write)
     print(path)
     return 0
 
@@ -268,6 +270,11 @@ def build_parser() -> argparse.ArgumentParser:
                     help="LAMMPS engine: MPI ranks (mpirun -np N; default 1)")
     sp.add_argument("--workdir", metavar="DIR",
                     help="LAMMPS engine: keep deck, dump and log in DIR (must be empty)")
+    sp.add_argument("--lammps-output", choices=["binary", "dump"], default=None,
+                    help="LAMMPS engine: what the run writes and reads back; binary (default): "
+                         "LAMMPS binary dumps read with numpy; dump: the text dump traj.dump "
+                         "(id x y z vx) read with MDAnalysis, for a full trajectory kept with "
+                         "--workdir. Same results")
     _cost_args(sp)
     sp.set_defaults(func=cmd_run)
 
@@ -287,6 +294,10 @@ def build_parser() -> argparse.ArgumentParser:
     scene_args(sp)
     sp.add_argument("-o", "--output", required=True, help="directory for the deck")
     sp.add_argument("--force", action="store_true", help="replace an existing deck directory's files")
+    sp.add_argument("--write", choices=["dump", "binary", "none"], default="dump",
+                    help="what the deck writes at every sample: dump (default) the text dump "
+                         "traj.dump and ledger.txt; binary the LAMMPS binary dumps traj.bin and "
+                         "ledger.bin (what granchain run reads); none no per-sample output")
     sp.set_defaults(func=cmd_deck)
 
     return p

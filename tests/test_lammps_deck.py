@@ -106,6 +106,9 @@ def test_cli_deck(tmp_path, capsys, repo):
     assert cli_main(["deck", str(repo / "granchain/scenes/packed-440c.yaml"), "-o", str(out),
                      *hertz]) == 2
     assert "exists" in capsys.readouterr().err
+    assert cli_main(["deck", str(repo / "granchain/scenes/packed-440c.yaml"), "-o", str(out),
+                     *hertz, "--write", "binary", "--force"]) == 0
+    assert "traj.bin x vx" in (out / "deck.lmp").read_text()
 
 
 def test_only_enabled_effects_appear(tmp_path):
@@ -258,3 +261,76 @@ def test_gapped_ensemble_with_effects_matches_reference_verlet(tmp_path):
     for b, traj in enumerate(reference.run(scene, gaps, np.array([m.v_striker for m in mem]),
                                            method="verlet")):
         np.testing.assert_allclose(v[:, b * n:(b + 1) * n], traj.v, rtol=0, atol=1e-8)
+
+
+def test_output_option_writes_what_it_says(tmp_path):
+    """output "dump" (default): the text dump and ledger.txt; "binary": traj.bin and
+    ledger.bin only; "none": no per-sample output but energy.txt. The physics lines are
+    the same in all three."""
+    scene = effects_scene()
+    texts = {out: write_deck(scene, tmp_path / out, output=out).read_text()
+             for out in ("dump", "binary", "none")}
+    assert "custom 9 traj.dump id x y z vx" in texts["dump"] and "ledger.txt" in texts["dump"]
+    b = texts["binary"]
+    assert "dump            d all custom 9 traj.bin x vx\ndump_modify     d sort id\n" in b
+    assert "chunk/spread/atom chain c_ledger[*]" in b and "group           heads id 1\n" in b
+    assert "dump            ledger heads custom 9 ledger.bin c_ledger_atom[*]" in b
+    assert "traj.dump" not in b and "ave/time 9 1 9 c_ledger" not in b
+    n = texts["none"]
+    assert not re.search(r"^dump", n, re.M) and "chunk" not in n
+    assert not any("ledger" in ln for ln in n.splitlines() if not ln.startswith("#"))
+    assert "energy.txt" in n
+    phys = [ln for ln in texts["dump"].splitlines() if re.match(r"(pair|fix|run|timestep)", ln)
+            and "ledger" not in ln]
+    for out in ("binary", "none"):
+        assert phys == [ln for ln in texts[out].splitlines()
+                        if re.match(r"(pair|fix|run|timestep)", ln) and "ledger" not in ln]
+    with pytest.raises(GranchainError, match="output must be one of"):
+        write_deck(scene, tmp_path / "x", output="text")
+    for out in ("binary", "none"):
+        run_deck(write_deck(scene, tmp_path / f"run-{out}", output=out))
+        assert (tmp_path / f"run-{out}" / "traj.bin").exists() == (out == "binary")
+        assert not (tmp_path / f"run-{out}" / "traj.dump").exists()
+
+
+def test_travel_bound_follows_the_propulsive_drag():
+    """max_travel: v t without drag or below L/T0; with a propulsive drag the solution of
+    dW/dt = W^2/L - W/T0 (checked against a small-step integration); refuses a run past
+    the blow-up of W."""
+    from granchain.lammps.deck import max_travel
+    hertz, drag = packed(), packed(effects="[hertz, air_drag]")
+    assert max_travel(hertz, 1.0, 2e-3) == 2e-3
+    L_T0 = drag.drag_L / drag.drag_T0
+    assert max_travel(drag, 0.5 * L_T0, 1.0) == 0.5 * L_T0
+    w, x, h = 1.0, 0.0, 1e-8
+    for _ in range(int(round(2e-3 / h))):
+        x += h * (w + 0.5 * h * (w * w / drag.drag_L - w / drag.drag_T0))
+        w += h * (w * w / drag.drag_L - w / drag.drag_T0)
+    assert max_travel(drag, 1.0, 2e-3) == pytest.approx(x, rel=1e-3)
+    assert max_travel(drag, 1.0, 2e-3) > 1.9 * 2e-3
+    with pytest.raises(GranchainError, match="without bound after"):
+        max_travel(drag, 1.0, 3e-3)
+
+
+def test_long_run_with_propulsive_drag_loses_no_atom(tmp_path, monkeypatch):
+    """1 m/s striker, air drag only, 2.4 ms: the spheres that leave the chain are sped up
+    to ~15 m/s and travel ~7 mm, beyond the previous margin (2 v_max t_run = 4.8 mm).
+    The box sized by max_travel holds them; the previous margin loses atoms."""
+    from granchain.engines import lammps as L
+    from granchain.lammps import deck as D
+    scene = packed(effects="[hertz, air_drag]", t_end=2.4e-3,
+                   **{"striker.velocity": 1.0, "integrator.method": "verlet", "integrator.dt": 1e-8,
+                      "output.sample_dt": 1e-7})
+    gaps, vs = np.zeros((1, scene.n - 1)), np.array([1.0])
+    t = next(L.run(scene, gaps, vs, workdir=tmp_path / "ok"))
+    assert t.status == "done" and np.all(np.isfinite(t.v))
+    assert t.t[-1] == pytest.approx(2.4e-3, rel=1e-9) and t.v.max() > 10.0
+    pl = D.plan(scene, gaps=gaps, v_striker=vs, output="binary")
+    _, cols = L.read_binary_dump(tmp_path / "ok" / D.BINARY_NAME, ("x", "vx"), scene.n,
+                                 pl.nsamples, "traj")
+    travel = np.abs(cols["x"][-1] - cols["x"][0]).max() * 1e-6
+    assert travel > 2.0 * 1.0 * pl.t_run                      # the previous margin's room
+    assert travel < D.max_travel(scene, 1.0, pl.t_run)
+    monkeypatch.setattr(D, "max_travel", lambda scene, v, t: v * t)     # the previous margin
+    with pytest.raises(GranchainError, match="Lost atoms"):
+        next(L.run(scene, gaps, vs, workdir=tmp_path / "old"))

@@ -128,7 +128,7 @@ def test_float64_columns_are_the_dumped_values(tmp_path):
     scene = packed(t_end=2e-6)
     gaps, vs = _members(scene)
     pl = D.plan(scene, gaps=gaps, v_striker=vs)
-    next(L.run(scene, gaps, vs, workdir=tmp_path))
+    next(L.run(scene, gaps, vs, workdir=tmp_path, output="dump"))
     lines = (tmp_path / D.DUMP_NAME).read_text().splitlines()
     cols = lines[8].split()[2:]
     last = np.array([[float(x) for x in ln.split()] for ln in lines[-scene.n:]])
@@ -163,6 +163,99 @@ def test_two_mpi_ranks_give_the_same_observables(tmp_path):
         for k in ("v_max_1", "v_max_2", "dt_peak", "v_g", "v_g_front"):
             assert getattr(sb, k) == pytest.approx(getattr(sa, k), rel=1e-12, abs=0)
         np.testing.assert_allclose(b.energy, a.energy, rtol=1e-12, atol=1e-12 * a.energy[0, 0])
+
+
+@pytest.mark.parametrize("nprocs", [1, 2])
+def test_binary_and_text_dump_paths_give_identical_trajectories(nprocs, tmp_path):
+    """output="binary" (LAMMPS binary dumps read with numpy, the default) and "dump" (the
+    text dump read with MDAnalysis): the same doubles, so the same Trajectory objects."""
+    scene = packed(effects=ALL, **{"rolling.k_roll": 1e3, "gaps.distribution": "uniform",
+                                   "gaps.mean": 20e-9, "ensemble.realisations": 3,
+                                   "striker.velocity": "[0.07, 0.1]", "output.sample_dt": 36e-9,
+                                   "integrator.method": "verlet"})
+    gaps, vs = _members(scene)
+    runs = {out: list(L.run(scene, gaps, vs, nprocs=nprocs, output=out, workdir=tmp_path / out))
+            for out in ("binary", "dump")}
+    assert (tmp_path / "binary" / D.BINARY_NAME).is_file() and not (tmp_path / "binary" / D.DUMP_NAME).exists()
+    assert (tmp_path / "binary" / D.LEDGER_BINARY_NAME).is_file()
+    assert not (tmp_path / "binary" / D.LEDGER_NAME).exists()
+    assert len(runs["binary"]) == len(runs["dump"]) == 6
+    for a, b in zip(runs["binary"], runs["dump"]):
+        assert a.meta["output"] == "binary" and b.meta["output"] == "dump"
+        assert a.meta["nprocs"] == nprocs and a.status == b.status == "passed"
+        assert a.t.tolist() == b.t.tolist() and a.steps == b.steps
+        assert a.v.tobytes() == b.v.tobytes()                     # bit for bit
+        assert a.last_overlap == b.last_overlap
+        e0 = b.energy[0, :3].sum()
+        assert np.abs(a.energy - b.energy).max() <= 1e-12 * e0
+        assert np.any(b.energy[-1, [1, 3, 4]] != 0)               # the ledger columns are there
+
+
+def test_binary_reader_reads_what_lammps_holds(tmp_path, monkeypatch):
+    """traj.bin holds x and vx of every atom, sorted by id; ledger.bin the per-chain sums
+    (the values of ledger.txt of the same deck, bit for bit)."""
+    scene = packed(effects="[hertz, groove_friction, air_drag]", t_end=2e-6,
+                   **{"gaps.distribution": "uniform", "gaps.mean": 20e-9, "ensemble.realisations": 2})
+    gaps, vs = _members(scene)
+    pl = D.plan(scene, gaps=gaps, v_striker=vs, output="binary")
+    next(L.run(scene, gaps, vs, workdir=tmp_path / "b"))
+    next(L.run(scene, gaps, vs, workdir=tmp_path / "d", output="dump"))
+    step, cols = L.read_binary_dump(tmp_path / "b" / D.BINARY_NAME, ("x", "vx"), 2 * scene.n,
+                                    pl.nsamples, "traj")
+    assert step.tolist() == list(range(0, pl.nsteps + 1, pl.every))
+    assert cols["x"][0].tolist() == np.concatenate([D.chain_positions(scene, g) for g in gaps]).tolist()
+    assert cols["vx"][0].tolist() == [0.1 if i % scene.n == 0 else 0.0 for i in range(2 * scene.n)]
+    pld = D.plan(scene, gaps=gaps, v_striker=vs)
+    ledger_txt = L.read_ledger(tmp_path / "d" / D.LEDGER_NAME, pld, step)
+    lstep, lcols = L.read_binary_dump(tmp_path / "b" / D.LEDGER_BINARY_NAME,
+                                      D.ledger_binary_columns(pl), 2, pl.nsamples, "ledger")
+    assert lstep.tolist() == step.tolist()
+    assert np.stack([lcols[c] for c in D.ledger_binary_columns(pl)], axis=2).tobytes() == ledger_txt.tobytes()
+    # frames read one by one (the reader's path for files whose frames differ in layout)
+    # and in blocks of strided views (the regular layout LAMMPS writes): the same arrays
+    whole = L.read_binary(tmp_path / "b" / D.BINARY_NAME, scene, pl)
+    monkeypatch.setattr(L, "_frame_layout", lambda *a: None)
+    frames = L.read_binary(tmp_path / "b" / D.BINARY_NAME, scene, pl)
+    for k in ("step", "v", "energy", "last_overlap"):
+        assert frames[k].tobytes() == whole[k].tobytes()
+    step2, cols2 = L.read_binary_dump(tmp_path / "b" / D.BINARY_NAME, ("x", "vx"), 2 * scene.n,
+                                      pl.nsamples, "traj")
+    assert step2.tolist() == step.tolist() and cols2["x"].tobytes() == cols["x"].tobytes()
+
+
+def test_missing_and_truncated_binary_output(tmp_path):
+    scene = packed(t_end=2e-6, effects="[hertz, groove_friction, air_drag]")
+    gaps, vs = _members(scene)
+    pl = D.plan(scene, gaps=gaps, v_striker=vs, output="binary")
+    traj, ledger = tmp_path / D.BINARY_NAME, tmp_path / D.LEDGER_BINARY_NAME
+    with pytest.raises(GranchainError, match=f"LAMMPS binary dump {traj} is missing") as exc:
+        L.read_binary(traj, scene, pl)
+    _one_line(exc.value)
+    next(L.run(scene, gaps, vs, workdir=tmp_path))
+    assert L.read_binary(traj, scene, pl)["energy"][-1, 0, 3] < 0
+    data = traj.read_bytes()
+    frame = len(data) // pl.nsamples
+    traj.write_bytes(data[:-frame])                                # last frame missing
+    with pytest.raises(GranchainError, match=r"is truncated: \d+ of \d+ samples") as exc:
+        L.read_binary(traj, scene, pl)
+    _one_line(exc.value)
+    traj.write_bytes(data[:-20])                                   # cut inside a frame
+    with pytest.raises(GranchainError, match=f"LAMMPS binary dump {traj} is truncated or unreadable") as exc:
+        L.read_binary(traj, scene, pl)
+    _one_line(exc.value)
+    traj.write_bytes(data)
+    ldata = ledger.read_bytes()
+    ledger.write_bytes(ldata[:-len(ldata) // pl.nsamples])
+    with pytest.raises(GranchainError, match=f"LAMMPS ledger {ledger} does not match the trajectory") as exc:
+        L.read_binary(traj, scene, pl)
+    _one_line(exc.value)
+    ledger.unlink()
+    with pytest.raises(GranchainError, match=f"LAMMPS ledger {ledger} is missing") as exc:
+        L.read_binary(traj, scene, pl)
+    _one_line(exc.value)
+    with pytest.raises(GranchainError, match="does not match the deck") as exc:
+        L.read_binary_dump(traj, ("x", "vx"), 2 * scene.n, pl.nsamples, "traj")
+    _one_line(exc.value)
 
 
 # --------------------------------------------------------------------------------------
@@ -204,7 +297,7 @@ def test_missing_and_truncated_dump(tmp_path):
     with pytest.raises(GranchainError, match=f"LAMMPS dump {dump} is missing") as exc:
         L.read_dump(dump, scene, pl)
     _one_line(exc.value)
-    next(L.run(scene, gaps, vs, workdir=tmp_path))
+    next(L.run(scene, gaps, vs, workdir=tmp_path, output="dump"))
     text = dump.read_text()
     lines = text.splitlines(keepends=True)
     frame = 9 + scene.n
@@ -223,7 +316,7 @@ def test_missing_and_truncated_ledger(tmp_path):
     gaps, vs = _members(scene)
     pl = D.plan(scene, gaps=gaps, v_striker=vs)
     assert pl.ledger_columns == ("work_groove_friction", "work_air_drag")
-    next(L.run(scene, gaps, vs, workdir=tmp_path))
+    next(L.run(scene, gaps, vs, workdir=tmp_path, output="dump"))
     dump, ledger = tmp_path / D.DUMP_NAME, tmp_path / D.LEDGER_NAME
     assert L.read_dump(dump, scene, pl)["energy"][-1, 0, 3] < 0
     text = ledger.read_text()
@@ -265,11 +358,33 @@ def test_workdir_and_options(repo, tmp_path, capsys):
         list(L.run(scene, np.zeros((1, 14)), [0.1], workdir=tmp_path))
     _one_line(exc.value)
     t = next(L.run(scene, np.zeros((1, 14)), [0.1], workdir=tmp_path, force=True))
-    assert t.status == "done" and (tmp_path / "junk").exists() and (tmp_path / "traj.dump").exists()
+    assert t.status == "done" and (tmp_path / "junk").exists() and (tmp_path / "traj.bin").exists()
+    assert t.meta["output"] == "binary" and not (tmp_path / "traj.dump").exists()
+    with pytest.raises(GranchainError, match="output must be one of") as exc:
+        list(L.run(scene, np.zeros((1, 14)), [0.1], output="none"))
+    _one_line(exc.value)
     t = next(L.run(scene, np.zeros((1, 14)), [0.1]))             # temporary dir: removed
     assert "deck" not in t.meta
     y = str(repo / "granchain/scenes/packed-440c.yaml")
     assert cli_main(["run", y, "--np", "2"]) == 2
+    assert "--engine lammps" in capsys.readouterr().err
+
+
+def test_cli_lammps_output_selects_the_path(repo, tmp_path, capsys):
+    """--lammps-output dump keeps the text dump in --workdir; the default reads the binary
+    dumps; the results are the same."""
+    y = str(repo / "granchain/scenes/packed-440c.yaml")
+    docs = {}
+    for out, name in (("dump", D.DUMP_NAME), (None, D.BINARY_NAME)):
+        wd = tmp_path / str(out)
+        extra = ["--lammps-output", out] if out else []
+        assert cli_main(["run", y, "--engine", "lammps", "--json", "--set", "t_end=3e-6",
+                         "--workdir", str(wd), *extra]) == 0
+        docs[out] = json.loads(capsys.readouterr().out)
+        assert (wd / name).is_file() and len(list(wd.glob("traj.*"))) == 1
+    assert docs["dump"]["v_max"] == docs[None]["v_max"]
+    assert docs["dump"]["energy"] == docs[None]["energy"]
+    assert cli_main(["run", y, "--lammps-output", "dump"]) == 2
     assert "--engine lammps" in capsys.readouterr().err
 
 

@@ -2,12 +2,23 @@
 
 ``run(scene, gaps, v_striker)`` writes one deck holding every chain side by side
 (``granchain.lammps.deck.write_deck``), runs it once through
-``granchain.lammps.runner.run_lammps`` (``nprocs`` MPI ranks), reads the dump back with
-MDAnalysis and yields a :class:`~granchain.trajectory.Trajectory` per chain, in order,
-like ``granchain.engines.reference.run``. LAMMPS always integrates with velocity Verlet
+``granchain.lammps.runner.run_lammps`` (``nprocs`` MPI ranks), reads its output back and
+yields a :class:`~granchain.trajectory.Trajectory` per chain, in order, like
+``granchain.engines.reference.run``. LAMMPS always integrates with velocity Verlet
 (``fix nve`` / ``nve/sphere``) at the scene's dt; ``meta["method"] = "lammps-verlet"``.
 
-Reading the output (``read_dump``). The trajectory dump holds ``id x y z vx`` only. It is
+Two output paths, the same Trajectory objects (tested bit for bit on v):
+
+* ``output="binary"`` (default: ``granchain run --engine lammps``, ``granchain compare``):
+  the deck writes LAMMPS binary dumps, ``traj.bin`` (``x vx`` of every atom, sorted by
+  id) and ``ledger.bin`` (the per-chain ledger on each chain's first atom), read with
+  numpy (``read_binary``): the doubles LAMMPS holds, without the text dump's printing
+  and per-line parsing (costs: docs/lammps_engine.md).
+* ``output="dump"``: the text dump ``traj.dump`` (``id x y z vx``, ``%.17g``) and
+  ``ledger.txt``, read with MDAnalysis (``read_dump``): the path for full trajectories
+  that other tools read (``granchain deck`` writes this deck by default).
+
+Reading the text dump (``read_dump``). The trajectory dump holds ``id x y z vx`` only. It is
 read with MDAnalysis' ``LAMMPSDUMP`` reader (2.11), which parses positions as float32 and
 shifts them by the box's xlo; its ``additional_columns`` are parsed as float64 and not
 shifted, so the observables are built from the float64 columns ``x`` and ``vx``, written
@@ -24,7 +35,8 @@ sample:
 * kinetic rotational and the works of the groove friction and of the air drag: summed
   per chain inside LAMMPS (``compute chunk/atom`` + ``reduce/chunk`` of
   ``erotate/sphere/atom`` and of the per-atom cumulative works of ``fix groove/drag``),
-  read from ``ledger.txt`` (``read_ledger``); ``energy.txt`` holds the same sums over all
+  read from ``ledger.bin`` (binary path) or ``ledger.txt`` (``read_ledger``, text dump
+  path), the same doubles; ``energy.txt`` holds the same sums over all
   chains, from LAMMPS' global computes and the fix's global vector;
 * the tangential (particle-particle) and rolling contact friction have no per-atom work
   output in LAMMPS: their sum is reported as the residual of the energy balance in
@@ -38,7 +50,9 @@ rule, same per-chain cap), status ``passed`` (or ``timeout`` at the cap).
 from __future__ import annotations
 
 import math
+import os
 import shutil
+import struct
 import sys
 import tempfile
 import time
@@ -57,6 +71,8 @@ from ..trajectory import ENERGY_COLUMNS, Trajectory
 
 METHOD = "lammps-verlet"
 DUMP_READ = ("x", "vx")   # the dump columns read as MDAnalysis additional (float64) columns
+# output path -> (trajectory file, reader)
+READERS = {"binary": ("traj.bin", "read_binary"), "dump": ("traj.dump", "read_dump")}
 E_KT, E_KR, E_H, E_WG, E_WD, E_WT, E_WR = range(len(ENERGY_COLUMNS))
 # SI factors of 'units micro' values (docs/lammps_laws.md section 1)
 UM = 1e-6          # um -> m
@@ -65,14 +81,21 @@ ENERGY = 1e-15     # 1e-15 J -> J
 
 def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: bool = False,
         force: bool = False, dt: float | None = None, progress: bool | None = None,
-        timeout: float | None = None, velocities: str = "float64", readers: int = 1):
+        timeout: float | None = None, velocities: str = "float64", readers: int = 1,
+        output: str = "binary"):
     """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s.
+
+    output: ``"binary"`` (default) the deck writes LAMMPS binary dumps read with numpy
+    (:func:`read_binary`); ``"dump"`` the text dump read with MDAnalysis
+    (:func:`read_dump`), for full trajectories kept in ``workdir``. Both give the same
+    Trajectory objects.
 
     workdir: directory for deck, dump and log; default a temporary directory, removed
     afterwards unless ``keep`` (and kept when the run fails, for the error message names
     its deck or dump). A given directory is kept; it must be empty or absent unless
     ``force``. ``dt`` overrides the scene's time step. ``nprocs``: MPI ranks of the
-    one LAMMPS run. ``velocities``, ``readers``: see :func:`read_dump`. The scene's
+    one LAMMPS run. ``velocities``, ``readers``: see :func:`read_dump` (output "dump"
+    only). The scene's
     method must not be auto (``simulate`` and ``compare`` resolve it).
     """
     require_resolved(scene, "LAMMPS engine")
@@ -83,6 +106,12 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         scene = scene.derive(**{"integrator.dt": float(dt)})
     if nprocs < 1:
         raise GranchainError(f"LAMMPS engine: nprocs must be >= 1 (got {nprocs})")
+    if output not in READERS:
+        raise GranchainError(f"LAMMPS engine: output must be one of {', '.join(READERS)} "
+                             f"(got {output!r})")
+    if output != "dump" and (velocities != "float64" or readers != 1):
+        raise GranchainError("LAMMPS engine: velocities and readers are options of the text "
+                             "dump (output='dump')")
     if progress is None:
         progress = sys.stderr.isatty() and B > 1
     if B == 0:
@@ -105,9 +134,10 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
     try:
         from ..lammps.runner import lammps_version, run_lammps
         t0 = time.perf_counter()
-        pl = deckmod.plan(scene, gaps=gaps, v_striker=vs)
-        deck = deckmod.write_deck(scene, wd, gaps=gaps, v_striker=vs, force=True)
-        for stale in (deckmod.DUMP_NAME, deckmod.ENERGY_NAME, deckmod.LEDGER_NAME):
+        pl = deckmod.plan(scene, gaps=gaps, v_striker=vs, output=output)
+        deck = deckmod.write_deck(scene, wd, gaps=gaps, v_striker=vs, force=True, output=output)
+        for stale in (deckmod.DUMP_NAME, deckmod.ENERGY_NAME, deckmod.LEDGER_NAME,
+                      deckmod.BINARY_NAME, deckmod.LEDGER_BINARY_NAME):
             (wd / stale).unlink(missing_ok=True)
         if progress:
             print(f"[granchain] {scene.name}: LAMMPS, {B} chain(s) x {scene.n} spheres, "
@@ -115,15 +145,18 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         lrun = run_lammps(deck, wd, nprocs=nprocs, timeout=timeout)
         if progress:
             print(f"[granchain] {scene.name}: LAMMPS done in {lrun.wall_time:.1f} s; reading "
-                  f"{wd / deckmod.DUMP_NAME} ...", file=sys.stderr, flush=True)
-        data = read_dump(wd / deckmod.DUMP_NAME, scene, pl, velocities=velocities,
-                         readers=readers)
+                  f"{wd / READERS[output][0]} ...", file=sys.stderr, flush=True)
+        if output == "binary":
+            data = read_binary(wd / deckmod.BINARY_NAME, scene, pl)
+        else:
+            data = read_dump(wd / deckmod.DUMP_NAME, scene, pl, velocities=velocities,
+                             readers=readers)
         wall = time.perf_counter() - t0
         meta_common = {"method": METHOD, "dt": scene.dt, "sample_dt": pl.sample_dt,
                        "nprocs": nprocs, "lammps_version": lammps_version(),
                        "lammps_wall_s": lrun.wall_time, "batch_wall_s": wall,
                        "read_wall_s": wall - lrun.wall_time, "readers": readers,
-                       "velocities": velocities,
+                       "velocities": velocities, "output": output,
                        "balance": "residual" if residual_balance(scene) else "independent"}
         if keep or not tmp:
             meta_common["deck"] = str(deck)
@@ -184,29 +217,332 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
         # caller's __main__ (and fail in scripts without a __main__ guard)
         with ProcessPoolExecutor(readers, mp_context=mp.get_context("fork")) as ex:
             parts = list(ex.map(_read_part, [job] * readers, range(readers), [readers] * readers))
-    S = parts[0][0]
     step = np.concatenate([p[1] for p in parts])
-    V = np.concatenate([p[2] for p in parts])
+    _check_steps(f"LAMMPS dump {path}", pl, step, path.parent)
+    V = _chain_major(np.concatenate([p[2] for p in parts]).reshape(len(step), B * n), B, n)
+    EH = np.concatenate([p[3] for p in parts])
+    last_overlap = np.concatenate([p[4] for p in parts])
+    V2 = np.concatenate([p[5] for p in parts])
+    ledger = read_ledger(path.with_name(deckmod.LEDGER_NAME), pl, step) if pl.ledger_columns else None
+    return {"step": step, "v": V, "energy": _energies(scene, V2, EH, pl, ledger),
+            "last_overlap": last_overlap}
+
+
+def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
+    """Read a deck's binary output (``output="binary"``) into per-chain arrays: the
+    trajectory ``traj.bin`` and the per-chain ledger ``ledger.bin`` next to it (if the
+    deck writes one), both LAMMPS binary ``dump custom`` files sorted by id.
+
+    Returns the dict of :func:`read_dump`, from the same doubles: ``step`` (S,), ``v``
+    (S, B, n) m/s, ``energy`` (S, B, 7) J and ``last_overlap`` (S, B) m. Raises
+    GranchainError (one line, naming the file) if a file is missing, truncated or does
+    not match the plan.
+    """
+    path = Path(path)
+    B, n = pl.n_chains, pl.n
+    what = f"LAMMPS binary dump {path}"
+    missing = [c for c in DUMP_READ if c not in pl.dump_columns]
+    if pl.output != "binary" or missing:
+        raise GranchainError(f"{what}: the deck does not write the binary trajectory "
+                             f"(output {pl.output!r}, columns {' '.join(pl.dump_columns)})")
+    terms = physics_terms(scene)
+    D = 2.0 * deckmod.to_micro(scene.radius, "length")
+    out = {}
+
+    def consume(lo, block, frames):
+        """A block of samples: each chain's velocities into its contiguous record, the
+        Hertz energy, last overlap and kinetic energy straight into the result arrays
+        (sized for ``frames`` samples at the first block)."""
+        if not out:
+            out.update(V=_zeros((B, frames, n)), E=_new_energies(frames, B),
+                       OL=np.empty((frames, B)))
+        hi = lo + len(block["x"])
+        EH, out["OL"][lo:hi] = _hertz(block["x"].reshape(-1, B, n), D, terms.hertz)
+        v = block["vx"].reshape(-1, B, n)
+        _fill_mechanical(out["E"][lo:hi], terms.m, np.sum(v * v, axis=2), EH)
+        out["V"][:, lo:hi] = v.transpose(1, 0, 2)
+
+    step, _ = read_binary_dump(path, pl.dump_columns, B * n, pl.nsamples, what, consume=consume)
+    _check_steps(what, pl, step, path.parent)
+    S = len(step)
+    V = out["V"][:, :S].transpose(1, 0, 2)           # (S, B, n) view, each chain contiguous
+    E, OL = out["E"][:S], out["OL"][:S]
+    if pl.ledger_columns:
+        lpath = path.with_name(deckmod.LEDGER_BINARY_NAME)
+        lwhat = f"LAMMPS ledger {lpath}"
+        lcols = deckmod.ledger_binary_columns(pl)
+
+        def ledger(lo, block, frames):
+            hi = lo + len(block[lcols[0]])
+            if hi > S:
+                raise GranchainError(f"{lwhat} does not match the trajectory: more than {S} "
+                                     f"samples; {path.name} has {S}")
+            _fill_ledger(E[lo:hi], pl, np.stack([block[c] for c in lcols], axis=2))
+
+        lstep, _ = read_binary_dump(lpath, lcols, B, pl.nsamples, lwhat, consume=ledger)
+        if not np.array_equal(lstep, step):
+            raise GranchainError(f"{lwhat} does not match the trajectory: {len(lstep)} samples; "
+                                 f"{path.name} has {S}")
+    _fill_residual(scene, E)
+    return {"step": step, "v": V, "energy": E, "last_overlap": OL}
+
+
+_BIN_MAGIC = b"DUMPCUSTOM"
+
+
+def read_binary_dump(path: Path, columns, natoms: int, max_frames: int, what: str, *,
+                     consume=None, block: int = 64):
+    """Frames of a LAMMPS binary ``dump custom`` file (format revision 2, this machine's
+    byte order, rows sorted by id): ``(step (S,) int64, {column: (S, natoms) float64})``.
+
+    Each frame: a header (magic string, endianness, revision, step, atom count, box,
+    columns per atom, unit style, time flag, column names, number of chunks) and one
+    chunk per writing rank (its count of doubles, then the doubles, one row per atom).
+    Checks the atom count and column names against ``columns``/``natoms`` and that there
+    are at most ``max_frames``; ``what`` names the file in the one-line errors.
+
+    With ``consume``, the columns are handed over in blocks of ``block`` samples instead,
+    ``consume(first_sample, {column: (k, natoms)}, frames)`` (``frames``: an upper bound
+    on the number of samples, known from the first frame), and the returned dict is
+    empty. When every frame has the first one's header (but its step) and chunk sizes,
+    as LAMMPS writes them sorted by id on any number of ranks, the doubles are copied
+    block by block from strided views of the file; otherwise frame by frame.
+    """
+    import mmap
+
+    path = Path(path)
+    columns = tuple(columns)
+    try:
+        fh = open(path, "rb")
+    except OSError:
+        fh = None
+    if fh is None or os.fstat(fh.fileno()).st_size == 0:
+        if fh is not None:
+            fh.close()
+        raise GranchainError(f"{what} is missing or empty: the run wrote no output (see "
+                             "log.lammps next to it)")
+    with fh:     # MAP_POPULATE: the file's pages mapped in one go, not fault by fault
+        mm = mmap.mmap(fh.fileno(), 0, flags=mmap.MAP_SHARED | getattr(mmap, "MAP_POPULATE", 0),
+                       prot=mmap.PROT_READ)
+    try:
+        layout = _frame_layout(mm, columns, natoms, max_frames, what)
+        if layout is not None:
+            return _read_regular(mm, columns, natoms, layout, consume, block)
+        return _read_frames(mm, columns, natoms, max_frames, what, consume, block)
+    except (struct.error, ValueError, EOFError, IndexError) as exc:
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise GranchainError(f"{what} is truncated or unreadable: {msg}") from None
+    finally:
+        try:
+            mm.close()
+        except BufferError:                           # a view still alive: closed by GC
+            pass
+
+
+def _frame_header(mm, off: int, columns, natoms: int, s: int, what: str):
+    """Parse the header of the frame at ``off``: (step, number of chunks, offset of the
+    first chunk, offset of the step field)."""
+    mlen, = struct.unpack_from("<q", mm, off)
+    mlen = -mlen
+    magic = mm[off + 8:off + 8 + mlen]
+    off += 8 + mlen
+    endian, rev = struct.unpack_from("=ii", mm, off)
+    step_at = off + 8
+    step, nat, tric = struct.unpack_from("=qqi", mm, step_at)
+    off += 28 + 24 + 48 + (24 if tric else 0)          # ..., boundary 6i, box 6d (+3d)
+    if magic != _BIN_MAGIC or endian != 1 or rev != 2:
+        raise GranchainError(f"{what} is not a LAMMPS binary dump custom file of revision 2 "
+                             f"in this byte order (magic {magic!r}, endian {endian}, "
+                             f"revision {rev})")
+    size_one, ulen = struct.unpack_from("=ii", mm, off)
+    off += 8 + ulen                                    # unit style (its name if given)
+    off += 1 + (8 if mm[off] else 0)                   # time flag (and time)
+    clen, = struct.unpack_from("=i", mm, off)
+    cols = mm[off + 4:off + 4 + clen]
+    off += 4 + clen
+    nchunk, = struct.unpack_from("=i", mm, off)
+    off += 4
+    names = " ".join(columns).encode()
+    if nat != natoms or size_one != len(columns) or cols != names:
+        raise GranchainError(f"{what} does not match the deck: frame {s} has {nat} atoms x "
+                             f"columns {cols.decode(errors='replace')!r}; expected {natoms} x "
+                             f"{names.decode()!r}")
+    return step, nchunk, off, step_at
+
+
+def _frame_layout(mm, columns, natoms: int, max_frames: int, what: str):
+    """(steps, chunks [(offset, rows)], frame size) if every frame repeats the first
+    one's layout, else None."""
+    size = len(mm)
+    ncol = len(columns)
+    _, nchunk, off, step_at = _frame_header(mm, 0, columns, natoms, 0, what)
+    chunks, rows_total = [], 0
+    for _ in range(nchunk):
+        m, = struct.unpack_from("=i", mm, off)
+        if m % ncol or rows_total + m // ncol > natoms:
+            return None
+        chunks.append((off, off + 4, m // ncol))
+        rows_total += m // ncol
+        off += 4 + 8 * m
+    fb = off
+    if rows_total != natoms or size % fb or size // fb > max_frames:
+        return None
+    S = size // fb
+    frames = np.ndarray((S, fb), np.uint8, buffer=mm)
+    same = np.ones(fb, dtype=bool)                     # bytes every frame repeats:
+    same[chunks[0][1] if chunks else fb:] = False      # not the doubles ...
+    for at, _, rows in chunks:
+        same[at:at + 4] = True                         # ... but the chunk sizes
+    same[step_at:step_at + 8] = False                  # ... nor the step
+    idx = np.flatnonzero(same)
+    ok = bool(np.all(frames[:, idx] == frames[0, idx]))
+    steps = np.ndarray((S,), np.int64, buffer=mm, offset=step_at, strides=(fb,)).copy()
+    del frames
+    if not ok:
+        return None
+    return steps, [(data, rows) for _, data, rows in chunks], fb
+
+
+def _read_regular(mm, columns, natoms: int, layout, consume, block: int):
+    steps, chunks, fb = layout
+    S, ncol = len(steps), len(columns)
+    full = {} if consume else {c: np.empty((S, natoms)) for c in columns}
+    buf = {c: np.empty((min(block, S), natoms)) for c in columns} if consume else None
+    for lo in range(0, S, block):
+        hi = min(S, lo + block)
+        dst = {c: buf[c][:hi - lo] for c in columns} if consume else \
+            {c: full[c][lo:hi] for c in columns}
+        r = 0
+        for data, rows in chunks:
+            view = np.ndarray((hi - lo, rows, ncol), np.float64, buffer=mm,
+                              offset=data + lo * fb, strides=(fb, 8 * ncol, 8))
+            for j, c in enumerate(columns):
+                dst[c][:, r:r + rows] = view[:, :, j]
+            del view
+            r += rows
+        if consume:
+            consume(lo, dst, S)
+    return steps, full
+
+
+def _read_frames(mm, columns, natoms: int, max_frames: int, what: str, consume, block: int):
+    size, ncol = len(mm), len(columns)
+    out, steps, off, lo = None, [], 0, 0
+    while off < size:
+        s = len(steps)
+        start = off
+        step, nchunk, off, _ = _frame_header(mm, off, columns, natoms, s, what)
+        if s == max_frames:
+            raise GranchainError(f"{what} does not match the deck: more than {max_frames} "
+                                 "samples")
+        if out is None:   # every frame has the first one's size (header + chunks)
+            frames = min(max_frames, size // (off - start + nchunk * 4 + 8 * natoms * ncol) + 1)
+            out = {c: np.empty((min(block, frames) if consume else frames, natoms))
+                   for c in columns}
+        row_s = s - lo if consume else s
+        row = 0
+        for _ in range(nchunk):
+            m, = struct.unpack_from("=i", mm, off)
+            off += 4
+            if m % ncol or row + m // ncol > natoms or off + 8 * m > size:
+                raise EOFError(f"frame {s} (step {step}) ends early")
+            a = np.frombuffer(mm, np.float64, m, off).reshape(-1, ncol)
+            for j, c in enumerate(columns):
+                out[c][row_s, row:row + len(a)] = a[:, j]
+            del a
+            row += m // ncol
+            off += 8 * m
+        if row != natoms:
+            raise EOFError(f"frame {s} (step {step}) holds {row} of {natoms} atoms")
+        steps.append(step)
+        if consume and (row_s + 1 == len(out[columns[0]]) or off >= size):
+            consume(lo, {c: a[:row_s + 1] for c, a in out.items()}, frames)
+            lo = s + 1
+    S = len(steps)
+    full = {} if consume else {c: a[:S] for c, a in (out or {}).items()}
+    return np.array(steps, dtype=np.int64), full
+
+
+def _chain_major(a, B: int, n: int):
+    """(S, B*n) sample-major values -> the same values as an (S, B, n) view of a
+    chain-major (B, S, n) array, so that each chain's record is contiguous. Transposed in
+    blocks of samples (cache-friendly)."""
+    S = a.shape[0]
+    out = np.empty((B, S, n))
+    for lo in range(0, S, 64):
+        out[:, lo:lo + 64] = a[lo:lo + 64].reshape(-1, B, n).transpose(1, 0, 2)
+    return out.transpose(1, 0, 2)
+
+
+def _check_steps(what: str, pl: "deckmod.DeckPlan", step, rundir: Path) -> None:
+    """The samples of a run: 0, every, 2 every, ... up to the plan's, or fewer if the run
+    was halted by its stop rule (log.lammps in ``rundir``)."""
+    S = len(step)
     if S > pl.nsamples or (not pl.auto and S != pl.nsamples) or (
-            pl.auto and S < pl.nsamples and not _halted(path)):
-        raise GranchainError(f"LAMMPS dump {path} is truncated: {S} of {pl.nsamples} "
+            pl.auto and S < pl.nsamples and not _halted(rundir / "log.lammps")):
+        raise GranchainError(f"{what} is truncated: {S} of {pl.nsamples} "
                              "samples and the run was not halted by its stop rule")
     expected = np.arange(S, dtype=np.int64) * pl.every
     if S == 0 or not np.array_equal(step, expected):
-        raise GranchainError(f"LAMMPS dump {path}: its steps are not 0, {pl.every}, "
+        raise GranchainError(f"{what}: its steps are not 0, {pl.every}, "
                              f"{2 * pl.every}, ... (was it written by this deck?)")
-    E = np.zeros((S, B, len(ENERGY_COLUMNS)))
-    E[:, :, E_KT] = 0.5 * terms.m * np.sum(V * V, axis=2)
-    E[:, :, E_H] = np.concatenate([p[3] for p in parts])
-    last_overlap = np.concatenate([p[4] for p in parts])
-    if pl.ledger_columns:
-        ledger = read_ledger(path.with_name(deckmod.LEDGER_NAME), pl, step)
-        for j, name in enumerate(pl.ledger_columns):
-            E[:, :, ENERGY_COLUMNS.index(name)] = ledger[:, :, j] * ENERGY
+
+
+def _hertz(x, D: float, hertz):
+    """Hertz energy per chain (J) and overlap of each chain's last contact (m) from the
+    positions x (..., B, n) in um."""
+    overlap = (D - (x[..., 1:] - x[..., :-1])) * UM
+    return np.sum(hertz.energy(overlap), axis=-1), overlap[..., -1]
+
+
+def _zeros(shape) -> np.ndarray:
+    """A zeroed float64 array whose memory the kernel maps in one call (an anonymous
+    ``mmap`` with ``MAP_POPULATE``), instead of one page fault per page at first touch:
+    on the test machine a fresh process took ~0.5 s to first touch 200 MB page by page,
+    ~0.07 s populated."""
+    import mmap
+    size = 8 * int(np.prod(shape))
+    flags = getattr(mmap, "MAP_POPULATE", 0)
+    if size == 0 or not flags:
+        return np.zeros(shape)
+    buf = mmap.mmap(-1, size, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | flags)
+    return np.frombuffer(buf, dtype=np.float64).reshape(shape)
+
+
+def _new_energies(S: int, B: int) -> np.ndarray:
+    """Zeroed energy ledger (S, B, 7): a view of a (B, S, 7) array, each chain contiguous."""
+    return _zeros((B, S, len(ENERGY_COLUMNS))).transpose(1, 0, 2)
+
+
+def _fill_mechanical(E, m: float, V2, EH) -> None:
+    """Kinetic translational energy from the sums of v^2 per chain and the Hertz energy,
+    into E (samples, B, 7)."""
+    E[:, :, E_KT] = 0.5 * m * V2
+    E[:, :, E_H] = EH
+
+
+def _fill_ledger(E, pl: "deckmod.DeckPlan", ledger) -> None:
+    """The per-chain LAMMPS ledger (samples, B, k) in 1e-15 J into E's columns."""
+    for j, name in enumerate(pl.ledger_columns):
+        E[:, :, ENERGY_COLUMNS.index(name)] = ledger[:, :, j] * ENERGY
+
+
+def _fill_residual(scene: Scene, E) -> None:
+    """The contact frictions' work as the balance residual (when LAMMPS outputs none)."""
     if residual_balance(scene):
         mech = E[:, :, E_KT] + E[:, :, E_KR] + E[:, :, E_H]
         E[:, :, E_WT] = mech - mech[0] - E[:, :, E_WG] - E[:, :, E_WD]
-    return {"step": step, "v": V, "energy": E, "last_overlap": last_overlap}
+
+
+def _energies(scene: Scene, V2, EH, pl: "deckmod.DeckPlan", ledger) -> np.ndarray:
+    """The energy ledger (S, B, 7) J from the sums of v^2 per chain (S, B), the Hertz
+    energies (S, B) and the per-chain LAMMPS ledger (S, B, k) in 1e-15 J (or None)."""
+    E = _new_energies(*EH.shape)
+    _fill_mechanical(E, physics_terms(scene).m, V2, EH)
+    if ledger is not None:
+        _fill_ledger(E, pl, ledger)
+    _fill_residual(scene, E)
+    return E
 
 
 def read_ledger(path: Path, pl: "deckmod.DeckPlan", step) -> np.ndarray:
@@ -247,17 +583,17 @@ def read_ledger(path: Path, pl: "deckmod.DeckPlan", step) -> np.ndarray:
     return rows[:, :, 1:]
 
 
-def _halted(dump: Path) -> bool:
-    """Did the run that wrote ``dump`` stop by its fix halt (log.lammps next to it)?"""
+def _halted(log: Path) -> bool:
+    """Did the run that wrote ``log`` (its log.lammps) stop by its fix halt?"""
     try:
-        return "Fix halt condition" in (dump.parent / "log.lammps").read_text(errors="replace")
+        return "Fix halt condition" in Path(log).read_text(errors="replace")
     except OSError:
         return False
 
 
 def _read_part(job: dict, part: int, nparts: int):
     """Frames [part*S/nparts, (part+1)*S/nparts) of a dump: (S, step, V, E_hertz,
-    overlap of the last contact in m)."""
+    overlap of the last contact in m, sum of v^2 per chain)."""
     import MDAnalysis as mda
 
     path, B, n, D, hertz = job["path"], job["B"], job["n"], job["D"], job["hertz"]
@@ -276,6 +612,7 @@ def _read_part(job: dict, part: int, nparts: int):
             V = np.empty((hi - lo, B, n))
             EH = np.empty((hi - lo, B))
             OL = np.empty((hi - lo, B))
+            V2 = np.empty((hi - lo, B))
             for s, ts in enumerate(traj[lo:hi]):
                 data = ts.data
                 step[s] = data["step"]
@@ -283,16 +620,14 @@ def _read_part(job: dict, part: int, nparts: int):
                 if job["velocities"] == "float32":
                     v = v.astype(np.float32).astype(np.float64)
                 V[s] = v
-                x = data["x"].reshape(B, n)
-                overlap = (D - (x[:, 1:] - x[:, :-1])) * UM
-                EH[s] = np.sum(hertz.energy(overlap), axis=1)
-                OL[s] = overlap[:, -1]
+                V2[s] = np.sum(v * v, axis=1)
+                EH[s], OL[s] = _hertz(data["x"].reshape(B, n), D, hertz)
     except GranchainError:
         raise
     except (ValueError, IndexError, EOFError, OSError, KeyError, TypeError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise GranchainError(f"LAMMPS dump {path} is truncated or unreadable: {msg}") from None
-    return S, step, V, EH, OL
+    return S, step, V, EH, OL, V2
 
 
 def _trajectories(scene, pl, data, wall_each, meta_common):
@@ -307,8 +642,9 @@ def _trajectories(scene, pl, data, wall_each, meta_common):
         bad = np.flatnonzero(~np.all(np.isfinite(v[:keep]), axis=1))
         if bad.size:
             keep, status = int(bad[0]) + 1, "nonfinite"
+        # v and energy: views of the chain's contiguous block of the batch arrays
         yield Trajectory(
-            t=step[:keep] * scene.dt, v=v[:keep].copy(), energy=E[:keep, b, :].copy(),
+            t=step[:keep] * scene.dt, v=v[:keep], energy=E[:keep, b, :],
             gaps=pl.gaps[b].copy(), radius=scene.radius, v_striker=vsb, effects=eff,
             steps=int(step[keep - 1]), rejected=0, status=status, wall_s=wall_each,
             meta=dict(meta_common), last_overlap=float(OL[keep - 1, b]))

@@ -27,19 +27,26 @@ Choices (also stated in the deck's comments):
   record where the reference engine would have stopped that chain.
 * Cadence: every = round(sample_interval / dt) (as the reference engine), from the
   member with the finest sampling.
-* Trajectory dump (``traj.dump``, every sample, sorted by id, ``%.17g``): ``id x y z
-  vx`` only (:data:`DUMP_COLUMNS`). The engine reads it with MDAnalysis (x and vx as
-  float64 additional columns): the velocities, and the Hertz energy from the positions.
-  y and z are constant and print in a few characters; vy, vz and omega are not dumped.
-* Per-chain ledger (``ledger.txt``, :data:`LEDGER_NAME`), computed inside LAMMPS at every
-  sample: the atoms are binned by chain (``compute chunk/atom`` of the atom-style
-  variable floor((id-1)/n)+1) and ``compute reduce/chunk`` sums, per chain, the
-  rotational kinetic energy (``compute erotate/sphere/atom``, rotation on) and the
-  per-atom cumulative works of ``fix groove/drag`` (``f_gd[2]`` groove, ``f_gd[3]``
-  drag), written by ``fix ave/time ... mode vector`` (one row per chain, ``%.17g``); see
-  :data:`LEDGER_INPUTS`. Only the enabled effects' columns; no ledger file when there
-  are none (Hertz only). The translational kinetic energy and the Hertz potential come
-  from the dumped vx and x.
+* Per-sample output, by the deck option ``output`` (:data:`OUTPUTS`, default ``"dump"``):
+  ``"dump"`` the text trajectory dump (``traj.dump``, every sample, sorted by id,
+  ``%.17g``: ``id x y z vx`` only, :data:`DUMP_COLUMNS`; the engine's ``output="dump"``
+  reads it with MDAnalysis, x and vx as float64 additional columns) and the per-chain
+  ledger ``ledger.txt``; ``"binary"`` the LAMMPS binary dumps ``traj.bin`` (``x vx``,
+  sorted by id, :data:`BINARY_COLUMNS`) and ``ledger.bin``, what the engine reads by
+  default (numpy); ``"none"`` neither (LAMMPS' own cost, for benchmarks). The physics
+  lines are the same in all three.
+* Per-chain ledger, computed inside LAMMPS at every sample: the atoms are binned by chain
+  (``compute chunk/atom`` of the atom-style variable floor((id-1)/n)+1) and ``compute
+  reduce/chunk`` sums, per chain, the rotational kinetic energy (``compute
+  erotate/sphere/atom``, rotation on) and the per-atom cumulative works of ``fix
+  groove/drag`` (``f_gd[2]`` groove, ``f_gd[3]`` drag); see :data:`LEDGER_INPUTS`.
+  Output "dump": written by ``fix ave/time ... mode vector`` (``ledger.txt``, one row per
+  chain, ``%.17g``); output "binary": spread back onto the atoms (``compute
+  chunk/spread/atom``) and dumped for each chain's first atom (``ledger.bin``). Only the
+  enabled effects' columns; no ledger when there are none (Hertz only). The
+  translational kinetic energy and the Hertz potential come from vx and x.
+* Box: room on each side for twice :func:`max_travel` (the farthest a sphere can move in
+  the run, a propulsive air drag included) plus a diameter, so no sphere leaves it.
 * The global energy ledger (``energy.txt``) holds sums over all chains: kinetic
   translational (``compute ke``), rotational (``compute erotate/sphere``, rotation
   only) and the cumulative works of ``fix groove/drag`` (groove, drag); a cross-check
@@ -58,14 +65,18 @@ from granchain.effects import (air_drag, groove_friction, hertz, particle_fricti
 from granchain.errors import GranchainError
 from granchain.fileio import atomic_write_text, check_output_path
 from granchain.scene import NAME_RE, NAME_RULE, Scene
-from granchain.lammps.plan import (DATA_NAME, DECK_NAME, DUMP_COLUMNS, DUMP_NAME, ENERGY_NAME,
-                                   LEDGER_INPUTS, LEDGER_NAME, WORK_COLUMNS, DeckPlan, plan)
+from granchain.lammps.plan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, DECK_NAME,
+                                   DUMP_COLUMNS, DUMP_NAME, ENERGY_NAME, LEDGER_BINARY_NAME,
+                                   LEDGER_INPUTS, LEDGER_NAME, OUTPUTS, WORK_COLUMNS, DeckPlan,
+                                   ledger_binary_columns, max_travel, plan)
 from granchain.lammps.units import MICRO_EXPONENT, lmp_float as _r, to_micro
 from granchain.schedule import ARRIVAL_FRACTION, arrival_speed
 
 __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "write_deck",
            "plan", "DeckPlan", "DECK_NAME", "DATA_NAME", "DUMP_NAME", "ENERGY_NAME",
-           "LEDGER_NAME", "DUMP_COLUMNS", "WORK_COLUMNS", "LEDGER_INPUTS"]
+           "LEDGER_NAME", "DUMP_COLUMNS", "WORK_COLUMNS", "LEDGER_INPUTS", "OUTPUTS",
+           "BINARY_NAME", "LEDGER_BINARY_NAME", "BINARY_COLUMNS", "max_travel",
+           "ledger_binary_columns"]
 
 def template_path() -> Path:
     return Path(__file__).resolve().parents[2] / "lammps_inputs" / "templates" / "chain.lmp.in"
@@ -100,28 +111,70 @@ def _id_ranges(ids) -> str:
 
 
 def _ledger_block(scene: Scene, pl: DeckPlan) -> str:
-    """Deck lines of the per-chain ledger (ledger.txt), or a comment if it has no column."""
+    """Deck lines of the per-chain ledger (ledger.txt with output "dump", ledger.bin with
+    output "binary"), or a comment if it has no column or the deck writes no output."""
     if not pl.ledger_columns:
         return ("# (no per-chain ledger file: this scene has no rotation, groove friction or "
-                "air drag;\n# the engine computes the kinetic and Hertz energies from the dump)")
+                "air drag;\n# the engine computes the kinetic and Hertz energies from the "
+                "trajectory)")
+    if pl.output == "none":
+        return "# (no per-chain ledger: this deck writes no per-sample output)"
     notes = {"kinetic_rotational": "rotational kinetic energy (compute erotate/sphere/atom)",
              "work_groove_friction": f"cumulative work of the groove friction "
                                      f"({WORK_COLUMNS['groove_friction']})",
              "work_air_drag": f"cumulative work of the air drag ({WORK_COLUMNS['air_drag']})"}
     inputs = [LEDGER_INPUTS[eff][1] for eff in LEDGER_INPUTS if scene.has(eff)]
     k = len(inputs)
-    lines = ["# per-chain energy ledger (ledger.txt): at every sample, one row per chain (row b+1 =",
-             "# chain b), each column the sum over the chain's atoms (1e-15 J) of:"]
+    values = 'c_ledger[*]' if k > 1 else 'c_ledger'
+    if pl.output == "dump":
+        lines = [f"# per-chain energy ledger ({LEDGER_NAME}): at every sample, one row per chain "
+                 "(row b+1 =", "# chain b), each column the sum over the chain's atoms (1e-15 J) of:"]
+    else:
+        lines = [f"# per-chain energy ledger ({LEDGER_BINARY_NAME}, LAMMPS binary dump): at every "
+                 "sample, the sums", "# over each chain's atoms are spread onto its atoms (compute "
+                 "chunk/spread/atom) and", "# dumped for the chain's first atom (group heads, "
+                 f"ids b*{pl.n}+1), sorted by id; column j+1 (1e-15 J):"]
     lines += [f"#   {j + 1}: {notes[c]}" for j, c in enumerate(pl.ledger_columns)]
     lines += [f'variable        chain atom "floor((id-1)/{pl.n})+1"',
               "compute         chain all chunk/atom v_chain nchunk once ids once compress no"]
     if scene.has("rotation"):
         lines.append("compute         erot_atom all erotate/sphere/atom")
-    lines += [f"compute         ledger all reduce/chunk chain sum {' '.join(inputs)}",
-              f"fix             ledger all ave/time {pl.every} 1 {pl.every} "
-              f"{'c_ledger[*]' if k > 1 else 'c_ledger'} mode vector file {LEDGER_NAME} "
-              'format " %.17g"']
+    lines.append(f"compute         ledger all reduce/chunk chain sum {' '.join(inputs)}")
+    if pl.output == "dump":
+        lines.append(f"fix             ledger all ave/time {pl.every} 1 {pl.every} {values} "
+                     f'mode vector file {LEDGER_NAME} format " %.17g"')
+    else:
+        heads = _id_ranges([b * pl.n + 1 for b in range(pl.n_chains)])
+        lines += [f"compute         ledger_atom all chunk/spread/atom chain {values}",
+                  f"group           heads id {heads}",
+                  f"dump            ledger heads custom {pl.every} {LEDGER_BINARY_NAME} "
+                  f"{'c_ledger_atom[*]' if k > 1 else 'c_ledger_atom'}",
+                  "dump_modify     ledger sort id"]
     return "\n".join(lines)
+
+
+def _trajectory_block(pl: DeckPlan, spacing: str) -> str:
+    """Deck lines of the trajectory output (pl.output)."""
+    cols = " ".join(pl.dump_columns)
+    if pl.output == "dump":
+        return "\n".join([
+            f"# trajectory ({DUMP_NAME}): every sample, sorted by id, full precision. Only what "
+            "the", "# observables need: granchain reads it with MDAnalysis, x and vx as float64 "
+            "'additional", "# columns' (MDAnalysis' own positions are float32 and shifted): vx is "
+            "the trajectory, x", f"# gives the Hertz energy. y (= b * {spacing}) and z (= 0) are "
+            "constant (MDAnalysis needs", "# them); vy = vz = 0 and omega are not dumped.",
+            f"dump            d all custom {pl.every} {DUMP_NAME} {cols}",
+            "dump_modify     d sort id format float %.17g"])
+    if pl.output == "binary":
+        return "\n".join([
+            f"# trajectory ({BINARY_NAME}, LAMMPS binary dump: the doubles LAMMPS holds): every "
+            "sample,", f"# sorted by id, columns {cols}: vx is the trajectory, x gives the Hertz "
+            "energy", "# (granchain.engines.lammps.read_binary; tools/binary2txt converts it to "
+            "text).",
+            f"dump            d all custom {pl.every} {BINARY_NAME} {cols}",
+            "dump_modify     d sort id"])
+    return ("# (no trajectory output: this deck measures LAMMPS alone; write it with output "
+            "'dump' or\n# 'binary' to read the chains back)")
 
 
 def _halt_block(n: int, vs: np.ndarray, every: int) -> str:
@@ -154,7 +207,8 @@ def needs_plugin(scene: Scene) -> bool:
     return scene.has("groove_friction") or scene.has("air_drag")
 
 
-def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None) -> tuple[str, str]:
+def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None,
+           output: str = "dump") -> tuple[str, str]:
     """The texts of deck.lmp and chain.data (no files written).
 
     The only text from the scene in either file is its name (in comments and the data
@@ -163,7 +217,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
     if not NAME_RE.fullmatch(scene.name):
         raise GranchainError(f"deck: scene name {scene.name!r} is not a valid name; {NAME_RULE}")
     terms = physics_terms(scene)
-    pl = plan(scene, gaps=gaps, v_striker=v_striker)
+    pl = plan(scene, gaps=gaps, v_striker=v_striker, output=output)
     gaps, vs = pl.gaps, pl.v_striker
     B, n = gaps.shape[0], scene.n
 
@@ -182,8 +236,11 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
 
     # ---- positions, velocities, box --------------------------------------------------
     xs = [chain_positions(scene, gaps[b]) for b in range(B)]
+    # no sphere can leave the box: each side has room for twice the farthest any sphere
+    # can travel in the run (max_travel: the fastest striker, sped up by a propulsive
+    # air drag) plus a diameter
     vmax = float(vs.max()) if B else 0.0
-    margin = 2.0 * vmax * t_run_us + 2.0 * D
+    margin = 2.0 * to_micro(max_travel(scene, vmax, pl.t_run), "length") + 2.0 * D
     xlo = -R - margin
     xhi = max(float(x[-1]) for x in xs) + R + margin
     ylo, yhi = -spacing, B * spacing
@@ -245,7 +302,6 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
 
     integrator = rotation.lammps_integrator(terms.rotation)
 
-    dump_cols = " ".join(pl.dump_columns)
     computes = ["compute         ke all ke"]
     values = ["c_ke"]
     ledger_note = ""
@@ -272,7 +328,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
         integrator=integrator, timestep=_r(dt), nsteps=nsteps, t_run=_r(t_run_us),
         t_run_note=t_note, every=every, sample_us=f"{every * dt:.15g}",
         sample_note="round(sample_interval/dt) of the reference engine, finest member",
-        dump_columns=dump_cols, ledger_note=ledger_note, energy_computes="\n".join(computes),
+        trajectory=_trajectory_block(pl, _r(spacing)), ledger_note=ledger_note, energy_computes="\n".join(computes),
         energy_values=" ".join(values), thermo_values=" ".join(values),
         thermo_every=max(1, nsteps // 10), halt=halt, chain_ledger=_ledger_block(scene, pl),
     )
@@ -281,8 +337,13 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
 
 
 def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, force: bool = False,
-               plugin: str | None = None) -> Path:
+               plugin: str | None = None, output: str = "dump") -> Path:
     """Write ``deck.lmp`` and ``chain.data`` into ``outdir``; return the path of deck.lmp.
+
+    output: what the deck writes at every sample (:data:`OUTPUTS`): ``"dump"`` (default)
+    the text dump ``traj.dump`` and ``ledger.txt``, readable by people and MDAnalysis;
+    ``"binary"`` the LAMMPS binary dumps ``traj.bin`` and ``ledger.bin`` that the engine
+    reads by default; ``"none"`` no per-sample output (LAMMPS' own cost).
 
     gaps: (B, n-1) in m and v_striker: (B,) in m/s, one chain each; default: every member
     of the scene (``granchain.simulate.members``). Refuses to replace existing files
@@ -299,7 +360,8 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, force: 
     if plugin is None and needs_plugin(scene):
         from granchain.lammps.plugin import build_plugin
         plugin = str(build_plugin())
-    deck_text, data_text = render(scene, gaps=gaps, v_striker=v_striker, plugin=plugin)
+    deck_text, data_text = render(scene, gaps=gaps, v_striker=v_striker, plugin=plugin,
+                                  output=output)
     try:
         outdir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

@@ -23,8 +23,18 @@ DATA_NAME = "chain.data"
 DUMP_NAME = "traj.dump"
 ENERGY_NAME = "energy.txt"
 LEDGER_NAME = "ledger.txt"
-# the trajectory dump: MDAnalysis needs id and x y z; the engine reads x and vx
+BINARY_NAME = "traj.bin"
+LEDGER_BINARY_NAME = "ledger.bin"
+# the text trajectory dump: MDAnalysis needs id and x y z; the engine reads x and vx
 DUMP_COLUMNS = ("id", "x", "y", "z", "vx")
+# the binary trajectory dump (sorted by id, so no id column): what the engine reads
+BINARY_COLUMNS = ("x", "vx")
+# what a deck writes at every sample (DeckPlan.output):
+#   "dump":   traj.dump (text, DUMP_COLUMNS, for MDAnalysis and people) and ledger.txt
+#   "binary": traj.bin (LAMMPS binary dump custom, BINARY_COLUMNS) and ledger.bin (the
+#             per-chain ledger on each chain's first atom, binary): the engine's default
+#   "none":   neither (only energy.txt and thermo): LAMMPS' own cost, for benchmarks
+OUTPUTS = ("dump", "binary", "none")
 # per-chain ledger (ledger.txt): effect -> (granchain.trajectory.ENERGY_COLUMNS entry,
 # the per-atom LAMMPS quantity summed over the chain), in the file's column order; from the
 # effects' declarations (rotation: its kinetic energy; groove and drag: the cumulative
@@ -59,6 +69,38 @@ def batch_members(scene: Scene, gaps, v_striker):
     return gaps, v
 
 
+def max_travel(scene: Scene, v_max: float, t: float) -> float:
+    """A bound (m) on how far any sphere of a chain can move in a run of length t (s)
+    whose fastest striker starts at v_max (m/s).
+
+    Contacts are elastic (the Hertz potential is >= 0) and the groove and contact
+    frictions only take energy out, so every sphere's speed stays below W(t), the speed
+    of a sphere carrying the whole initial energy 1/2 m v_max^2: without air drag
+    W = v_max; with air drag F = -m (v/T0 - v^2/L) (or v|v|) the energy grows at most as
+    fast as for one sphere at W, dW/dt = W^2/L - W/T0, which is propulsive for
+    W > L/T0. Its solution, with u = 1/W and c = T0/L: u(t) = c + (1/v_max - c) e^(t/T0),
+    and the distance travelled is L (t/T0 + ln(W(t)/v_max)). When v_max <= L/T0 the
+    drag only slows (bound v_max t). Raises GranchainError if W diverges within t (the
+    drag would accelerate a sphere without bound).
+    """
+    if v_max <= 0 or t <= 0:
+        return 0.0
+    if not scene.has("air_drag"):
+        return v_max * t
+    T0, L = scene.drag_T0, scene.drag_L
+    if v_max <= L / T0:
+        return v_max * t
+    c, u0 = T0 / L, 1.0 / v_max
+    t_blow = T0 * math.log(c / (c - u0))
+    if t >= t_blow:
+        raise GranchainError(
+            f"LAMMPS deck: the propulsive air drag (T0 = {T0:g} s, L = {L:g} m) would speed a "
+            f"sphere moving at {v_max:g} m/s up without bound after {t_blow:.6g} s, within the "
+            f"run of {t:.6g} s; shorten t_end or lower the striker speed")
+    u = c + (u0 - c) * math.exp(t / T0)
+    return L * (t / T0 + math.log(u0 / u))
+
+
 @dataclass(frozen=True)
 class DeckPlan:
     """Run length, cadence and layout of a deck (what the engine needs to read it back)."""
@@ -71,7 +113,8 @@ class DeckPlan:
     t_run: float               # s, = nsteps * dt
     auto: bool                 # t_end auto: fix halt stops the run when every chain passed
     t_note: str
-    dump_columns: tuple[str, ...]
+    output: str                # one of OUTPUTS
+    dump_columns: tuple[str, ...]   # columns of the trajectory file (() if output "none")
     ledger_columns: tuple[str, ...]   # ENERGY_COLUMNS entries of ledger.txt, in order
     gaps: np.ndarray           # (B, n-1) m
     v_striker: np.ndarray      # (B,) m/s
@@ -82,10 +125,21 @@ class DeckPlan:
         return self.nsteps // self.every + 1
 
 
-def plan(scene: Scene, *, gaps=None, v_striker=None) -> DeckPlan:
+def ledger_binary_columns(pl: DeckPlan) -> tuple[str, ...]:
+    """Column names of ledger.bin (output "binary"), as LAMMPS writes them: the per-chain
+    sums spread onto the atoms by ``compute ledger_atom`` (chunk/spread/atom)."""
+    k = len(pl.ledger_columns)
+    return ("c_ledger_atom",) if k == 1 else tuple(f"c_ledger_atom[{j + 1}]" for j in range(k))
+
+
+def plan(scene: Scene, *, gaps=None, v_striker=None, output: str = "dump") -> DeckPlan:
     """Run length and cadence of the deck for these members (as the reference engine);
-    the scene's method must not be auto (resolve it first)."""
+    the scene's method must not be auto (resolve it first). ``output``: what the deck
+    writes at every sample, one of :data:`OUTPUTS`."""
     require_resolved(scene, "LAMMPS deck")
+    if output not in OUTPUTS:
+        raise GranchainError(f"LAMMPS deck: output must be one of {', '.join(OUTPUTS)} "
+                             f"(got {output!r})")
 
     gaps, vs = batch_members(scene, gaps, v_striker)
     B = gaps.shape[0]
@@ -107,5 +161,7 @@ def plan(scene: Scene, *, gaps=None, v_striker=None) -> DeckPlan:
     ledger = tuple(col for eff, (col, _) in LEDGER_INPUTS.items() if scene.has(eff))
     return DeckPlan(n_chains=B, n=scene.n, every=every, nsteps=nsteps, sample_dt=sdt,
                     dt=scene.dt, t_run=nsteps * scene.dt, auto=auto and nsteps > 0,
-                    t_note=t_note, dump_columns=DUMP_COLUMNS, ledger_columns=ledger,
+                    t_note=t_note, output=output,
+                    dump_columns={"dump": DUMP_COLUMNS, "binary": BINARY_COLUMNS,
+                                  "none": ()}[output], ledger_columns=ledger,
                     gaps=gaps, v_striker=vs)
