@@ -175,6 +175,10 @@ def run_traces(preset: dict, trace_paths: dict[str, str], out_csv, timing_csv,
         # The table row stops once the wave has left the chain (t_end auto); the trace
         # for Fig. 5.1a runs for a fixed 1.5x the crossing time, the same for every speed.
         opts = engine_options(engine, threads)
+        if engine == "lammps":
+            # a full trajectory is the product here: LAMMPS writes its text dump and
+            # MDAnalysis reads it (the same samples as the binary path, bit for bit)
+            opts["output"] = "dump"
         local_mpi(opts.get("nprocs", 1))
         (m, traj), = list(trajectories(trace_scene(ss), scene_members(ss.scene), engine,
                                        **opts))
