@@ -200,7 +200,8 @@ def cmd_compare(args) -> int:
         raise GranchainError(f"--np: must be >= 1 (got {args.np})")
     check_cost(scene, args.max_steps, args.max_memory_gb)
     cmp = compare(scene, nprocs=args.np,
-                  workdir=Path(args.workdir) if args.workdir else None, force=args.force)
+                  workdir=Path(args.workdir) if args.workdir else None, force=args.force,
+                  trajectory=args.trajectory)
     doc = {"scene": scene.name, "scene_hash": scene.hash, "ok": cmp.ok, "meta": cmp.meta,
            "rows": cmp.rows.astype(object).where(cmp.rows.notna(), None).to_dict("records")}
     if args.json and not args.out:
@@ -287,6 +288,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="allow --out (and a non-empty --workdir) to be replaced")
     sp.add_argument("--np", type=int, default=1, metavar="N", help="LAMMPS MPI ranks (default 1)")
     sp.add_argument("--workdir", metavar="DIR", help="keep the LAMMPS deck, dump and log in DIR")
+    sp.add_argument("--trajectory", action="store_true",
+                    help="also compare the whole trajectories (LAMMPS writes its text dump, "
+                         "read with MDAnalysis)")
     _cost_args(sp)
     sp.set_defaults(func=cmd_compare)
 

@@ -35,6 +35,8 @@ E_TOL = 1e-7       # |difference| / E0, every energy-ledger entry
 
 WHY_V = ("not the 1e-3 of a loose cross-check: same law and Verlet, rounding only (measured <= 1.3e-8 over 1000 chains); "
          "1e-3 would miss a dropped groove/drag term (~1e-4)")
+WHY_TRAJECTORY = ("the whole record (LAMMPS text dump read with MDAnalysis): same law, Verlet "
+                  "and sample grid, rounding only")
 WHY_T = "same integrator and sample grid: peak times differ by rounding only (measured <= 1e-10)"
 WHY_E = ("same steps: rounding only (measured <= 6e-10 E0); 1e-7 E0 still resolves "
          "the groove (~1e-3 E0) and drag (~1e-4 E0) works")
@@ -89,9 +91,12 @@ def comparison_scene(scene: Scene) -> Scene:
 
 
 def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
-            keep: bool = False) -> Comparison:
+            keep: bool = False, trajectory: bool = False) -> Comparison:
     """Run both engines on every member of ``scene`` and tabulate the differences (a
-    scene with method auto: resolved; ``meta["scene_hash"]`` is the resolved scene's)."""
+    scene with method auto: resolved; ``meta["scene_hash"]`` is the resolved scene's).
+
+    ``trajectory``: LAMMPS writes its full text dump, read with MDAnalysis, and each member
+    gets a row comparing the whole trajectories, every particle's v(t) at every sample."""
     import pandas as pd
 
     from .engines import lammps as lmp_engine
@@ -112,11 +117,12 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
         raise GranchainError(f"compare: the reference engine cannot run this scene: {exc}") from None
     t1 = time.perf_counter()
     lmp = list(lmp_engine.run(cs, gaps, vs, nprocs=nprocs, workdir=workdir, force=force,
-                              keep=keep, progress=False))
+                              keep=keep, progress=False,
+                              output="dump" if trajectory else "binary"))
     t2 = time.perf_counter()
     rows = []
     for m, r, lt in zip(mem, ref, lmp):
-        for row in member_rows(cs, r, lt):
+        for row in member_rows(cs, r, lt, trajectory=trajectory):
             rows.append(dict(member=m.index, realisation=m.realisation, v_striker=m.v_striker,
                              **row))
     df = pd.DataFrame(rows, columns=["member", "realisation", "v_striker", "quantity",
@@ -125,6 +131,7 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
     meta = {"scene": scene.name, "scene_hash": scene.hash, "compared_scene_hash": cs.hash,
             "chains": len(mem), "dt": cs.dt, "sample_dt": lmp[0].meta.get("sample_dt"),
             "nprocs": nprocs, "reference_wall_s": t1 - t0, "lammps_wall_s": t2 - t1,
+            "lammps_output": "dump (MDAnalysis)" if trajectory else "binary",
             "lammps_version": lmp[0].meta.get("lammps_version"),
             "balance": lmp[0].meta.get("balance"), "deck": lmp[0].meta.get("deck"),
             "tolerances": {"v": V_TOL, "t": T_TOL, "energy_over_E0": E_TOL}}
@@ -143,12 +150,20 @@ def _row(q, a, b, diff, measure, tol, why):
             "tolerance": tol, "ok": ok, "why": why}
 
 
-def member_rows(scene: Scene, ref, lmp) -> list[dict]:
-    """Rows of one member: both trajectories' observables side by side."""
+def member_rows(scene: Scene, ref, lmp, *, trajectory: bool = False) -> list[dict]:
+    """Rows of one member: both trajectories' observables side by side (``trajectory``:
+    and the trajectories themselves, max |v_lammps - v_reference| / v_s over every
+    particle and sample)."""
     sr, sl = summarize(ref, scene.probes), summarize(lmp, scene.probes)
     vfloor = arrival_speed(max(ref.v_striker, 1e-300))
     out = [_row("samples", int(ref.t.size), int(lmp.t.size),
                 float(abs(int(ref.t.size) - int(lmp.t.size))), "exact", 0.0, WHY_SAMPLES)]
+    if trajectory:
+        same = ref.v.shape == lmp.v.shape
+        dv = float(np.max(np.abs(lmp.v - ref.v))) if same and ref.v.size else math.inf
+        out.append(_row("v(t), every particle", math.nan, math.nan,
+                        dv / max(ref.v_striker, 1e-300) if same else math.inf, "max/v_s",
+                        V_TOL, WHY_TRAJECTORY))
     for i, (a, b) in enumerate(zip(sr.v_max, sl.v_max)):
         out.append(_row(f"v_max[{i + 1}]", a, b, _rel(a, b, vfloor), "rel", V_TOL, WHY_V))
     for q, a, b in (("v_max_1", sr.v_max_1, sl.v_max_1), ("v_max_2", sr.v_max_2, sl.v_max_2)):

@@ -7,6 +7,7 @@ import pytest
 
 import granchain.compare as C
 from granchain.cli import main as cli_main
+from granchain.scene import scene_from_dict
 from granchain.trajectory import ENERGY_COLUMNS
 from tests.conftest import packed
 
@@ -85,3 +86,33 @@ def test_ensemble_table_shows_worst_member(scene_yaml, capsys):
     out = capsys.readouterr().out
     assert "3 chain(s)" in out and "worst member" in out
     assert sum(line.startswith("v_g ") for line in out.splitlines()) == 1
+
+
+@pytest.mark.lammps
+def test_compare_trajectory_reads_the_text_dump_and_checks_every_sample(tmp_path):
+    import dataclasses
+
+    from granchain.compare import compare, member_rows
+    sc = scene_from_dict({"name": "traj", "chain": {"n": 6}, "probes": [2, 6],
+                          "effects": ["hertz", "groove_friction", "air_drag", "rotation",
+                                      "particle_friction"],
+                          "gaps": {"distribution": "uniform", "mean": 2.0e-8, "seed": 3},
+                          "ensemble": {"realisations": 2},
+                          "integrator": {"method": "verlet", "dt": 1.0e-9}})
+    cmp = compare(sc, workdir=tmp_path / "w", trajectory=True)
+    rows = cmp.rows[cmp.rows.quantity == "v(t), every particle"]
+    assert cmp.ok and len(rows) == 2 and (rows["diff"] < 1e-8).all()
+    assert (tmp_path / "w" / "traj.dump").is_file() and cmp.meta["lammps_output"].startswith("dump")
+    # the row fails when one sample of one particle is off by 1e-5 v_s
+    from granchain.engines import reference
+    from granchain.gaps import member_gaps, members
+    cs = cmp.scene
+    mem = members(cs)
+    ref = next(reference.run(cs, member_gaps(cs, mem)[:1], [mem[0].v_striker], method="verlet",
+                             dt=cs.dt))
+    v = ref.v.copy()
+    v[len(v) // 2, 3] += 1e-5 * ref.v_striker
+    bad = dataclasses.replace(ref, v=v)
+    row, = [r for r in member_rows(cs, ref, bad, trajectory=True)
+            if r["quantity"] == "v(t), every particle"]
+    assert row["ok"] is False and row["diff"] == pytest.approx(1e-5, rel=1e-6)
