@@ -565,3 +565,25 @@ def test_tiny_through_slurm_equals_local(slurm_cluster, tiny_run, tmp_path_facto
     text = proc.stdout + proc.stderr
     assert "has been submitted with SLURM jobid" in text
     assert_same_results(tiny_run / "results" / "tiny", wd / "results" / "tiny")
+
+
+@pytest.mark.slurm
+def test_tiny_lammps_with_two_ranks_through_slurm(slurm_cluster, tiny_lammps_run, tmp_path_factory):
+    """LAMMPS batches on SLURM take their MPI ranks from the rule's threads: tiny on LAMMPS
+    with 2-thread batches runs through the one-node cluster, each LAMMPS run on 2 ranks,
+    and agrees with the local 1-rank run (same steps; velocities to rounding)."""
+    wd = _workdir(tmp_path_factory.mktemp("tiny_lammps_slurm"))
+    (wd / "ranks.yaml").write_text("presets: {tiny: {batch: {threads: 2}}}\n")
+    proc = run_snakemake_on_slurm(wd, SNAKEFILE, timeout_s=900, extra_args=[
+        "--configfile", "ranks.yaml", "--config", "preset=tiny", "engine=lammps"])
+    assert "has been submitted with SLURM jobid" in proc.stdout + proc.stderr
+    logs = list((wd / "results" / "tiny" / "logs").rglob("*.log"))
+    assert any("LAMMPS on 2 rank(s)" in p.read_text(errors="replace") for p in logs), \
+        "no LAMMPS run on 2 ranks in the job logs"
+    local = tiny_lammps_run[0]
+    for study in gw.ENSEMBLE_STUDIES:
+        a = _tables(local, study).set_index(MEMBER_KEY).sort_index()
+        b = _tables(wd, study).set_index(MEMBER_KEY).sort_index()
+        assert (b["engine"] == "lammps").all() and (a["steps"] == b["steps"]).all()
+        for col in [c for c in a.columns if c.startswith("vmax_p")] + ["v_g_m_s"]:
+            np.testing.assert_allclose(b[col], a[col], rtol=1e-9, err_msg=f"{study} {col}")

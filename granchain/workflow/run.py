@@ -150,8 +150,10 @@ def run_batch(preset: dict, study: str, name: str, threads: int | None = None
         wall = time.perf_counter() - t0
         rows.append(member_rows(ss, runs, threads))
         timing.append(_timing_row(study, batch.engine, batch.name, ss, runs, wall))
+        how = (f"LAMMPS on {engine_options(batch.engine, threads)['nprocs']} rank(s)"
+               if batch.engine == "lammps" else "reference engine")
         print(f"[granchain] {study} {batch.name}: {ss.scene.name} {len(runs)} members "
-              f"in {wall:.2f} s", file=sys.stderr, flush=True)
+              f"in {wall:.2f} s ({how})", file=sys.stderr, flush=True)
     return pd.concat(rows, ignore_index=True), tables.timing_table(timing)
 
 
