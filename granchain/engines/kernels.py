@@ -24,7 +24,6 @@ import math
 
 import numpy as np
 from numba import njit, prange
-from scipy.integrate._ivp import dop853_coefficients as _dc
 
 from ..effects import air_drag, groove_friction, hertz, particle_friction, rolling_friction
 
@@ -42,6 +41,28 @@ E_KT, E_KR, E_H, E_WG, E_WD, E_WT, E_WR, E_LEN = range(8)
 # status
 S_RUNNING, S_DONE, S_PASSED, S_TIMEOUT, S_NONFINITE, S_STEPFAIL = 0, 1, 2, 3, 4, 5
 
+
+
+def _dop853_tableau():
+    """scipy's Dormand-Prince 8(5,3) coefficients, loaded from their own file: importing
+    them through ``scipy.integrate`` would also load its quadrature and ODE packages
+    (0.35 s a process, for a table of numbers). Falls back to the normal import if
+    scipy's layout differs."""
+    import importlib.util
+    import os
+    spec = importlib.util.find_spec("scipy")
+    path = os.path.join(os.path.dirname(spec.origin or ""), "integrate", "_ivp",
+                        "dop853_coefficients.py")
+    if os.path.isfile(path):
+        mod_spec = importlib.util.spec_from_file_location("granchain_dop853_coefficients", path)
+        mod = importlib.util.module_from_spec(mod_spec)
+        mod_spec.loader.exec_module(mod)
+        return mod
+    from scipy.integrate._ivp import dop853_coefficients
+    return dop853_coefficients
+
+
+_dc = _dop853_tableau()
 NST = _dc.N_STAGES
 DOP_A = np.ascontiguousarray(_dc.A[:NST, :NST])
 DOP_B = np.ascontiguousarray(_dc.B)
