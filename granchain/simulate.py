@@ -61,12 +61,14 @@ def run_scene(scene: Scene, engine: str = "reference", realisations=None, *,
     mem = members(scene, realisations)
     t0 = time.perf_counter()
     out = []
-    warn = {v: physics_warnings(scene, v) for v in scene.striker_velocities}
+    warn: dict[float, tuple[str, ...]] = {}     # per striker speed, computed once
     for m, traj in trajectories(scene, mem, engine, **kw):
+        if m.v_striker not in warn:
+            warn[m.v_striker] = tuple(physics_warnings(scene, m.v_striker))
         s = summarize(traj, scene.probes)
         out.append(dataclasses.replace(
             s, member=m.index, realisation=m.realisation, engine=engine,
             method=traj.meta.get("method"), dt=_float_or_none(traj.meta.get("dt")),
-            warnings=tuple(warn.get(m.v_striker) or physics_warnings(scene, m.v_striker))))
+            warnings=warn[m.v_striker]))
     wall = time.perf_counter() - t0
     return [dataclasses.replace(s, batch_wall_s=wall) for s in out]
