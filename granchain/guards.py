@@ -61,11 +61,17 @@ def gap_total(scene, contacts: int) -> float:
     return contacts * (scene.gap_mean or 0.0)
 
 
+def crossing_time(scene, v: float, contacts: int, v_m: float) -> float:
+    """Estimated time (s) for the wave of a striker at v to cross the first ``contacts``
+    contacts: their diameters at the solitary-wave speed V_N(v_m), plus the flight over
+    their expected gaps at v."""
+    travel = contacts * 2.0 * scene.radius / float(nesterenko_speed(scene.material, v_m))
+    return travel + gap_total(scene, contacts) / v
+
+
 def far_probe_arrival(scene, v: float) -> float:
     """Estimated time at which the wave reaches the far probe p2 (s)."""
-    p2 = scene.probes[-1]
-    travel = (p2 - 1) * 2.0 * scene.radius / float(nesterenko_speed(scene.material, 0.64 * v))
-    return travel + gap_total(scene, p2 - 1) / v
+    return crossing_time(scene, v, scene.probes[-1] - 1, 0.64 * v)
 
 
 def physics_warnings(scene, v_striker: float) -> list[str]:

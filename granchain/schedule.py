@@ -34,7 +34,7 @@ import numpy as np
 
 from . import analytic
 from .errors import GranchainError
-from .guards import gap_total, require_resolved
+from .guards import crossing_time, require_resolved
 
 SAMPLES_PER_PULSE = 400    # auto sampling: samples per solitary-wave width
 # default cost limits (per chain), raised with granchain run --max-steps / --max-memory-gb
@@ -95,8 +95,7 @@ def expected_duration(scene, v: float) -> float:
         return scene.t_end
     if v <= 0:
         return 0.0
-    travel = (scene.n - 1) * 2.0 * scene.radius / float(analytic.nesterenko_speed(scene.material, 0.5 * v))
-    return travel + gap_total(scene, scene.n - 1) / v
+    return crossing_time(scene, v, scene.n - 1, 0.5 * v)
 
 
 def cost_estimate(scene, v: float) -> dict:

@@ -16,8 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import analytic
-from ..schedule import arrival_speed, auto_t_max, sample_interval
+from ..schedule import arrival_speed, auto_t_max, expected_duration, sample_interval
 from ..effects import MODULES, SPECS, Terms, physics_terms
 from ..guards import require_resolved
 from ..scene import Scene
@@ -126,15 +125,13 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
 
 def _chunks(group, scene, terms, sample_dt):
     """Split chains into chunks whose recorded samples fit in CHUNK_BYTES."""
-    p = scene.n
     if scene.t_end is not None:
         t_est = scene.t_end
     else:
+        # the slowest striker's expected run, x4: a realisation's gaps can run longer
+        # than their mean
         v = max(float(np.min(scene.striker_velocities)), 1e-6)
-        t_est = (p - 1) * 2 * scene.radius / analytic.nesterenko_speed(scene.material, 0.5 * v)
-        if scene.gap_distribution != "none":
-            t_est += 4.0 * p * (scene.gap_mean or (scene.gap_extra_length or 0) / (scene.n - 1)
-                                or max(scene.gap_values or (0,))) / v
+        t_est = 4.0 * expected_duration(scene, v)
     per_chain = (t_est / sample_dt + WINDOW) * (terms.n + K.E_LEN) * 8
     size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, 128)))
     for i in range(0, len(group), size):
