@@ -304,7 +304,17 @@ def build_parser() -> argparse.ArgumentParser:
                          "ledger.bin (what granchain run reads); none no per-sample output")
     sp.set_defaults(func=cmd_deck)
 
+    sp = sub.add_parser("warm-up", help="compile the reference engine's kernels for this machine "
+                                        "(numba's JIT cache and the ahead-of-time module)")
+    sp.set_defaults(func=cmd_warm_up)
+
     return p
+
+
+def cmd_warm_up(args) -> int:
+    from .engines import backend
+    backend.build(log=lambda msg: print(msg, file=sys.stderr))
+    return 0
 
 
 def main(argv=None) -> int:

@@ -1,0 +1,191 @@
+"""Where the reference engine's compiled kernels come from: numba's JIT, or a module compiled
+ahead of time for this machine.
+
+The kernels (``engines/kernels.py``, and the effects' laws they inline) are numba code.
+Calling them through numba's JIT costs about half a second per process before the first
+step, however small the run: numba sets up its compiler and target context even when it
+loads the machine code from its cache. A one-chain ``granchain run`` would spend most of its
+time there. So the same kernel functions are also compiled ahead of time (``numba.pycc``)
+into an extension module for this machine's CPU, which imports in milliseconds and needs no
+numba at run time.
+
+- :func:`build` (``granchain warm-up``, the workflow's ``jit_cache`` rule) runs a few small
+  chains through every entry point, which JIT-compiles them into numba's cache (the cold
+  compile, once per machine), then compiles the same entry points, with the signatures the
+  JIT compiled, ahead of time into ``<cache>/aot/`` with the machine's CPU as target.
+- :func:`entry` gives the compiled entry point for a call: the ahead-of-time one for a
+  serial call (one chain, nothing to run in parallel) when it is built for exactly the
+  current kernel sources, numba and CPU; the JIT one (parallel over chains with prange)
+  otherwise. Both are compiled from the same functions without fast-math, so they give
+  bit-identical results (tested).
+
+The cache directory is ``$GRANCHAIN_CACHE_DIR``, else ``$XDG_CACHE_HOME/granchain``, else
+``~/.cache/granchain``. The module's name carries a hash of everything it was compiled
+from (kernel and effect sources, Python, numpy and numba versions, CPU model and flags):
+a stale module is never loaded; it is simply not found. Without ``numba.pycc`` (it is
+scheduled for removal from numba) :func:`build` still warms the JIT cache and says so.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import platform
+import sys
+from functools import lru_cache
+from pathlib import Path
+
+# The kernels' entry points that the engines call through :func:`entry`.
+ENTRY_POINTS = ("run_window",)
+_PKG = Path(__file__).resolve().parent.parent
+# Every source the compiled kernels are made of.
+_SOURCES = ("engines/kernels.py", "effects")
+
+
+def cache_dir() -> Path:
+    env = os.environ.get("GRANCHAIN_CACHE_DIR")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "granchain"
+
+
+def _cpu() -> str:
+    """CPU model and feature flags (what the machine code is specialised for)."""
+    try:
+        with open("/proc/cpuinfo") as fh:
+            lines = [ln for ln in fh.read().splitlines()
+                     if ln.startswith(("model name", "flags"))]
+        return "\n".join(sorted(set(lines)))
+    except OSError:
+        return platform.machine() + platform.processor()
+
+
+def _versions() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+    out = [sys.version]
+    for dist in ("numpy", "numba", "llvmlite"):
+        try:
+            out.append(f"{dist} {version(dist)}")
+        except PackageNotFoundError:
+            out.append(f"{dist} -")
+    return "\n".join(out)
+
+
+@lru_cache(maxsize=1)
+def module_name() -> str:
+    """``granchain_kernels_<hash>``: the hash of everything the module is compiled from."""
+    h = hashlib.sha256()
+    for rel in _SOURCES:
+        p = _PKG / rel
+        files = sorted(p.rglob("*.py")) if p.is_dir() else [p]
+        for f in files:
+            h.update(str(f.relative_to(_PKG)).encode())
+            h.update(f.read_bytes())
+    h.update(_versions().encode())
+    h.update(_cpu().encode())
+    return "granchain_kernels_" + h.hexdigest()[:20]
+
+
+@lru_cache(maxsize=1)
+def _aot_module():
+    """The ahead-of-time module for the current sources and machine, or None."""
+    d = cache_dir() / "aot"
+    name = module_name()
+    if not d.is_dir():
+        return None
+    files = [f for f in d.iterdir() if f.name.startswith(name + ".") and f.suffix in (".so", ".pyd")]
+    if not files:
+        return None
+    spec = importlib.util.spec_from_file_location(name, files[0])
+    mod = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(mod)
+    except ImportError:
+        return None
+    if not all(hasattr(mod, e) for e in ENTRY_POINTS):
+        return None
+    return mod
+
+
+def aot_available() -> bool:
+    return _aot_module() is not None
+
+
+def entry(name: str, serial: bool):
+    """The compiled entry point ``name``: ahead of time when ``serial`` and built, else JIT."""
+    if serial:
+        mod = _aot_module()
+        if mod is not None:
+            return getattr(mod, name)
+    from . import kernels
+    return getattr(kernels, name)
+
+
+# --- build -----------------------------------------------------------------------------
+
+
+def _warm_up_runs() -> None:
+    """Small chains through every method of the reference engine (every effect on, gaps)."""
+    import numpy as np
+
+    from ..scene import scene_from_dict
+    from . import reference
+    raw = {"name": "warm-up", "material": "ss440c", "chain": {"n": 4, "radius": 150e-6},
+           "striker": {"velocity": 0.1}, "gaps": {"distribution": "fixed", "mean": 5e-9},
+           "effects": ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
+                       "rolling_friction"],
+           "rolling": {"k_roll": 1e3}, "probes": [2, 3], "t_end": 2e-7}
+    for method in reference.METHOD_CODES:
+        integ = {"method": method, "dt": 1e-9}
+        if method not in ("rk4", "verlet"):
+            integ["tolerance"] = 1e-6
+        scene = scene_from_dict({**raw, "integrator": integ})
+        gaps = np.full((1, scene.n - 1), 5e-9)
+        list(reference.run(scene, gaps, np.array([0.1]), progress=False))
+
+
+def build(log=print) -> Path | None:
+    """Warm numba's JIT cache and compile the ahead-of-time module for this machine.
+    Returns the module's path (None if numba.pycc is not available)."""
+    import time
+    t0 = time.perf_counter()
+    _warm_up_runs()
+    log(f"granchain warm-up: JIT kernels compiled or loaded from numba's cache in "
+        f"{time.perf_counter() - t0:.1f} s")
+    try:
+        import warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            from numba.pycc import CC
+    except ImportError:
+        log("granchain warm-up: numba.pycc is not available; runs use the JIT kernels only")
+        return None
+    from . import kernels
+    # the signatures the warm-up compiled (argument and return types, as the engine calls them)
+    sigs = {e: getattr(kernels, e).nopython_signatures for e in ENTRY_POINTS}
+    bad = [e for e, s in sigs.items() if len(s) != 1]
+    if bad:
+        raise RuntimeError(f"warm-up compiled {[len(sigs[e]) for e in bad]} signatures of {bad}; "
+                           "the engine must call each entry point with one set of types")
+    out = cache_dir() / "aot"
+    out.mkdir(parents=True, exist_ok=True)
+    name = module_name()
+    t1 = time.perf_counter()
+    tmp = out / f".build-{os.getpid()}"
+    tmp.mkdir(exist_ok=True)
+    cc = CC(name)
+    cc.output_dir = str(tmp)
+    cc.target_cpu = "host"
+    cc.verbose = False
+    for e in ENTRY_POINTS:
+        cc.export(e, sigs[e][0])(getattr(kernels, e).py_func)
+    cc.compile()
+    built = next(tmp.iterdir())
+    final = out / built.name
+    os.replace(built, final)            # atomic: a concurrent build or reader sees old or new
+    tmp.rmdir()
+    _aot_module.cache_clear()
+    log(f"granchain warm-up: ahead-of-time kernels compiled in {time.perf_counter() - t1:.1f} s "
+        f"-> {final}")
+    return final
