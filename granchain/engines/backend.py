@@ -168,6 +168,10 @@ def build(log=print) -> Path | None:
     if bad:
         raise RuntimeError(f"warm-up compiled {[len(sigs[e]) for e in bad]} signatures of {bad}; "
                            "the engine must call each entry point with one set of types")
+    if aot_available():
+        log(f"granchain warm-up: ahead-of-time kernels already built for this machine "
+            f"({cache_dir() / 'aot'}, {module_name()})")
+        return next(p for p in (cache_dir() / "aot").iterdir() if p.name.startswith(module_name()))
     out = cache_dir() / "aot"
     out.mkdir(parents=True, exist_ok=True)
     name = module_name()

@@ -15,6 +15,8 @@ COST_THREADS = int(COST.get("threads", 2))
 
 
 rule accuracy_cost:
+    input:
+        rules.jit_cache.output,
     output:
         table=report(
             f"{RESULTS}/tables/accuracy_cost.csv",

@@ -3,9 +3,31 @@
 # batches of studies on the LAMMPS engine go through run_lammps_batch (lammps.smk).
 # packed_trace runs each material's packed chain, on its study's engine, and saves its v(t)
 # trace (a LAMMPS packed_trace takes the batch threads as MPI ranks).
+# jit_cache compiles the reference engine's kernels once (numba's JIT cache and the
+# ahead-of-time module, granchain.engines.backend) before any job needs them, so that jobs
+# starting together do not each pay the cold compile. The cache is per machine (under
+# $GRANCHAIN_CACHE_DIR or ~/.cache/granchain, and numba's beside the package); on a cluster
+# whose nodes differ in CPU, a job on another CPU type compiles for it once.
+
+
+rule jit_cache:
+    output:
+        f"{RESULTS}/work/jit_cache.done",
+    log:
+        f"{RESULTS}/logs/jit_cache.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=15,
+    conda:
+        "../envs/granchain.yaml"
+    script:
+        "../scripts/jit_cache.py"
 
 
 rule run_batch:
+    input:
+        rules.jit_cache.output,
     output:
         table=f"{RESULTS}/work/{{study}}/reference_{{index}}.csv",
         timing=f"{RESULTS}/work/{{study}}/reference_{{index}}.timing.csv",
@@ -28,6 +50,8 @@ rule run_batch:
 
 
 rule packed_trace:
+    input:
+        rules.jit_cache.output,
     output:
         table=f"{RESULTS}/work/packed_trace/trace.csv",
         timing=f"{RESULTS}/work/packed_trace/trace.timing.csv",
