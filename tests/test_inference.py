@@ -219,7 +219,7 @@ def test_infer_command_json_and_plot(tmp_path, capsys):
                         "dt_peak_s")
     csv_path = tmp_path / "m.csv"
     csv_path.write_text("v_striker_m_s,dt_peak_s,chain_id\n"
-                        f"0.045,{t[0]!r},a\n0.055,{t[1]!r},a\n")
+                        f"0.045,{float(t[0])!r},a\n0.055,{float(t[1])!r},a\n")
     argv = ["infer", str(csv_path), "--scene", str(scene), "--gap-points", "5",
             "--gap-max-nm", "80", "--realisations", "8", "--cache-dir", str(tmp_path / "c"),
             "--json"]
