@@ -1,4 +1,4 @@
-"""Command line: ``granchain validate|run|deck|compare SCENE.yaml``.
+"""Command line: ``granchain validate|run|deck|compare SCENE.yaml``, ``granchain infer CSV --scene BASE.yaml``.
 
 Errors a user can cause print one line, ``granchain: error: ...``, and exit with 2.
 A scene with ``integrator.method: auto`` is resolved from the cost model as soon as it is
@@ -221,6 +221,58 @@ def cmd_deck(args) -> int:
     return 0
 
 
+def _print_inference(res, out=None) -> None:
+    out = out or sys.stdout
+    nm = lambda x: _fmt(None if x is None else x * 1e9, " nm")    # noqa: E731
+    lo, hi = res.ci95_m
+    print(f"inferred mean gap ({res.timing_column}, {res.rows} row(s) on {res.chains} chain(s)): "
+          f"{nm(res.gap_mean_m)}, 95% interval [{nm(lo)}, {nm(hi)}]", file=out)
+    print(f"gap law: {res.gap_law}; {res.n_simulated} simulated chains ({res.n_simulated_now} "
+          f"run now, the rest cached): mean gaps {nm(res.gap_grid_m[0])}-{nm(res.gap_grid_m[1])} "
+          f"({res.gap_grid_m[2]} points) x {len(res.speeds_m_s)} striker speed(s) x "
+          f"{res.realisations} realisations", file=out)
+    print(f"Eq. 5.4 reading (chapter): least-squares {nm(res.eq54_gap_m)}, "
+          f"upper-bound reading {nm(res.eq54_gap_bound_m)}", file=out)
+    for f in res.flags:
+        print(f"warning: {f}: " + {
+            "posterior_at_grid_end": "the posterior still has weight at the largest simulated "
+                                     "mean gap; median and upper bound not measured (n/a): "
+                                     "raise --gap-max-nm",
+            "no_simulated_match": "no simulated mean gap reproduces the timings"}[f], file=out)
+
+
+def cmd_infer(args) -> int:
+    from .inference import infer, read_measurements
+    if args.plot:
+        check_output_path(args.plot, args.force, "--plot")
+        if Path(args.plot).suffix.lower() not in (".png", ".pdf", ".svg"):
+            raise GranchainError(f"--plot: {args.plot!r} has no known image suffix; end it "
+                                 "with .png, .pdf or .svg")
+    if args.out:
+        check_output_path(args.out, args.force, "--out")
+    meas = read_measurements(args.measurements)
+    base = resolve_auto(load_scene(args.scene, args.set))
+    res = infer(base, meas, gap_max=args.gap_max_nm * 1e-9, gap_points=args.gap_points,
+                realisations=args.realisations, cache_dir=None if args.no_cache else args.cache_dir,
+                source=f"{args.measurements}, ", prior=args.prior)
+    doc = dict(res.to_json(), measurements=str(args.measurements))
+    if args.json and not args.out:
+        print(json.dumps(_jsonable(doc)))
+    elif not args.json:
+        _print_inference(res)
+    if args.out:
+        atomic_write_text(args.out, json.dumps(_jsonable(doc), indent=1) + "\n", args.force, "--out")
+    if args.plot:
+        from .figures.inference import plot_inference
+        plot_inference(res, meas, base, args.plot, force=args.force)
+    return 0
+
+
+def _default_cache() -> str:
+    from .fileio import cache_dir
+    return str(cache_dir() / "inference")
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors (exit status 2), like every other granchain error."""
 
@@ -307,6 +359,32 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("warm-up", help="compile the reference engine's kernels for this machine "
                                         "(numba's JIT cache and the ahead-of-time module)")
     sp.set_defaults(func=cmd_warm_up)
+
+    sp = sub.add_parser("infer", help="infer the mean gap of a chain from measured wave timing")
+    sp.add_argument("measurements", help="CSV: v_striker_m_s, dt_peak_s or dt_front_s, "
+                                         "optional dt_err_s, chain_id (SI units)")
+    sp.add_argument("--scene", required=True, help="base scene YAML: material, chain, effects, "
+                    "integrator, gap law (gaps.distribution), simulated speeds (striker.velocity)")
+    sp.add_argument("--set", action="append", default=[], metavar="KEY.SUB=VALUE",
+                    help="override a field of the base scene; repeatable")
+    sp.add_argument("--json", action="store_true", help="print one JSON object")
+    sp.add_argument("--out", help="also write the JSON result to this new file")
+    sp.add_argument("--plot", metavar="FILE", help="draw v_g vs v_s (data, inferred band, "
+                    "Eq. 5.4) into this new file (.png or .pdf)")
+    sp.add_argument("--force", action="store_true", help="allow --out and --plot to be replaced")
+    sp.add_argument("--gap-max-nm", type=_limit, default=500.0, metavar="NM",
+                    help="largest simulated mean gap in nm (default 500)")
+    sp.add_argument("--gap-points", type=int, default=21, metavar="N",
+                    help="simulated mean gaps from 0 to --gap-max-nm (default 21)")
+    sp.add_argument("--realisations", type=int, default=64, metavar="R",
+                    help="gap realisations per mean gap and speed (default 64)")
+    sp.add_argument("--prior", choices=["scale", "uniform"], default="scale",
+                    help="prior of the mean gap: scale (1/(g + 2 nm), default) or uniform")
+    sp.add_argument("--cache-dir", default=_default_cache(), metavar="DIR",
+                    help="where simulated grids are kept, keyed by scene hash "
+                         "(default $GRANCHAIN_CACHE_DIR/inference, else $XDG_CACHE_HOME/granchain/inference)")
+    sp.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+    sp.set_defaults(func=cmd_infer)
 
     return p
 

@@ -19,6 +19,7 @@ import errno
 import os
 import stat
 import tempfile
+from functools import lru_cache
 from pathlib import Path
 
 from .errors import GranchainError
@@ -135,3 +136,32 @@ def _move_no_clobber(tmp: str, path: Path, field: str) -> None:
         os.replace(tmp, path)
         return
     os.unlink(tmp)
+
+
+def cache_dir() -> Path:
+    """Where granchain keeps what it can recompute (compiled kernels, simulated grids):
+    ``$GRANCHAIN_CACHE_DIR``, else ``$XDG_CACHE_HOME/granchain``, else ``~/.cache/granchain``."""
+    env = os.environ.get("GRANCHAIN_CACHE_DIR")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "granchain"
+
+
+@lru_cache(maxsize=None)
+def source_hash(*parts: str) -> str:
+    """sha256 (hex) of the package's Python sources under ``parts`` (paths relative to the
+    package; the whole package if none): a cache keyed by it is never reused after the code
+    it was computed by has changed."""
+    import hashlib
+    pkg = Path(__file__).resolve().parent
+    h = hashlib.sha256()
+    for rel in parts or (".",):
+        p = pkg / rel
+        files = sorted(p.rglob("*.py")) if p.is_dir() else [p]
+        for f in files:
+            if "__pycache__" in f.parts:
+                continue
+            h.update(str(f.relative_to(pkg)).encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()

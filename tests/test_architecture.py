@@ -109,7 +109,8 @@ LAYERS = (
     ("analysis", ("granchain.observables", "granchain.tables", "granchain.analysis")),
     ("application", ("granchain.costmodel", "granchain.simulate", "granchain.compare",
                      "granchain.accuracy", "granchain.cost", "granchain.figures",
-                     "granchain.thesis", "granchain.workflow", "granchain.cli")),
+                     "granchain.thesis", "granchain.inference", "granchain.workflow",
+                     "granchain.cli")),
 )
 
 

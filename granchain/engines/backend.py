@@ -19,8 +19,7 @@ numba at run time.
   otherwise. Both are compiled from the same functions without fast-math, so they give
   bit-identical results (tested).
 
-The cache directory is ``$GRANCHAIN_CACHE_DIR``, else ``$XDG_CACHE_HOME/granchain``, else
-``~/.cache/granchain``. The module's name carries a hash of everything it was compiled
+The cache directory is ``granchain.fileio.cache_dir()``. The module's name carries a hash of everything it was compiled
 from (kernel and effect sources, Python, numpy and numba versions, CPU model and flags):
 a stale module is never loaded; it is simply not found. Without ``numba.pycc`` (it is
 scheduled for removal from numba) :func:`build` still warms the JIT cache and says so.
@@ -35,19 +34,12 @@ import sys
 from functools import lru_cache
 from pathlib import Path
 
+from ..fileio import cache_dir, source_hash
+
 # The kernels' entry points that the engines call through :func:`entry`.
 ENTRY_POINTS = ("run_window",)
-_PKG = Path(__file__).resolve().parent.parent
 # Every source the compiled kernels are made of.
 _SOURCES = ("engines/kernels.py", "effects")
-
-
-def cache_dir() -> Path:
-    env = os.environ.get("GRANCHAIN_CACHE_DIR")
-    if env:
-        return Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "granchain"
 
 
 def _cpu() -> str:
@@ -75,13 +67,7 @@ def _versions() -> str:
 @lru_cache(maxsize=1)
 def module_name() -> str:
     """``granchain_kernels_<hash>``: the hash of everything the module is compiled from."""
-    h = hashlib.sha256()
-    for rel in _SOURCES:
-        p = _PKG / rel
-        files = sorted(p.rglob("*.py")) if p.is_dir() else [p]
-        for f in files:
-            h.update(str(f.relative_to(_PKG)).encode())
-            h.update(f.read_bytes())
+    h = hashlib.sha256(source_hash(*_SOURCES).encode())
     h.update(_versions().encode())
     h.update(_cpu().encode())
     return "granchain_kernels_" + h.hexdigest()[:20]

@@ -1,0 +1,52 @@
+# The mean gap inferred from measured wave timing (granchain infer, granchain/inference.py)
+# for every measurements/<name>.csv at the top of the repository, with its base scene
+# measurements/<name>.yaml: results/<preset>/inference/<name>.json and <name>.png.
+# `snakemake --cores 2 inference` runs them all; the default target includes them for real
+# measurements only (files not named example_*: the shipped example is synthetic). The
+# simulated grids are cached under results/inference_cache, keyed by scene hash, for all
+# presets.
+MEAS_DIR = Path(workflow.basedir) / "measurements"
+MEASUREMENTS = sorted(p.stem for p in MEAS_DIR.glob("*.csv")) if MEAS_DIR.is_dir() else []
+INFER_CODE = [str(Path(workflow.basedir) / "granchain" / "inference.py"),
+              str(Path(workflow.basedir) / "granchain" / "figures" / "inference.py")]
+
+
+def inference_targets(include_examples=True):
+    names = [m for m in MEASUREMENTS if include_examples or not m.startswith("example_")]
+    return [f"{RESULTS}/inference/{m}.{ext}" for m in names for ext in ("json", "png")]
+
+
+wildcard_constraints:
+    measurement=r"[A-Za-z0-9_][A-Za-z0-9._-]*",
+
+
+rule inference:
+    input:
+        inference_targets(),
+
+
+rule infer_gap:
+    input:
+        csv=str(MEAS_DIR / "{measurement}.csv"),
+        scene=str(MEAS_DIR / "{measurement}.yaml"),
+        code=INFER_CODE,
+    output:
+        json=f"{RESULTS}/inference/{{measurement}}.json",
+        png=report(
+            f"{RESULTS}/inference/{{measurement}}.png",
+            caption="../report/inference.rst",
+            category="Inference",
+            labels={"measurements": "{measurement}"},
+        ),
+    params:
+        cache="results/inference_cache",
+    log:
+        f"{RESULTS}/logs/inference/{{measurement}}.log",
+    threads: BATCH_THREADS
+    resources:
+        mem_mb=BATCH_MEM_MB,
+        runtime=60,
+    conda:
+        "../envs/granchain.yaml"
+    script:
+        "../scripts/infer.py"
