@@ -216,16 +216,16 @@ class ChainResult:
     warnings: tuple[str, ...] = ()
     batch_wall_s: float | None = None
     # The vibrometer (``granchain.measurement``), set by run_scene for a scene with a
-    # measurement block (measured True); otherwise NaN and left out of the JSON and the
+    # measurement block (measured True); otherwise None and left out of the JSON and the
     # table row. measured_not_final: the probes (1-based) whose recorded peak is not
     # final (its values, and the delays and v_g, are NaN).
     measured: bool = False
-    v_max_1_measured: float = math.nan
-    v_max_2_measured: float = math.nan
-    dt_peak_measured: float = math.nan
-    dt_front_measured: float = math.nan
-    v_g_measured: float = math.nan
-    v_g_front_measured: float = math.nan
+    v_max_1_measured: float | None = None
+    v_max_2_measured: float | None = None
+    dt_peak_measured: float | None = None
+    dt_front_measured: float | None = None
+    v_g_measured: float | None = None
+    v_g_front_measured: float | None = None
     measured_not_final: tuple[int, ...] = ()
 
     @property
