@@ -22,6 +22,7 @@ include: "workflow/rules/tables.smk"
 include: "workflow/rules/lammps.smk"
 include: "workflow/rules/cost.smk"
 include: "workflow/rules/figures.smk"
+include: "workflow/rules/vibrometer.smk"
 
 
 # On a cluster, rules that take a second or two run on the submitting node instead of

@@ -29,8 +29,8 @@ import pandas as pd
 from .. import tables
 from ..errors import GranchainError
 from ..gaps import members as scene_members
-from ..measurement import measure, needs_trace, record
-from ..observables import summarize
+from ..measurement import extract, measure, needs_trace, record
+from ..observables import probe_span, summarize
 from ..scene import MEASUREMENT_DEFAULTS
 from ..simulate import trajectories
 from .studies import VIBROMETER, StudyScene, vibrometer_scenes, vibrometer_settings
@@ -48,7 +48,8 @@ VIB_COLUMNS = (
     "dt_front_bias_s",
 )
 TRACE_KEYS = ("t_s", "v_m_s", "probes", "v_striker_m_s", "material", "bandwidth_hz",
-              "sampling_rate_hz", "order", "filters", "t_rec_s")
+              "sampling_rate_hz", "order", "filters", "t_rec_s", "vmax_true_m_s",
+              "t_peak_true_s")      # and per filter F: v_rec_F_m_s, vmax_rec_F_m_s, t_peak_rec_F_s
 
 
 def _ratio(a: float, b: float) -> float:
@@ -100,10 +101,17 @@ def _trace(ss: StudyScene, settings, m, traj) -> dict:
            "sampling_rate_hz": np.float64(chosen[0].sampling_rate_hz),
            "order": np.int64(chosen[0].order),
            "filters": np.array([st.filter for st in chosen])}
+    s = summarize(traj, sc.probes)
+    out["vmax_true_m_s"] = np.array([s.v_max[c] for c in cols])
+    out["t_peak_true_s"] = np.array([s.t_peak[c] for c in cols])
+    _, span = probe_span(traj, sc.probes)
     for st in chosen:
         rec = record(traj.t, traj.v[:, cols], st, key=(m.index,))
+        got = extract(rec.t, rec.v, span, [s.final[c] for c in cols])
         out["t_rec_s"] = rec.t
         out[f"v_rec_{st.filter}_m_s"] = rec.v
+        out[f"vmax_rec_{st.filter}_m_s"] = np.array(got.v_max)
+        out[f"t_peak_rec_{st.filter}_s"] = np.array(got.t_peak)
     return out
 
 
