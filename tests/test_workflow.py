@@ -400,7 +400,7 @@ def test_tiny_vibrometer_study(tiny_run):
     for name in ["fig5_2a_ss440c", "vibrometer"]:
         for ext in ("png", "pdf"):
             assert (root / "figures" / f"{name}.{ext}").stat().st_size > 0
-    th = tables.read_csv(root / "tables" / "thesis_comparison.csv").set_index("id")
+    th = pd.read_csv(root / "tables" / "thesis_comparison.csv").set_index("id")
     for f in spec["filters"]:
         for q in ("vmax1", "vmax2"):
             r = th.loc[f"vib_{q}_{f}"]

@@ -7,32 +7,6 @@
 # vibrometer (recorded / true against bandwidth).
 import json
 
-VIB = PLAN.vibrometer
-VIB_SPEC = P["studies"].get("vibrometer") or {}
-
-
-def vib_trace_path(material):
-    return f"{RESULTS}/traces/vibrometer_{material}.npz"
-
-
-def vib_trace_materials():
-    return list(dict.fromkeys(ss.material for ss in VIB if ss.gap_mean_nm == 0))
-
-
-def vibrometer_targets():
-    """The vibrometer study's outputs (none without the study)."""
-    if not VIB:
-        return []
-    return [
-        f"{RESULTS}/tables/vibrometer.csv",
-        f"{RESULTS}/tables/vibrometer.provenance.json",
-        f"{RESULTS}/timing/vibrometer.csv",
-        *[vib_trace_path(m) for m in vib_trace_materials()],
-        *expand(f"{FIG_DIR}/fig5_2a_{{material}}.{{ext}}", material=vib_trace_materials(),
-                ext=["png", "pdf"]),
-        *expand(f"{FIG_DIR}/vibrometer.{{ext}}", ext=["png", "pdf"]),
-    ]
-
 
 if VIB:
 
