@@ -11,8 +11,9 @@ Trajectory's ``t`` and ``v`` columns) into the recorded signals:
    digital for the sampling rate by the bilinear transform with the bandwidth pre-warped
    (so the digital filter is exactly -3 dB at ``bandwidth_hz``), run from rest as
    second-order sections. A causal filter is what an instrument does: it delays the
-   recorded pulse (a Bessel filter by its nearly constant group delay, ~tau_0 =
-   1.36 / (2 pi f_c) for order 2, 0.34 us at 2.5 MHz and order 4) and broadens it. The
+   recorded pulse (a Bessel filter by its nearly constant group delay, w_3 / (2 pi f_c)
+   with w_3 = 1.36 for order 2 and 2.11 for order 4: 0.135 us at 2.5 MHz and order 4)
+   and broadens it. The
    delay cancels in the peak-to-peak delay dt only when both probes see the same filter,
    as they do here; two vibrometers with different decoders would bias dt by the
    difference of their delays;
