@@ -257,3 +257,16 @@ def _traj(scene):
     from granchain.gaps import members
     (_, traj), = list(trajectories(scene, members(scene)))
     return traj
+
+
+def test_a_bad_vibrometer_study_setting_is_one_line():
+    """Every instrument setting of the workflow's vibrometer study is validated as a
+    measurement block when the plan is built, before anything runs."""
+    from granchain import workflow as gw
+    cfg = gw.read_config(SCENES.parents[1] / "config" / "config.yaml", "tiny")
+    cfg["presets"]["tiny"]["studies"]["vibrometer"]["bandwidth_hz"] = [1.0e6, 6.0e7]
+    with pytest.raises(gw.ConfigError) as exc:
+        gw.Plan.build(cfg)
+    msg = str(exc.value)
+    assert "\n" not in msg and "presets.tiny.studies.vibrometer" in msg
+    assert "measurement.sampling_rate_hz" in msg and "twice the bandwidth 6e+07" in msg
