@@ -22,6 +22,7 @@ include: "workflow/rules/tables.smk"
 include: "workflow/rules/lammps.smk"
 include: "workflow/rules/cost.smk"
 include: "workflow/rules/figures.smk"
+include: "workflow/rules/vibrometer.smk"
 include: "workflow/rules/inference.smk"
 
 
@@ -44,4 +45,3 @@ rule all:
     default_target: True
     input:
         all_targets(),
-        inference_targets(include_examples=False),

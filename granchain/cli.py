@@ -64,6 +64,14 @@ def _print_human(scene, runs, out=None):
               f"(front: {_fmt(r.v_g_front)}); energy balance error {_fmt(r.energy.balance_error, digits=2)}"
               f"{_residual_note(scene, r)}; "
               f"{r.steps} steps, {_fmt(r.wall_s, ' s', 3)}{note}", file=out)
+        if r.measured:
+            m = scene.measurement
+            lost = (f"; recorded peak not final at probe "
+                    f"{_ranges(r.measured_not_final)} (n/a)" if r.measured_not_final else "")
+            print(f"  recorded ({m.filter} order {m.order}, {m.bandwidth_hz:g} Hz, "
+                  f"{m.sampling_rate_hz:g} S/s): v_max,1 = {_fmt(r.v_max_1_measured)} m/s, "
+                  f"v_max,2 = {_fmt(r.v_max_2_measured)} m/s; dt = {_fmt(r.dt_peak_measured)} s; "
+                  f"v_g = {_fmt(r.v_g_measured)} m/s{lost}", file=out)
     _print_warnings([w for r in runs for w in r.warnings], out)
 
 

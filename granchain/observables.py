@@ -145,6 +145,16 @@ ENERGY_MAP = {"energy_initial_J": "initial",
               "balance_error": "balance_error"}
 
 
+# ChainResult fields of the vibrometer, and the table columns of a measured run (after
+# the true observables; ``granchain.tables`` adds them to the tables of measured scenes).
+MEASURED_FIELDS = ("measured", "v_max_1_measured", "v_max_2_measured", "dt_peak_measured",
+                   "dt_front_measured", "v_g_measured", "v_g_front_measured",
+                   "measured_not_final")
+MEASURED_COLUMNS = ("v_max_1_measured_m_s", "v_max_2_measured_m_s", "v_max_ratio_measured",
+                    "dt_peak_measured_s", "dt_front_measured_s", "v_g_measured_m_s",
+                    "v_g_front_measured_m_s", "measured_not_final")
+
+
 def vmax_columns(n: int) -> list[str]:
     """``vmax_p01_m_s`` ... one per particle, zero-padded to the width of n (at least 2)."""
     width = max(2, len(str(n)))
@@ -205,6 +215,18 @@ class ChainResult:
     dt: float | None = None
     warnings: tuple[str, ...] = ()
     batch_wall_s: float | None = None
+    # The vibrometer (``granchain.measurement``), set by run_scene for a scene with a
+    # measurement block (measured True); otherwise None and left out of the JSON and the
+    # table row. measured_not_final: the probes (1-based) whose recorded peak is not
+    # final (its values, and the delays and v_g, are NaN).
+    measured: bool = False
+    v_max_1_measured: float | None = None
+    v_max_2_measured: float | None = None
+    dt_peak_measured: float | None = None
+    dt_front_measured: float | None = None
+    v_g_measured: float | None = None
+    v_g_front_measured: float | None = None
+    measured_not_final: tuple[int, ...] = ()
 
     @property
     def n(self) -> int:
@@ -213,10 +235,13 @@ class ChainResult:
 
     def to_json(self) -> dict:
         """The JSON document of this run: a dict of plain Python values, keys in field
-        order, tuples as lists, the ledger as a dict. Non-finite floats stay NaN/inf (the
+        order, tuples as lists, the ledger as a dict; the measured fields only for a
+        measured run. Non-finite floats stay NaN/inf (the
         writer decides how to encode them; ``granchain run --json`` writes null)."""
         out = {}
         for f in dataclasses.fields(self):
+            if not self.measured and f.name in MEASURED_FIELDS:
+                continue
             v = getattr(self, f.name)
             if isinstance(v, tuple):
                 v = list(v)
@@ -256,9 +281,25 @@ class ChainResult:
         }
         for col, entry in ENERGY_MAP.items():
             row[col] = float(getattr(self.energy, entry))
+        if self.measured:
+            row.update(self.measured_row())
         for col, v in zip(vmax_columns(self.n), self.v_max):
             row[col] = float(v)
         return row
+
+    def measured_row(self) -> dict:
+        """The ``MEASURED_COLUMNS`` of this run's table row (a measured run)."""
+        return {
+            "v_max_1_measured_m_s": float(self.v_max_1_measured),
+            "v_max_2_measured_m_s": float(self.v_max_2_measured),
+            "v_max_ratio_measured": _ratio(float(self.v_max_2_measured),
+                                           float(self.v_max_1_measured)),
+            "dt_peak_measured_s": float(self.dt_peak_measured),
+            "dt_front_measured_s": float(self.dt_front_measured),
+            "v_g_measured_m_s": float(self.v_g_measured),
+            "v_g_front_measured_m_s": float(self.v_g_front_measured),
+            "measured_not_final": ";".join(str(i) for i in self.measured_not_final),
+        }
 
 
 def energy_ledger(traj: Trajectory) -> EnergyLedger:
@@ -279,13 +320,20 @@ def energy_ledger(traj: Trajectory) -> EnergyLedger:
     return EnergyLedger(**out)
 
 
+def probe_span(traj: Trajectory, probes=(2, 13)) -> tuple[float, float]:
+    """(gbar, span): the mean gap over the contacts between the probes and the probes'
+    distance along the chain, (p2 - p1)(2R + gbar), in m."""
+    p1, p2 = probes[0], probes[1]
+    gbar = float(np.mean(traj.gaps[p1 - 1:p2 - 1])) if p2 > p1 else 0.0
+    return gbar, (p2 - p1) * (2.0 * traj.radius + gbar)
+
+
 def summarize(traj: Trajectory, probes=(2, 13)) -> ChainResult:
     """All observables of one chain (member fields unset: ``simulate.run_scene`` sets them)."""
     v_max, t_peak, t_front, plateau, final = peaks(traj)
     p1, p2 = probes[0], probes[1]
     i1, i2 = p1 - 1, p2 - 1
-    gbar = float(np.mean(traj.gaps[p1 - 1:p2 - 1])) if p2 > p1 else 0.0
-    span = (p2 - p1) * (2.0 * traj.radius + gbar)
+    gbar, span = probe_span(traj, probes)
     # both probes' peaks measured, by a run that did not fail numerically
     arrived = bool(traj.v_striker > 0 and final[i1] and final[i2]
                    and traj.status in ("passed", "done", "timeout"))

@@ -58,7 +58,26 @@ DEFAULTS: dict[str, Any] = {
     "t_end": "auto",
     "output": {"sample_dt": "auto"},
     "ensemble": {"realisations": 1},
+    # the virtual laser vibrometer (granchain.measurement); None: the scene is not
+    # measured. A given block is filled from MEASUREMENT_DEFAULTS.
+    "measurement": None,
 }
+
+# Defaults of the measurement block. The chapter's vibrometers have a 2.5 MHz bandwidth;
+# their decoders' filter response is not given, so butterworth and bessel are offered
+# (order 4 by default). 20 MS/s is a typical digitiser rate for a 2.5 MHz signal (8x the
+# bandwidth). noise_rms_m_s: additive white noise on the recorded samples (none by
+# default); seed: its random stream.
+MEASUREMENT_DEFAULTS: dict[str, Any] = {
+    "bandwidth_hz": 2.5e6,
+    "filter": "butterworth",
+    "order": 4,
+    "sampling_rate_hz": 20e6,
+    "noise_rms_m_s": 0.0,
+    "seed": 0,
+}
+FILTERS = ("butterworth", "bessel")
+MAX_FILTER_ORDER = 10
 
 # Fewest integration steps that must fit in the shortest Hertz collision of a scene (the
 # step guard; the accuracy study's coarsest setting).
@@ -73,6 +92,20 @@ NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9._-]{0,63}")
 NAME_RULE = "use 1-64 characters from A-Z a-z 0-9 . _ -, starting with a letter, digit or _"
 # the distributions that draw at random (gaps.seed matters only for these)
 RANDOM_GAPS = ("uniform", "exponential", "from_length")
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """The vibrometer of a scene (``measurement:`` block): -3 dB bandwidth (Hz) of a
+    causal low-pass ``filter`` (butterworth or bessel) of ``order``, digitised at
+    ``sampling_rate_hz``, with additive white noise of RMS ``noise_rms_m_s`` (m/s) drawn
+    from ``seed``."""
+    bandwidth_hz: float
+    filter: str
+    order: int
+    sampling_rate_hz: float
+    noise_rms_m_s: float
+    seed: int
 
 
 @dataclass(frozen=True)
@@ -115,6 +148,8 @@ class Scene:
     auto_tolerance: float | None = None
     # dotted keys the scene file (or a derive) gave, before defaults: 'integrator.dt', ...
     given: frozenset = field(default=frozenset(), repr=False, compare=False)
+    # the vibrometer (None: the probes are not measured)
+    measurement: Measurement | None = None
 
     # --- derived quantities -------------------------------------------------------------
     @property
@@ -339,7 +374,8 @@ def given_keys(raw: dict) -> set[str]:
         if value is None:
             continue
         out.add(str(key))
-        if isinstance(value, dict) and isinstance(DEFAULTS.get(key), dict):
+        if isinstance(value, dict) and (isinstance(DEFAULTS.get(key), dict)
+                                        or key == "measurement"):
             out |= {f"{key}.{k}" for k, v in value.items() if v is not None}
     return out
 
@@ -550,6 +586,7 @@ def _validate(raw: dict, given: set[str]) -> Scene:
                                                fix="give seconds or 'auto'")
     realisations = _num(spec, "ensemble.realisations", integer=True, lo=1,
                         fix="give a whole number of gap realisations >= 1")
+    measurement = _measurement(spec, given)
     try:
         scene_hash(spec)
     except (TypeError, ValueError, OverflowError) as exc:
@@ -566,11 +603,49 @@ def _validate(raw: dict, given: set[str]) -> Scene:
         contact_kt=contact_kt, k_roll=k_roll, gamma_roll=gamma_roll, mu_roll=mu_roll,
         probes=tuple(pr), method=method, dt=dt, tolerance=tol, t_end=t_end,
         sample_dt=sample_dt, realisations=realisations, spec=spec, given=frozenset(given),
+        measurement=measurement,
     )
     _check_derived(scene)
     check_step(scene)
     _check_sampling(scene)
     return scene
+
+
+def _measurement(spec: dict, given: set[str]) -> Measurement | None:
+    """The validated measurement block of a merged spec (None without one; the key is
+    then dropped from the spec, so an unmeasured scene hashes as before the block
+    existed); the spec's block is replaced by its normalised form."""
+    block = spec.get("measurement")
+    if block is None:
+        spec.pop("measurement", None)
+        return None
+    if not isinstance(block, dict):
+        raise SceneError("measurement", f"expected a mapping, got {_short(block)}",
+                         "write e.g. measurement: {bandwidth_hz: 2.5e6, filter: bessel}")
+    m = _merge(MEASUREMENT_DEFAULTS, block, "measurement.")
+    spec["measurement"] = m
+    bw = _num(spec, "measurement.bandwidth_hz", positive=True,
+              fix="give the vibrometer's -3 dB bandwidth in Hz, e.g. 2.5e6")
+    kind = _choice(m["filter"], "measurement.filter", FILTERS, "filter")
+    order = _num(spec, "measurement.order", integer=True, lo=1, hi=MAX_FILTER_ORDER,
+                 fix=f"give the filter order as a whole number from 1 to {MAX_FILTER_ORDER}")
+    fs = _num(spec, "measurement.sampling_rate_hz", positive=True,
+              fix="give the digitiser's sampling rate in Hz, e.g. 20e6")
+    if not fs > 2.0 * bw:
+        raise SceneError("measurement.sampling_rate_hz",
+                         f"{fs:g} Hz is not above twice the bandwidth {bw:g} Hz",
+                         f"give sampling_rate_hz > {2.0 * bw:g} (e.g. {8.0 * bw:g}) or a "
+                         "smaller bandwidth_hz")
+    noise = _num(spec, "measurement.noise_rms_m_s", nonneg=True,
+                 fix="give the RMS of the additive white noise in m/s (>= 0)")
+    seed = _num(spec, "measurement.seed", integer=True, nonneg=True,
+                fix="give a whole-number seed >= 0")
+    if "measurement.seed" in given and noise == 0:
+        raise SceneError("measurement.seed", "has no effect without noise (noise_rms_m_s "
+                         "is 0)", "drop it, or give measurement.noise_rms_m_s > 0")
+    m.update(bandwidth_hz=bw, order=order, sampling_rate_hz=fs, noise_rms_m_s=noise,
+             seed=seed)
+    return Measurement(bw, kind, order, fs, noise, seed)
 
 
 def _check_derived(scene: Scene) -> None:

@@ -14,6 +14,7 @@ from .costmodel import resolve_auto
 from .errors import GranchainError
 from .gaps import Member, member_gaps, members
 from .guards import physics_warnings
+from .measurement import measure, needs_trace
 from .observables import ChainResult, summarize
 from .schedule import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost
 from .scene import Scene
@@ -55,7 +56,9 @@ def run_scene(scene: Scene, engine: str = "reference", realisations=None, *,
     scene whose chains need more than ``max_steps`` integration steps or
     ``max_memory_gb`` GB of sample record each (estimates: ``schedule.check_cost``). Each
     result carries ``warnings``: the one-line physics warnings for its striker speed (empty
-    when none), and ``batch_wall_s``, the wall time of the whole call."""
+    when none), and ``batch_wall_s``, the wall time of the whole call. A scene with a
+    measurement block also gets the vibrometer's fields (``granchain.measurement``): it
+    needs the probes' velocity histories (``measurement.needs_trace``)."""
     scene = resolve_auto(scene)
     check_cost(scene, max_steps, max_memory_gb)
     mem = members(scene, realisations)
@@ -66,9 +69,16 @@ def run_scene(scene: Scene, engine: str = "reference", realisations=None, *,
         if m.v_striker not in warn:
             warn[m.v_striker] = tuple(physics_warnings(scene, m.v_striker))
         s = summarize(traj, scene.probes)
+        extra = {}
+        if needs_trace(scene):
+            # the vibrometer reads the probes' histories (traj.t, traj.v); its noise
+            # stream is the member's own
+            final = [s.final[p - 1] for p in scene.probes]
+            extra = measure(traj, scene.probes, scene.measurement, key=(m.index,),
+                            true_final=final).result_fields(scene.probes)
         out.append(dataclasses.replace(
             s, member=m.index, realisation=m.realisation, engine=engine,
             method=traj.meta.get("method"), dt=_float_or_none(traj.meta.get("dt")),
-            warnings=warn[m.v_striker]))
+            warnings=warn[m.v_striker], **extra))
     wall = time.perf_counter() - t0
     return [dataclasses.replace(s, batch_wall_s=wall) for s in out]

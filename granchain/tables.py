@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .observables import ENERGY_MAP, ChainResult, vmax_columns
+from .observables import ENERGY_MAP, MEASURED_COLUMNS, ChainResult, vmax_columns
 
 FLOAT_FORMAT = "%.17g"
 NA_REP = "NaN"
@@ -55,13 +55,19 @@ BASE_COLUMNS = (
 GROUP_COLUMNS = ("material", "engine", "v_striker_m_s", "gap_mean_nm", "extra_length_um")
 SUMMARY_OBSERVABLES = ("v_g_m_s", "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio",
                        "v_g_front_m_s", "v_g_bound_eq54_m_s")
+# ... and for a table of measured scenes (granchain.measurement)
+SUMMARY_MEASURED = ("v_max_1_measured_m_s", "v_max_2_measured_m_s", "v_max_ratio_measured",
+                    "v_g_measured_m_s", "v_g_front_measured_m_s")
 PERCENTILES = (5, 50, 95)
 TIMING_COLUMNS = ("study", "engine", "batch", "scene_hash", "members", "steps", "wall_s",
                   "wall_per_member_s")
 
 
-def columns(n: int) -> list[str]:
-    return list(BASE_COLUMNS) + vmax_columns(n)
+def columns(n: int, measured: bool = False) -> list[str]:
+    """The table's columns: ``BASE_COLUMNS``, for a table of measured scenes the
+    vibrometer's ``MEASURED_COLUMNS`` (``granchain.measurement``), then one v_max per
+    particle."""
+    return list(BASE_COLUMNS) + (list(MEASURED_COLUMNS) if measured else []) + vmax_columns(n)
 
 
 def member_row(meta: dict, run: ChainResult, n: int) -> dict:
@@ -85,7 +91,7 @@ def member_row(meta: dict, run: ChainResult, n: int) -> dict:
         "scene_hash": meta["scene_hash"],
         "v_g_bound_eq54_m_s": math.nan,
     })
-    cols = columns(n)
+    cols = columns(n, run.measured)
     if set(row) != set(cols):
         raise ValueError(f"row columns differ from the table's: missing "
                          f"{sorted(set(cols) - set(row))}, extra {sorted(set(row) - set(cols))}")
@@ -93,8 +99,12 @@ def member_row(meta: dict, run: ChainResult, n: int) -> dict:
 
 
 def study_table(rows: list[dict], n: int) -> pd.DataFrame:
-    """Rows as a DataFrame with exactly ``columns(n)``, in order and with stable dtypes."""
-    cols = columns(n)
+    """Rows as a DataFrame with exactly ``columns(n, measured)``, in order and with
+    stable dtypes; measured: the rows carry the vibrometer's columns (all or none)."""
+    measured = {MEASURED_COLUMNS[0] in r for r in rows}
+    if len(measured) > 1:
+        raise ValueError("a table mixes measured and unmeasured rows")
+    cols = columns(n, measured == {True})
     df = pd.DataFrame(rows, columns=cols)
     for c in ("realisation", "seed", "steps"):
         df[c] = df[c].astype("int64")
@@ -139,9 +149,13 @@ def _mean(values: np.ndarray) -> float:
     return float(values.mean()) if values.size else math.nan
 
 
-def summary_columns() -> list[str]:
+def _summary_observables(measured: bool) -> tuple[str, ...]:
+    return SUMMARY_OBSERVABLES + (SUMMARY_MEASURED if measured else ())
+
+
+def summary_columns(measured: bool = False) -> list[str]:
     cols = ["study", *GROUP_COLUMNS, "n", "arrived_fraction"]
-    for obs in SUMMARY_OBSERVABLES:
+    for obs in _summary_observables(measured):
         cols += [f"{obs}_mean"] + [f"{obs}_p{q}" for q in PERCENTILES]
     return cols
 
@@ -153,17 +167,18 @@ def summary_table(df: pd.DataFrame) -> pd.DataFrame:
     not arrive has no v_g); ``arrived_fraction`` says how many those are.
     """
     rows = []
+    measured = MEASURED_COLUMNS[0] in df.columns
     groups = df.groupby(list(GROUP_COLUMNS), dropna=False, sort=False)
     for key, g in groups:
         row = {"study": g["study"].iloc[0], **dict(zip(GROUP_COLUMNS, key)),
                "n": int(len(g)), "arrived_fraction": float(g["wave_arrived"].mean())}
-        for obs in SUMMARY_OBSERVABLES:
+        for obs in _summary_observables(measured):
             vals = g[obs].to_numpy(dtype=float)
             row[f"{obs}_mean"] = _mean(vals)
             for q in PERCENTILES:
                 row[f"{obs}_p{q}"] = _pct(vals, q)
         rows.append(row)
-    out = pd.DataFrame(rows, columns=summary_columns())
+    out = pd.DataFrame(rows, columns=summary_columns(measured))
     return out.sort_values(list(GROUP_COLUMNS), kind="stable", na_position="first") \
         .reset_index(drop=True)
 

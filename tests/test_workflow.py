@@ -25,6 +25,7 @@ import pytest
 from granchain import tables
 from granchain import workflow as gw
 from granchain.errors import GranchainError
+from granchain.simulate import run_scene
 from slurm_support import run_snakemake_on_slurm, slurm_cluster  # noqa: F401 (fixture)
 
 REPO = Path(__file__).resolve().parents[1]
@@ -359,6 +360,51 @@ def test_tiny_physics(tiny_run):
     for (m, v, r), g in sweep.groupby(["material", "v_striker_m_s", "realisation"]):
         g = g.sort_values("gap_mean_nm")
         assert g["v_g_front_m_s"].is_monotonic_decreasing
+
+
+def test_tiny_vibrometer_study(tiny_run):
+    """One simulation per chain, recorded with every filter x bandwidth: the table has a
+    row per (chain, setting) whose true columns repeat per chain and agree with a
+    measured run_scene of the same member; Bessel peaks lose more as the bandwidth falls
+    (Butterworth nearly nothing at >= 2.5 MHz); the figures and the thesis rows exist."""
+    P = tiny_preset()
+    spec = P["studies"]["vibrometer"]
+    root = tiny_run / "results" / "tiny"
+    df = tables.read_csv(root / "tables" / "vibrometer.csv")
+    assert list(df.columns) == list(gw.VIB_COLUMNS)
+    scenes = gw.vibrometer_scenes(P)
+    chains = sum(ss.members for ss in scenes)
+    settings = len(spec["filters"]) * len(spec["bandwidth_hz"])
+    assert len(df) == chains * settings and df["wave_arrived"].all()
+    per_chain = df.groupby(["scene_hash", "v_striker_m_s", "realisation"])
+    assert (per_chain["v_max_1_m_s"].nunique() == 1).all()      # simulated once
+    assert (per_chain["filter"].count() == settings).all()
+    # the rows are what run_scene records for a scene with that measurement block
+    ss = scenes[0]
+    bessel = ss.scene.derive(measurement={"filter": "bessel", "bandwidth_hz": 2.5e6,
+                                          "order": spec["order"],
+                                          "sampling_rate_hz": spec["sampling_rate_hz"]})
+    run = run_scene(bessel.derive(**{"striker.velocity": 0.1}))[0]
+    row = df[(df["scene_hash"] == ss.scene.hash) & (df["v_striker_m_s"] == 0.1)
+             & (df["filter"] == "bessel") & (df["bandwidth_hz"] == 2.5e6)].iloc[0]
+    assert row["v_max_1_measured_m_s"] == pytest.approx(run.v_max_1_measured, rel=1e-12)
+    assert row["dt_peak_measured_s"] == pytest.approx(run.dt_peak_measured, rel=1e-9)
+    b = df[df["filter"] == "bessel"]
+    for _, g in b.groupby(["scene_hash", "v_striker_m_s", "realisation"]):
+        r = g.sort_values("bandwidth_hz")["v_max_2_measured_over_true"].to_numpy()
+        assert (r < 1).all() and (np.diff(r) > 0).all(), r
+    bw = df[(df["filter"] == "butterworth") & (df["bandwidth_hz"] >= 2.5e6)]
+    assert bw["v_max_1_measured_over_true"].between(0.999, 1.001).all()
+    # the filter's delay cancels in dt: its bias is far below the filter's delay
+    assert (df.loc[df["bandwidth_hz"] >= 2.5e6, "dt_peak_bias_s"].abs() < 2e-9).all()
+    for name in ["fig5_2a_ss440c", "vibrometer"]:
+        for ext in ("png", "pdf"):
+            assert (root / "figures" / f"{name}.{ext}").stat().st_size > 0
+    th = pd.read_csv(root / "tables" / "thesis_comparison.csv").set_index("id")
+    for f in spec["filters"]:
+        for q in ("vmax1", "vmax2"):
+            r = th.loc[f"vib_{q}_{f}"]
+            assert 0 < r["chapter_value"] < 1 and abs(r["project_value"]) < 0.05, r
 
 
 def test_tiny_lammps_agrees_with_reference(tiny_run):

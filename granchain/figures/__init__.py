@@ -12,10 +12,12 @@ granchain.analysis.
 - :func:`fig5_1c`  v_g vs striker velocity with Nesterenko's curve (packed_sweep);
 - :func:`fig5_3b`  peak velocity along a chain with 20 nm mean gaps (gap_profile);
 - :func:`fig5_3c`  v_g vs striker velocity for mean gaps 10..190 nm, bands and Eq. 5.4 (gap_sweep);
-- :func:`fig5_4b`  v_g vs the mean gap inferred from the extra chain length (extra_length).
+- :func:`fig5_4b`  v_g vs the mean gap inferred from the extra chain length (extra_length);
+- :func:`fig5_2a`  true and recorded probe velocities, packed chain (vibrometer trace);
+- :func:`vibrometer`  recorded/true v_max,1, v_max,2 and dt bias vs bandwidth (vibrometer).
 
 Modules: ``style`` (fixed rcParams, colours, deterministic saving), ``fig5_1`` (packed
-chain), ``fig5_3`` (random gaps), ``fig5_4`` (loose chains). Output is deterministic: a
+chain), ``fig5_2`` (the vibrometer), ``fig5_3`` (random gaps), ``fig5_4`` (loose chains). Output is deterministic: a
 rerun on the same tables gives byte-identical PNG and PDF files.
 
 Command line (what the workflow's figure rules call)::
@@ -30,9 +32,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..analysis import read_table, read_trace
+from ..analysis import read_table, read_trace, read_vibrometer_trace
 from ..errors import GranchainError
 from .fig5_1 import fig5_1a, fig5_1b, fig5_1c
+from .fig5_2 import fig5_2a, vibrometer
 from .fig5_3 import fig5_3b, fig5_3c
 from .fig5_4 import fig5_4b
 
@@ -44,7 +47,11 @@ FIGURES = {
     "fig5_3b": (fig5_3b, ["gap_profile", "packed_sweep"]),
     "fig5_3c": (fig5_3c, ["gap_sweep", "packed_sweep"]),
     "fig5_4b": (fig5_4b, ["extra_length", "packed_sweep"]),
+    "fig5_2a": (fig5_2a, ["vibrometer_trace"]),
+    "vibrometer": (vibrometer, ["vibrometer"]),
 }
+# readers of the inputs that are not result tables
+READERS = {"trace": read_trace, "vibrometer_trace": read_vibrometer_trace}
 
 
 def render(name: str, paths: dict, out, radius: float | None = None) -> list[Path]:
@@ -59,8 +66,8 @@ def render(name: str, paths: dict, out, radius: float | None = None) -> list[Pat
         if p is None:
             flag = "--" + study.replace("_", "-")
             raise GranchainError(f"{name}: needs {flag} (the {study} "
-                                 f"{'npz' if study == 'trace' else 'table'})")
-        args.append(read_trace(p) if study == "trace" else read_table(p))
+                                 f"{'npz' if study in READERS else 'table'})")
+        args.append(READERS.get(study, read_table)(p))
     if name in ("fig5_3c", "fig5_4b"):
         return func(*args, out, radius=radius)
     return func(*args, out)
@@ -73,10 +80,12 @@ def main(argv=None) -> int:
                                  description="Draw one of the chapter's figures from the "
                                              "workflow's tables (PNG and PDF).")
     ap.add_argument("name", help=", ".join(FIGURES))
-    for study in ("packed_sweep", "gap_profile", "gap_sweep", "extra_length"):
+    for study in ("packed_sweep", "gap_profile", "gap_sweep", "extra_length", "vibrometer"):
         ap.add_argument("--" + study.replace("_", "-"), dest=study,
                         help=f"results/<preset>/tables/{study}.csv")
     ap.add_argument("--trace", help="results/<preset>/traces/packed_trace_<material>.npz")
+    ap.add_argument("--vibrometer-trace", dest="vibrometer_trace",
+                    help="results/<preset>/traces/vibrometer_<material>.npz")
     ap.add_argument("--radius", type=float, help="sphere radius in m for Eq. 5.4 (default "
                     "the chapter's 150e-6; the tables do not carry it)")
     ap.add_argument("--out", required=True, help="output path (.png/.pdf or no extension)")

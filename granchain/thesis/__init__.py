@@ -42,24 +42,28 @@ REPORTED = ["vmax_slope", "vmax1_over_vs", "vmax2_over_vs", "vmax_ratio", "vg_ne
 # Rows that need the chapter's measurements, which this project does not have.
 NEEDS_EXPERIMENT = ["fitted_gap_316", "fitted_gap_440c"]
 
-STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length")
+STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length",
+           "vibrometer")
 
 
 def comparison(packed_sweep: pd.DataFrame, packed_trace: pd.DataFrame | None = None,
                gap_profile: pd.DataFrame | None = None, gap_sweep: pd.DataFrame | None = None,
                extra_length: pd.DataFrame | None = None, trace: dict | None = None,
-               radius: float | None = None) -> pd.DataFrame:
+               radius: float | None = None, vibrometer: pd.DataFrame | None = None
+               ) -> pd.DataFrame:
     """The comparison table (one row per chapter number, columns ``COLUMNS``);
     ``radius`` (m) of the spheres (the tables do not carry it; default 150 um). Only
     packed_sweep is required; rows whose table is not given hold NaN (the
-    pulse_width row needs the trace and is left out without it)."""
+    pulse_width row needs the trace and is left out without it; the vibrometer rows
+    need the vibrometer study's table)."""
     pk = R.packed_chain(packed_sweep, radius)
     rows = (R.packed_chain_rows(pk)
             + R.group_velocity_rows(pk)
             + R.experiment_rows(pk, gap_profile, gap_sweep)
             + R.gap_rows(pk, gap_profile, gap_sweep)
             + R.bound_rows(pk, gap_sweep, extra_length)
-            + R.energy_rows(pk, packed_trace, trace))
+            + R.energy_rows(pk, packed_trace, trace)
+            + R.instrument_rows(pk, vibrometer))
     return pd.DataFrame(rows, columns=COLUMNS)
 
 

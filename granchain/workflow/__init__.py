@@ -13,12 +13,13 @@ as gw``). One job per module; each imports only those above it:
 - ``gather``      batch tables -> a study's table, summary, provenance and timing
 - ``comparison``  LAMMPS against the reference engine (granchain.compare)
 - ``rerun``       one member alone, reproducing its row
+- ``vibrometer``  the vibrometer study: one run per chain, recorded with every setting
 """
 from __future__ import annotations
 
 from .batches import (JOB_OVERHEAD_S, STEP_SECONDS, Batch, batches, estimated_steps,
                       find_batch, members_per_job, realisation_cost, runtime_minutes)
-from .captions import FIGURES, caption_sizes, describe
+from .captions import FIGURES, caption_sizes, describe, vibrometer_sizes
 from .comparison import COMPARISON_META, engine_comparison, write_engine_comparison
 from .config import (ENGINES, ENSEMBLE_STUDIES, SCHEMA, ConfigError, config_error_message,
                      read_config, select_preset, study_engine, validate_config, with_engine)
@@ -27,13 +28,14 @@ from .plan import Plan, load_config
 from .rerun import rerun_member
 from .run import (engine_options, log_to, member_rows, packed_reference, run_batch,
                   run_members, run_traces, set_threads, write_batch)
-from .studies import (ENGINE_ORDER, STUDIES, StudyScene, packed_scene, study_scenes,
-                      trace_scene)
+from .studies import (ENGINE_ORDER, STUDIES, VIBROMETER, StudyScene, packed_scene,
+                      study_scenes, trace_scene, vibrometer_scenes, vibrometer_settings)
+from .vibrometer import VIB_COLUMNS, run_vibrometer, write_vibrometer
 
 __all__ = [
     "JOB_OVERHEAD_S", "STEP_SECONDS", "Batch", "batches", "estimated_steps", "find_batch",
     "members_per_job", "realisation_cost", "runtime_minutes",
-    "FIGURES", "caption_sizes", "describe",
+    "FIGURES", "caption_sizes", "describe", "vibrometer_sizes",
     "COMPARISON_META", "engine_comparison", "write_engine_comparison",
     "ENGINES", "ENSEMBLE_STUDIES", "SCHEMA", "ConfigError", "config_error_message",
     "read_config", "select_preset", "study_engine", "validate_config", "with_engine",
@@ -43,4 +45,6 @@ __all__ = [
     "engine_options", "log_to", "member_rows", "packed_reference", "run_batch", "run_members",
     "run_traces", "set_threads", "write_batch",
     "ENGINE_ORDER", "STUDIES", "StudyScene", "packed_scene", "study_scenes", "trace_scene",
+    "VIBROMETER", "vibrometer_scenes", "vibrometer_settings",
+    "VIB_COLUMNS", "run_vibrometer", "write_vibrometer",
 ]

@@ -71,3 +71,26 @@ def caption_sizes(plan: Plan, study: str) -> dict:
             out[key] = ", ".join(f"{x:g}" for x in v) if isinstance(v, (list, tuple)) \
                 else f"{v:g}"
     return out
+
+
+def vibrometer_sizes(plan: Plan) -> dict:
+    """What the vibrometer captions say about the study, as plain strings (empty
+    without the study)."""
+    if not plan.vibrometer:
+        return {}
+    spec = plan.preset["studies"]["vibrometer"]
+    base = plan.preset["base"]
+    gaps = [ss.gap_mean_nm for ss in plan.vibrometer]
+    gapped = [g for g in gaps if g > 0]
+    return {"preset": plan.name, "n": str(base["n"]), "radius_um": f"{base['radius'] * 1e6:g}",
+            "method": str(base["method"]), "dt_s": f"{base['dt']:g}",
+            "materials": ", ".join(dict.fromkeys(ss.material for ss in plan.vibrometer)),
+            "v_striker": ", ".join(f"{v:g}" for v in spec["v_striker"]),
+            "gaps": ("packed" if 0 in gaps else "") + (
+                (" and " if 0 in gaps else "") + f"{base.get('gap_distribution', 'uniform')} "
+                f"gaps of mean {', '.join(f'{g:g}' for g in gapped)} nm "
+                f"({spec['realisations']} realisations)" if gapped else ""),
+            "bandwidths_mhz": ", ".join(f"{b / 1e6:g}" for b in sorted(spec["bandwidth_hz"])),
+            "filters": ", ".join(spec["filters"]), "order": str(spec["order"]),
+            "sampling_rate_mhz": f"{spec['sampling_rate_hz'] / 1e6:g}",
+            "chains": str(sum(ss.members for ss in plan.vibrometer))}

@@ -12,17 +12,20 @@ from dataclasses import dataclass
 from ..errors import GranchainError
 from .batches import Batch, batches
 from .config import ConfigError, read_config, select_preset
-from .studies import ENGINE_ORDER, STUDIES, StudyScene, study_scenes
+from .studies import (ENGINE_ORDER, STUDIES, StudyScene, study_scenes, vibrometer_scenes,
+                      vibrometer_settings)
 
 
 @dataclass(frozen=True, eq=False)
 class Plan:
     """A preset (``name``, validated ``preset`` mapping) with the study scenes and job
-    batches of every study, in table order."""
+    batches of every study, in table order; ``vibrometer``: the scenes of the optional
+    vibrometer study (empty without it; one job, :mod:`.vibrometer`)."""
     name: str
     preset: dict
     scenes: dict[str, list[StudyScene]]
     batches: dict[str, list[Batch]]
+    vibrometer: tuple[StudyScene, ...] = ()
 
     @classmethod
     def build(cls, config: dict) -> Plan:
@@ -36,7 +39,14 @@ class Plan:
             except ConfigError as exc:
                 raise ConfigError(str(exc).replace("at 'studies.", f"at 'presets.{name}.studies.",
                                                    1)) from None
-        return cls(name, preset, scenes, jobs)
+        try:
+            vib = tuple(vibrometer_scenes(preset))
+            for ss in vib:
+                vibrometer_settings(preset, ss)         # every instrument setting is valid
+        except ConfigError as exc:
+            raise ConfigError(str(exc).replace("at 'studies.", f"at 'presets.{name}.studies.",
+                                               1)) from None
+        return cls(name, preset, scenes, jobs, vib)
 
     def batch(self, study: str, name: str) -> Batch:
         """The batch called ``name`` (e.g. reference_000) of a study."""

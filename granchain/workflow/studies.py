@@ -14,6 +14,9 @@ Studies (chapter figure in brackets):
 - gap_sweep     [5.3c] mean gaps x striker speeds x R realisations, per material
 - extra_length  [5.4b] chains longer than packed by L_extra (gaps from_length)
 - lammps_check  both engines on the same members (LAMMPS cross-validation)
+- vibrometer    [5.2a] the chapter's instrument: true against recorded v_max,1, v_max,2
+                and dt over bandwidths and filters (optional; its own table, not an
+                ensemble study: ``vibrometer_scenes``, ``vibrometer_settings``)
 
 Every other study runs on one engine (``engine`` key, :func:`.config.study_engine`).
 LAMMPS integrates with velocity Verlet, so the scenes of a LAMMPS study say so: their
@@ -33,6 +36,7 @@ from .config import ConfigError, study_engine
 
 STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length",
            "lammps_check")
+VIBROMETER = "vibrometer"
 ENGINE_ORDER = ("reference", "lammps")
 
 
@@ -180,3 +184,53 @@ def trace_scene(ss: StudyScene) -> Scene:
     raw = copy.deepcopy(ss.raw)
     raw["t_end"] = 1.5 * travel
     return _build(raw, "studies.packed_trace")
+
+
+def vibrometer_scenes(preset: dict) -> list[StudyScene]:
+    """The vibrometer study's scenes (none if the preset has no ``vibrometer`` study): one
+    per mean gap (0: the packed chain, one realisation; else ``realisations``), every
+    striker speed, on the reference engine. Each carries the study's first instrument
+    setting as its measurement block (so ``measurement.needs_trace`` holds for it); the
+    other settings filter the same trajectories (:func:`vibrometer_settings`)."""
+    spec = (preset.get("studies") or {}).get(VIBROMETER)
+    if not spec:
+        return []
+    where = f"studies.{VIBROMETER}"
+    dist = preset["base"]["gap_distribution"]
+    first = vibrometer_blocks(spec)[0]
+    out: list[StudyScene] = []
+    for material in _study_materials(preset, spec):
+        for g in _as_list(spec["gap_mean_nm"]):
+            gaps = {"distribution": "none"} if g == 0 else \
+                {"distribution": dist, "mean": float(g) * 1e-9}
+            reals = 1 if g == 0 else spec["realisations"]
+            name = f"{VIBROMETER}-{material}-gap{_fmt_num(g)}nm"
+            raw = _raw_scene(preset, spec, name, material, _as_list(spec["v_striker"]), gaps,
+                             reals)
+            raw["measurement"] = dict(first)
+            out.append(StudyScene(VIBROMETER, len(out), material, float(g), math.nan,
+                                  ("reference",), _build(raw, where), raw))
+    return out
+
+
+def vibrometer_blocks(spec: dict) -> list[dict]:
+    """The measurement blocks of the vibrometer study, filter by filter, bandwidth by
+    bandwidth (ascending): the study's order and sampling rate, no noise."""
+    return [{"bandwidth_hz": float(bw), "filter": f, "order": int(spec["order"]),
+             "sampling_rate_hz": float(spec["sampling_rate_hz"])}
+            for f in spec["filters"] for bw in sorted(_as_list(spec["bandwidth_hz"]))]
+
+
+def vibrometer_settings(preset: dict, ss: StudyScene) -> list:
+    """The instrument settings (:class:`granchain.scene.Measurement`) the vibrometer study
+    applies to the trajectories of a scene, each validated as the scene's measurement
+    block (a bandwidth not below half the sampling rate is refused in one line)."""
+    spec = preset["studies"][VIBROMETER]
+    out = []
+    for block in vibrometer_blocks(spec):
+        try:
+            out.append(ss.scene.derive(measurement=block).measurement)
+        except GranchainError as exc:
+            raise ConfigError(f"invalid configuration at 'studies.{VIBROMETER}' (scene "
+                              f"{ss.scene.name}): {exc}") from None
+    return out

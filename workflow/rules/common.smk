@@ -68,6 +68,45 @@ def batch_runtime(study, engine, index):
     return gw.runtime_minutes(batch_of(study, engine, index).est_seconds, BATCH_THREADS)
 
 
+# The vibrometer study (optional, vibrometer.smk): its scenes and outputs.
+VIB = PLAN.vibrometer
+VIB_SPEC = P["studies"].get("vibrometer") or {}
+
+
+def vib_trace_path(material):
+    return f"{RESULTS}/traces/vibrometer_{material}.npz"
+
+
+def vib_trace_materials():
+    return list(dict.fromkeys(ss.material for ss in VIB if ss.gap_mean_nm == 0))
+
+
+def vibrometer_targets():
+    """The vibrometer study's outputs (none without the study)."""
+    if not VIB:
+        return []
+    return [
+        f"{RESULTS}/tables/vibrometer.csv",
+        f"{RESULTS}/tables/vibrometer.provenance.json",
+        f"{RESULTS}/timing/vibrometer.csv",
+        *[vib_trace_path(m) for m in vib_trace_materials()],
+        *expand(f"{FIG_DIR}/fig5_2a_{{material}}.{{ext}}", material=vib_trace_materials(),
+                ext=["png", "pdf"]),
+        *expand(f"{FIG_DIR}/vibrometer.{{ext}}", ext=["png", "pdf"]),
+    ]
+
+
+MEAS_DIR = Path(workflow.basedir) / "measurements"
+MEASUREMENTS = sorted(p.stem for p in MEAS_DIR.glob("*.csv")) if MEAS_DIR.is_dir() else []
+
+
+def inference_targets(include_examples=True):
+    """results/<preset>/inference/<name>.json and .png for each measurements/<name>.csv
+    (inference.smk); without the shipped synthetic examples (example_*) unless asked."""
+    names = [m for m in MEASUREMENTS if include_examples or not m.startswith("example_")]
+    return [f"{RESULTS}/inference/{m}.{ext}" for m in names for ext in ("json", "png")]
+
+
 def all_targets():
     """Every final output, which the Snakefile's default target asks for: tables and
     summaries, traces, figures, the engine and thesis comparisons, accuracy vs cost."""
@@ -87,4 +126,6 @@ def all_targets():
         f"{RESULTS}/timing/accuracy_cost_cheapest.csv",
         f"{FIG_DIR}/accuracy_cost.png",
         f"{FIG_DIR}/accuracy_cost.pdf",
+        *vibrometer_targets(),      # vibrometer.smk (none without the study)
+        *inference_targets(include_examples=False),   # inference.smk: real measurements only
     ]

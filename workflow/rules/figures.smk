@@ -193,6 +193,7 @@ rule thesis_comparison:
         gap_sweep=table_path("gap_sweep"),
         extra_length=table_path("extra_length"),
         trace=trace_path("ss440c") if "ss440c" in trace_materials() else [],
+        vibrometer=f"{RESULTS}/tables/vibrometer.csv" if PLAN.vibrometer else [],
         code=THESIS_CODE,
     output:
         csv=report(

@@ -5,15 +5,9 @@
 # measurements only (files not named example_*: the shipped example is synthetic). The
 # simulated grids are cached under results/inference_cache, keyed by scene hash, for all
 # presets.
-MEAS_DIR = Path(workflow.basedir) / "measurements"
-MEASUREMENTS = sorted(p.stem for p in MEAS_DIR.glob("*.csv")) if MEAS_DIR.is_dir() else []
+# MEASUREMENTS and inference_targets() are in common.smk (all_targets lists the real ones).
 INFER_CODE = [str(Path(workflow.basedir) / "granchain" / "inference.py"),
               str(Path(workflow.basedir) / "granchain" / "figures" / "inference.py")]
-
-
-def inference_targets(include_examples=True):
-    names = [m for m in MEASUREMENTS if include_examples or not m.startswith("example_")]
-    return [f"{RESULTS}/inference/{m}.{ext}" for m in names for ext in ("json", "png")]
 
 
 wildcard_constraints:
@@ -30,6 +24,7 @@ rule infer_gap:
         csv=str(MEAS_DIR / "{measurement}.csv"),
         scene=str(MEAS_DIR / "{measurement}.yaml"),
         code=INFER_CODE,
+        jit=rules.jit_cache.output,
     output:
         json=f"{RESULTS}/inference/{{measurement}}.json",
         png=report(
