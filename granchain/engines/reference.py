@@ -28,6 +28,7 @@ STATUS_NAMES = {K.S_DONE: "done", K.S_PASSED: "passed", K.S_TIMEOUT: "timeout",
                 K.S_NONFINITE: "nonfinite", K.S_STEPFAIL: "stepfail", K.S_RUNNING: "timeout"}
 WINDOW = 2048                    # samples per kernel call
 CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
+LANES = 8                        # chains per block of the fixed-step kernels
 
 
 @dataclass(frozen=True)
@@ -91,9 +92,11 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
     rtol = tolerance if tolerance is not None else (scene.tolerance or 1e-8)
     if progress is None:
         progress = sys.stderr.isatty() and gaps.shape[0] > 1
-    # Chains with the same sampling run together; normally all of them.
+    # Chains with the same sampling run together; normally all of them. Inside that,
+    # ordered by striker speed and total gap (the flight time that sets the length of a
+    # t_end auto run), so that chains of similar length share a chunk and a block.
     keys = np.array([sample_interval(scene, v) for v in vs])
-    order = np.lexsort((np.arange(len(vs)), keys))
+    order = np.lexsort((np.arange(len(vs)), gaps.sum(axis=1), vs, keys))
     done_total = 0
     out: dict[int, Trajectory] = {}
     next_to_yield = 0
@@ -168,19 +171,19 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
     scale_abs, rel = _error_scales(scene, terms, layout, max(float(vs.max()), 1e-9))
     V_parts = [[] for _ in range(B)]
     E_parts = [[] for _ in range(B)]
-    Vbuf = np.empty((B, WINDOW, n))
-    Ebuf = np.empty((B, WINDOW, K.E_LEN))
     counts = np.zeros(B, dtype=np.int64)
     t0 = time.perf_counter()
-    while np.any(STATUS == K.S_RUNNING):
-        K.run_window(mcode, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL,
-                     layout.LO, scale_abs, rel, rtol, dt, every, sdt, NT, auto, Vbuf, Ebuf,
-                     counts)
-        for b in range(B):
-            c = counts[b]
-            if c:
-                V_parts[b].append(Vbuf[b, :c].copy())
-                E_parts[b].append(Ebuf[b, :c].copy())
+    if mcode == K.M_DOP853:
+        Vbuf = np.empty((B, WINDOW, n))
+        Ebuf = np.empty((B, WINDOW, K.E_LEN))
+        while np.any(STATUS == K.S_RUNNING):
+            K.run_window(mcode, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL,
+                         layout.LO, scale_abs, rel, rtol, dt, every, sdt, NT, auto, Vbuf, Ebuf,
+                         counts)
+            _collect(counts, Vbuf, Ebuf, V_parts, E_parts)
+    else:
+        Y, T, STEPS, STATUS = _run_blocks(mcode, Y, gaps, VTHR, P, FL, layout, dt, every, NT,
+                                          auto, V_parts, E_parts)
     wall = time.perf_counter() - t0
     eff = tuple(sorted(scene.effects))
     for b in range(B):
@@ -197,6 +200,51 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
                          rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
                          wall_s=wall / B, last_overlap=last_overlap,
                          meta={"method": method, "dt": dt, "rtol": rtol, "sample_dt": sdt})
+
+
+def _collect(counts, Vbuf, Ebuf, V_parts, E_parts):
+    for b in range(len(V_parts)):
+        c = counts[b]
+        if c:
+            V_parts[b].append(Vbuf[b, :c].copy())
+            E_parts[b].append(Ebuf[b, :c].copy())
+
+
+def _run_blocks(mcode, Y0, gaps, VTHR, P, FL, layout, dt, every, NT, auto, V_parts, E_parts):
+    """Fixed-step methods: the chains in blocks of LANES (consecutive chains share a block,
+    the last block padded with lanes at rest that record nothing), stepped in lockstep by
+    ``kernels.run_blocks``. Returns each chain's final state, time, steps and status."""
+    B, ny = Y0.shape
+    n = gaps.shape[1] + 1
+    Lb = LANES
+    nblk = -(-B // Lb)
+    Bp = nblk * Lb
+    Yp = np.zeros((Bp, ny))
+    Yp[:B] = Y0
+    Gp = np.zeros((Bp, n - 1))
+    Gp[:B] = gaps
+    # (nblk, ny, L): chains innermost
+    YB = np.ascontiguousarray(Yp.reshape(nblk, Lb, ny).transpose(0, 2, 1))
+    GB = np.ascontiguousarray(Gp.reshape(nblk, Lb, n - 1).transpose(0, 2, 1))
+    ACC = np.zeros_like(YB)
+    YF = np.zeros((Bp, ny))
+    T = np.zeros(Bp)
+    NS = np.zeros(Bp, dtype=np.int64)
+    STEPS = np.zeros(Bp, dtype=np.int64)
+    STATUS = np.full(Bp, K.S_DONE, dtype=np.int64)
+    STATUS[:B] = K.S_RUNNING
+    VT = np.zeros(Bp)
+    VT[:B] = VTHR
+    NTp = np.ones(Bp, dtype=np.int64)
+    NTp[:B] = NT
+    Vbuf = np.empty((Bp, WINDOW, n))
+    Ebuf = np.empty((Bp, WINDOW, K.E_LEN))
+    counts = np.zeros(Bp, dtype=np.int64)
+    while np.any(STATUS[:B] == K.S_RUNNING):
+        K.run_blocks(mcode, YB, ACC, YF, T, NS, STEPS, STATUS, VT, GB, P, FL, layout.LO, dt,
+                     every, NTp, auto, Vbuf, Ebuf, counts)
+        _collect(counts[:B], Vbuf, Ebuf, V_parts, E_parts)
+    return YF[:B], T[:B], STEPS[:B], STATUS[:B]
 
 
 def _error_scales(scene, terms, layout, v):
