@@ -104,8 +104,47 @@ _blk = njit(cache=True, error_model="numpy", boundscheck=False)
 
 
 @njit(cache=True, inline="always")
+def _flat(a):
+    return a.reshape(a.size)
+
+
+@njit(cache=True, inline="always")
 def _overlap_l(y, ox, gaps, k, l):
     return y[ox + k, l] - y[ox + k + 1, l] - gaps[k, l]
+
+
+# Activity tests of a block row. Work whose result is exactly nothing for every lane is
+# skipped: a contact open in every lane (no Hertz force, no friction), a sphere exactly
+# at rest with a zero groove history in every lane (zero drag and groove force). The
+# skipped work would only add zeros (to sums that are never -0.0), so skipping it does
+# not change a bit; most contacts are open and most spheres ahead of the wave at rest.
+@njit(cache=True, inline="always")
+def _bit(mask, k):
+    return k < 63 and (mask >> k) & 1 != 0
+
+
+@njit(cache=True, inline="always")
+def _any_contact(y, ox, gaps, k, L):
+    c = 0
+    for l in range(L):
+        c += 1 if _overlap_l(y, ox, gaps, k, l) > 0.0 else 0
+    return c > 0
+
+
+@njit(cache=True, inline="always")
+def _any_positive(a, r, L):
+    c = 0
+    for l in range(L):
+        c += 1 if a[r, l] > 0.0 else 0
+    return c > 0
+
+
+@njit(cache=True, inline="always")
+def _moving(a, r, L):
+    c = 0
+    for l in range(L):
+        c += 1 if a[r, l] != 0.0 else 0
+    return c > 0
 
 
 @_blk
@@ -129,24 +168,38 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
     rot = FL[F_ROT] != 0
     # a row that exists when rotation is off (its value is then never used)
     owr = ow if rot else ov
+    # bit k of shut: contact k (k < 63) is open in every lane, its row of f is zero
+    shut = 0
     for k in range(n - 1):
-        for l in range(L):
-            f[k, l] = _hertz_force(K, _overlap_l(y, ox, gaps, k, l))
-    for i in range(n):
-        if i == 0:
+        if _any_contact(y, ox, gaps, k, L):
             for l in range(L):
-                dy[ov, l] = (0.0 - f[0, l]) / m if n > 1 else 0.0 / m
+                f[k, l] = _hertz_force(K, _overlap_l(y, ox, gaps, k, l))
+        else:
+            for l in range(L):
+                f[k, l] = 0.0
+            if k < 63:
+                shut |= 1 << k
+    for i in range(n):
+        if (i == 0 or _bit(shut, i - 1)) and (i == n - 1 or _bit(shut, i)):
+            # no force on sphere i in any lane: (0 + 0 - 0) / m
+            for l in range(L):
+                dy[ov + i, l] = 0.0
+        elif i == 0:
+            for l in range(L):
+                dy[ov, l] = (0.0 - f[0, l]) / m
         elif i == n - 1:
             for l in range(L):
                 dy[ov + i, l] = (0.0 + f[i - 1, l]) / m
         else:
             for l in range(L):
                 dy[ov + i, l] = (0.0 + f[i - 1, l] - f[i, l]) / m
-        for l in range(L):
-            dy[ox + i, l] = y[ov + i, l]
-        if rot:
-            for l in range(L):
-                dy[ow + i, l] = 0.0
+    yf, dyf = _flat(y), _flat(dy)
+    nL = n * L
+    for j in range(nL):
+        dyf[ox * L + j] = yf[ov * L + j]
+    if rot:
+        for j in range(nL):
+            dyf[ow * L + j] = 0.0
 
     if FL[F_DRAG] != 0:
         T0 = P[P_T0]
@@ -156,6 +209,8 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
         for l in range(L):
             dy[owd, l] = 0.0
         for i in range(n):
+            if not _moving(y, ov + i, L):
+                continue
             for l in range(L):
                 v = y[ov + i, l]
                 F = _drag_force(m, v, T0, Ld, odd)
@@ -173,6 +228,11 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
         for l in range(L):
             dy[owg, l] = 0.0
         for i in range(n):
+            if not (_moving(y, ov + i, L) or _moving(y, og + i, L)
+                    or (rot and _moving(y, ow + i, L))):
+                for l in range(L):
+                    dy[og + i, l] = 0.0
+                continue
             if hist_dt > 0.0:
                 for l in range(L):
                     u = _groove_slip(y[ov + i, l], y[owr + i, l], sR, rot)
@@ -198,6 +258,13 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
         for l in range(L):
             dy[owt, l] = 0.0
         for k in range(n - 1):
+            if _bit(shut, k) or not _any_positive(f, k, L):
+                for l in range(L):
+                    dy[ot + k, l] = 0.0
+                if hist_dt > 0.0:
+                    for l in range(L):
+                        y[ot + k, l] = 0.0
+                continue
             if hist_dt > 0.0:
                 for l in range(L):
                     fn = f[k, l]
@@ -242,6 +309,13 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
         for l in range(L):
             dy[owro, l] = 0.0
         for k in range(n - 1):
+            if _bit(shut, k) or not _any_positive(f, k, L):
+                for l in range(L):
+                    dy[op + k, l] = 0.0
+                if hist_dt > 0.0:
+                    for l in range(L):
+                        y[op + k, l] = 0.0
+                continue
             if hist_dt > 0.0:
                 for l in range(L):
                     # Verlet: LAMMPS's order with the half-step spins
@@ -295,6 +369,9 @@ def project_block(y, gaps, P, FL, LO, f):
         sR = P[P_S] * P[P_R]
         og = LO[L_XG]
         for i in range(n):
+            if not (_moving(y, ov + i, L) or _moving(y, og + i, L)
+                    or (rot and _moving(y, ow + i, L))):
+                continue
             for l in range(L):
                 u = _groove_slip(y[ov + i, l], y[owr + i, l], sR, rot)
                 y[og + i, l] = _groove_map(y[og + i, l], u, kg, gam, Fc)
@@ -304,6 +381,10 @@ def project_block(y, gaps, P, FL, LO, f):
         ktc = P[P_KT]
         mindlin = FL[F_MINDLIN] != 0
         for k in range(n - 1):
+            if not _any_contact(y, ox, gaps, k, L):
+                for l in range(L):
+                    y[ot + k, l] = 0.0
+                continue
             for l in range(L):
                 d = _overlap_l(y, ox, gaps, k, l)
                 kt = ktc * math.sqrt(d) if mindlin else ktc
@@ -316,6 +397,10 @@ def project_block(y, gaps, P, FL, LO, f):
         gr = P[P_GR]
         mur = P[P_MUR]
         for k in range(n - 1):
+            if not _any_contact(y, ox, gaps, k, L):
+                for l in range(L):
+                    y[op + k, l] = 0.0
+                continue
             for l in range(L):
                 d = _overlap_l(y, ox, gaps, k, l)
                 vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
@@ -349,6 +434,8 @@ def energies_block(y, gaps, P, FL, LO, out):
         for l in range(L):
             out[E_KR, l] *= hI
     for k in range(n - 1):
+        if not _any_contact(y, ox, gaps, k, L):
+            continue
         for l in range(L):
             out[E_H, l] += _hertz_energy(K, _overlap_l(y, ox, gaps, k, l))
     for slot, col in ((L_WG, E_WG), (L_WD, E_WD), (L_WT, E_WT), (L_WR, E_WR)):

@@ -14,6 +14,7 @@ import sys
 import time
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ..schedule import arrival_speed, auto_t_max, expected_duration, sample_interval
@@ -26,9 +27,11 @@ from . import kernels as K
 METHOD_CODES = {"rk4": K.M_RK4, "verlet": K.M_VERLET, "adaptive": K.M_DOP853}
 STATUS_NAMES = {K.S_DONE: "done", K.S_PASSED: "passed", K.S_TIMEOUT: "timeout",
                 K.S_NONFINITE: "nonfinite", K.S_STEPFAIL: "stepfail", K.S_RUNNING: "timeout"}
-WINDOW = 2048                    # samples per kernel call
+WINDOW = 2048                    # samples per kernel call (adaptive method)
+BLOCK_WINDOW = 256               # samples per kernel call (fixed-step blocks)
 CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
-LANES = 8                        # chains per block of the fixed-step kernels
+CHUNK_CHAINS = 512               # at most this many chains in a chunk
+LANES = 32                       # chains per block of the fixed-step kernels
 
 
 @dataclass(frozen=True)
@@ -107,7 +110,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         while stop < len(order) and keys[order[stop]] == key:
             stop += 1
         group = order[start:stop]
-        for chunk in _chunks(group, scene, terms, key):
+        for chunk in _chunks(group, scene, terms, key, method):
             for idx, traj in zip(chunk, _run_chunk(scene, terms, gaps[chunk], vs[chunk], method,
                                                     dt, rtol, key)):
                 out[int(idx)] = traj
@@ -126,7 +129,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         next_to_yield += 1
 
 
-def _chunks(group, scene, terms, sample_dt):
+def _chunks(group, scene, terms, sample_dt, method):
     """Split chains into chunks whose recorded samples fit in CHUNK_BYTES."""
     if scene.t_end is not None:
         t_est = scene.t_end
@@ -135,8 +138,13 @@ def _chunks(group, scene, terms, sample_dt):
         # than their mean
         v = max(float(np.min(scene.striker_velocities)), 1e-6)
         t_est = 4.0 * expected_duration(scene, v)
-    per_chain = (t_est / sample_dt + WINDOW) * (terms.n + K.E_LEN) * 8
-    size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, 128)))
+    window = WINDOW if method == "adaptive" else BLOCK_WINDOW
+    per_chain = (t_est / sample_dt + window) * (terms.n + K.E_LEN) * 8
+    size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, CHUNK_CHAINS)))
+    if method != "adaptive" and size < len(group):
+        # whole blocks, as many on every thread
+        unit = LANES * numba.get_num_threads()
+        size = max(LANES, size // unit * unit)
     for i in range(0, len(group), size):
         yield group[i:i + size]
 
@@ -237,8 +245,8 @@ def _run_blocks(mcode, Y0, gaps, VTHR, P, FL, layout, dt, every, NT, auto, V_par
     VT[:B] = VTHR
     NTp = np.ones(Bp, dtype=np.int64)
     NTp[:B] = NT
-    Vbuf = np.empty((Bp, WINDOW, n))
-    Ebuf = np.empty((Bp, WINDOW, K.E_LEN))
+    Vbuf = np.empty((Bp, BLOCK_WINDOW, n))
+    Ebuf = np.empty((Bp, BLOCK_WINDOW, K.E_LEN))
     counts = np.zeros(Bp, dtype=np.int64)
     while np.any(STATUS[:B] == K.S_RUNNING):
         K.run_blocks(mcode, YB, ACC, YF, T, NS, STEPS, STATUS, VT, GB, P, FL, layout.LO, dt,
