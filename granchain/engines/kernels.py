@@ -92,9 +92,65 @@ _rolling_moment = _law(rolling_friction.moment)
 _rolling_moment_lammps = _law(rolling_friction.moment_lammps_order)
 
 
-@njit(cache=True)
-def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
-    """Time derivative dy of state y; f receives the Hertz force of every contact.
+# Block kernels: the state of L chains is stored as an (ny, L) array, chains innermost,
+# and every loop runs over the lanes innermost, so that LLVM vectorises across chains.
+# Each effect's law is still called per lane; its branches become selects (no per-lane
+# branch: a lane-dependent ``if`` is written as ``a if cond else b`` on values that are
+# computed for every lane, and a lane's discarded value (e.g. the sqrt of a negative
+# overlap of an open contact) never reaches the state). The arithmetic of a lane is the
+# same, operation for operation, as that of one chain alone (no fastmath: no reassociation
+# and no FMA contraction), so a chain's trajectory does not depend on its lane or block.
+_blk = njit(cache=True, error_model="numpy", boundscheck=False)
+
+
+@njit(cache=True, inline="always")
+def _flat(a):
+    return a.reshape(a.size)
+
+
+@njit(cache=True, inline="always")
+def _overlap_l(y, ox, gaps, k, l):
+    return y[ox + k, l] - y[ox + k + 1, l] - gaps[k, l]
+
+
+# Activity tests of a block row. Work whose result is exactly nothing for every lane is
+# skipped: a contact open in every lane (no Hertz force, no friction), a sphere exactly
+# at rest with a zero groove history in every lane (zero drag and groove force). The
+# skipped work would only add zeros (to sums that are never -0.0), so skipping it does
+# not change a bit; most contacts are open and most spheres ahead of the wave at rest.
+@njit(cache=True, inline="always")
+def _bit(mask, k):
+    return k < 63 and (mask >> k) & 1 != 0
+
+
+@njit(cache=True, inline="always")
+def _any_contact(y, ox, gaps, k, L):
+    c = 0
+    for l in range(L):
+        c += 1 if _overlap_l(y, ox, gaps, k, l) > 0.0 else 0
+    return c > 0
+
+
+@njit(cache=True, inline="always")
+def _any_positive(a, r, L):
+    c = 0
+    for l in range(L):
+        c += 1 if a[r, l] > 0.0 else 0
+    return c > 0
+
+
+@njit(cache=True, inline="always")
+def _moving(a, r, L):
+    c = 0
+    for l in range(L):
+        c += 1 if a[r, l] != 0.0 else 0
+    return c > 0
+
+
+@_blk
+def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
+    """Time derivative dy (ny, L) of the block state y (ny, L); f (n-1, L) receives the
+    Hertz force of every contact.
 
     With hist_dt > 0 (velocity Verlet), the friction histories in y are first advanced
     by slip*hist_dt and return-mapped, as LAMMPS does inside its force call; with
@@ -102,6 +158,7 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
     history rates.
     """
     n = int(P[P_N])
+    L = y.shape[1]
     R = P[P_R]
     m = P[P_M]
     K = P[P_K]
@@ -109,30 +166,56 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
     ov = LO[L_V]
     ow = LO[L_W]
     rot = FL[F_ROT] != 0
+    # a row that exists when rotation is off (its value is then never used)
+    owr = ow if rot else ov
+    # bit k of shut: contact k (k < 63) is open in every lane, its row of f is zero
+    shut = 0
     for k in range(n - 1):
-        f[k] = _hertz_force(K, _overlap(y, ox, gaps, k))
+        if _any_contact(y, ox, gaps, k, L):
+            for l in range(L):
+                f[k, l] = _hertz_force(K, _overlap_l(y, ox, gaps, k, l))
+        else:
+            for l in range(L):
+                f[k, l] = 0.0
+            if k < 63:
+                shut |= 1 << k
     for i in range(n):
-        fi = 0.0
-        if i > 0:
-            fi += f[i - 1]
-        if i < n - 1:
-            fi -= f[i]
-        dy[ox + i] = y[ov + i]
-        dy[ov + i] = fi / m
-        if rot:
-            dy[ow + i] = 0.0
+        if (i == 0 or _bit(shut, i - 1)) and (i == n - 1 or _bit(shut, i)):
+            # no force on sphere i in any lane: (0 + 0 - 0) / m
+            for l in range(L):
+                dy[ov + i, l] = 0.0
+        elif i == 0:
+            for l in range(L):
+                dy[ov, l] = (0.0 - f[0, l]) / m
+        elif i == n - 1:
+            for l in range(L):
+                dy[ov + i, l] = (0.0 + f[i - 1, l]) / m
+        else:
+            for l in range(L):
+                dy[ov + i, l] = (0.0 + f[i - 1, l] - f[i, l]) / m
+    yf, dyf = _flat(y), _flat(dy)
+    nL = n * L
+    for j in range(nL):
+        dyf[ox * L + j] = yf[ov * L + j]
+    if rot:
+        for j in range(nL):
+            dyf[ow * L + j] = 0.0
 
     if FL[F_DRAG] != 0:
         T0 = P[P_T0]
-        L = P[P_L]
+        Ld = P[P_L]
         odd = FL[F_ODD] != 0
-        pw = 0.0
+        owd = LO[L_WD]
+        for l in range(L):
+            dy[owd, l] = 0.0
         for i in range(n):
-            v = y[ov + i]
-            F = _drag_force(m, v, T0, L, odd)
-            dy[ov + i] += F / m
-            pw += F * v
-        dy[LO[L_WD]] = pw
+            if not _moving(y, ov + i, L):
+                continue
+            for l in range(L):
+                v = y[ov + i, l]
+                F = _drag_force(m, v, T0, Ld, odd)
+                dy[ov + i, l] += F / m
+                dy[owd, l] += F * v
 
     if FL[F_GROOVE] != 0:
         sR = P[P_S] * R
@@ -141,20 +224,29 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
         gam = P[P_GG]
         I = P[P_I]
         og = LO[L_XG]
-        pw = 0.0
+        owg = LO[L_WG]
+        for l in range(L):
+            dy[owg, l] = 0.0
         for i in range(n):
-            u = _groove_slip(y[ov + i], y[ow + i] if rot else 0.0, sR, rot)
-            xi = y[og + i]
+            if not (_moving(y, ov + i, L) or _moving(y, og + i, L)
+                    or (rot and _moving(y, ow + i, L))):
+                for l in range(L):
+                    dy[og + i, l] = 0.0
+                continue
             if hist_dt > 0.0:
-                xi = _groove_map(xi + u * hist_dt, u, kg, gam, Fc)
-                y[og + i] = xi
-            # history rate: xi' = u in stick; held while sliding at the cap
-            F, dy[og + i] = _groove_force(xi, u, kg, gam, Fc)
-            dy[ov + i] += F / m
-            if rot:
-                dy[ow + i] += -sR * F / I
-            pw += F * u
-        dy[LO[L_WG]] = pw
+                for l in range(L):
+                    u = _groove_slip(y[ov + i, l], y[owr + i, l], sR, rot)
+                    xi = _groove_map(y[og + i, l] + u * hist_dt, u, kg, gam, Fc)
+                    y[og + i, l] = xi
+            for l in range(L):
+                u = _groove_slip(y[ov + i, l], y[owr + i, l], sR, rot)
+                # history rate: xi' = u in stick; held while sliding at the cap
+                F, rate = _groove_force(y[og + i, l], u, kg, gam, Fc)
+                dy[og + i, l] = rate
+                dy[ov + i, l] += F / m
+                dy[owg, l] += F * u
+                if rot:
+                    dy[ow + i, l] += -sR * F / I
 
     if FL[F_PP] != 0:
         mu = P[P_MU]
@@ -162,30 +254,45 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
         I = P[P_I]
         mindlin = FL[F_MINDLIN] != 0
         ot = LO[L_XT]
-        pw = 0.0
+        owt = LO[L_WT]
+        for l in range(L):
+            dy[owt, l] = 0.0
         for k in range(n - 1):
-            fn = f[k]
-            if fn > 0.0:
-                d = _overlap(y, ox, gaps, k)
-                kt = ktc * math.sqrt(d) if mindlin else ktc
-                w = R * (y[ow + k] + y[ow + k + 1])
-                xi = y[ot + k]
-                cap = mu * fn
+            if _bit(shut, k) or not _any_positive(f, k, L):
+                for l in range(L):
+                    dy[ot + k, l] = 0.0
                 if hist_dt > 0.0:
-                    xi = _contact_map(xi + w * hist_dt, kt, cap)
-                    y[ot + k] = xi
-                T, dy[ot + k] = _contact_force(xi, w, kt, cap)
+                    for l in range(L):
+                        y[ot + k, l] = 0.0
+                continue
+            if hist_dt > 0.0:
+                for l in range(L):
+                    fn = f[k, l]
+                    d = _overlap_l(y, ox, gaps, k, l)
+                    kt = ktc * math.sqrt(d) if mindlin else ktc
+                    w = R * (y[ow + k, l] + y[ow + k + 1, l])
+                    xi = _contact_map(y[ot + k, l] + w * hist_dt, kt, mu * fn)
+                    y[ot + k, l] = xi if fn > 0.0 else 0.0
+            for l in range(L):
+                fn = f[k, l]
+                loaded = fn > 0.0
+                d = _overlap_l(y, ox, gaps, k, l)
+                kt = ktc * math.sqrt(d) if mindlin else ktc
+                wk = y[ow + k, l]
+                wk1 = y[ow + k + 1, l]
+                w = R * (wk + wk1)
+                T, rate = _contact_force(y[ot + k, l], w, kt, mu * fn)
                 # LAMMPS applies the tangential force at the contact point: lever arm
                 # R - delta/2 (the slip above uses full radii, as LAMMPS does)
                 arm = R - 0.5 * d
-                dy[ow + k] += arm * T / I
-                dy[ow + k + 1] += arm * T / I
-                pw += T * arm * (y[ow + k] + y[ow + k + 1])
-            else:
-                if hist_dt > 0.0:
-                    y[ot + k] = 0.0
-                dy[ot + k] = 0.0
-        dy[LO[L_WT]] = pw
+                tq = arm * T / I
+                dy[ot + k, l] = rate if loaded else 0.0
+                a = dy[ow + k, l]
+                dy[ow + k, l] = a + tq if loaded else a
+                a = dy[ow + k + 1, l]
+                dy[ow + k + 1, l] = a + tq if loaded else a
+                a = dy[owt, l]
+                dy[owt, l] = a + T * arm * (wk + wk1) if loaded else a
 
     if FL[F_ROLL] != 0:
         # LAMMPS rolling sds on the 1D line (docs/lammps_laws.md sections 5 and 8):
@@ -198,146 +305,241 @@ def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
         I = P[P_I]
         Reff = 0.5 * R
         op = LO[L_PS]
-        pw = 0.0
+        owro = LO[L_WR]
+        for l in range(L):
+            dy[owro, l] = 0.0
         for k in range(n - 1):
-            fn = f[k]
-            if fn > 0.0:
-                vr = Reff * (y[ow + k] - y[ow + k + 1])
-                rho = y[op + k]
-                cap = mur * fn
+            if _bit(shut, k) or not _any_positive(f, k, L):
+                for l in range(L):
+                    dy[op + k, l] = 0.0
                 if hist_dt > 0.0:
+                    for l in range(L):
+                        y[op + k, l] = 0.0
+                continue
+            if hist_dt > 0.0:
+                for l in range(L):
                     # Verlet: LAMMPS's order with the half-step spins
-                    rho, M = _rolling_moment_lammps(rho, vr, kr, gr, cap, hist_dt)
-                    y[op + k] = rho
-                else:
+                    fn = f[k, l]
+                    loaded = fn > 0.0
+                    vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
+                    rho, M = _rolling_moment_lammps(y[op + k, l], vr, kr, gr, mur * fn, hist_dt)
+                    y[op + k, l] = rho if loaded else 0.0
+                    dy[op + k, l] = vr if loaded else 0.0
+                    tq = Reff * M / I
+                    a = dy[ow + k, l]
+                    dy[ow + k, l] = a + tq if loaded else a
+                    a = dy[ow + k + 1, l]
+                    dy[ow + k + 1, l] = a - tq if loaded else a
+                    a = dy[owro, l]
+                    dy[owro, l] = a + M * vr if loaded else a
+            else:
+                for l in range(L):
                     # continuous law (RK4, DOP853): rho' = v_roll, project() return-maps
                     # rho after the step
-                    M = _rolling_moment(rho, vr, kr, gr, cap)
-                dy[op + k] = vr
-                tq = Reff * M / I
-                dy[ow + k] += tq
-                dy[ow + k + 1] -= tq
-                pw += M * vr
-            else:
-                if hist_dt > 0.0:
-                    y[op + k] = 0.0
-                dy[op + k] = 0.0
-        dy[LO[L_WR]] = pw
+                    fn = f[k, l]
+                    loaded = fn > 0.0
+                    vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
+                    M = _rolling_moment(y[op + k, l], vr, kr, gr, mur * fn)
+                    dy[op + k, l] = vr if loaded else 0.0
+                    tq = Reff * M / I
+                    a = dy[ow + k, l]
+                    dy[ow + k, l] = a + tq if loaded else a
+                    a = dy[ow + k + 1, l]
+                    dy[ow + k + 1, l] = a - tq if loaded else a
+                    a = dy[owro, l]
+                    dy[owro, l] = a + M * vr if loaded else a
 
 
-@njit(cache=True)
-def project(y, gaps, P, FL, LO, f):
-    """Return mapping of the friction histories onto their Coulomb caps (after a step)."""
+@_blk
+def project_block(y, gaps, P, FL, LO, f):
+    """Return mapping of the friction histories of a block onto their Coulomb caps
+    (after a step)."""
     n = int(P[P_N])
+    L = y.shape[1]
+    ox = LO[L_X]
+    ov = LO[L_V]
+    ow = LO[L_W]
+    rot = FL[F_ROT] != 0
+    owr = ow if rot else ov
+    K = P[P_K]
     if FL[F_GROOVE] != 0:
         Fc = P[P_FC]
         kg = P[P_KG]
         gam = P[P_GG]
         sR = P[P_S] * P[P_R]
         og = LO[L_XG]
-        ov = LO[L_V]
-        ow = LO[L_W]
         for i in range(n):
-            rot = FL[F_ROT] != 0
-            u = _groove_slip(y[ov + i], y[ow + i] if rot else 0.0, sR, rot)
-            y[og + i] = _groove_map(y[og + i], u, kg, gam, Fc)
+            if not (_moving(y, ov + i, L) or _moving(y, og + i, L)
+                    or (rot and _moving(y, ow + i, L))):
+                continue
+            for l in range(L):
+                u = _groove_slip(y[ov + i, l], y[owr + i, l], sR, rot)
+                y[og + i, l] = _groove_map(y[og + i, l], u, kg, gam, Fc)
     if FL[F_PP] != 0:
-        ox = LO[L_X]
         ot = LO[L_XT]
-        K = P[P_K]
         mu = P[P_MU]
+        ktc = P[P_KT]
+        mindlin = FL[F_MINDLIN] != 0
         for k in range(n - 1):
-            d = _overlap(y, ox, gaps, k)
-            if d <= 0.0:
-                y[ot + k] = 0.0
-            else:
-                kt = P[P_KT] * math.sqrt(d) if FL[F_MINDLIN] != 0 else P[P_KT]
-                y[ot + k] = _contact_map(y[ot + k], kt, mu * K * d * math.sqrt(d))
+            if not _any_contact(y, ox, gaps, k, L):
+                for l in range(L):
+                    y[ot + k, l] = 0.0
+                continue
+            for l in range(L):
+                d = _overlap_l(y, ox, gaps, k, l)
+                kt = ktc * math.sqrt(d) if mindlin else ktc
+                xi = _contact_map(y[ot + k, l], kt, mu * K * d * math.sqrt(d))
+                y[ot + k, l] = 0.0 if d <= 0.0 else xi
     if FL[F_ROLL] != 0:
-        ox = LO[L_X]
-        ow = LO[L_W]
         op = LO[L_PS]
-        K = P[P_K]
         Reff = 0.5 * P[P_R]
+        kr = P[P_KR]
+        gr = P[P_GR]
+        mur = P[P_MUR]
         for k in range(n - 1):
-            d = _overlap(y, ox, gaps, k)
-            if d <= 0.0:
-                y[op + k] = 0.0
-            else:
-                vr = Reff * (y[ow + k] - y[ow + k + 1])
-                y[op + k] = _rolling_map(y[op + k], vr, P[P_KR], P[P_GR],
-                                         P[P_MUR] * K * d * math.sqrt(d))
+            if not _any_contact(y, ox, gaps, k, L):
+                for l in range(L):
+                    y[op + k, l] = 0.0
+                continue
+            for l in range(L):
+                d = _overlap_l(y, ox, gaps, k, l)
+                vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
+                rho = _rolling_map(y[op + k, l], vr, kr, gr, mur * K * d * math.sqrt(d))
+                y[op + k, l] = 0.0 if d <= 0.0 else rho
 
 
-@njit(cache=True)
-def energies(y, gaps, P, FL, LO, out):
+@_blk
+def energies_block(y, gaps, P, FL, LO, out):
+    """Energy ledger (E_LEN, L) of a block: kinetic, Hertz potential, accumulated works."""
     n = int(P[P_N])
+    L = y.shape[1]
     ox = LO[L_X]
     ov = LO[L_V]
     m = P[P_M]
     K = P[P_K]
-    ekt = 0.0
+    for e in range(E_LEN):
+        for l in range(L):
+            out[e, l] = 0.0
     for i in range(n):
-        ekt += y[ov + i] * y[ov + i]
-    out[E_KT] = 0.5 * m * ekt
-    ekr = 0.0
+        for l in range(L):
+            out[E_KT, l] += y[ov + i, l] * y[ov + i, l]
+    for l in range(L):
+        out[E_KT, l] = 0.5 * m * out[E_KT, l]
     if FL[F_ROT] != 0:
         ow = LO[L_W]
         for i in range(n):
-            ekr += y[ow + i] * y[ow + i]
-        ekr *= 0.5 * P[P_I]
-    out[E_KR] = ekr
-    eh = 0.0
+            for l in range(L):
+                out[E_KR, l] += y[ow + i, l] * y[ow + i, l]
+        hI = 0.5 * P[P_I]
+        for l in range(L):
+            out[E_KR, l] *= hI
     for k in range(n - 1):
-        eh += _hertz_energy(K, _overlap(y, ox, gaps, k))
-    out[E_H] = eh
-    out[E_WG] = y[LO[L_WG]] if LO[L_WG] >= 0 else 0.0
-    out[E_WD] = y[LO[L_WD]] if LO[L_WD] >= 0 else 0.0
-    out[E_WT] = y[LO[L_WT]] if LO[L_WT] >= 0 else 0.0
-    out[E_WR] = y[LO[L_WR]] if LO[L_WR] >= 0 else 0.0
+        if not _any_contact(y, ox, gaps, k, L):
+            continue
+        for l in range(L):
+            out[E_H, l] += _hertz_energy(K, _overlap_l(y, ox, gaps, k, l))
+    for slot, col in ((L_WG, E_WG), (L_WD, E_WD), (L_WT, E_WT), (L_WR, E_WR)):
+        o = LO[slot]
+        if o >= 0:
+            for l in range(L):
+                out[col, l] = y[o, l]
+
+
+@_blk
+def rk4_block(y, h, gaps, P, FL, LO, k1, k2, k3, k4, tmp, f):
+    """One classical RK4 step of a block, then the return mapping."""
+    ny, L = y.shape
+    hh = 0.5 * h
+    h6 = h / 6.0
+    forces_block(y, gaps, P, FL, LO, 0.0, k1, f)
+    for j in range(ny):
+        for l in range(L):
+            tmp[j, l] = y[j, l] + hh * k1[j, l]
+    forces_block(tmp, gaps, P, FL, LO, 0.0, k2, f)
+    for j in range(ny):
+        for l in range(L):
+            tmp[j, l] = y[j, l] + hh * k2[j, l]
+    forces_block(tmp, gaps, P, FL, LO, 0.0, k3, f)
+    for j in range(ny):
+        for l in range(L):
+            tmp[j, l] = y[j, l] + h * k3[j, l]
+    forces_block(tmp, gaps, P, FL, LO, 0.0, k4, f)
+    for j in range(ny):
+        for l in range(L):
+            y[j, l] += h6 * (k1[j, l] + 2.0 * k2[j, l] + 2.0 * k3[j, l] + k4[j, l])
+    project_block(y, gaps, P, FL, LO, f)
+
+
+@_blk
+def verlet_block(y, acc, h, gaps, P, FL, LO, f):
+    """One LAMMPS-order velocity-Verlet step of a block; acc holds the derivative of the
+    last call."""
+    n = int(P[P_N])
+    L = y.shape[1]
+    ox = LO[L_X]
+    ov = LO[L_V]
+    ow = LO[L_W]
+    rot = FL[F_ROT] != 0
+    hh = 0.5 * h
+    for i in range(n):
+        for l in range(L):
+            y[ov + i, l] += hh * acc[ov + i, l]
+        if rot:
+            for l in range(L):
+                y[ow + i, l] += hh * acc[ow + i, l]
+    for i in range(n):
+        for l in range(L):
+            y[ox + i, l] += h * y[ov + i, l]
+    forces_block(y, gaps, P, FL, LO, h, acc, f)
+    for c in (L_WG, L_WD, L_WT, L_WR):
+        o = LO[c]
+        if o >= 0:
+            for l in range(L):
+                y[o, l] += h * acc[o, l]
+    for i in range(n):
+        for l in range(L):
+            y[ov + i, l] += hh * acc[ov + i, l]
+        if rot:
+            for l in range(L):
+                y[ow + i, l] += hh * acc[ow + i, l]
+
+
+# Per-chain entry points (1D state of one chain): the block routines on a block of one
+# lane. The adaptive method and the tests use these.
+@njit(cache=True, inline="always")
+def _col(a):
+    return a.reshape((a.shape[0], 1))
+
+
+@njit(cache=True)
+def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
+    """Time derivative dy of one chain's state y; f receives the Hertz force of every
+    contact (``forces_block`` on one lane)."""
+    forces_block(_col(y), _col(gaps), P, FL, LO, hist_dt, _col(dy), _col(f))
+
+
+@njit(cache=True)
+def project(y, gaps, P, FL, LO, f):
+    """Return mapping of one chain's friction histories (``project_block`` on one lane)."""
+    project_block(_col(y), _col(gaps), P, FL, LO, _col(f))
+
+
+@njit(cache=True)
+def energies(y, gaps, P, FL, LO, out):
+    """Energy ledger of one chain (``energies_block`` on one lane)."""
+    energies_block(_col(y), _col(gaps), P, FL, LO, _col(out))
 
 
 @njit(cache=True)
 def rk4_step(y, h, gaps, P, FL, LO, k1, k2, k3, k4, tmp, f):
-    ny = y.shape[0]
-    forces(y, gaps, P, FL, LO, 0.0, k1, f)
-    for j in range(ny):
-        tmp[j] = y[j] + 0.5 * h * k1[j]
-    forces(tmp, gaps, P, FL, LO, 0.0, k2, f)
-    for j in range(ny):
-        tmp[j] = y[j] + 0.5 * h * k2[j]
-    forces(tmp, gaps, P, FL, LO, 0.0, k3, f)
-    for j in range(ny):
-        tmp[j] = y[j] + h * k3[j]
-    forces(tmp, gaps, P, FL, LO, 0.0, k4, f)
-    for j in range(ny):
-        y[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-    project(y, gaps, P, FL, LO, f)
+    rk4_block(_col(y), h, _col(gaps), P, FL, LO, _col(k1), _col(k2), _col(k3), _col(k4),
+              _col(tmp), _col(f))
 
 
 @njit(cache=True)
 def verlet_step(y, acc, h, gaps, P, FL, LO, f):
     """One LAMMPS-order velocity-Verlet step; acc holds the derivative of the last call."""
-    n = int(P[P_N])
-    ox = LO[L_X]
-    ov = LO[L_V]
-    ow = LO[L_W]
-    rot = FL[F_ROT] != 0
-    for i in range(n):
-        y[ov + i] += 0.5 * h * acc[ov + i]
-        if rot:
-            y[ow + i] += 0.5 * h * acc[ow + i]
-    for i in range(n):
-        y[ox + i] += h * y[ov + i]
-    forces(y, gaps, P, FL, LO, h, acc, f)
-    for c in (L_WG, L_WD, L_WT, L_WR):
-        if LO[c] >= 0:
-            y[LO[c]] += h * acc[LO[c]]
-    for i in range(n):
-        y[ov + i] += 0.5 * h * acc[ov + i]
-        if rot:
-            y[ow + i] += 0.5 * h * acc[ow + i]
-
+    verlet_block(_col(y), _col(acc), h, _col(gaps), P, FL, LO, _col(f))
 
 @njit(cache=True)
 def dop853_try(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol):
@@ -482,3 +684,116 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
                 break
             if auto_stop and y[ov + n - 1] > VTHR[b] and _overlap(y, LO[L_X], g, n - 2) <= 0.0:
                 STATUS[b] = S_PASSED
+
+
+@njit(cache=True, inline="always")
+def _stop_lane(y, acc, l, YF, b, status, STATUS):
+    """Chain b in lane l stops: its final state goes to YF[b], its lane is set to rest
+    (a resting chain stays exactly at rest, costs nothing special and keeps no stale
+    values in the block while its neighbours run on)."""
+    STATUS[b] = status
+    for j in range(y.shape[0]):
+        YF[b, j] = y[j, l]
+        y[j, l] = 0.0
+        acc[j, l] = 0.0
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, dt, every,
+               NT, auto_stop, Vout, Eout, counts):
+    """Advance every running chain of fixed-step blocks (rk4, verlet) by up to
+    Vout.shape[1] samples.
+
+    Y (nblk, ny, L): the states of nblk blocks of L chains (chains innermost), ACC the
+    same for the last derivative (Verlet), gaps (nblk, n-1, L). Per-chain arrays are
+    indexed b = block * L + lane: T time, NS samples recorded so far, STEPS, STATUS (S_*),
+    VTHR the arrival speed, NT the sample limit, YF (.., ny) the state at which the chain
+    stopped. A lane that does not hold a chain starts with a status other than S_RUNNING
+    and a zero state. The chains of a block step in lockstep (they share NS while they
+    run); each one records its samples and stops exactly as in ``run_window``: after
+    NT[b] samples (S_DONE), or (auto_stop) at the first sample at which its last particle
+    is faster than VTHR[b] with its last contact open (S_PASSED), or on a non-finite
+    state.
+    """
+    nblk, ny, L = Y.shape
+    W = Vout.shape[1]
+    n = int(P[P_N])
+    ox = LO[L_X]
+    ov = LO[L_V]
+    for blk in prange(nblk):
+        base = blk * L
+        y = Y[blk]
+        acc = ACC[blk]
+        g = gaps[blk]
+        ns = -1
+        for l in range(L):
+            counts[base + l] = 0
+            if STATUS[base + l] == S_RUNNING:
+                ns = NS[base + l]
+        if ns < 0:
+            continue
+        f = np.zeros((max(n - 1, 1), L))
+        k1 = np.empty((ny, L))
+        k2 = np.empty((ny, L))
+        k3 = np.empty((ny, L))
+        k4 = np.empty((ny, L))
+        tmp = np.empty((ny, L))
+        ebuf = np.empty((E_LEN, L))
+        c = 0
+        if ns == 0:
+            if method == M_VERLET:
+                forces_block(y, g, P, FL, LO, 0.0, acc, f)
+            energies_block(y, g, P, FL, LO, ebuf)
+            for l in range(L):
+                b = base + l
+                if STATUS[b] != S_RUNNING:
+                    continue
+                for i in range(n):
+                    Vout[b, 0, i] = y[ov + i, l]
+                for e in range(E_LEN):
+                    Eout[b, 0, e] = ebuf[e, l]
+                counts[b] = 1
+                NS[b] = 1
+                if NT[b] <= 1:
+                    _stop_lane(y, acc, l, YF, b, S_DONE, STATUS)
+            c = 1
+        while c < W:
+            running = False
+            for l in range(L):
+                b = base + l
+                if STATUS[b] == S_RUNNING:
+                    if NS[b] >= NT[b]:
+                        _stop_lane(y, acc, l, YF, b, S_DONE, STATUS)
+                    else:
+                        running = True
+            if not running:
+                break
+            if method == M_RK4:
+                for _ in range(every):
+                    rk4_block(y, dt, g, P, FL, LO, k1, k2, k3, k4, tmp, f)
+            else:
+                for _ in range(every):
+                    verlet_block(y, acc, dt, g, P, FL, LO, f)
+            energies_block(y, g, P, FL, LO, ebuf)
+            for l in range(L):
+                b = base + l
+                if STATUS[b] != S_RUNNING:
+                    continue
+                STEPS[b] += every
+                T[b] += every * dt
+                for i in range(n):
+                    Vout[b, c, i] = y[ov + i, l]
+                for e in range(E_LEN):
+                    Eout[b, c, e] = ebuf[e, l]
+                counts[b] = c + 1
+                NS[b] += 1
+                finite = True
+                for j in range(ox, ov + n):
+                    if not math.isfinite(y[j, l]):
+                        finite = False
+                if not finite:
+                    _stop_lane(y, acc, l, YF, b, S_NONFINITE, STATUS)
+                elif auto_stop and y[ov + n - 1, l] > VTHR[b] and \
+                        _overlap_l(y, ox, g, n - 2, l) <= 0.0:
+                    _stop_lane(y, acc, l, YF, b, S_PASSED, STATUS)
+            c += 1

@@ -14,6 +14,7 @@ import sys
 import time
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ..schedule import arrival_speed, auto_t_max, expected_duration, sample_interval
@@ -26,8 +27,11 @@ from . import kernels as K
 METHOD_CODES = {"rk4": K.M_RK4, "verlet": K.M_VERLET, "adaptive": K.M_DOP853}
 STATUS_NAMES = {K.S_DONE: "done", K.S_PASSED: "passed", K.S_TIMEOUT: "timeout",
                 K.S_NONFINITE: "nonfinite", K.S_STEPFAIL: "stepfail", K.S_RUNNING: "timeout"}
-WINDOW = 2048                    # samples per kernel call
+WINDOW = 2048                    # samples per kernel call (adaptive method)
+BLOCK_WINDOW = 256               # samples per kernel call (fixed-step blocks)
 CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
+CHUNK_CHAINS = 512               # at most this many chains in a chunk
+LANES = 32                       # chains per block of the fixed-step kernels
 
 
 @dataclass(frozen=True)
@@ -91,9 +95,11 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
     rtol = tolerance if tolerance is not None else (scene.tolerance or 1e-8)
     if progress is None:
         progress = sys.stderr.isatty() and gaps.shape[0] > 1
-    # Chains with the same sampling run together; normally all of them.
+    # Chains with the same sampling run together; normally all of them. Inside that,
+    # ordered by striker speed and total gap (the flight time that sets the length of a
+    # t_end auto run), so that chains of similar length share a chunk and a block.
     keys = np.array([sample_interval(scene, v) for v in vs])
-    order = np.lexsort((np.arange(len(vs)), keys))
+    order = np.lexsort((np.arange(len(vs)), gaps.sum(axis=1), vs, keys))
     done_total = 0
     out: dict[int, Trajectory] = {}
     next_to_yield = 0
@@ -104,7 +110,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         while stop < len(order) and keys[order[stop]] == key:
             stop += 1
         group = order[start:stop]
-        for chunk in _chunks(group, scene, terms, key):
+        for chunk in _chunks(group, scene, terms, key, method):
             for idx, traj in zip(chunk, _run_chunk(scene, terms, gaps[chunk], vs[chunk], method,
                                                     dt, rtol, key)):
                 out[int(idx)] = traj
@@ -123,7 +129,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         next_to_yield += 1
 
 
-def _chunks(group, scene, terms, sample_dt):
+def _chunks(group, scene, terms, sample_dt, method):
     """Split chains into chunks whose recorded samples fit in CHUNK_BYTES."""
     if scene.t_end is not None:
         t_est = scene.t_end
@@ -132,8 +138,13 @@ def _chunks(group, scene, terms, sample_dt):
         # than their mean
         v = max(float(np.min(scene.striker_velocities)), 1e-6)
         t_est = 4.0 * expected_duration(scene, v)
-    per_chain = (t_est / sample_dt + WINDOW) * (terms.n + K.E_LEN) * 8
-    size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, 128)))
+    window = WINDOW if method == "adaptive" else BLOCK_WINDOW
+    per_chain = (t_est / sample_dt + window) * (terms.n + K.E_LEN) * 8
+    size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, CHUNK_CHAINS)))
+    if method != "adaptive" and size < len(group):
+        # whole blocks, as many on every thread
+        unit = LANES * numba.get_num_threads()
+        size = max(LANES, size // unit * unit)
     for i in range(0, len(group), size):
         yield group[i:i + size]
 
@@ -168,19 +179,19 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
     scale_abs, rel = _error_scales(scene, terms, layout, max(float(vs.max()), 1e-9))
     V_parts = [[] for _ in range(B)]
     E_parts = [[] for _ in range(B)]
-    Vbuf = np.empty((B, WINDOW, n))
-    Ebuf = np.empty((B, WINDOW, K.E_LEN))
     counts = np.zeros(B, dtype=np.int64)
     t0 = time.perf_counter()
-    while np.any(STATUS == K.S_RUNNING):
-        K.run_window(mcode, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL,
-                     layout.LO, scale_abs, rel, rtol, dt, every, sdt, NT, auto, Vbuf, Ebuf,
-                     counts)
-        for b in range(B):
-            c = counts[b]
-            if c:
-                V_parts[b].append(Vbuf[b, :c].copy())
-                E_parts[b].append(Ebuf[b, :c].copy())
+    if mcode == K.M_DOP853:
+        Vbuf = np.empty((B, WINDOW, n))
+        Ebuf = np.empty((B, WINDOW, K.E_LEN))
+        while np.any(STATUS == K.S_RUNNING):
+            K.run_window(mcode, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL,
+                         layout.LO, scale_abs, rel, rtol, dt, every, sdt, NT, auto, Vbuf, Ebuf,
+                         counts)
+            _collect(counts, Vbuf, Ebuf, V_parts, E_parts)
+    else:
+        Y, T, STEPS, STATUS = _run_blocks(mcode, Y, gaps, VTHR, P, FL, layout, dt, every, NT,
+                                          auto, V_parts, E_parts)
     wall = time.perf_counter() - t0
     eff = tuple(sorted(scene.effects))
     for b in range(B):
@@ -197,6 +208,51 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
                          rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
                          wall_s=wall / B, last_overlap=last_overlap,
                          meta={"method": method, "dt": dt, "rtol": rtol, "sample_dt": sdt})
+
+
+def _collect(counts, Vbuf, Ebuf, V_parts, E_parts):
+    for b in range(len(V_parts)):
+        c = counts[b]
+        if c:
+            V_parts[b].append(Vbuf[b, :c].copy())
+            E_parts[b].append(Ebuf[b, :c].copy())
+
+
+def _run_blocks(mcode, Y0, gaps, VTHR, P, FL, layout, dt, every, NT, auto, V_parts, E_parts):
+    """Fixed-step methods: the chains in blocks of LANES (consecutive chains share a block,
+    the last block padded with lanes at rest that record nothing), stepped in lockstep by
+    ``kernels.run_blocks``. Returns each chain's final state, time, steps and status."""
+    B, ny = Y0.shape
+    n = gaps.shape[1] + 1
+    Lb = LANES
+    nblk = -(-B // Lb)
+    Bp = nblk * Lb
+    Yp = np.zeros((Bp, ny))
+    Yp[:B] = Y0
+    Gp = np.zeros((Bp, n - 1))
+    Gp[:B] = gaps
+    # (nblk, ny, L): chains innermost
+    YB = np.ascontiguousarray(Yp.reshape(nblk, Lb, ny).transpose(0, 2, 1))
+    GB = np.ascontiguousarray(Gp.reshape(nblk, Lb, n - 1).transpose(0, 2, 1))
+    ACC = np.zeros_like(YB)
+    YF = np.zeros((Bp, ny))
+    T = np.zeros(Bp)
+    NS = np.zeros(Bp, dtype=np.int64)
+    STEPS = np.zeros(Bp, dtype=np.int64)
+    STATUS = np.full(Bp, K.S_DONE, dtype=np.int64)
+    STATUS[:B] = K.S_RUNNING
+    VT = np.zeros(Bp)
+    VT[:B] = VTHR
+    NTp = np.ones(Bp, dtype=np.int64)
+    NTp[:B] = NT
+    Vbuf = np.empty((Bp, BLOCK_WINDOW, n))
+    Ebuf = np.empty((Bp, BLOCK_WINDOW, K.E_LEN))
+    counts = np.zeros(Bp, dtype=np.int64)
+    while np.any(STATUS[:B] == K.S_RUNNING):
+        K.run_blocks(mcode, YB, ACC, YF, T, NS, STEPS, STATUS, VT, GB, P, FL, layout.LO, dt,
+                     every, NTp, auto, Vbuf, Ebuf, counts)
+        _collect(counts[:B], Vbuf, Ebuf, V_parts, E_parts)
+    return YF[:B], T[:B], STEPS[:B], STATUS[:B]
 
 
 def _error_scales(scene, terms, layout, v):

@@ -1,0 +1,181 @@
+"""Fixed-step reference kernels against the previous kernels and LAMMPS, side by side in one run.
+
+    python benchmarks/kernels.py [--chains 1000] [--old-ref 61c5452] [--np 2] [--skip-lammps]
+
+The ensemble: gaps-20nm-440c (440C, v_s = 0.1 m/s, uniform gaps of mean 20 nm), t_end auto,
+``--chains`` realisations, in three settings: Hertz-only Verlet, every effect Verlet
+(hertz, groove, drag, rotation, particle friction, rolling friction with k_roll = 1e3 N/m),
+every effect RK4 (the chapter's setting), all at dt = 1 ns. Each setting runs in its own
+process for this tree and for ``--old-ref`` (extracted with ``git archive`` into a
+temporary directory: the kernels as they were), after a warm-up compile; the trajectories
+of the two are compared bit for bit (v, energies, steps, status). Then LAMMPS on ``--np``
+ranks on the every-effect Verlet ensemble without per-sample output: its loop time (from
+its log) and its process wall time. Prints particle-steps per second and the ratios, and
+the fraction of the machine's division/sqrt peak: the divisions and square roots a
+particle-step costs when every lane computes every law (counted from
+``engines/kernels.py``), times their throughput measured here by a numba probe, on all
+cores. The machines are shared: only ratios measured in the one run are worth comparing.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+ALL = "[hertz, groove_friction, air_drag, rotation, particle_friction, rolling_friction]"
+SETTINGS = {
+    "hertz-verlet": ["effects=[hertz]", "integrator.method=verlet"],
+    "all-verlet": [f"effects={ALL}", "rolling.k_roll=1000.0", "integrator.method=verlet"],
+    "all-rk4": [f"effects={ALL}", "rolling.k_roll=1000.0", "integrator.method=rk4"],
+}
+# divisions and square roots of one particle-step with every law computed in every lane
+# (forces_block: acceleration 1 div; drag 3 div; groove 2 div + 1 in its return map;
+# particle friction 1 div + 1 in its map, Mindlin sqrt; rolling 1 div + 1 in its map;
+# Hertz 1 sqrt; RK4: four force calls without the maps, then project_block with the
+# three maps and 3 sqrt)
+OPS = {"hertz-verlet": (1, 1), "all-verlet": (11, 3), "all-rk4": (4 * 8 + 3, 4 * 2 + 3)}
+
+CHILD = r"""
+import json, sys, time
+import numpy as np
+from granchain.engines import reference
+from granchain.scene import load_scene
+from granchain.simulate import member_gaps, members
+sets, out = json.loads(sys.argv[1]), sys.argv[2]
+sc = load_scene("granchain/scenes/gaps-20nm-440c.yaml", sets)
+mem = members(sc); gaps = member_gaps(sc, mem); vs = np.array([m.v_striker for m in mem])
+list(reference.run(sc, gaps[:2], vs[:2], progress=False))
+t0 = time.perf_counter()
+tr = list(reference.run(sc, gaps, vs, progress=False))
+wall = time.perf_counter() - t0
+np.savez(out, steps=[t.steps for t in tr], status=[t.status for t in tr],
+         v=np.concatenate([t.v.ravel() for t in tr]),
+         e=np.concatenate([t.energy.ravel() for t in tr]))
+print(json.dumps({"wall": wall, "ps": int(sum(t.steps for t in tr)) * sc.n}))
+"""
+
+
+def child(tree: Path, sets, out: Path):
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    r = subprocess.run([sys.executable, "-c", CHILD, json.dumps(sets), str(out)], cwd=tree,
+                       env=env, capture_output=True, text=True, check=True)
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def same(a: Path, b: Path) -> bool:
+    import numpy as np
+    x, y = np.load(a), np.load(b)
+    return all(np.array_equal(x[k], y[k]) for k in ("steps", "status", "v", "e"))
+
+
+def peak_ops():
+    """Seconds per double-precision division and per square root on one core (zmm)."""
+    import math
+
+    import numpy as np
+    from numba import njit
+
+    @njit(error_model="numpy")
+    def pdiv(a, b, out, N):
+        for _ in range(N):
+            for i in range(a.shape[0]):
+                out[i] = a[i] / b[i] + out[i] / b[i]
+
+    @njit(error_model="numpy")
+    def psqrt(a, out, N):
+        for _ in range(N):
+            for i in range(a.shape[0]):
+                out[i] = math.sqrt(a[i]) + math.sqrt(out[i])
+
+    a, b, o = (np.random.rand(512) + 1 for _ in range(3))
+    pdiv(a, b, o, 1)
+    psqrt(a, o, 1)
+    N = 100000
+    t0 = time.thread_time()
+    pdiv(a, b, o, N)
+    t_div = (time.thread_time() - t0) / (N * 1024)
+    t0 = time.thread_time()
+    psqrt(a, o, N)
+    t_sqrt = (time.thread_time() - t0) / (N * 1024)
+    return t_div, t_sqrt
+
+
+def lammps(chains, nprocs, wd: Path):
+    import numpy as np  # noqa: F401
+    sys.path.insert(0, str(REPO))
+    from granchain.lammps import deck as D
+    from granchain.lammps.runner import run_lammps
+    from granchain.scene import load_scene
+    from granchain.simulate import member_gaps, members
+    sc = load_scene(REPO / "granchain/scenes/gaps-20nm-440c.yaml",
+                    [f"ensemble.realisations={chains}"] + SETTINGS["all-verlet"])
+    mem = members(sc)
+    gaps = member_gaps(sc, mem)
+    vs = [m.v_striker for m in mem]
+    wd.mkdir(parents=True)
+    deck = D.write_deck(sc, wd, gaps=gaps, v_striker=vs, output="none")
+    t0 = time.perf_counter()
+    run_lammps(deck, wd, nprocs=nprocs)
+    wall = time.perf_counter() - t0
+    m = re.search(r"Loop time of (\S+) on (\d+) procs for (\d+) steps",
+                  (wd / "log.lammps").read_text())
+    return float(m.group(1)), wall, int(m.group(3))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--chains", type=int, default=1000)
+    ap.add_argument("--old-ref", default="61c5452",
+                    help="git ref of the previous kernels (default: the last per-chain ones)")
+    ap.add_argument("--np", type=int, default=2, help="LAMMPS MPI ranks")
+    ap.add_argument("--skip-lammps", action="store_true")
+    args = ap.parse_args(argv)
+    tmp = Path(tempfile.mkdtemp(prefix="granchain-kernels-"))
+    try:
+        old = tmp / "old"
+        old.mkdir()
+        arch = subprocess.run(["git", "-C", str(REPO), "archive", args.old_ref],
+                              capture_output=True, check=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(old)], input=arch, check=True)
+        print(f"{args.chains} chains x 15 spheres, gaps-20nm-440c, dt 1 ns, t_end auto; "
+              f"previous kernels: {args.old_ref}; load average {os.getloadavg()[0]:.1f} on "
+              f"{os.cpu_count()} cores", flush=True)
+        t_div, t_sqrt = peak_ops()
+        cores = os.cpu_count()
+        print(f"probe: {t_div * 1e9:.3f} ns per division, {t_sqrt * 1e9:.3f} ns per sqrt "
+              "(one core, vectorised)", flush=True)
+        rows = {}
+        for name, sets in SETTINGS.items():
+            sets = [f"ensemble.realisations={args.chains}"] + sets
+            new = child(REPO, sets, tmp / f"{name}-new.npz")
+            prev = child(old, sets, tmp / f"{name}-old.npz")
+            ident = same(tmp / f"{name}-new.npz", tmp / f"{name}-old.npz")
+            nd, ns = OPS[name]
+            peak = cores / (nd * t_div + ns * t_sqrt)
+            rows[name] = (new, prev, ident, peak)
+            print(f"{name:13s}: new {new['wall']:.2f} s ({new['ps'] / new['wall'] / 1e6:.0f} M "
+                  f"particle-steps/s), previous {prev['wall']:.2f} s "
+                  f"({prev['ps'] / prev['wall'] / 1e6:.0f} M/s): x{prev['wall'] / new['wall']:.2f}; "
+                  f"bit-identical {ident}; all-lanes div/sqrt peak {peak / 1e6:.0f} M/s, "
+                  f"reached {new['ps'] / new['wall'] / peak:.0%}", flush=True)
+        if not args.skip_lammps:
+            loop, wall, steps = lammps(args.chains, args.np, tmp / "lammps")
+            new = rows["all-verlet"][0]
+            print(f"LAMMPS -np {args.np}, every effect Verlet, no output: loop {loop:.2f} s "
+                  f"({steps} steps), process {wall:.2f} s; reference every-effect Verlet "
+                  f"{new['wall']:.2f} s: LAMMPS loop / reference x{loop / new['wall']:.2f}, "
+                  f"LAMMPS process / reference x{wall / new['wall']:.2f}", flush=True)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
