@@ -16,8 +16,10 @@ output grid, plus event location:
   acceleration changes sign from + to -) by more than the tolerance above both step ends
   is retried up to the interpolated peak time, so the peak lies on a step end.
 
-The friction laws' stick/slip transitions are not located: the error control takes them
-(they are continuous in the state, with a kink in the history rate only).
+- groove stick/slip: a trial step inside which a sphere's groove trial force
+  k_g xi + gamma_g u crosses the Coulomb cap (beyond a band of the tolerance times the
+  cap) is retried up to the crossing, located the same way. The contact and rolling
+  friction's transitions are not located: the error control takes them.
 
 Observables are computed on the fly (no output grid caps the step). Per step and
 particle, the velocity between the step ends is the derivative of the quintic Hermite
@@ -191,16 +193,21 @@ def _hermite_root(d0, w0, d1, w1, h, level, up):
 
 
 @njit(cache=True)
-def _predict(y, dy, gaps, LO, n, band):
-    """Time to the first predicted crossing of 0 by a pair's overlap (inf if none)."""
+def _predict(y, dy, gaps, LO, n, band, dscale):
+    """Time to the first predicted crossing of 0 by a pair's overlap (inf if none); for
+    a pair on its onset, the time to close by the overlap scale dscale."""
     ox = LO[K.L_X]
     ov = LO[K.L_V]
     best = math.inf
     for k in range(n - 1):
         d = y[ox + k] - y[ox + k + 1] - gaps[k]
-        if abs(d) <= band:
-            continue
         w = y[ov + k] - y[ov + k + 1]
+        if abs(d) <= band:
+            # on the onset or release: a first step into the contact no longer than
+            # the time to close to the overlap scale at the pair's speed
+            if w > 0.0 and dscale / w < best:
+                best = dscale / w
+            continue
         a = dy[ov + k] - dy[ov + k + 1]
         # 0.5 a s^2 + w s + d = 0, smallest positive root
         qa = 0.5 * a
@@ -288,6 +295,42 @@ def _straddle(y, ynew, gaps, LO, n, band, h):
             tau = _hermite_root(d0, w0, d1, w1, h, 0.0, False)
         if tau > 0.0 and tau < best:
             best = tau
+    return best if best < 1.0 else -1.0
+
+
+@njit(cache=True)
+def _straddle_groove(y, ynew, K0, K1, P, FL, LO, n, h, bandg):
+    """After a trial step: the first tau in (0, 1) at which a sphere's groove contact
+    switches between stick and slip, i.e. its trial force q = k_g xi + gamma_g u crosses
+    +-Fc (``effects.groove_friction``), or -1 if none does."""
+    if FL[K.F_GROOVE] == 0:
+        return -1.0
+    kg = P[K.P_KG]
+    gam = P[K.P_GG]
+    Fc = P[K.P_FC]
+    sR = P[K.P_S] * P[K.P_R]
+    rot = FL[K.F_ROT] != 0
+    og = LO[K.L_XG]
+    ov = LO[K.L_V]
+    ow = LO[K.L_W]
+    best = 2.0
+    for i in range(n):
+        u0 = y[ov + i] - (sR * y[ow + i] if rot else 0.0)
+        u1 = ynew[ov + i] - (sR * ynew[ow + i] if rot else 0.0)
+        du0 = K0[ov + i] - (sR * K0[ow + i] if rot else 0.0)
+        du1 = K1[ov + i] - (sR * K1[ow + i] if rot else 0.0)
+        q0 = kg * y[og + i] + gam * u0
+        q1 = kg * ynew[og + i] + gam * u1
+        w0 = kg * K0[og + i] + gam * du0
+        w1 = kg * K1[og + i] + gam * du1
+        for lev in (Fc, -Fc):
+            tau = -1.0
+            if q0 < lev - bandg and q1 > lev + bandg:
+                tau = _hermite_root(q0, w0, q1, w1, h, lev, True)
+            elif q0 > lev + bandg and q1 < lev - bandg:
+                tau = _hermite_root(q0, w0, q1, w1, h, lev, False)
+            if tau > 0.0 and tau < best:
+                best = tau
     return best if best < 1.0 else -1.0
 
 
@@ -453,6 +496,8 @@ def run_events(Y, KST, T, H, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, 
     ov = LO[K.L_V]
     ox = LO[K.L_X]
     W = Vout.shape[1]
+    bandg = rtol * P[K.P_FC]
+    dscale = scale_abs[ox]
     for b in prange(B):
         counts[b] = 0
         if STATUS[b] != K.S_RUNNING:
@@ -503,22 +548,32 @@ def run_events(Y, KST, T, H, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, 
                 continue
             h = min(H[b], t_stop[b] - t)
             clipped = h < H[b]
-            s_ev = _predict(y, Kst[0], g, LO, n, band)
+            s_ev = _predict(y, Kst[0], g, LO, n, band, dscale)
             if s_ev < h:
                 h = s_ev
                 clipped = True
             tries = 0
             accepted = False
+            rejected = False
             while tries < MAX_TRIES:
                 tries += 1
                 err = _trial(y, h, g, P, FL, LO, Kst, ynew, tmp, f, scale_abs, rel, rtol,
                              A, Bw, C, E5, E3, dopnorm)
                 NEV[b] += S
                 if not math.isfinite(err):
-                    FIN[b] = K.S_NONFINITE
-                    break
+                    # a trial step far too long (into a stiff contact): shrink hard
+                    REJ[b] += 1
+                    rejected = True
+                    h = 0.1 * h
+                    H[b] = h
+                    clipped = False
+                    if h < 1e-22:
+                        FIN[b] = K.S_NONFINITE
+                        break
+                    continue
                 if err > 1.0:
                     REJ[b] += 1
+                    rejected = True
                     h = h * max(0.2, 0.9 * err ** (-qexp))
                     H[b] = h
                     clipped = False
@@ -532,6 +587,12 @@ def run_events(Y, KST, T, H, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, 
                     h = max(tau * h, 1e-22)
                     clipped = True
                     continue
+                tau = _straddle_groove(y, ynew, Kst[0], Kst[S], P, FL, LO, n, h, bandg)
+                if tau > 0.0:
+                    REJ[b] += 1
+                    h = max(tau * h, 1e-22)
+                    clipped = True
+                    continue
                 tau = _peak_inside(y, ynew, Kst[0], Kst[S], LO, n, h, VMAX[b], land, c)
                 if tau > 0.0:
                     REJ[b] += 1
@@ -540,6 +601,11 @@ def run_events(Y, KST, T, H, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, 
                     continue
                 accepted = True
                 fac = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** (-qexp))
+                if rejected:
+                    # no growth right after a rejection: at the stability limit of a
+                    # stiff mode (groove stick, a resting contact) growth-and-reject
+                    # would alternate step after step
+                    fac = min(1.0, fac)
                 if not clipped:
                     H[b] = h * fac
                 break
