@@ -26,6 +26,7 @@ from granchain.simulate import run_scene
 ALL = ("hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
        "rolling_friction")
 CASES = ((190e-9, 0.01), (1e-6, 0.01), (20e-9, 0.1))
+SEED = 2          # seed 1 with every effect at 1 um: the last particle never leaves (auto cap)
 TARGET = 1e-4
 TRUTH_TOL = 1e-10
 EVENT_TOLS = (1e-5, 1e-6, 1e-7)
@@ -33,7 +34,7 @@ EVENT_TOLS = (1e-5, 1e-6, 1e-7)
 
 def scene(gap, v, effects, method, tol=None):
     d = {"name": "gapped", "material": "ss440c", "striker": {"velocity": v},
-         "effects": list(effects), "gaps": {"distribution": "uniform", "mean": gap, "seed": 1},
+         "effects": list(effects), "gaps": {"distribution": "uniform", "mean": gap, "seed": SEED},
          "integrator": {"method": method, "dt": 1e-9}}
     if "rolling_friction" in effects:
         d["rolling"] = {"k_roll": 1e3}

@@ -26,7 +26,8 @@ particle, the velocity between the step ends is the derivative of the quintic He
 interpolant of the displacement (displacement, velocity and acceleration at both ends).
 Per particle the engine keeps the running maximum (v_max and its time), the steps that
 set a record (their interpolants; steps whose maximum is below half the running maximum
-are dropped, since the half-peak level can only rise), whether the velocity has fallen
+are dropped, since the half-peak level can only rise; when RB_SIZE are kept, the two
+shortest adjacent ones of the older half are merged into one cubic Hermite), whether the velocity has fallen
 below PASS_FRACTION of the running maximum after it (the wave has passed:
 ``granchain.schedule``) and when it first fell below (1 - PEAK_TOL) of it (end of the
 near-peak run). At the end, ``finalize`` gives per particle: v_max; the front time
@@ -77,6 +78,7 @@ RB_SIZE = 48               # record steps kept per particle
 RB_T0, RB_H, RB_MAX, RB_C = 0, 1, 2, 3
 RB_LEN = 8
 MAX_TRIES = 60
+PI_BETA = 0.04
 
 
 @njit(cache=True, inline="always")
@@ -355,6 +357,48 @@ def _peak_inside(y, ynew, K0, K1, LO, n, h, VMAX, land, c):
 
 
 @njit(cache=True)
+def _merge_oldest(rb, m, DROP, i):
+    """Make room in a full record-step buffer: merge the two adjacent steps (contiguous
+    in time, in its older half) of shortest combined length into one, interpolated by
+    the cubic Hermite of v and its slope at the outer ends; if no two are contiguous,
+    the oldest step is lost (DROP: its crossings are unknown). Returns the new count."""
+    best = -1
+    blen = math.inf
+    for q in range(max(1, m // 2)):
+        t_end = rb[q, RB_T0] + rb[q, RB_H]
+        if abs(t_end - rb[q + 1, RB_T0]) <= 1e-9 * rb[q, RB_H]:
+            L = rb[q, RB_H] + rb[q + 1, RB_H]
+            if L < blen:
+                blen = L
+                best = q
+    if best < 0:
+        DROP[i] = max(DROP[i], rb[0, RB_MAX])
+        for q in range(1, m):
+            rb[q - 1, :] = rb[q, :]
+        return m - 1
+    q = best
+    h0 = rb[q, RB_H]
+    h1 = rb[q + 1, RB_H]
+    Hm = h0 + h1
+    v0 = rb[q, RB_C]
+    a0 = rb[q, RB_C + 1] / h0
+    c1 = rb[q + 1, RB_C:RB_C + 5]
+    v1 = _poly_v(c1, 1.0)
+    a1 = _poly_dv(c1, 1.0) / h1
+    dv = v1 - v0
+    rb[q, RB_H] = Hm
+    rb[q, RB_MAX] = max(rb[q, RB_MAX], rb[q + 1, RB_MAX])
+    rb[q, RB_C] = v0
+    rb[q, RB_C + 1] = Hm * a0
+    rb[q, RB_C + 2] = 3.0 * dv - 2.0 * Hm * a0 - Hm * a1
+    rb[q, RB_C + 3] = -2.0 * dv + Hm * a0 + Hm * a1
+    rb[q, RB_C + 4] = 0.0
+    for k in range(q + 2, m):
+        rb[k - 1, :] = rb[k, :]
+    return m - 1
+
+
+@njit(cache=True)
 def _observe(t0, h, y, ynew, K0, K1, LO, n, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, c):
     """Update the running per-particle observables with one accepted step."""
     ox = LO[K.L_X]
@@ -399,11 +443,7 @@ def _observe(t0, h, y, ynew, K0, K1, LO, n, VMAX, TPK, PASSED, RUNEND, RB, RBN, 
                     RB[i, q - keep, :] = RB[i, q, :]
                 m -= keep
             if m == RB.shape[1]:
-                # full: the oldest (lowest) record step is lost
-                DROP[i] = max(DROP[i], RB[i, 0, RB_MAX])
-                for q in range(1, m):
-                    RB[i, q - 1, :] = RB[i, q, :]
-                m -= 1
+                m = _merge_oldest(RB[i], m, DROP, i)
             RB[i, m, RB_T0] = t0
             RB[i, m, RB_H] = h
             RB[i, m, RB_MAX] = vmx
@@ -474,7 +514,7 @@ def _flush(b, y, k1, g, P, FL, LO, n, sdt, NT, NS, YP, KP, TP, T, Vout, Eout, co
 
 
 @njit(parallel=True, cache=True)
-def run_events(Y, KST, T, H, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, FL, LO,
+def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, FL, LO,
                scale_abs, rel, rtol, band, land, A, Bw, C, E5, E3, qexp, dopnorm,
                t_stop, auto_stop, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, VINIT,
                E0, BAL, trace, sdt, NT, NS, YP, KP, TP, Vout, Eout, counts):
@@ -600,7 +640,12 @@ def run_events(Y, KST, T, H, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, 
                     clipped = True
                     continue
                 accepted = True
-                fac = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** (-qexp))
+                # PI step control (Gustafsson; beta = PI_BETA): steadier at the stability
+                # limit of a stiff mode than the plain err^(-1/q) rule
+                eo = max(ERROLD[b], 1e-4)
+                ec = max(err, 1e-10)
+                fac = min(10.0, 0.9 * ec ** (-(qexp - 0.75 * PI_BETA)) * eo ** PI_BETA)
+                ERROLD[b] = ec
                 if rejected:
                     # no growth right after a rejection: at the stability limit of a
                     # stiff mode (groove stick, a resting contact) growth-and-reject

@@ -237,6 +237,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
     KST = np.zeros((B, S + 1, ny))
     T = np.zeros(B)
     H = np.full(B, dt)
+    ERROLD = np.full(B, 1e-4)
     STEPS = np.zeros(B, dtype=np.int64)
     REJ = np.zeros(B, dtype=np.int64)
     NEV = np.zeros(B, dtype=np.int64)
@@ -276,7 +277,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
     E_parts = [[] for _ in range(B)]
     t0 = time.perf_counter()
     while np.any(STATUS == K.S_RUNNING):
-        EV.run_events(Y, KST, T, H, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, FL, LO,
+        EV.run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, FL, LO,
                       scale_abs, rel, rtol, band, land, A, Bw, C, E5, E3, qexp, dopnorm,
                       t_stop, auto, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, VINIT,
                       E0, BAL, trace, sample_dt, NT, NS, YP, KP, TP, Vbuf, Ebuf, counts)
