@@ -112,7 +112,8 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
     vs = np.array([m.v_striker for m in mem])
     t0 = time.perf_counter()
     try:
-        ref = list(reference.run(cs, gaps, vs, method="verlet", dt=cs.dt, progress=False))
+        ref = list(reference.run(cs, gaps, vs, method="verlet", dt=cs.dt, progress=False,
+                                 trace=True))
     except NotImplementedError as exc:
         raise GranchainError(f"compare: the reference engine cannot run this scene: {exc}") from None
     t1 = time.perf_counter()

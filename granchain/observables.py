@@ -103,7 +103,19 @@ def peak_final(traj: Trajectory, i: int) -> bool:
 
 
 def peaks(traj: Trajectory):
-    """(v_max, t_peak, t_front, plateau, final) of every particle; NaN where not final."""
+    """(v_max, t_peak, t_front, plateau, final) of every particle; NaN where not final.
+    Taken from the engine's on-the-fly measurement when the trajectory carries one
+    (``traj.observed``), else from the samples (``sampled_peaks``)."""
+    o = traj.observed
+    if o is not None:
+        return (np.array(o.v_max, dtype=float), np.array(o.t_peak, dtype=float),
+                np.array(o.t_front, dtype=float), np.array(o.plateau, dtype=bool),
+                np.array(o.final, dtype=bool))
+    return sampled_peaks(traj)
+
+
+def sampled_peaks(traj: Trajectory):
+    """``peaks`` from the sampled trajectory alone."""
     cols = [peak(traj.t, traj.v[:, i]) for i in range(traj.n)]
     v_max, t_peak, t_front, plateau = (np.array(c, dtype=float) for c in zip(*cols))
     final = np.array([peak_final(traj, i) for i in range(traj.n)], dtype=bool)
@@ -175,7 +187,8 @@ class ChainResult:
     whose peak is not final. probes: the probe particles (1-based). v_max_1, v_max_2,
     dt_peak, dt_front, v_g, v_g_front: the probes' observables (module docstring);
     gap_mean_probes: mean gap between the probes (m). energy: the energy ledger.
-    steps, rejected_steps: integration steps taken and rejected (adaptive); wall_s: the
+    steps, rejected_steps: integration steps taken and rejected (adaptive, event);
+    force_evaluations: right-hand-side (force routine) evaluations; wall_s: the
     engine's wall time of this chain; t_end: time of the last sample; samples: their count.
 
     Member fields (None or empty from ``summarize`` alone): member (index in the scene),
@@ -205,6 +218,7 @@ class ChainResult:
     energy: EnergyLedger
     steps: int
     rejected_steps: int
+    force_evaluations: int
     wall_s: float
     t_end: float
     samples: int
@@ -277,6 +291,7 @@ class ChainResult:
             "v_g_front_m_s": float(self.v_g_front),
             "gap_mean_probes_nm": float(self.gap_mean_probes) * 1e9,
             "steps": int(self.steps),
+            "force_evaluations": int(self.force_evaluations),
             "warnings": ";".join(self.warnings or ()),
         }
         for col, entry in ENERGY_MAP.items():
@@ -306,7 +321,10 @@ def energy_ledger(traj: Trajectory) -> EnergyLedger:
     """Energy ledger: final values, work by each effect, and the balance error.
 
     balance(t) = [E_kin,trans + E_kin,rot + E_hertz](t) - E(0) - sum of work done on the
-    particles by the dissipative effects up to t; balance_error = max_t |balance| / E(0).
+    particles by the dissipative effects up to t; balance_error = max_t |balance| / E(0),
+    over the samples, or when the trajectory carries on-the-fly observables
+    (``traj.observed``) the engine's maximum over the states at its step ends (its
+    samples may be the first and last states only, or interpolated between step ends).
     """
     e = traj.energy
     total = e[:, 0] + e[:, 1] + e[:, 2]
@@ -317,6 +335,8 @@ def energy_ledger(traj: Trajectory) -> EnergyLedger:
     out["initial"] = e0
     out["final_mechanical"] = float(total[-1])
     out["balance_error"] = float(np.max(np.abs(bal)) / e0) if e0 > 0 else 0.0
+    if traj.observed is not None:
+        out["balance_error"] = float(traj.observed.balance_error)
     return EnergyLedger(**out)
 
 
@@ -362,6 +382,7 @@ def summarize(traj: Trajectory, probes=(2, 13)) -> ChainResult:
         energy=energy_ledger(traj),
         steps=int(traj.steps),
         rejected_steps=int(traj.rejected),
+        force_evaluations=int(traj.force_evaluations),
         wall_s=float(traj.wall_s),
         t_end=float(traj.t[-1]),
         samples=int(traj.t.size),

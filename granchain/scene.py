@@ -34,7 +34,7 @@ from .materials import Material, library
 EFFECTS = ("hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
            "rolling_friction")
 GAP_DISTRIBUTIONS = ("none", "fixed", "uniform", "exponential", "list", "from_length")
-METHODS = ("rk4", "verlet", "adaptive", "auto")
+METHODS = ("rk4", "verlet", "adaptive", "event", "auto")
 TANGENTIAL_MODELS = ("mindlin", "linear_history")
 
 # Default scene: the chapter's packed 440C chain (15 spheres, R = 150 um, v_s = 0.1 m/s,
@@ -465,7 +465,7 @@ def _check_unused(given: set[str], dist: str, eff: frozenset[str], method: str,
                "drop it, or use distribution uniform, exponential or from_length")
     if "integrator.tolerance" in given and method in ("rk4", "verlet"):
         refuse("integrator.tolerance", f"with method {method} (a fixed step)",
-               "drop it, or use method adaptive or auto")
+               "drop it, or use method adaptive, event or auto")
     if "contact.kt" in given and "particle_friction" in eff and tangential == "mindlin":
         refuse("contact.kt", "with tangential: mindlin (its stiffness follows from the material)",
                "drop it, or use tangential: linear_history")
@@ -574,8 +574,8 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     tol = _num(spec, "integrator.tolerance", positive=True, allow_none=True, hi=0.1,
                fix="give a relative tolerance such as 1e-6")
     _check_unused(given, dist, eff, method, tangential)
-    if method in ("adaptive", "auto") and tol is None:
-        tol = 1e-8 if method == "adaptive" else 1e-4
+    if method in ("adaptive", "event", "auto") and tol is None:
+        tol = {"adaptive": 1e-8, "event": 1e-6, "auto": 1e-4}[method]
         spec["integrator"]["tolerance"] = tol
 
     t_end_raw = spec["t_end"]

@@ -107,6 +107,8 @@ def cost_estimate(scene, v: float) -> dict:
     samples = dur / sdt + 1.0 if (v > 0 or scene.t_end is not None) else 1.0
     if scene.method == "adaptive":
         steps = samples                 # at least one step per sample
+    elif scene.method == "event":
+        steps = samples                 # bounded by the adaptive method's count
     else:
         steps = dur / scene.dt
     return {"duration_s": dur, "steps": steps, "samples": samples,
@@ -124,7 +126,7 @@ def check_cost(scene, max_steps: float = DEFAULT_MAX_STEPS,
     how = ("t_end" if scene.t_end is not None else
            "t_end auto: until the wave has left particle n")
     if worst["steps"] > max_steps:
-        step = (f"dt = {scene.dt:g} s" if scene.method != "adaptive"
+        step = (f"dt = {scene.dt:g} s" if scene.method not in ("adaptive", "event")
                 else "one adaptive step per sample")
         raise GranchainError(
             f"--max-steps: scene '{scene.name}' needs an estimated {worst['steps']:.3g} "

@@ -50,7 +50,7 @@ BASE_COLUMNS = (
     "gap_mean_nm", "extra_length_um", "realisation", "seed", "scene_hash", "status",
     "wave_arrived", "peaks_not_final", "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio", "dt_peak_s", "v_g_m_s",
     "v_g_front_m_s", "gap_mean_probes_nm", "v_g_bound_eq54_m_s", *ENERGY_MAP, "steps",
-    "warnings",
+    "force_evaluations", "warnings",
 )
 GROUP_COLUMNS = ("material", "engine", "v_striker_m_s", "gap_mean_nm", "extra_length_um")
 SUMMARY_OBSERVABLES = ("v_g_m_s", "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio",
@@ -106,7 +106,7 @@ def study_table(rows: list[dict], n: int) -> pd.DataFrame:
         raise ValueError("a table mixes measured and unmeasured rows")
     cols = columns(n, measured == {True})
     df = pd.DataFrame(rows, columns=cols)
-    for c in ("realisation", "seed", "steps"):
+    for c in ("realisation", "seed", "steps", "force_evaluations"):
         df[c] = df[c].astype("int64")
     df["wave_arrived"] = df["wave_arrived"].astype(bool)
     return df

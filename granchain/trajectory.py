@@ -8,6 +8,19 @@ import numpy as np
 from .effects import ENERGY_COLUMNS  # noqa: F401  (the energy-ledger columns, in engine order)
 
 
+@dataclass(frozen=True)
+class OnTheFly:
+    """Observables an engine measured while integrating (per particle, NaN where not
+    final, as ``granchain.observables.peaks``): v_max (m/s), t_peak, t_front (s),
+    plateau, final; balance_error: the largest |energy balance| / E(0) over the run."""
+    v_max: np.ndarray
+    t_peak: np.ndarray
+    t_front: np.ndarray
+    plateau: np.ndarray
+    final: np.ndarray
+    balance_error: float
+
+
 @dataclass
 class Trajectory:
     """Sampled history of one chain.
@@ -31,6 +44,12 @@ class Trajectory:
     # Hertz overlap (m, > 0 in contact) of the last contact (particles n-1, n) at the last
     # sample: tells whether the last particle has left (granchain.schedule). NaN: unknown.
     last_overlap: float = float("nan")
+    # right-hand-side (force routine) evaluations of the integration
+    force_evaluations: int = 0
+    # observables measured on the fly (the event method); when set, t, v and energy may
+    # hold only the initial and final states (no trace asked for), and
+    # ``observables.summarize`` reads the peaks and the balance error from here
+    observed: OnTheFly | None = None
 
     @property
     def n(self) -> int:

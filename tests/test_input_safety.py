@@ -286,6 +286,7 @@ def _fake_result():
         probes=(1, 2), v_max_1=nan, v_max_2=nan, dt_peak=nan, dt_front=nan,
         gap_mean_probes=0.0, v_g=nan, v_g_front=nan,
         energy=EnergyLedger(**{k: 0.0 for k in LEDGER_ENTRIES}), steps=0, rejected_steps=0,
+        force_evaluations=0,
         wall_s=0.0, t_end=0.0, samples=1)
 
 

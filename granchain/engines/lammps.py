@@ -82,8 +82,10 @@ ENERGY = 1e-15     # 1e-15 J -> J
 def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: bool = False,
         force: bool = False, dt: float | None = None, progress: bool | None = None,
         timeout: float | None = None, velocities: str = "float64", readers: int = 1,
-        output: str = "binary"):
-    """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s.
+        output: str = "binary", trace: bool = True):
+    """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s. A LAMMPS
+    run always records its sampled trajectory (``trace`` is accepted for the callers
+    that ask every engine for one).
 
     output: ``"binary"`` (default) the deck writes LAMMPS binary dumps read with numpy
     (:func:`read_binary`); ``"dump"`` the text dump read with MDAnalysis
@@ -647,7 +649,9 @@ def _trajectories(scene, pl, data, wall_each, meta_common):
             t=step[:keep] * scene.dt, v=v[:keep], energy=E[:keep, b, :],
             gaps=pl.gaps[b].copy(), radius=scene.radius, v_striker=vsb, effects=eff,
             steps=int(step[keep - 1]), rejected=0, status=status, wall_s=wall_each,
-            meta=dict(meta_common), last_overlap=float(OL[keep - 1, b]))
+            meta=dict(meta_common), last_overlap=float(OL[keep - 1, b]),
+            # one force computation per step, plus the one of LAMMPS's setup
+            force_evaluations=int(step[keep - 1]) + 1)
 
 
 def auto_stop(scene: Scene, gaps, v_striker: float, vlast, overlap_last,

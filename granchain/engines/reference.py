@@ -17,14 +17,21 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ..schedule import arrival_speed, auto_t_max, expected_duration, sample_interval
+from ..schedule import (arrival_speed, auto_t_max, expected_duration, last_detached,
+                        sample_interval)
 from ..effects import MODULES, SPECS, Terms, physics_terms
 from ..guards import require_resolved
 from ..scene import Scene
-from ..trajectory import Trajectory
+from ..trajectory import OnTheFly, Trajectory
+from . import events as EV
 from . import kernels as K
 
-METHOD_CODES = {"rk4": K.M_RK4, "verlet": K.M_VERLET, "adaptive": K.M_DOP853}
+M_EVENT = 3
+METHOD_CODES = {"rk4": K.M_RK4, "verlet": K.M_VERLET, "adaptive": K.M_DOP853,
+                "event": M_EVENT}
+# plateau rule of granchain.observables (PLATEAU_SAMPLES sample intervals), for the
+# event method's on-the-fly peaks
+PLATEAU_SAMPLES = 5
 STATUS_NAMES = {K.S_DONE: "done", K.S_PASSED: "passed", K.S_TIMEOUT: "timeout",
                 K.S_NONFINITE: "nonfinite", K.S_STEPFAIL: "stepfail", K.S_RUNNING: "timeout"}
 WINDOW = 2048                    # samples per kernel call (adaptive method)
@@ -83,9 +90,16 @@ def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
 
 
 def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | None = None,
-        dt: float | None = None, tolerance: float | None = None, progress: bool | None = None):
+        dt: float | None = None, tolerance: float | None = None, progress: bool | None = None,
+        trace: bool = False, pair: str | None = None):
     """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s. The scene's
-    method must not be auto (``simulate`` resolves it)."""
+    method must not be auto (``simulate`` resolves it).
+
+    The fixed-step and adaptive methods always record the sampled trajectory. The event
+    method measures the observables on the fly and records only the initial and final
+    states, unless ``trace`` asks for the sampled trajectory (its dense output on the
+    usual sample grid). ``pair``: the event method's Runge-Kutta pair
+    (``events.PAIRS``; default ``events.DEFAULT_PAIR``)."""
     require_resolved(scene, "reference engine")
     terms = physics_terms(scene)
     gaps = np.ascontiguousarray(np.atleast_2d(np.asarray(gaps, dtype=float)))
@@ -111,8 +125,12 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
             stop += 1
         group = order[start:stop]
         for chunk in _chunks(group, scene, terms, key, method):
-            for idx, traj in zip(chunk, _run_chunk(scene, terms, gaps[chunk], vs[chunk], method,
-                                                    dt, rtol, key)):
+            if method == "event":
+                it = _run_chunk_events(scene, terms, gaps[chunk], vs[chunk], dt, rtol, key,
+                                       trace, pair or EV.DEFAULT_PAIR)
+            else:
+                it = _run_chunk(scene, terms, gaps[chunk], vs[chunk], method, dt, rtol, key)
+            for idx, traj in zip(chunk, it):
                 out[int(idx)] = traj
             done_total += len(chunk)
             if progress:
@@ -138,10 +156,11 @@ def _chunks(group, scene, terms, sample_dt, method):
         # than their mean
         v = max(float(np.min(scene.striker_velocities)), 1e-6)
         t_est = 4.0 * expected_duration(scene, v)
-    window = WINDOW if method == "adaptive" else BLOCK_WINDOW
+    blocked = method in ("rk4", "verlet")          # blocks of LANES chains in lockstep
+    window = BLOCK_WINDOW if blocked else WINDOW
     per_chain = (t_est / sample_dt + window) * (terms.n + K.E_LEN) * 8
     size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, CHUNK_CHAINS)))
-    if method != "adaptive" and size < len(group):
+    if blocked and size < len(group):
         # whole blocks, as many on every thread
         unit = LANES * numba.get_num_threads()
         size = max(LANES, size // unit * unit)
@@ -203,11 +222,123 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
             status = K.S_TIMEOUT      # t_end auto hit its cap before the wave left the chain
         ox = layout.LO[K.L_X]
         last_overlap = float(Y[b, ox + n - 2] - Y[b, ox + n - 1] - gaps[b, n - 2])
+        if mcode == K.M_RK4:
+            nev = 4 * int(STEPS[b])
+        elif mcode == K.M_VERLET:
+            nev = int(STEPS[b]) + 1                  # + the setup call
+        else:
+            # each DOP853 trial evaluates f(y), 11 stages and f(ynew) (kernels.dop853_try)
+            nev = (K.NST + 1) * int(STEPS[b] + REJ[b])
+        yield Trajectory(t=t, v=v, energy=e, gaps=gaps[b].copy(), radius=scene.radius,
+                         v_striker=float(vs[b]), effects=eff, steps=int(STEPS[b]),
+                         rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
+                         wall_s=wall / B, last_overlap=last_overlap, force_evaluations=nev,
+                         meta={"method": method, "dt": dt, "rtol": rtol, "sample_dt": sdt})
+
+
+def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt, trace, pair):
+    """The event method (``engines.events``) on a chunk of chains."""
+    layout = Layout.of(terms)
+    P, FL = pack(terms)
+    LO = layout.LO
+    B, n, ny = gaps.shape[0], terms.n, layout.ny
+    A, Bw, C, E5, E3, qexp, dopnorm = EV.PAIRS[pair]
+    S = Bw.shape[0]
+    Y = np.zeros((B, ny))
+    Y[:, LO[K.L_V]] = vs
+    KST = np.zeros((B, S + 1, ny))
+    T = np.zeros(B)
+    H = np.full(B, dt)
+    ERROLD = np.full(B, 1e-4)
+    STEPS = np.zeros(B, dtype=np.int64)
+    REJ = np.zeros(B, dtype=np.int64)
+    NEV = np.zeros(B, dtype=np.int64)
+    STATUS = np.zeros(B, dtype=np.int64)
+    FIN = np.zeros(B, dtype=np.int64)
+    INIT = np.zeros(B, dtype=np.int64)
+    VTHR = arrival_speed(vs)
+    auto = scene.t_end is None
+    if not auto:
+        NT = np.full(B, int(math.ceil(scene.t_end / sample_dt - 1e-9)) + 1, dtype=np.int64)
+    else:
+        NT = np.array([int(math.ceil(auto_t_max(scene, gaps[b], vs[b]) / sample_dt)) + 1
+                       if vs[b] > 0 else 1 for b in range(B)], dtype=np.int64)
+    t_stop = (NT - 1) * sample_dt
+    scale_abs, rel = _error_scales(scene, terms, layout, max(float(vs.max()), 1e-9))
+    band = rtol * scale_abs[LO[K.L_X]]           # overlap band of the contact events
+    land = rtol * scale_abs[LO[K.L_V]]           # peak landing threshold
+    VMAX = np.zeros((B, n))
+    TPK = np.zeros((B, n))
+    PASSED = np.zeros((B, n), dtype=np.int64)
+    RUNEND = np.full((B, n), -1.0)
+    RB = np.zeros((B, n, EV.RB_SIZE, EV.RB_LEN))
+    RBN = np.zeros((B, n), dtype=np.int64)
+    DROP = np.full((B, n), -np.inf)
+    VINIT = np.zeros((B, n))
+    E0 = np.zeros(B)
+    BAL = np.zeros(B)
+    NS = np.zeros(B, dtype=np.int64)
+    W = WINDOW if trace else 0
+    YP = np.zeros((B, ny) if trace else (B, 1))
+    KP = np.zeros_like(YP)
+    TP = np.zeros(B)
+    Vbuf = np.empty((B, W, n))
+    Ebuf = np.empty((B, W, K.E_LEN))
+    counts = np.zeros(B, dtype=np.int64)
+    V_parts = [[] for _ in range(B)]
+    E_parts = [[] for _ in range(B)]
+    t0 = time.perf_counter()
+    while np.any(STATUS == K.S_RUNNING):
+        EV.run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, FL, LO,
+                      scale_abs, rel, rtol, band, land, A, Bw, C, E5, E3, qexp, dopnorm,
+                      t_stop, auto, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, VINIT,
+                      E0, BAL, trace, sample_dt, NT, NS, YP, KP, TP, Vbuf, Ebuf, counts)
+        for b in range(B):
+            c = counts[b]
+            if c:
+                V_parts[b].append(Vbuf[b, :c].copy())
+                E_parts[b].append(Ebuf[b, :c].copy())
+    wall = time.perf_counter() - t0
+    eff = tuple(sorted(scene.effects))
+    ox, ov = LO[K.L_X], LO[K.L_V]
+    ebuf = np.empty(K.E_LEN)
+    for b in range(B):
+        status = STATUS[b]
+        if auto and status == K.S_DONE and vs[b] > 0:
+            status = K.S_TIMEOUT
+        last_overlap = float(Y[b, ox + n - 2] - Y[b, ox + n - 1] - gaps[b, n - 2])
+        y_end = Y[b]
+        K.energies(y_end, gaps[b], P, FL, LO, ebuf)
+        e_end = ebuf.copy()
+        if trace:
+            v = np.concatenate(V_parts[b])
+            e = np.concatenate(E_parts[b])
+            t = np.arange(v.shape[0]) * sample_dt
+        else:
+            y0 = np.zeros(ny)
+            y0[ov] = vs[b]
+            K.energies(y0, gaps[b], P, FL, LO, ebuf)
+            t = np.array([0.0, float(T[b])])
+            v = np.stack([y0[ov:ov + n], y_end[ov:ov + n]])
+            e = np.stack([ebuf.copy(), e_end])
+        vmax, tpk, tfr, plat = EV.finalize(VMAX[b], TPK[b], RUNEND[b], RB[b], RBN[b], DROP[b],
+                                           VINIT[b], float(T[b]), PLATEAU_SAMPLES * sample_dt)
+        final = np.zeros(n, dtype=bool)
+        seen = vmax > arrival_speed(vs[b])
+        final[:n - 1] = seen[:n - 1] & (PASSED[b, :n - 1] != 0)
+        final[n - 1] = bool(seen[n - 1] and last_detached(y_end[ov + n - 1], last_overlap, vs[b]))
+        for a in (vmax, tpk, tfr):
+            a[~final] = math.nan
+        e0 = float(E0[b])
+        obs = OnTheFly(v_max=vmax, t_peak=tpk, t_front=tfr, plateau=plat.astype(bool),
+                       final=final, balance_error=float(BAL[b] / e0) if e0 > 0 else 0.0)
         yield Trajectory(t=t, v=v, energy=e, gaps=gaps[b].copy(), radius=scene.radius,
                          v_striker=float(vs[b]), effects=eff, steps=int(STEPS[b]),
                          rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
                          wall_s=wall / B, last_overlap=last_overlap,
-                         meta={"method": method, "dt": dt, "rtol": rtol, "sample_dt": sdt})
+                         force_evaluations=int(NEV[b]), observed=obs,
+                         meta={"method": "event", "dt": dt, "rtol": rtol, "sample_dt": sample_dt,
+                               "pair": pair, "trace": bool(trace), "t_last": float(T[b])})
 
 
 def _collect(counts, Vbuf, Ebuf, V_parts, E_parts):

@@ -182,8 +182,9 @@ def run_traces(preset: dict, trace_paths: dict[str, str], out_csv, timing_csv,
             # MDAnalysis reads it (the same samples as the binary path, bit for bit)
             opts["output"] = "dump"
         local_mpi(opts.get("nprocs", 1))
+        # the sampled v(t) is the product: ask the engine for its trace
         (m, traj), = list(trajectories(trace_scene(ss), scene_members(ss.scene), engine,
-                                       **opts))
+                                       trace=True, **opts))
         tables.write_npz(trace_paths[ss.material], t_s=traj.t, v_m_s=traj.v,
                          v_striker_m_s=np.float64(m.v_striker), material=np.str_(ss.material))
         wall = time.perf_counter() - t0

@@ -1,0 +1,731 @@
+"""Event-driven adaptive integration of the reference engine (scene method ``event``).
+
+An embedded Runge-Kutta pair with FSAL (Dormand-Prince 8(5,3), the tableau of
+``kernels``, or Dormand-Prince 5(4)) with error control, whose steps are not tied to an
+output grid, plus event location:
+
+- contact onset and release: the Hertz force K d^1.5 is not smooth at d = 0, so no step
+  may carry a contact across it. Before a step, the overlap d of every pair is predicted
+  from its relative velocity and acceleration (d + w s + a s^2 / 2) and the step is
+  clipped at the first predicted crossing of 0; after a trial step, a pair whose overlap
+  went from below -band to above +band (or back), or whose overlap rose above +band
+  inside the step (a whole contact inside one step), makes the step be retried up to the
+  first root of the cubic Hermite of d(t) on the trial step. ``band`` is the relative
+  tolerance times the overlap scale: a step may end anywhere within the band.
+- record peaks: a step inside which a particle's velocity reaches a new maximum (its
+  acceleration changes sign from + to -) by more than the tolerance above both step ends
+  is retried up to the interpolated peak time, so the peak lies on a step end.
+
+- groove stick/slip: a trial step inside which a sphere's groove trial force
+  k_g xi + gamma_g u crosses the Coulomb cap (beyond a band of the tolerance times the
+  cap) is retried up to the crossing, located the same way. The contact and rolling
+  friction's transitions are not located: the error control takes them.
+
+Observables are computed on the fly (no output grid caps the step). Per step and
+particle, the velocity between the step ends is the derivative of the quintic Hermite
+interpolant of the displacement (displacement, velocity and acceleration at both ends).
+Per particle the engine keeps the running maximum (v_max and its time), the steps that
+set a record (their interpolants; steps whose maximum is below half the running maximum
+are dropped, since the half-peak level can only rise; when RB_SIZE are kept, the two
+shortest adjacent ones of the older half are merged into one cubic Hermite), whether the velocity has fallen
+below PASS_FRACTION of the running maximum after it (the wave has passed:
+``granchain.schedule``) and when it first fell below (1 - PEAK_TOL) of it (end of the
+near-peak run). At the end, ``finalize`` gives per particle: v_max; the front time
+t_front, the first crossing of v_max / 2 (found in the first record step whose maximum
+reaches it: before that step the velocity never exceeded it); the plateau flag, set when
+the velocity stays within PEAK_TOL of v_max from the first crossing of (1 - PEAK_TOL)
+v_max until the end of the near-peak run for longer than PLATEAU_SAMPLES sample
+intervals (the sampled rule of ``granchain.observables`` in continuous time); t_peak, the
+time of the maximum, or for a plateau the first crossing of (1 - PEAK_TOL) v_max. The
+energy balance error is the largest |balance| / E0 over all step ends.
+
+With a trace asked for, the state is also interpolated (quintic Hermite for displacements
+and velocities, cubic Hermite for the other components) onto the usual sample grid.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from . import kernels as K
+from .kernels import energies, forces, project
+
+# Dormand-Prince 5(4) (as in scipy's RK45), FSAL: 6 force evaluations per step
+_DP5_C = np.array([0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0])
+_DP5_A = np.array([
+    [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+    [1 / 5, 0.0, 0.0, 0.0, 0.0, 0.0],
+    [3 / 40, 9 / 40, 0.0, 0.0, 0.0, 0.0],
+    [44 / 45, -56 / 15, 32 / 9, 0.0, 0.0, 0.0],
+    [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729, 0.0, 0.0],
+    [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656, 0.0]])
+_DP5_B = np.array([35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84])
+_DP5_E = np.array([-71 / 57600, 0.0, 71 / 16695, -71 / 1920, 17253 / 339200, -22 / 525, 1 / 40])
+
+# pairs: code -> (A, B, C, E5, E3, error exponent, DOP853-style error norm)
+PAIRS = {
+    "dop853": (K.DOP_A, K.DOP_B, K.DOP_C, K.DOP_E5, K.DOP_E3, 1.0 / 8.0, 1),
+    "dp54": (_DP5_A, _DP5_B, _DP5_C, _DP5_E, np.zeros(_DP5_E.shape[0]), 1.0 / 5.0, 0),
+}
+DEFAULT_PAIR = "dop853"
+
+PEAK_TOL = 1e-4            # granchain.observables.PEAK_TOL
+PASS_FRACTION = 0.5        # granchain.schedule.PASS_FRACTION
+RB_SIZE = 48               # record steps kept per particle
+# record-step buffer columns: t0, h, max over the step, then 5 coefficients of v(tau)
+RB_T0, RB_H, RB_MAX, RB_C = 0, 1, 2, 3
+RB_LEN = 8
+MAX_TRIES = 60
+PI_BETA = 0.04
+
+
+@njit(cache=True, inline="always")
+def _poly_v(c, tau):
+    return c[0] + tau * (c[1] + tau * (c[2] + tau * (c[3] + tau * c[4])))
+
+
+@njit(cache=True, inline="always")
+def _poly_dv(c, tau):
+    return c[1] + tau * (2.0 * c[2] + tau * (3.0 * c[3] + tau * 4.0 * c[4]))
+
+
+@njit(cache=True)
+def _vcoef(x0, v0, a0, x1, v1, a1, h, c):
+    """Coefficients of v(tau), tau in [0, 1], the derivative of the quintic Hermite
+    interpolant of x (values, first and second derivatives at both ends)."""
+    V0 = h * v0
+    A0 = h * h * a0
+    R0 = (x1 - x0) - V0 - 0.5 * A0
+    R1 = h * v1 - V0 - A0
+    R2 = h * h * a1 - A0
+    c3 = 10.0 * R0 - 4.0 * R1 + 0.5 * R2
+    c4 = -15.0 * R0 + 7.0 * R1 - R2
+    c5 = 6.0 * R0 - 3.0 * R1 + 0.5 * R2
+    c[0] = v0
+    c[1] = A0 / h
+    c[2] = 3.0 * c3 / h
+    c[3] = 4.0 * c4 / h
+    c[4] = 5.0 * c5 / h
+
+
+@njit(cache=True)
+def _x_interp(x0, v0, a0, x1, v1, a1, h, tau):
+    """(x, v) of the quintic Hermite interpolant at tau."""
+    V0 = h * v0
+    A0 = h * h * a0
+    R0 = (x1 - x0) - V0 - 0.5 * A0
+    R1 = h * v1 - V0 - A0
+    R2 = h * h * a1 - A0
+    c3 = 10.0 * R0 - 4.0 * R1 + 0.5 * R2
+    c4 = -15.0 * R0 + 7.0 * R1 - R2
+    c5 = 6.0 * R0 - 3.0 * R1 + 0.5 * R2
+    x = x0 + tau * (V0 + tau * (0.5 * A0 + tau * (c3 + tau * (c4 + tau * c5))))
+    v = (V0 + tau * (A0 + tau * (3.0 * c3 + tau * (4.0 * c4 + tau * 5.0 * c5)))) / h
+    return x, v
+
+
+@njit(cache=True)
+def _turn(c, lo, hi):
+    """Root of dv/dtau on [lo, hi], where it changes sign (bisection)."""
+    glo = _poly_dv(c, lo)
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        gm = _poly_dv(c, mid)
+        if (gm > 0.0) == (glo > 0.0):
+            lo, glo = mid, gm
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@njit(cache=True)
+def _first_cross(c, level, lo, up):
+    """First tau in [lo, 1] where v crosses ``level`` (upwards if up, else downwards);
+    -1 if none is found on a 32-point scan."""
+    M = 32
+    sgn = 1.0 if up else -1.0
+    a = lo
+    fa = sgn * (_poly_v(c, a) - level)
+    if fa >= 0.0:
+        return a
+    for k in range(1, M + 1):
+        b = lo + (1.0 - lo) * k / M
+        fb = sgn * (_poly_v(c, b) - level)
+        if fb >= 0.0:
+            for _ in range(60):
+                mid = 0.5 * (a + b)
+                if sgn * (_poly_v(c, mid) - level) >= 0.0:
+                    b = mid
+                else:
+                    a = mid
+            return 0.5 * (a + b)
+        a = b
+    return -1.0
+
+
+@njit(cache=True, inline="always")
+def _hermite3(d0, w0, d1, w1, h, tau):
+    """Cubic Hermite of a value with its time derivatives at both ends of a step h."""
+    t2 = tau * tau
+    t3 = t2 * tau
+    return ((2 * t3 - 3 * t2 + 1) * d0 + (t3 - 2 * t2 + tau) * h * w0
+            + (-2 * t3 + 3 * t2) * d1 + (t3 - t2) * h * w1)
+
+
+@njit(cache=True)
+def _hermite_root(d0, w0, d1, w1, h, level, up):
+    """First tau in (0, 1] where the cubic Hermite of d crosses level (up: from below)."""
+    M = 32
+    sgn = 1.0 if up else -1.0
+    a = 0.0
+    for k in range(1, M + 1):
+        b = k / M
+        if sgn * (_hermite3(d0, w0, d1, w1, h, b) - level) >= 0.0:
+            for _ in range(60):
+                mid = 0.5 * (a + b)
+                if sgn * (_hermite3(d0, w0, d1, w1, h, mid) - level) >= 0.0:
+                    b = mid
+                else:
+                    a = mid
+            return 0.5 * (a + b)
+        a = b
+    return -1.0
+
+
+@njit(cache=True)
+def _predict(y, dy, gaps, LO, n, band, dscale):
+    """Time to the first predicted crossing of 0 by a pair's overlap (inf if none); for
+    a pair on its onset, the time to close by the overlap scale dscale."""
+    ox = LO[K.L_X]
+    ov = LO[K.L_V]
+    best = math.inf
+    for k in range(n - 1):
+        d = y[ox + k] - y[ox + k + 1] - gaps[k]
+        w = y[ov + k] - y[ov + k + 1]
+        if abs(d) <= band:
+            # on the onset or release: a first step into the contact no longer than
+            # the time to close to the overlap scale at the pair's speed
+            if w > 0.0 and dscale / w < best:
+                best = dscale / w
+            continue
+        a = dy[ov + k] - dy[ov + k + 1]
+        # 0.5 a s^2 + w s + d = 0, smallest positive root
+        qa = 0.5 * a
+        s = math.inf
+        if qa == 0.0:
+            if w != 0.0:
+                r = -d / w
+                if r > 0.0:
+                    s = r
+        else:
+            disc = w * w - 4.0 * qa * d
+            if disc >= 0.0:
+                sq = math.sqrt(disc)
+                q = -0.5 * (w + (sq if w >= 0.0 else -sq))
+                if q != 0.0:
+                    r1 = q / qa
+                    r2 = d / q
+                    if r1 > 0.0 and r1 < s:
+                        s = r1
+                    if r2 > 0.0 and r2 < s:
+                        s = r2
+        if s < best:
+            best = s
+    return best
+
+
+@njit(cache=True)
+def _trial(y, h, gaps, P, FL, LO, Kst, ynew, tmp, f, scale_abs, rel, rtol,
+           A, Bw, C, E5, E3, dopnorm):
+    """One embedded RK trial step from y, Kst[0] = f(y) given (FSAL); Kst[S] = f(ynew).
+    Returns the scaled error norm (accept if <= 1)."""
+    ny = y.shape[0]
+    S = Bw.shape[0]
+    for s in range(1, S):
+        for j in range(ny):
+            acc = 0.0
+            for q in range(s):
+                acc += A[s, q] * Kst[q, j]
+            tmp[j] = y[j] + h * acc
+        forces(tmp, gaps, P, FL, LO, 0.0, Kst[s], f)
+    for j in range(ny):
+        acc = 0.0
+        for q in range(S):
+            acc += Bw[q] * Kst[q, j]
+        ynew[j] = y[j] + h * acc
+    forces(ynew, gaps, P, FL, LO, 0.0, Kst[S], f)
+    e5 = 0.0
+    e3 = 0.0
+    for j in range(ny):
+        sc = rtol * scale_abs[j]
+        if rel[j] != 0:
+            sc += rtol * max(abs(y[j]), abs(ynew[j]))
+        if sc <= 0.0:
+            continue
+        a5 = 0.0
+        a3 = 0.0
+        for q in range(S + 1):
+            a5 += E5[q] * Kst[q, j]
+            a3 += E3[q] * Kst[q, j]
+        e5 += (a5 / sc) ** 2
+        e3 += (a3 / sc) ** 2
+    if e5 == 0.0 and e3 == 0.0:
+        return 0.0
+    if dopnorm != 0:
+        return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * ny)
+    return abs(h) * math.sqrt(e5 / ny)
+
+
+@njit(cache=True)
+def _straddle(y, ynew, gaps, LO, n, band, h):
+    """After a trial step: the first tau in (0, 1) at which a pair's overlap crosses its
+    band (onset or release inside the step), or -1 if none does."""
+    ox = LO[K.L_X]
+    ov = LO[K.L_V]
+    best = 2.0
+    for k in range(n - 1):
+        d0 = y[ox + k] - y[ox + k + 1] - gaps[k]
+        d1 = ynew[ox + k] - ynew[ox + k + 1] - gaps[k]
+        w0 = y[ov + k] - y[ov + k + 1]
+        w1 = ynew[ov + k] - ynew[ov + k + 1]
+        tau = -1.0
+        if d0 < -band and (d1 > band or (w0 > 0.0 and w1 < 0.0)):
+            tau = _hermite_root(d0, w0, d1, w1, h, 0.0, True)
+        elif d0 > band and d1 < -band:
+            tau = _hermite_root(d0, w0, d1, w1, h, 0.0, False)
+        if tau > 0.0 and tau < best:
+            best = tau
+    return best if best < 1.0 else -1.0
+
+
+@njit(cache=True)
+def _straddle_groove(y, ynew, K0, K1, P, FL, LO, n, h, bandg):
+    """After a trial step: the first tau in (0, 1) at which a sphere's groove contact
+    switches between stick and slip, i.e. its trial force q = k_g xi + gamma_g u crosses
+    +-Fc (``effects.groove_friction``), or -1 if none does."""
+    if FL[K.F_GROOVE] == 0:
+        return -1.0
+    kg = P[K.P_KG]
+    gam = P[K.P_GG]
+    Fc = P[K.P_FC]
+    sR = P[K.P_S] * P[K.P_R]
+    rot = FL[K.F_ROT] != 0
+    og = LO[K.L_XG]
+    ov = LO[K.L_V]
+    ow = LO[K.L_W]
+    best = 2.0
+    for i in range(n):
+        u0 = y[ov + i] - (sR * y[ow + i] if rot else 0.0)
+        u1 = ynew[ov + i] - (sR * ynew[ow + i] if rot else 0.0)
+        du0 = K0[ov + i] - (sR * K0[ow + i] if rot else 0.0)
+        du1 = K1[ov + i] - (sR * K1[ow + i] if rot else 0.0)
+        q0 = kg * y[og + i] + gam * u0
+        q1 = kg * ynew[og + i] + gam * u1
+        w0 = kg * K0[og + i] + gam * du0
+        w1 = kg * K1[og + i] + gam * du1
+        for lev in (Fc, -Fc):
+            tau = -1.0
+            if q0 < lev - bandg and q1 > lev + bandg:
+                tau = _hermite_root(q0, w0, q1, w1, h, lev, True)
+            elif q0 > lev + bandg and q1 < lev - bandg:
+                tau = _hermite_root(q0, w0, q1, w1, h, lev, False)
+            if tau > 0.0 and tau < best:
+                best = tau
+    return best if best < 1.0 else -1.0
+
+
+@njit(cache=True)
+def _peak_inside(y, ynew, K0, K1, LO, n, h, VMAX, land, c):
+    """First tau in (0, 1) of a record-setting velocity maximum inside the step, more
+    than ``land`` above both step ends; -1 if none."""
+    ox = LO[K.L_X]
+    ov = LO[K.L_V]
+    best = 2.0
+    for i in range(n):
+        a0 = K0[ov + i]
+        a1 = K1[ov + i]
+        if not (a0 > 0.0 and a1 < 0.0):
+            continue
+        _vcoef(y[ox + i], y[ov + i], a0, ynew[ox + i], ynew[ov + i], a1, h, c)
+        tau = _turn(c, 0.0, 1.0)
+        vp = _poly_v(c, tau)
+        if vp > VMAX[i] and vp - max(y[ov + i], ynew[ov + i]) > land and tau < best:
+            best = tau
+    return best if best < 1.0 else -1.0
+
+
+@njit(cache=True)
+def _merge_oldest(rb, m, DROP, i):
+    """Make room in a full record-step buffer: merge the two adjacent steps (contiguous
+    in time, in its older half) of shortest combined length into one, interpolated by
+    the cubic Hermite of v and its slope at the outer ends; if no two are contiguous,
+    the oldest step is lost (DROP: its crossings are unknown). Returns the new count."""
+    best = -1
+    blen = math.inf
+    for q in range(max(1, m // 2)):
+        t_end = rb[q, RB_T0] + rb[q, RB_H]
+        if abs(t_end - rb[q + 1, RB_T0]) <= 1e-9 * rb[q, RB_H]:
+            L = rb[q, RB_H] + rb[q + 1, RB_H]
+            if L < blen:
+                blen = L
+                best = q
+    if best < 0:
+        DROP[i] = max(DROP[i], rb[0, RB_MAX])
+        for q in range(1, m):
+            rb[q - 1, :] = rb[q, :]
+        return m - 1
+    q = best
+    h0 = rb[q, RB_H]
+    h1 = rb[q + 1, RB_H]
+    Hm = h0 + h1
+    v0 = rb[q, RB_C]
+    a0 = rb[q, RB_C + 1] / h0
+    c1 = rb[q + 1, RB_C:RB_C + 5]
+    v1 = _poly_v(c1, 1.0)
+    a1 = _poly_dv(c1, 1.0) / h1
+    dv = v1 - v0
+    rb[q, RB_H] = Hm
+    rb[q, RB_MAX] = max(rb[q, RB_MAX], rb[q + 1, RB_MAX])
+    rb[q, RB_C] = v0
+    rb[q, RB_C + 1] = Hm * a0
+    rb[q, RB_C + 2] = 3.0 * dv - 2.0 * Hm * a0 - Hm * a1
+    rb[q, RB_C + 3] = -2.0 * dv + Hm * a0 + Hm * a1
+    rb[q, RB_C + 4] = 0.0
+    for k in range(q + 2, m):
+        rb[k - 1, :] = rb[k, :]
+    return m - 1
+
+
+@njit(cache=True)
+def _observe(t0, h, y, ynew, K0, K1, LO, n, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, c):
+    """Update the running per-particle observables with one accepted step."""
+    ox = LO[K.L_X]
+    ov = LO[K.L_V]
+    for i in range(n):
+        v0 = y[ov + i]
+        v1 = ynew[ov + i]
+        a0 = K0[ov + i]
+        a1 = K1[ov + i]
+        built = False
+        # largest velocity inside the step
+        vmx = v1
+        tmx = 1.0
+        if v0 > vmx:
+            vmx = v0
+            tmx = 0.0
+        if a0 > 0.0 and a1 < 0.0:
+            _vcoef(y[ox + i], v0, a0, ynew[ox + i], v1, a1, h, c)
+            built = True
+            tau = _turn(c, 0.0, 1.0)
+            vp = _poly_v(c, tau)
+            if vp > vmx:
+                vmx = vp
+                tmx = tau
+        tafter = 0.0
+        if vmx > VMAX[i]:
+            if not built:
+                _vcoef(y[ox + i], v0, a0, ynew[ox + i], v1, a1, h, c)
+                built = True
+            VMAX[i] = vmx
+            TPK[i] = t0 + tmx * h
+            PASSED[i] = 0
+            RUNEND[i] = -1.0
+            tafter = tmx
+            # drop record steps that cannot hold the half-peak crossing any more
+            m = RBN[i]
+            keep = 0
+            while keep < m and RB[i, keep, RB_MAX] < 0.5 * vmx:
+                keep += 1
+            if keep > 0:
+                for q in range(keep, m):
+                    RB[i, q - keep, :] = RB[i, q, :]
+                m -= keep
+            if m == RB.shape[1]:
+                m = _merge_oldest(RB[i], m, DROP, i)
+            RB[i, m, RB_T0] = t0
+            RB[i, m, RB_H] = h
+            RB[i, m, RB_MAX] = vmx
+            for q in range(5):
+                RB[i, m, RB_C + q] = c[q]
+            RBN[i] = m + 1
+        # after the peak: end of the near-peak run, and the pass rule
+        if VMAX[i] > 0.0 and (RUNEND[i] < 0.0 or PASSED[i] == 0):
+            lo_run = (1.0 - PEAK_TOL) * VMAX[i]
+            lo_pass = PASS_FRACTION * VMAX[i]
+            vmn = min(v1, v0 if tafter == 0.0 else v1)
+            interior = a0 < 0.0 and a1 > 0.0
+            if vmn < lo_run or interior:
+                if not built:
+                    _vcoef(y[ox + i], v0, a0, ynew[ox + i], v1, a1, h, c)
+                    built = True
+                if RUNEND[i] < 0.0:
+                    tau = _first_cross(c, lo_run, tafter, False)
+                    if tau >= 0.0:
+                        RUNEND[i] = t0 + tau * h
+                if PASSED[i] == 0:
+                    tau = _first_cross(c, lo_pass, tafter, False)
+                    if tau >= 0.0:
+                        PASSED[i] = 1
+
+
+@njit(cache=True)
+def _dense(yp, kp, y1, k1, h, tau, LO, n, out):
+    """State at t0 + tau h inside the step yp -> y1 (derivatives kp, k1)."""
+    ny = yp.shape[0]
+    ox = LO[K.L_X]
+    ov = LO[K.L_V]
+    for j in range(ny):
+        out[j] = _hermite3(yp[j], kp[j], y1[j], k1[j], h, tau)
+    for i in range(n):
+        x, v = _x_interp(yp[ox + i], yp[ov + i], kp[ov + i], y1[ox + i], y1[ov + i],
+                         k1[ov + i], h, tau)
+        out[ox + i] = x
+        out[ov + i] = v
+
+
+@njit(cache=True)
+def _mech_balance(y, gaps, P, FL, LO, ebuf, e0):
+    energies(y, gaps, P, FL, LO, ebuf)
+    tot = ebuf[K.E_KT] + ebuf[K.E_KR] + ebuf[K.E_H]
+    work = ebuf[K.E_WG] + ebuf[K.E_WD] + ebuf[K.E_WT] + ebuf[K.E_WR]
+    return abs(tot - e0 - work)
+
+
+@njit(cache=True)
+def _flush(b, y, k1, g, P, FL, LO, n, sdt, NT, NS, YP, KP, TP, T, Vout, Eout, counts,
+           tmp, ebuf):
+    """Trace samples due inside the last step, while the window has room."""
+    W = Vout.shape[1]
+    ov = LO[K.L_V]
+    hp = T[b] - TP[b]
+    while (counts[b] < W and NS[b] < NT[b] and hp > 0.0
+           and NS[b] * sdt <= T[b] * (1.0 + 1e-13)):
+        tau = min(1.0, max(0.0, (NS[b] * sdt - TP[b]) / hp))
+        _dense(YP[b], KP[b], y, k1, hp, tau, LO, n, tmp)
+        cc = counts[b]
+        for i in range(n):
+            Vout[b, cc, i] = tmp[ov + i]
+        energies(tmp, g, P, FL, LO, ebuf)
+        Eout[b, cc, :] = ebuf
+        counts[b] = cc + 1
+        NS[b] += 1
+
+
+@njit(parallel=True, cache=True)
+def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, FL, LO,
+               scale_abs, rel, rtol, band, land, A, Bw, C, E5, E3, qexp, dopnorm,
+               t_stop, auto_stop, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, VINIT,
+               E0, BAL, trace, sdt, NT, NS, YP, KP, TP, Vout, Eout, counts):
+    """Advance every running chain until it stops (without trace), or until its window
+    of Vout.shape[1] trace samples is full.
+
+    Per chain b: Y[b] state, KST[b, 0] its derivative, T[b] time, H[b] proposed step,
+    STEPS/REJ/NEV steps, rejected trials (error control and event location) and force
+    evaluations, STATUS[b] (kernels.S_*; a stopped chain keeps S_RUNNING with its final
+    status in FIN[b] until its last trace samples are out), INIT[b] 0 before the first
+    call. A chain stops at t_stop[b] (S_DONE) or, with auto_stop, at the first step end
+    at which its last particle has taken the wave and left (S_PASSED,
+    ``schedule.last_detached``).
+    """
+    B = Y.shape[0]
+    n = int(P[K.P_N])
+    ny = Y.shape[1]
+    S = Bw.shape[0]
+    ov = LO[K.L_V]
+    ox = LO[K.L_X]
+    W = Vout.shape[1]
+    bandg = rtol * P[K.P_FC]
+    dscale = scale_abs[ox]
+    for b in prange(B):
+        counts[b] = 0
+        if STATUS[b] != K.S_RUNNING:
+            continue
+        y = Y[b]
+        Kst = KST[b]
+        g = gaps[b]
+        f = np.zeros(max(n - 1, 1))
+        ynew = np.empty(ny)
+        tmp = np.empty(ny)
+        ebuf = np.empty(K.E_LEN)
+        c = np.empty(5)
+        if INIT[b] == 0:
+            INIT[b] = 1
+            forces(y, g, P, FL, LO, 0.0, Kst[0], f)
+            NEV[b] += 1
+            energies(y, g, P, FL, LO, ebuf)
+            E0[b] = ebuf[K.E_KT] + ebuf[K.E_KR] + ebuf[K.E_H]
+            for i in range(n):
+                VINIT[b, i] = y[ov + i]
+                VMAX[b, i] = y[ov + i]
+                TPK[b, i] = 0.0
+                RUNEND[b, i] = -1.0
+            if trace:
+                for i in range(n):
+                    Vout[b, 0, i] = y[ov + i]
+                Eout[b, 0, :] = ebuf
+                counts[b] = 1
+                NS[b] = 1
+                for j in range(ny):
+                    YP[b, j] = y[j]
+                    KP[b, j] = Kst[0, j]
+                TP[b] = 0.0
+            if t_stop[b] <= 0.0:
+                FIN[b] = K.S_DONE
+        while True:
+            if trace:
+                _flush(b, y, Kst[0], g, P, FL, LO, n, sdt, NT, NS, YP, KP, TP, T, Vout,
+                       Eout, counts, tmp, ebuf)
+                if counts[b] >= W:
+                    break
+            if FIN[b] != K.S_RUNNING:
+                STATUS[b] = FIN[b]
+                break
+            t = T[b]
+            if t >= t_stop[b] * (1.0 - 1e-14):
+                FIN[b] = K.S_DONE
+                continue
+            h = min(H[b], t_stop[b] - t)
+            clipped = h < H[b]
+            s_ev = _predict(y, Kst[0], g, LO, n, band, dscale)
+            if s_ev < h:
+                h = s_ev
+                clipped = True
+            tries = 0
+            accepted = False
+            rejected = False
+            while tries < MAX_TRIES:
+                tries += 1
+                err = _trial(y, h, g, P, FL, LO, Kst, ynew, tmp, f, scale_abs, rel, rtol,
+                             A, Bw, C, E5, E3, dopnorm)
+                NEV[b] += S
+                if not math.isfinite(err):
+                    # a trial step far too long (into a stiff contact): shrink hard
+                    REJ[b] += 1
+                    rejected = True
+                    h = 0.1 * h
+                    H[b] = h
+                    clipped = False
+                    if h < 1e-22:
+                        FIN[b] = K.S_NONFINITE
+                        break
+                    continue
+                if err > 1.0:
+                    REJ[b] += 1
+                    rejected = True
+                    h = h * max(0.2, 0.9 * err ** (-qexp))
+                    H[b] = h
+                    clipped = False
+                    if h < 1e-22:
+                        FIN[b] = K.S_STEPFAIL
+                        break
+                    continue
+                tau = _straddle(y, ynew, g, LO, n, band, h)
+                if tau > 0.0:
+                    REJ[b] += 1
+                    h = max(tau * h, 1e-22)
+                    clipped = True
+                    continue
+                tau = _straddle_groove(y, ynew, Kst[0], Kst[S], P, FL, LO, n, h, bandg)
+                if tau > 0.0:
+                    REJ[b] += 1
+                    h = max(tau * h, 1e-22)
+                    clipped = True
+                    continue
+                tau = _peak_inside(y, ynew, Kst[0], Kst[S], LO, n, h, VMAX[b], land, c)
+                if tau > 0.0:
+                    REJ[b] += 1
+                    h = tau * h
+                    clipped = True
+                    continue
+                accepted = True
+                # PI step control (Gustafsson; beta = PI_BETA): steadier at the stability
+                # limit of a stiff mode than the plain err^(-1/q) rule
+                eo = max(ERROLD[b], 1e-4)
+                ec = max(err, 1e-10)
+                fac = min(10.0, 0.9 * ec ** (-(qexp - 0.75 * PI_BETA)) * eo ** PI_BETA)
+                ERROLD[b] = ec
+                if rejected:
+                    # no growth right after a rejection: at the stability limit of a
+                    # stiff mode (groove stick, a resting contact) growth-and-reject
+                    # would alternate step after step
+                    fac = min(1.0, fac)
+                if not clipped:
+                    H[b] = h * fac
+                break
+            if not accepted:
+                if FIN[b] == K.S_RUNNING:
+                    FIN[b] = K.S_STEPFAIL
+                continue
+            _observe(t, h, y, ynew, Kst[0], Kst[S], LO, n, VMAX[b], TPK[b], PASSED[b],
+                     RUNEND[b], RB[b], RBN[b], DROP[b], c)
+            if trace:
+                for j in range(ny):
+                    YP[b, j] = y[j]
+                    KP[b, j] = Kst[0, j]
+                TP[b] = t
+            for j in range(ny):
+                y[j] = ynew[j]
+            project(y, g, P, FL, LO, f)
+            same = True
+            for j in range(ny):
+                if y[j] != ynew[j]:
+                    same = False
+                    break
+            if same:
+                for j in range(ny):
+                    Kst[0, j] = Kst[S, j]
+            else:
+                forces(y, g, P, FL, LO, 0.0, Kst[0], f)
+                NEV[b] += 1
+            T[b] = t + h
+            STEPS[b] += 1
+            bal = _mech_balance(y, g, P, FL, LO, ebuf, E0[b])
+            if bal > BAL[b]:
+                BAL[b] = bal
+            if not K._finite(y, LO, n):
+                FIN[b] = K.S_NONFINITE
+            elif auto_stop and y[ov + n - 1] > VTHR[b] and \
+                    y[ox + n - 2] - y[ox + n - 1] - g[n - 2] <= 0.0:
+                FIN[b] = K.S_PASSED
+
+
+@njit(cache=True)
+def finalize(VMAX, TPK, RUNEND, RB, RBN, DROP, VINIT, t_last, plateau_span):
+    """Per particle (v_max, t_peak, t_front, plateau) of one chain from its running
+    observables (module docstring); v_max 0 and NaN times for a particle that never moved
+    forward."""
+    n = VMAX.shape[0]
+    vmax = np.zeros(n)
+    tpk = np.full(n, np.nan)
+    tfr = np.full(n, np.nan)
+    plat = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        top = VMAX[i]
+        if not top > 0.0:
+            continue
+        vmax[i] = top
+        t_near = _level_time(RB[i], RBN[i], DROP[i], VINIT[i], (1.0 - PEAK_TOL) * top)
+        t_half = _level_time(RB[i], RBN[i], DROP[i], VINIT[i], 0.5 * top)
+        end = RUNEND[i] if RUNEND[i] >= 0.0 else t_last
+        plat[i] = (end - t_near) > plateau_span
+        tpk[i] = t_near if plat[i] else TPK[i]
+        tfr[i] = t_half
+    return vmax, tpk, tfr, plat
+
+
+@njit(cache=True)
+def _level_time(rb, m, drop, vinit, level):
+    """First time the velocity reached ``level`` (NaN if that step was not kept)."""
+    if vinit >= level:
+        return 0.0
+    if drop >= level:
+        return np.nan
+    for q in range(m):
+        if rb[q, RB_MAX] >= level:
+            tau = _first_cross(rb[q, RB_C:RB_C + 5], level, 0.0, True)
+            if tau < 0.0:
+                return np.nan
+            return rb[q, RB_T0] + tau * rb[q, RB_H]
+    return np.nan

@@ -1,0 +1,128 @@
+"""The event method (engines/events.py): agreement with DOP853 truth, on-the-fly
+observables against its own sampled trace, batch independence, and the force-evaluation
+counts of every reference method."""
+import math
+
+import numpy as np
+import pytest
+
+from granchain.errors import SceneError
+from granchain.gaps import members
+from granchain.observables import sampled_peaks, summarize
+from granchain.simulate import run_scene, trajectories
+
+from conftest import packed, run1
+
+ALL = "[hertz,groove_friction,air_drag,rotation,particle_friction]"
+SHORT = {"chain.n": 10, "probes": "[2, 9]"}
+CASES = {
+    "packed": {},
+    "20nm": {"gaps": "{distribution: uniform, mean: 2.0e-8, seed: 3}"},
+    "190nm": {"striker.velocity": 0.01, "gaps": "{distribution: uniform, mean: 1.9e-7, seed: 3}"},
+    "1um": {"striker.velocity": 0.01, "gaps": "{distribution: uniform, mean: 1.0e-6, seed: 3}"},
+    "190nm-all-effects": {"effects": ALL, "striker.velocity": 0.01,
+                          "gaps": "{distribution: uniform, mean: 1.9e-7, seed: 3}"},
+}
+TOL = 1e-8
+# The tolerance bounds each step's local error; over the run's 10^2-10^3 steps the
+# global error accumulates (the truth, adaptive at 1e-10, closes its own ledger only
+# to ~1e-7). Measured at TOL on these cases: v_max <= 2.1e-6, v_g_front <= 1.7e-6 (the
+# truth's front times are linear interpolations between samples), v_g <= 5.8e-6 (peak
+# times of plateaus), balance error <= 1.6e-6.
+BOUND = {"v_max": 1e-5, "v_g": 2e-5, "v_g_front": 1e-5, "balance": 1e-5}
+
+
+def _event(over, tol=TOL, **kw):
+    return packed(**SHORT, **over, **{"integrator.method": "event", "integrator.tolerance": tol})
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_event_agrees_with_dop853_truth(case):
+    over = CASES[case]
+    truth = run1(packed(**SHORT, **over, **{"integrator.method": "adaptive",
+                                             "integrator.tolerance": 1e-10}))
+    ev = run1(_event(over))
+    assert truth.wave_arrived and ev.wave_arrived and ev.status == "passed"
+    assert ev.final == truth.final
+    for a, b in zip(ev.v_max, truth.v_max):
+        assert abs(a / b - 1) < BOUND["v_max"], (a, b)
+    assert abs(ev.v_g / truth.v_g - 1) < BOUND["v_g"]
+    assert abs(ev.v_g_front / truth.v_g_front - 1) < BOUND["v_g_front"]
+    assert ev.energy.balance_error < BOUND["balance"]
+    for name in ("work_groove_friction", "work_air_drag", "work_particle_friction"):
+        assert getattr(ev.energy, name) == pytest.approx(getattr(truth.energy, name),
+                                                        rel=1e-4, abs=1e-6 * truth.energy.initial)
+    # probes' peak kinds agree (the last particle's plateau is decided by when each
+    # method stops, at the release step end or at the next sample)
+    assert ev.plateau[1] == truth.plateau[1] and ev.plateau[8] == truth.plateau[8]
+    # the point of the method: far fewer force evaluations than DOP853 on the sample grid
+    assert ev.force_evaluations < truth.force_evaluations
+
+
+@pytest.mark.parametrize("case", ["20nm", "190nm", "190nm-all-effects"])
+def test_on_the_fly_observables_match_its_own_trace(case):
+    sc = _event(CASES[case])
+    (_, traj), = list(trajectories(sc, members(sc), trace=True))
+    assert traj.t.size > 100 and np.allclose(np.diff(traj.t), traj.meta["sample_dt"])
+    r = summarize(traj, sc.probes)
+    vm, tp, tf, pl, fi = sampled_peaks(traj)
+    sdt = traj.meta["sample_dt"]
+    assert list(fi) == list(r.final)
+    assert list(pl[:-1]) == list(r.plateau[:-1])
+    ok = np.isfinite(vm)
+    assert np.all(np.abs(np.array(r.v_max)[ok] / vm[ok] - 1) < 1e-5)
+    # front: both the first crossing of v_max / 2, refined below the sample spacing
+    assert np.all(np.abs(np.array(r.t_front)[ok] - tf[ok]) < 0.01 * sdt)
+    # peak time: within the sample spacing (the sampled rule refines by a parabola)
+    assert np.all(np.abs(np.array(r.t_peak)[ok] - tp[ok]) < sdt)
+    # without a trace the record holds only the first and last states
+    (_, bare), = list(trajectories(sc, members(sc)))
+    assert bare.t.size == 2 and bare.t[-1] == pytest.approx(traj.meta["t_last"])
+    rb = summarize(bare, sc.probes)
+    assert rb.v_max == r.v_max and rb.t_front == r.t_front
+    assert rb.energy.balance_error == r.energy.balance_error
+
+
+def test_chain_alone_is_bit_identical_to_the_same_chain_in_a_batch():
+    sc = _event({"striker.velocity": 0.01, "ensemble.realisations": 3, "effects": ALL,
+                 "gaps": "{distribution: uniform, mean: 1.9e-7, seed: 3}"}, tol=1e-6)
+    batch = run_scene(sc)
+    alone = run_scene(sc, realisations=[1])[0]
+    b = batch[1]
+    assert b.realisation == alone.realisation == 1
+    for key in ("v_max", "t_peak", "t_front", "plateau", "final", "steps", "rejected_steps",
+                "force_evaluations", "v_g", "v_g_front"):
+        assert getattr(b, key) == getattr(alone, key) or (
+            isinstance(getattr(b, key), float) and math.isnan(getattr(b, key))
+            and math.isnan(getattr(alone, key))), key
+    assert b.energy == alone.energy
+    # the three realisations are different chains
+    assert batch[0].v_g_front != batch[1].v_g_front
+
+
+@pytest.mark.parametrize("method, per_step, setup", [("rk4", 4, 0), ("verlet", 1, 1)])
+def test_force_evaluations_of_fixed_step_methods(method, per_step, setup):
+    dt, t_end = 2e-9, 2e-6
+    r = run1(packed(**{"integrator.method": method, "integrator.dt": dt, "t_end": t_end,
+                       "output.sample_dt": 2e-8}))
+    steps = round(t_end / dt)
+    assert r.steps == steps
+    assert r.force_evaluations == per_step * steps + setup
+
+
+def test_force_evaluations_of_adaptive_methods_grow_with_accuracy():
+    over = CASES["190nm"]
+    loose, tight = (run1(_event(over, tol)) for tol in (1e-5, 1e-8))
+    assert loose.force_evaluations < tight.force_evaluations
+    # every accepted or rejected trial costs at least the pair's stages
+    assert tight.force_evaluations >= 12 * (tight.steps + tight.rejected_steps)
+    ad = run1(packed(**SHORT, **over, **{"integrator.method": "adaptive",
+                                          "integrator.tolerance": 1e-6}))
+    assert ad.force_evaluations >= 12 * (ad.steps + ad.rejected_steps)
+
+
+def test_event_scene_validation():
+    sc = packed(**{"integrator.method": "event"})
+    assert sc.tolerance == 1e-6
+    with pytest.raises(SceneError, match="integrator.tolerance"):
+        packed(**{"integrator.method": "event", "integrator.tolerance": 0.5})
