@@ -31,10 +31,10 @@ from importlib import resources
 import numpy as np
 
 from .errors import GranchainError, SceneError
-from .scene import Scene
+from .scene import TOLERANCE_METHODS, Scene
 from .schedule import sample_interval
 
-SCENE_METHODS = ("rk4", "verlet", "adaptive")   # what ``method: auto`` may resolve to
+SCENE_METHODS = ("rk4", "verlet", "adaptive", "event")   # what ``method: auto`` may resolve to
 SCENE_CLASSES = ("packed", "gapped")
 # method auto takes the cheapest setting whose measured error is <= tolerance / AUTO_SAFETY:
 # on other scenes (316 and 440C, 0.03-0.5 m/s, packed and 10-190 nm gaps) the error of a
@@ -84,7 +84,7 @@ class CostModel:
         out = []
         for m in dict.fromkeys(k[0] for k in groups):
             keys = [k for k in groups if k[0] == m]
-            keys.sort(key=(lambda k: k[2]) if m == "adaptive" else (lambda k: -k[1]))
+            keys.sort(key=(lambda k: k[2]) if m in TOLERANCE_METHODS else (lambda k: -k[1]))
             err = np.array([largest(err_col, groups[k]) for k in keys], dtype=float)
             err = np.where(np.isnan(err), np.inf, err)
             env = np.maximum.accumulate(err) if len(err) else err
@@ -209,13 +209,13 @@ def auto_setting(scene: Scene, model: CostModel | None = None) -> tuple[str, flo
     methods = list(SCENE_METHODS)
     if (len({sample_interval(scene, v) for v in vs}) > 1
             and target < float(model.provenance["sampling_floor_v_g"][cls])):
-        methods = ["adaptive"]
+        methods = list(TOLERANCE_METHODS)
     pick = model.cheapest(target, "v_g", methods=methods, scene_class=cls)
     if pick is None:
         raise SceneError("integrator.tolerance", f"{tol:g}: no setting of the cost model meets it",
                          f"give a tolerance in [{lo:.2g}, 0.1]")
-    if pick["method"] == "adaptive":
-        return "adaptive", scene.dt, pick["tolerance"]
+    if pick["method"] in TOLERANCE_METHODS:
+        return pick["method"], scene.dt, pick["tolerance"]
     if not vs:                                   # nothing moves: any step will do
         return pick["method"], scene.dt, None
     return pick["method"], fixed_step(scene, pick["steps_per_contact"]), None
@@ -230,7 +230,7 @@ def resolve_auto(scene: Scene, model: CostModel | None = None) -> Scene:
     if scene.method != "auto":
         return scene
     m, dt, rtol = auto_setting(scene, model)
-    if "integrator.dt" in scene.given and m in ("rk4", "verlet"):
+    if "integrator.dt" in scene.given and m not in TOLERANCE_METHODS:
         raise SceneError("integrator.dt", f"has no effect: method auto chose {m} with its "
                          f"own step ({dt:.3g} s) for tolerance {scene.tolerance:g}",
                          "drop dt, or choose method rk4 or verlet to set the step")
@@ -242,6 +242,6 @@ def describe_auto(scene: Scene) -> str:
     """'auto (tolerance 0.0001) -> rk4, dt 1.23e-09 s' for a resolved auto scene."""
     if scene.auto_tolerance is None:
         return scene.method
-    how = (f"tolerance {scene.tolerance:g}" if scene.method == "adaptive"
+    how = (f"tolerance {scene.tolerance:g}" if scene.method in TOLERANCE_METHODS
            else f"dt {scene.dt:.6g} s")
     return f"auto (tolerance {scene.auto_tolerance:g}) -> {scene.method}, {how}"

@@ -35,6 +35,8 @@ EFFECTS = ("hertz", "groove_friction", "air_drag", "rotation", "particle_frictio
            "rolling_friction")
 GAP_DISTRIBUTIONS = ("none", "fixed", "uniform", "exponential", "list", "from_length")
 METHODS = ("rk4", "verlet", "adaptive", "event", "auto")
+FIXED_STEP_METHODS = ("rk4", "verlet")        # dt is the step
+TOLERANCE_METHODS = ("adaptive", "event")     # the step follows integrator.tolerance
 TANGENTIAL_MODELS = ("mindlin", "linear_history")
 
 # Default scene: the chapter's packed 440C chain (15 spheres, R = 150 um, v_s = 0.1 m/s,
@@ -463,7 +465,7 @@ def _check_unused(given: set[str], dist: str, eff: frozenset[str], method: str,
     if "gaps.seed" in given and dist not in RANDOM_GAPS:
         refuse("gaps.seed", f"with distribution '{dist}' (nothing is drawn at random)",
                "drop it, or use distribution uniform, exponential or from_length")
-    if "integrator.tolerance" in given and method in ("rk4", "verlet"):
+    if "integrator.tolerance" in given and method in FIXED_STEP_METHODS:
         refuse("integrator.tolerance", f"with method {method} (a fixed step)",
                "drop it, or use method adaptive, event or auto")
     if "contact.kt" in given and "particle_friction" in eff and tangential == "mindlin":

@@ -23,12 +23,16 @@ ENGINES = ("reference", "lammps")
 
 
 def trajectories(scene: Scene, mem: list[Member], engine: str = "reference", **kw):
-    """Yield (member, Trajectory) in order (a scene with method auto runs resolved)."""
+    """Yield (member, Trajectory) in order (a scene with method auto runs resolved). The
+    reference engine records the sampled trajectory of its event method only on request
+    (``trace=True``); a measured scene requests it (``measurement.needs_trace``)."""
     scene = resolve_auto(scene)
     g = member_gaps(scene, mem)
     vs = np.array([m.v_striker for m in mem])
     if engine == "reference":
         from .engines import reference
+        if needs_trace(scene):
+            kw = {**kw, "trace": True}
         it = reference.run(scene, g, vs, **kw)
     elif engine == "lammps":
         try:

@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from ..costmodel import MODEL_COLUMNS, SCENE_METHODS
+from ..scene import TOLERANCE_METHODS
 from ..observables import ChainResult
 
 
@@ -79,8 +80,8 @@ def envelope(table, observable: str = "v_g", scene_class: str | None = None):
     g["ref_uncertainty"] = g[unc_col] if unc_col and unc_col in g else 0.0
     out = []
     for m, sub in g.groupby("method", sort=False):
-        sub = sub.sort_values("tolerance" if m == "adaptive" else "steps_per_contact",
-                              ascending=(m == "adaptive"))
+        sub = sub.sort_values("tolerance" if m in TOLERANCE_METHODS else "steps_per_contact",
+                              ascending=(m in TOLERANCE_METHODS))
         err = sub["err"].astype(float).fillna(math.inf).to_numpy()
         out.append(sub.assign(envelope=np.maximum.accumulate(err)))
     cols = ["method", "steps_per_contact", "tolerance", "dt_s", "wall_s_per_chain", "err",

@@ -19,17 +19,17 @@ import numpy as np
 from ..costmodel import fixed_step
 from ..errors import GranchainError
 from ..observables import ChainResult
-from ..scene import MIN_STEPS_PER_CONTACT, scene_from_dict
+from ..scene import MIN_STEPS_PER_CONTACT, TOLERANCE_METHODS, scene_from_dict
 from .analysis import rel_err
 
-METHODS = ("rk4", "verlet", "adaptive", "lammps")
+METHODS = ("rk4", "verlet", "adaptive", "event", "lammps")
 OBSERVABLES = ("v_max_2", "v_g", "v_g_front")
 
 # Columns of the measured table, in order. ``tables/accuracy_cost.csv`` keeps the
 # deterministic ones (no wall time), ``timing/accuracy_cost.csv`` all of them.
 COLUMNS = ("scene", "method", "steps_per_contact", "dt_s", "tolerance", "wall_s_per_chain",
            "engine_s_per_chain", "err_v_max_2", "err_v_g", "err_v_g_front", "balance_error",
-           "steps_per_chain", "rejected_per_chain", "status", "ref_uncertainty_v_max_2",
+           "steps_per_chain", "rejected_per_chain", "force_evaluations_per_chain", "status", "ref_uncertainty_v_max_2",
            "ref_uncertainty_v_g", "ref_uncertainty_v_g_front", "batch", "repeats",
            "scene_hash")
 TIMING_ONLY = ("wall_s_per_chain", "engine_s_per_chain", "repeats")
@@ -69,8 +69,8 @@ class Setting:
 
     @property
     def label(self) -> str:
-        if self.method == "adaptive":
-            return f"adaptive tol={self.tolerance:g}"
+        if self.method in TOLERANCE_METHODS:
+            return f"{self.method} tol={self.tolerance:g}"
         return f"{self.method} N={self.steps_per_contact}"
 
     @property
@@ -89,7 +89,7 @@ def settings(cost: dict) -> list[Setting]:
     for m in cost["methods"]:
         if m not in METHODS:
             raise GranchainError(f"cost.methods: unknown method '{m}'; use any of {', '.join(METHODS)}")
-        if m == "adaptive":
+        if m in TOLERANCE_METHODS:
             out += [Setting(m, None, float(t)) for t in cost["tolerances"]]
             continue
         grid = cost["lammps_steps_per_contact"] if m == "lammps" else cost["steps_per_contact"]
@@ -132,8 +132,8 @@ def scene_for(raw: dict, setting: Setting, *, batch: int = 1):
     """The scene ``raw`` (auto sampling, ``batch`` realisations) integrated with
     ``setting`` (LAMMPS: velocity Verlet), its fixed step from ``costmodel.fixed_step``."""
     base = scene_from_dict(dict(raw, ensemble={"realisations": int(batch)}))
-    if setting.method == "adaptive":
-        return base.derive(integrator={"method": "adaptive", "tolerance": setting.tolerance})
+    if setting.method in TOLERANCE_METHODS:
+        return base.derive(integrator={"method": setting.method, "tolerance": setting.tolerance})
     dt = fixed_step(base, setting.steps_per_contact)
     return base.derive(integrator={"method": "rk4" if setting.method == "rk4" else "verlet",
                                    "dt": dt})
@@ -270,7 +270,7 @@ def measure(cost: dict | None = None, base: dict | None = None, *, log=_log):
         row = {
             "scene": name, "method": s.method,
             "steps_per_contact": s.steps_per_contact or math.nan,
-            "dt_s": sc.dt if s.method != "adaptive" else math.nan,
+            "dt_s": sc.dt if s.method not in TOLERANCE_METHODS else math.nan,
             "tolerance": s.tolerance if s.tolerance is not None else math.nan,
             "wall_s_per_chain": statistics.median(walls[name, s]),
             "engine_s_per_chain": statistics.median(engine[name, s]),
@@ -280,6 +280,7 @@ def measure(cost: dict | None = None, base: dict | None = None, *, log=_log):
             "balance_error": balance,
             "steps_per_chain": float(np.mean([r.steps for r in runs])),
             "rejected_per_chain": float(np.mean([r.rejected_steps for r in runs])),
+            "force_evaluations_per_chain": float(np.mean([r.force_evaluations for r in runs])),
             "status": "+".join(sorted({r.status for r in runs})),
             **{f"ref_uncertainty_{k}": rinfo["uncertainty"][k] for k in OBSERVABLES},
             "batch": len(runs), "repeats": len(walls[name, s]), "scene_hash": sc.hash,

@@ -11,6 +11,7 @@ import numpy as np
 
 from .. import costmodel
 from ..errors import GranchainError
+from ..scene import TOLERANCE_METHODS
 from .analysis import cheapest, cheapest_table, model_from_table, scene_class
 from .measure import DETERMINISTIC, METHODS, full_config, to_frame
 
@@ -92,7 +93,7 @@ def write_model(timing_csv, out, *, force: bool = False) -> None:
     costmodel.load_model.cache_clear()
 
 
-COLORS = {"rk4": "C0", "verlet": "C1", "adaptive": "C2", "lammps": "C3"}
+COLORS = {"rk4": "C0", "verlet": "C1", "adaptive": "C2", "lammps": "C3", "event": "C4"}
 PANELS = (("v_max_2", "relative error of $v_{max,2}$"), ("v_g", "relative error of $v_g$"),
           ("balance", "energy balance error"))
 STYLES = ("-", "--", ":", "-.")
@@ -116,7 +117,7 @@ def plot(table, png, pdf=None, *, tolerances=(1e-3, 1e-5)) -> None:
                 s = sub[sub["method"] == m]
                 if s.empty or s[col].isna().all():
                     continue
-                s = s.sort_values("tolerance", ascending=False) if m == "adaptive" else \
+                s = s.sort_values("tolerance", ascending=False) if m in TOLERANCE_METHODS else \
                     s.sort_values("steps_per_contact")
                 ax.plot(s["wall_s_per_chain"], np.maximum(s[col], floor), STYLES[si % 4],
                         marker="o", ms=3, color=COLORS[m], label=f"{m}, {sc}")
@@ -149,8 +150,8 @@ def plot(table, png, pdf=None, *, tolerances=(1e-3, 1e-5)) -> None:
 
 
 def _label(c: dict) -> str:
-    if c["method"] == "adaptive":
-        return f"adaptive, tolerance {c['tolerance']:g}"
+    if c["method"] in TOLERANCE_METHODS:
+        return f"{c['method']}, tolerance {c['tolerance']:g}"
     dt = f", dt {c['dt_s']:.3g} s" if c.get("dt_s") is not None else ""
     return f"{c['method']}, N = {c['steps_per_contact']}{dt}"
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from .. import analytic
 from ..errors import GranchainError
 from ..costmodel import resolve_auto
-from ..scene import RANDOM_GAPS, Scene, apply_overrides, scene_from_dict
+from ..scene import RANDOM_GAPS, TOLERANCE_METHODS, Scene, apply_overrides, scene_from_dict
 from .config import ConfigError, study_engine
 
 STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length",
@@ -106,6 +106,9 @@ def _raw_scene(preset: dict, spec: dict, name: str, material: str, velocities, g
     }
     if raw["integrator"]["method"] == "auto" and "dt" not in spec:
         del raw["integrator"]["dt"]          # auto chooses its own step
+    tol = spec.get("tolerance", base.get("tolerance"))
+    if tol is not None and method in (*TOLERANCE_METHODS, "auto"):
+        raw["integrator"]["tolerance"] = tol
     if "probes" in base:
         raw["probes"] = list(base["probes"])
     return apply_overrides(raw, list(base.get("overrides", [])) + list(spec.get("overrides", [])))
