@@ -42,7 +42,7 @@ from . import schedule
 from .effects import SPECS
 from .trajectory import ENERGY_COLUMNS, Trajectory
 
-PEAK_TOL = 1e-4
+PEAK_TOL = schedule.PEAK_TOL
 PLATEAU_SAMPLES = 5
 
 

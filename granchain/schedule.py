@@ -44,6 +44,7 @@ DEFAULT_MAX_MEMORY_GB = 4.0
 RECORD_EXTRA_COLUMNS = 8
 ARRIVAL_FRACTION = 1e-3    # a particle has seen the wave once v > ARRIVAL_FRACTION * v_s
 PASS_FRACTION = 0.5        # the wave has passed an inner particle once v < this * its peak
+PEAK_TOL = 1e-4            # a peak: samples within PEAK_TOL of the maximum (observables.peak)
 
 
 def sample_interval(scene, v_striker: float) -> float:

@@ -13,7 +13,7 @@ numba at run time.
   chains through every entry point, which JIT-compiles them into numba's cache (the cold
   compile, once per machine), then compiles the same entry points, with the signatures the
   JIT compiled, ahead of time into ``<cache>/aot/`` with the machine's CPU as target.
-- :func:`entry` gives the compiled entry point for a call: the ahead-of-time one for a
+- :func:`kernels` gives the compiled entry points for a call: the ahead-of-time ones for a
   serial call (one chain, nothing to run in parallel) when it is built for exactly the
   current kernel sources, numba and CPU; the JIT one (parallel over chains with prange)
   otherwise. Both are compiled from the same functions without fast-math, so they give
@@ -36,10 +36,12 @@ from pathlib import Path
 
 from ..fileio import cache_dir, source_hash
 
-# The kernels' entry points that the engines call through :func:`entry`.
-ENTRY_POINTS = ("run_window",)
+# The kernels' entry points that the engines call (:func:`kernels`), by module.
+ENTRY_POINTS = {"run_window": "kernels", "run_blocks": "kernels", "energies": "kernels",
+                "run_events": "events", "finalize": "events"}
 # Every source the compiled kernels are made of.
-_SOURCES = ("engines/kernels.py", "effects")
+_SOURCES = ("engines/kernels.py", "engines/events.py", "engines/codes.py", "schedule.py",
+            "effects")
 
 
 def _cpu() -> str:
@@ -98,14 +100,40 @@ def aot_available() -> bool:
     return _aot_module() is not None
 
 
-def entry(name: str, serial: bool):
-    """The compiled entry point ``name``: ahead of time when ``serial`` and built, else JIT."""
-    if serial:
-        mod = _aot_module()
-        if mod is not None:
-            return getattr(mod, name)
-    from . import kernels
-    return getattr(kernels, name)
+def _jit(name: str):
+    import importlib
+    return getattr(importlib.import_module(f"{__package__}.{ENTRY_POINTS[name]}"), name)
+
+
+class Kernels:
+    """The entry points as attributes (``kernels(serial).run_blocks(...)``)."""
+
+    def __init__(self, aot):
+        self._aot = aot
+
+    def __getattr__(self, name: str):
+        if name not in ENTRY_POINTS:
+            raise AttributeError(name)
+        return getattr(self._aot, name) if self._aot is not None else _jit(name)
+
+
+def kernels(serial: bool) -> Kernels:
+    """The compiled entry points for one call: ahead of time when ``serial`` (nothing to run
+    in parallel) and built for this machine, else numba's JIT (parallel over chains)."""
+    return Kernels(_aot_module() if serial else None)
+
+
+def num_threads() -> int:
+    """The threads numba's parallel kernels use (without importing numba if it is not
+    loaded yet: $NUMBA_NUM_THREADS, else the CPUs this process may use)."""
+    if "numba" in sys.modules:
+        import numba
+        return numba.get_num_threads()
+    env = os.environ.get("NUMBA_NUM_THREADS")
+    if env and env.isdigit():
+        return max(1, int(env))
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+               else (os.cpu_count() or 1))
 
 
 # --- build -----------------------------------------------------------------------------
@@ -147,9 +175,8 @@ def build(log=print) -> Path | None:
     except ImportError:
         log("granchain warm-up: numba.pycc is not available; runs use the JIT kernels only")
         return None
-    from . import kernels
     # the signatures the warm-up compiled (argument and return types, as the engine calls them)
-    sigs = {e: getattr(kernels, e).nopython_signatures for e in ENTRY_POINTS}
+    sigs = {e: _jit(e).nopython_signatures for e in ENTRY_POINTS}
     bad = [e for e, s in sigs.items() if len(s) != 1]
     if bad:
         raise RuntimeError(f"warm-up compiled {[len(sigs[e]) for e in bad]} signatures of {bad}; "
@@ -169,7 +196,7 @@ def build(log=print) -> Path | None:
     cc.target_cpu = "host"
     cc.verbose = False
     for e in ENTRY_POINTS:
-        cc.export(e, sigs[e][0])(getattr(kernels, e).py_func)
+        cc.export(e, sigs[e][0])(_jit(e).py_func)
     cc.compile()
     built = next(tmp.iterdir())
     final = out / built.name

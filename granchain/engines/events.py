@@ -49,34 +49,11 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ..schedule import PASS_FRACTION, PEAK_TOL
 from . import kernels as K
+from .codes import DEFAULT_PAIR, PAIRS, RB_C, RB_H, RB_LEN, RB_MAX, RB_SIZE, RB_T0  # noqa: F401
 from .kernels import energies, forces, project
 
-# Dormand-Prince 5(4) (as in scipy's RK45), FSAL: 6 force evaluations per step
-_DP5_C = np.array([0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0])
-_DP5_A = np.array([
-    [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [1 / 5, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [3 / 40, 9 / 40, 0.0, 0.0, 0.0, 0.0],
-    [44 / 45, -56 / 15, 32 / 9, 0.0, 0.0, 0.0],
-    [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729, 0.0, 0.0],
-    [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656, 0.0]])
-_DP5_B = np.array([35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84])
-_DP5_E = np.array([-71 / 57600, 0.0, 71 / 16695, -71 / 1920, 17253 / 339200, -22 / 525, 1 / 40])
-
-# pairs: code -> (A, B, C, E5, E3, error exponent, DOP853-style error norm)
-PAIRS = {
-    "dop853": (K.DOP_A, K.DOP_B, K.DOP_C, K.DOP_E5, K.DOP_E3, 1.0 / 8.0, 1),
-    "dp54": (_DP5_A, _DP5_B, _DP5_C, _DP5_E, np.zeros(_DP5_E.shape[0]), 1.0 / 5.0, 0),
-}
-DEFAULT_PAIR = "dop853"
-
-PEAK_TOL = 1e-4            # granchain.observables.PEAK_TOL
-PASS_FRACTION = 0.5        # granchain.schedule.PASS_FRACTION
-RB_SIZE = 48               # record steps kept per particle
-# record-step buffer columns: t0, h, max over the step, then 5 coefficients of v(tau)
-RB_T0, RB_H, RB_MAX, RB_C = 0, 1, 2, 3
-RB_LEN = 8
 MAX_TRIES = 60
 PI_BETA = 0.04
 

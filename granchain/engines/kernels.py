@@ -27,48 +27,14 @@ from numba import njit, prange
 
 from ..effects import air_drag, groove_friction, hertz, particle_friction, rolling_friction
 
-# parameter vector P
-P_N, P_R, P_M, P_I, P_K, P_S, P_FC, P_KG, P_T0, P_L, P_MU, P_KT, P_KR, P_GR, P_MUR, P_GG, P_LEN = range(17)
-# flags FL
-F_ROT, F_GROOVE, F_DRAG, F_ODD, F_PP, F_MINDLIN, F_ROLL, F_LEN = range(8)
-# layout offsets LO (-1: absent)
-L_X, L_V, L_W, L_XG, L_XT, L_PS, L_WG, L_WD, L_WT, L_WR, L_NY, L_LEN = range(12)
-# methods
-M_RK4, M_VERLET, M_DOP853 = 0, 1, 2
-# sample columns of the energy array: kinetic translational, kinetic rotational, Hertz
-# potential, then the work done on the particles by groove, drag, contact friction, rolling
-E_KT, E_KR, E_H, E_WG, E_WD, E_WT, E_WR, E_LEN = range(8)
-# status
-S_RUNNING, S_DONE, S_PASSED, S_TIMEOUT, S_NONFINITE, S_STEPFAIL = 0, 1, 2, 3, 4, 5
-
-
-
-def _dop853_tableau():
-    """scipy's Dormand-Prince 8(5,3) coefficients, loaded from their own file: importing
-    them through ``scipy.integrate`` would also load its quadrature and ODE packages
-    (0.35 s a process, for a table of numbers). Falls back to the normal import if
-    scipy's layout differs."""
-    import importlib.util
-    import os
-    spec = importlib.util.find_spec("scipy")
-    path = os.path.join(os.path.dirname(spec.origin or ""), "integrate", "_ivp",
-                        "dop853_coefficients.py")
-    if os.path.isfile(path):
-        mod_spec = importlib.util.spec_from_file_location("granchain_dop853_coefficients", path)
-        mod = importlib.util.module_from_spec(mod_spec)
-        mod_spec.loader.exec_module(mod)
-        return mod
-    from scipy.integrate._ivp import dop853_coefficients
-    return dop853_coefficients
-
-
-_dc = _dop853_tableau()
-NST = _dc.N_STAGES
-DOP_A = np.ascontiguousarray(_dc.A[:NST, :NST])
-DOP_B = np.ascontiguousarray(_dc.B)
-DOP_C = np.ascontiguousarray(_dc.C[:NST])
-DOP_E3 = np.ascontiguousarray(_dc.E3)
-DOP_E5 = np.ascontiguousarray(_dc.E5)
+# the kernels' numbering of parameters, flags, layout blocks, methods, energy columns,
+# statuses, and the DOP853 tableau (numba-free, shared with the engines' Python side)
+from .codes import (DOP_A, DOP_B, DOP_C, DOP_E3, DOP_E5, E_H, E_KR, E_KT, E_LEN,  # noqa: E402,F401
+                    E_WD, E_WG, E_WR, E_WT, F_DRAG, F_GROOVE, F_LEN, F_MINDLIN, F_ODD, F_PP,
+                    F_ROLL, F_ROT, L_LEN, L_NY, L_PS, L_V, L_W, L_WD, L_WG, L_WR, L_WT, L_X,
+                    L_XG, L_XT, M_DOP853, M_RK4, M_VERLET, NST, P_FC, P_GG, P_GR, P_I, P_K,
+                    P_KG, P_KR, P_KT, P_L, P_LEN, P_M, P_MU, P_MUR, P_N, P_R, P_S, P_T0,
+                    S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL, S_TIMEOUT)
 
 
 @njit(cache=True, inline="always")

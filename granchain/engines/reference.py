@@ -14,7 +14,6 @@ import sys
 import time
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from ..schedule import (arrival_speed, auto_t_max, expected_duration, last_detached,
@@ -23,17 +22,17 @@ from ..effects import MODULES, SPECS, Terms, physics_terms
 from ..guards import require_resolved
 from ..scene import Scene
 from ..trajectory import OnTheFly, Trajectory
-from . import events as EV
-from . import kernels as K
+from . import backend
+from . import codes as C
 
 M_EVENT = 3
-METHOD_CODES = {"rk4": K.M_RK4, "verlet": K.M_VERLET, "adaptive": K.M_DOP853,
+METHOD_CODES = {"rk4": C.M_RK4, "verlet": C.M_VERLET, "adaptive": C.M_DOP853,
                 "event": M_EVENT}
 # plateau rule of granchain.observables (PLATEAU_SAMPLES sample intervals), for the
 # event method's on-the-fly peaks
 PLATEAU_SAMPLES = 5
-STATUS_NAMES = {K.S_DONE: "done", K.S_PASSED: "passed", K.S_TIMEOUT: "timeout",
-                K.S_NONFINITE: "nonfinite", K.S_STEPFAIL: "stepfail", K.S_RUNNING: "timeout"}
+STATUS_NAMES = {C.S_DONE: "done", C.S_PASSED: "passed", C.S_TIMEOUT: "timeout",
+                C.S_NONFINITE: "nonfinite", C.S_STEPFAIL: "stepfail", C.S_RUNNING: "timeout"}
 WINDOW = 2048                    # samples per kernel call (adaptive method)
 BLOCK_WINDOW = 256               # samples per kernel call (fixed-step blocks)
 CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
@@ -51,40 +50,40 @@ class Layout:
     def of(cls, terms: Terms) -> "Layout":
         n = terms.n
         off = 0
-        LO = np.full(K.L_LEN, -1, dtype=np.int64)
+        LO = np.full(C.L_LEN, -1, dtype=np.int64)
 
         def take(slot, size):
             nonlocal off
             LO[slot] = off
             off += size
-        take(K.L_X, n)
-        take(K.L_V, n)
+        take(C.L_X, n)
+        take(C.L_V, n)
         # the effects' blocks, then one work entry per effect that does work, in
         # registry order (granchain.effects.MODULES)
         on = [spec for name, spec in SPECS.items() if terms.has(name)]
         for spec in on:
             for slot, per in spec.state:
-                take(getattr(K, slot), n if per == "particle" else n - 1)
+                take(getattr(C, slot), n if per == "particle" else n - 1)
         for spec in on:
             if spec.work_slot:
-                take(getattr(K, spec.work_slot), 1)
-        LO[K.L_NY] = off
+                take(getattr(C, spec.work_slot), 1)
+        LO[C.L_NY] = off
         return cls(LO, off)
 
 
 def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
     """Parameter vector P and flag vector FL of the kernels, from the effect definitions."""
-    P = np.zeros(K.P_LEN)
-    FL = np.zeros(K.F_LEN, dtype=np.int64)
-    P[K.P_N], P[K.P_R], P[K.P_M] = terms.n, terms.R, terms.m
+    P = np.zeros(C.P_LEN)
+    FL = np.zeros(C.F_LEN, dtype=np.int64)
+    P[C.P_N], P[C.P_R], P[C.P_M] = terms.n, terms.R, terms.m
     for mod in MODULES:
         term = getattr(terms, mod.SPEC.name)
         if term is not None:
             params, flags = mod.kernel(term)
             for slot, value in params.items():
-                P[getattr(K, slot)] = value
+                P[getattr(C, slot)] = value
             for slot, value in flags.items():
-                FL[getattr(K, slot)] = value
+                FL[getattr(C, slot)] = value
     return P, FL
 
 
@@ -127,7 +126,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         for chunk in _chunks(group, scene, terms, key, method):
             if method == "event":
                 it = _run_chunk_events(scene, terms, gaps[chunk], vs[chunk], dt, rtol, key,
-                                       trace, pair or EV.DEFAULT_PAIR)
+                                       trace, pair or C.DEFAULT_PAIR)
             else:
                 it = _run_chunk(scene, terms, gaps[chunk], vs[chunk], method, dt, rtol, key)
             for idx, traj in zip(chunk, it):
@@ -158,22 +157,23 @@ def _chunks(group, scene, terms, sample_dt, method):
         t_est = 4.0 * expected_duration(scene, v)
     blocked = method in ("rk4", "verlet")          # blocks of LANES chains in lockstep
     window = BLOCK_WINDOW if blocked else WINDOW
-    per_chain = (t_est / sample_dt + window) * (terms.n + K.E_LEN) * 8
+    per_chain = (t_est / sample_dt + window) * (terms.n + C.E_LEN) * 8
     size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, CHUNK_CHAINS)))
     if blocked and size < len(group):
         # whole blocks, as many on every thread
-        unit = LANES * numba.get_num_threads()
+        unit = LANES * backend.num_threads()
         size = max(LANES, size // unit * unit)
     for i in range(0, len(group), size):
         yield group[i:i + size]
 
 
 def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt):
+    kern = backend.kernels(serial=gaps.shape[0] == 1)
     layout = Layout.of(terms)
     P, FL = pack(terms)
     B, n, ny = gaps.shape[0], terms.n, layout.ny
     Y = np.zeros((B, ny))
-    Y[:, layout.LO[K.L_V]] = vs            # particle 1 (index 0) is the striker
+    Y[:, layout.LO[C.L_V]] = vs            # particle 1 (index 0) is the striker
     ACC = np.zeros((B, ny))
     T = np.zeros(B)
     H = np.full(B, dt)
@@ -183,7 +183,7 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
     STATUS = np.zeros(B, dtype=np.int64)
     VTHR = arrival_speed(vs)
     mcode = METHOD_CODES[method]
-    if mcode == K.M_DOP853:
+    if mcode == C.M_DOP853:
         every, sdt = 1, sample_dt
     else:
         every = max(1, int(round(sample_dt / dt)))
@@ -200,11 +200,11 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
     E_parts = [[] for _ in range(B)]
     counts = np.zeros(B, dtype=np.int64)
     t0 = time.perf_counter()
-    if mcode == K.M_DOP853:
+    if mcode == C.M_DOP853:
         Vbuf = np.empty((B, WINDOW, n))
-        Ebuf = np.empty((B, WINDOW, K.E_LEN))
-        while np.any(STATUS == K.S_RUNNING):
-            K.run_window(mcode, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL,
+        Ebuf = np.empty((B, WINDOW, C.E_LEN))
+        while np.any(STATUS == C.S_RUNNING):
+            kern.run_window(mcode, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL,
                          layout.LO, scale_abs, rel, rtol, dt, every, sdt, NT, auto, Vbuf, Ebuf,
                          counts)
             _collect(counts, Vbuf, Ebuf, V_parts, E_parts)
@@ -218,17 +218,17 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
         e = np.concatenate(E_parts[b])
         t = np.arange(v.shape[0]) * sdt
         status = STATUS[b]
-        if auto and status == K.S_DONE and vs[b] > 0:
-            status = K.S_TIMEOUT      # t_end auto hit its cap before the wave left the chain
-        ox = layout.LO[K.L_X]
+        if auto and status == C.S_DONE and vs[b] > 0:
+            status = C.S_TIMEOUT      # t_end auto hit its cap before the wave left the chain
+        ox = layout.LO[C.L_X]
         last_overlap = float(Y[b, ox + n - 2] - Y[b, ox + n - 1] - gaps[b, n - 2])
-        if mcode == K.M_RK4:
+        if mcode == C.M_RK4:
             nev = 4 * int(STEPS[b])
-        elif mcode == K.M_VERLET:
+        elif mcode == C.M_VERLET:
             nev = int(STEPS[b]) + 1                  # + the setup call
         else:
             # each DOP853 trial evaluates f(y), 11 stages and f(ynew) (kernels.dop853_try)
-            nev = (K.NST + 1) * int(STEPS[b] + REJ[b])
+            nev = (C.NST + 1) * int(STEPS[b] + REJ[b])
         yield Trajectory(t=t, v=v, energy=e, gaps=gaps[b].copy(), radius=scene.radius,
                          v_striker=float(vs[b]), effects=eff, steps=int(STEPS[b]),
                          rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
@@ -237,15 +237,16 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
 
 
 def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt, trace, pair):
+    kern = backend.kernels(serial=gaps.shape[0] == 1)
     """The event method (``engines.events``) on a chunk of chains."""
     layout = Layout.of(terms)
     P, FL = pack(terms)
     LO = layout.LO
     B, n, ny = gaps.shape[0], terms.n, layout.ny
-    A, Bw, C, E5, E3, qexp, dopnorm = EV.PAIRS[pair]
+    A, Bw, Ct, E5, E3, qexp, dopnorm = C.PAIRS[pair]
     S = Bw.shape[0]
     Y = np.zeros((B, ny))
-    Y[:, LO[K.L_V]] = vs
+    Y[:, LO[C.L_V]] = vs
     KST = np.zeros((B, S + 1, ny))
     T = np.zeros(B)
     H = np.full(B, dt)
@@ -265,13 +266,13 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
                        if vs[b] > 0 else 1 for b in range(B)], dtype=np.int64)
     t_stop = (NT - 1) * sample_dt
     scale_abs, rel = _error_scales(scene, terms, layout, max(float(vs.max()), 1e-9))
-    band = rtol * scale_abs[LO[K.L_X]]           # overlap band of the contact events
-    land = rtol * scale_abs[LO[K.L_V]]           # peak landing threshold
+    band = rtol * scale_abs[LO[C.L_X]]           # overlap band of the contact events
+    land = rtol * scale_abs[LO[C.L_V]]           # peak landing threshold
     VMAX = np.zeros((B, n))
     TPK = np.zeros((B, n))
     PASSED = np.zeros((B, n), dtype=np.int64)
     RUNEND = np.full((B, n), -1.0)
-    RB = np.zeros((B, n, EV.RB_SIZE, EV.RB_LEN))
+    RB = np.zeros((B, n, C.RB_SIZE, C.RB_LEN))
     RBN = np.zeros((B, n), dtype=np.int64)
     DROP = np.full((B, n), -np.inf)
     VINIT = np.zeros((B, n))
@@ -283,14 +284,14 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
     KP = np.zeros_like(YP)
     TP = np.zeros(B)
     Vbuf = np.empty((B, W, n))
-    Ebuf = np.empty((B, W, K.E_LEN))
+    Ebuf = np.empty((B, W, C.E_LEN))
     counts = np.zeros(B, dtype=np.int64)
     V_parts = [[] for _ in range(B)]
     E_parts = [[] for _ in range(B)]
     t0 = time.perf_counter()
-    while np.any(STATUS == K.S_RUNNING):
-        EV.run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, FL, LO,
-                      scale_abs, rel, rtol, band, land, A, Bw, C, E5, E3, qexp, dopnorm,
+    while np.any(STATUS == C.S_RUNNING):
+        kern.run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, FL, LO,
+                      scale_abs, rel, rtol, band, land, A, Bw, Ct, E5, E3, qexp, dopnorm,
                       t_stop, auto, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, VINIT,
                       E0, BAL, trace, sample_dt, NT, NS, YP, KP, TP, Vbuf, Ebuf, counts)
         for b in range(B):
@@ -300,15 +301,15 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
                 E_parts[b].append(Ebuf[b, :c].copy())
     wall = time.perf_counter() - t0
     eff = tuple(sorted(scene.effects))
-    ox, ov = LO[K.L_X], LO[K.L_V]
-    ebuf = np.empty(K.E_LEN)
+    ox, ov = LO[C.L_X], LO[C.L_V]
+    ebuf = np.empty(C.E_LEN)
     for b in range(B):
         status = STATUS[b]
-        if auto and status == K.S_DONE and vs[b] > 0:
-            status = K.S_TIMEOUT
+        if auto and status == C.S_DONE and vs[b] > 0:
+            status = C.S_TIMEOUT
         last_overlap = float(Y[b, ox + n - 2] - Y[b, ox + n - 1] - gaps[b, n - 2])
         y_end = Y[b]
-        K.energies(y_end, gaps[b], P, FL, LO, ebuf)
+        kern.energies(y_end, gaps[b], P, FL, LO, ebuf)
         e_end = ebuf.copy()
         if trace:
             v = np.concatenate(V_parts[b])
@@ -317,11 +318,11 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
         else:
             y0 = np.zeros(ny)
             y0[ov] = vs[b]
-            K.energies(y0, gaps[b], P, FL, LO, ebuf)
+            kern.energies(y0, gaps[b], P, FL, LO, ebuf)
             t = np.array([0.0, float(T[b])])
             v = np.stack([y0[ov:ov + n], y_end[ov:ov + n]])
             e = np.stack([ebuf.copy(), e_end])
-        vmax, tpk, tfr, plat = EV.finalize(VMAX[b], TPK[b], RUNEND[b], RB[b], RBN[b], DROP[b],
+        vmax, tpk, tfr, plat = kern.finalize(VMAX[b], TPK[b], RUNEND[b], RB[b], RBN[b], DROP[b],
                                            VINIT[b], float(T[b]), PLATEAU_SAMPLES * sample_dt)
         final = np.zeros(n, dtype=bool)
         seen = vmax > arrival_speed(vs[b])
@@ -350,6 +351,7 @@ def _collect(counts, Vbuf, Ebuf, V_parts, E_parts):
 
 
 def _run_blocks(mcode, Y0, gaps, VTHR, P, FL, layout, dt, every, NT, auto, V_parts, E_parts):
+    kern = backend.kernels(serial=gaps.shape[0] == 1)
     """Fixed-step methods: the chains in blocks of LANES (consecutive chains share a block,
     the last block padded with lanes at rest that record nothing), stepped in lockstep by
     ``kernels.run_blocks``. Returns each chain's final state, time, steps and status."""
@@ -370,17 +372,17 @@ def _run_blocks(mcode, Y0, gaps, VTHR, P, FL, layout, dt, every, NT, auto, V_par
     T = np.zeros(Bp)
     NS = np.zeros(Bp, dtype=np.int64)
     STEPS = np.zeros(Bp, dtype=np.int64)
-    STATUS = np.full(Bp, K.S_DONE, dtype=np.int64)
-    STATUS[:B] = K.S_RUNNING
+    STATUS = np.full(Bp, C.S_DONE, dtype=np.int64)
+    STATUS[:B] = C.S_RUNNING
     VT = np.zeros(Bp)
     VT[:B] = VTHR
     NTp = np.ones(Bp, dtype=np.int64)
     NTp[:B] = NT
     Vbuf = np.empty((Bp, BLOCK_WINDOW, n))
-    Ebuf = np.empty((Bp, BLOCK_WINDOW, K.E_LEN))
+    Ebuf = np.empty((Bp, BLOCK_WINDOW, C.E_LEN))
     counts = np.zeros(Bp, dtype=np.int64)
-    while np.any(STATUS[:B] == K.S_RUNNING):
-        K.run_blocks(mcode, YB, ACC, YF, T, NS, STEPS, STATUS, VT, GB, P, FL, layout.LO, dt,
+    while np.any(STATUS[:B] == C.S_RUNNING):
+        kern.run_blocks(mcode, YB, ACC, YF, T, NS, STEPS, STATUS, VT, GB, P, FL, layout.LO, dt,
                      every, NTp, auto, Vbuf, Ebuf, counts)
         _collect(counts[:B], Vbuf, Ebuf, V_parts, E_parts)
     return YF[:B], T[:B], STEPS[:B], STATUS[:B]
@@ -395,17 +397,17 @@ def _error_scales(scene, terms, layout, v):
     delta = (5.0 * mu_red * v * v / (4.0 * terms.hertz.K)) ** 0.4
     e0 = 0.5 * terms.m * v * v
     # displacements: judged on the overlap scale only (their size grows in free flight)
-    scale[LO[K.L_X]:LO[K.L_X] + n] = delta
-    rel[LO[K.L_X]:LO[K.L_X] + n] = 0
-    scale[LO[K.L_V]:LO[K.L_V] + n] = v
+    scale[LO[C.L_X]:LO[C.L_X] + n] = delta
+    rel[LO[C.L_X]:LO[C.L_X] + n] = 0
+    scale[LO[C.L_V]:LO[C.L_V] + n] = v
     # each effect's history blocks, on the scale the effect declares; its work on E0
     for mod in MODULES:
         term = getattr(terms, mod.SPEC.name)
         if term is None:
             continue
         for slot, per in mod.SPEC.state:
-            o = LO[getattr(K, slot)]
+            o = LO[getattr(C, slot)]
             scale[o:o + (n if per == "particle" else n - 1)] = mod.error_scale(term, terms, delta, v)
         if mod.SPEC.work_slot:
-            scale[LO[getattr(K, mod.SPEC.work_slot)]] = e0
+            scale[LO[getattr(C, mod.SPEC.work_slot)]] = e0
     return scale, rel
