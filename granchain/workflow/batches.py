@@ -24,10 +24,20 @@ STEP_SECONDS = {"reference": 2.0e-6, "lammps": 1.5e-5}   # LAMMPS: dump writing 
 JOB_OVERHEAD_S = 5.0       # interpreter start, imports, numba cache load
 
 
+# The event method takes about this many steps per chain whatever the gaps and speed (a
+# few tens per contact and flight; measured 300-1500 on 15 spheres, benchmarks/gapped.py),
+# each of 12 force evaluations: about 3 fixed RK4 steps' worth.
+EVENT_STEPS_PER_CHAIN = 1500
+EVENT_STEP_WEIGHT = 3.0
+
+
 def estimated_steps(scene: Scene, v: float, gap_mean: float) -> float:
-    """Rough number of integration steps of one chain (for balancing batches only)."""
+    """Rough number of integration steps of one chain, in fixed-step equivalents (for
+    balancing batches only)."""
     if v <= 0:
         return 1.0
+    if scene.method == "event":
+        return EVENT_STEPS_PER_CHAIN * EVENT_STEP_WEIGHT
     p = scene.probes[-1]
     travel = (p + 2) * 2.0 * scene.radius / float(analytic.nesterenko_speed(scene.material, 0.64 * v))
     flight = (p - 1) * gap_mean / (0.7 * v)
