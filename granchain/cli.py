@@ -398,8 +398,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def cmd_warm_up(args) -> int:
-    from .engines import backend
-    backend.build(log=lambda msg: print(msg, file=sys.stderr))
+    from .engines import warmup
+    warmup.build(log=lambda msg: print(msg, file=sys.stderr))
     return 0
 
 

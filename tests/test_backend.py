@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from granchain.engines import backend, reference
+from granchain.engines import backend, reference, warmup
 from granchain.scene import load_scene
 
 SCENES = "granchain/scenes"
@@ -20,9 +20,9 @@ def aot_cache(tmp_path_factory):
     d = tmp_path_factory.mktemp("gc-cache")
     old = os.environ.get("GRANCHAIN_CACHE_DIR")
     os.environ["GRANCHAIN_CACHE_DIR"] = str(d)
-    backend._aot_module.cache_clear()
+    backend.aot_module.cache_clear()
     try:
-        path = backend.build(log=lambda msg: None)
+        path = warmup.build(log=lambda msg: None)
         assert path is not None and path.exists(), "numba.pycc did not build the module"
         yield d
     finally:
@@ -30,7 +30,7 @@ def aot_cache(tmp_path_factory):
             del os.environ["GRANCHAIN_CACHE_DIR"]
         else:
             os.environ["GRANCHAIN_CACHE_DIR"] = old
-        backend._aot_module.cache_clear()
+        backend.aot_module.cache_clear()
 
 
 def _run(scene, gaps, serial, monkeypatch):
@@ -77,9 +77,9 @@ def test_stale_module_is_not_loaded(aot_cache, tmp_path, monkeypatch):
     for f in (aot_cache / "aot").iterdir():
         (tmp_path / "aot" / f.name.replace(backend.module_name(), "granchain_kernels_0000")
          ).write_bytes(f.read_bytes())
-    backend._aot_module.cache_clear()
+    backend.aot_module.cache_clear()
     try:
         assert not backend.aot_available()
         assert backend.kernels(serial=True)._aot is None
     finally:
-        backend._aot_module.cache_clear()
+        backend.aot_module.cache_clear()

@@ -9,7 +9,7 @@ time there. So the same kernel functions are also compiled ahead of time (``numb
 into an extension module for this machine's CPU, which imports in milliseconds and needs no
 numba at run time.
 
-- :func:`build` (``granchain warm-up``, the workflow's ``jit_cache`` rule) runs a few small
+- ``engines.warmup.build`` (``granchain warm-up``, the workflow's ``jit_cache`` rule) runs a few small
   chains through every entry point, which JIT-compiles them into numba's cache (the cold
   compile, once per machine), then compiles the same entry points, with the signatures the
   JIT compiled, ahead of time into ``<cache>/aot/`` with the machine's CPU as target.
@@ -22,7 +22,7 @@ numba at run time.
 The cache directory is ``granchain.fileio.cache_dir()``. The module's name carries a hash of everything it was compiled
 from (kernel and effect sources, Python, numpy and numba versions, CPU model and flags):
 a stale module is never loaded; it is simply not found. Without ``numba.pycc`` (it is
-scheduled for removal from numba) :func:`build` still warms the JIT cache and says so.
+scheduled for removal from numba) the warm-up still warms the JIT cache and says so.
 """
 from __future__ import annotations
 
@@ -76,7 +76,7 @@ def module_name() -> str:
 
 
 @lru_cache(maxsize=1)
-def _aot_module():
+def aot_module():
     """The ahead-of-time module for the current sources and machine, or None."""
     d = cache_dir() / "aot"
     name = module_name()
@@ -97,10 +97,10 @@ def _aot_module():
 
 
 def aot_available() -> bool:
-    return _aot_module() is not None
+    return aot_module() is not None
 
 
-def _jit(name: str):
+def jit_entry(name: str):
     import importlib
     return getattr(importlib.import_module(f"{__package__}.{ENTRY_POINTS[name]}"), name)
 
@@ -114,13 +114,13 @@ class Kernels:
     def __getattr__(self, name: str):
         if name not in ENTRY_POINTS:
             raise AttributeError(name)
-        return getattr(self._aot, name) if self._aot is not None else _jit(name)
+        return getattr(self._aot, name) if self._aot is not None else jit_entry(name)
 
 
 def kernels(serial: bool) -> Kernels:
     """The compiled entry points for one call: ahead of time when ``serial`` (nothing to run
     in parallel) and built for this machine, else numba's JIT (parallel over chains)."""
-    return Kernels(_aot_module() if serial else None)
+    return Kernels(aot_module() if serial else None)
 
 
 def num_threads() -> int:
@@ -134,75 +134,3 @@ def num_threads() -> int:
         return max(1, int(env))
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                else (os.cpu_count() or 1))
-
-
-# --- build -----------------------------------------------------------------------------
-
-
-def _warm_up_runs() -> None:
-    """Small chains through every method of the reference engine (every effect on, gaps)."""
-    import numpy as np
-
-    from ..scene import scene_from_dict
-    from . import reference
-    raw = {"name": "warm-up", "material": "ss440c", "chain": {"n": 4, "radius": 150e-6},
-           "striker": {"velocity": 0.1}, "gaps": {"distribution": "fixed", "mean": 5e-9},
-           "effects": ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
-                       "rolling_friction"],
-           "rolling": {"k_roll": 1e3}, "probes": [2, 3], "t_end": 2e-7}
-    for method in reference.METHOD_CODES:
-        integ = {"method": method, "dt": 1e-9}
-        if method not in ("rk4", "verlet"):
-            integ["tolerance"] = 1e-6
-        scene = scene_from_dict({**raw, "integrator": integ})
-        gaps = np.full((1, scene.n - 1), 5e-9)
-        list(reference.run(scene, gaps, np.array([0.1]), progress=False))
-
-
-def build(log=print) -> Path | None:
-    """Warm numba's JIT cache and compile the ahead-of-time module for this machine.
-    Returns the module's path (None if numba.pycc is not available)."""
-    import time
-    t0 = time.perf_counter()
-    _warm_up_runs()
-    log(f"granchain warm-up: JIT kernels compiled or loaded from numba's cache in "
-        f"{time.perf_counter() - t0:.1f} s")
-    try:
-        import warnings
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            from numba.pycc import CC
-    except ImportError:
-        log("granchain warm-up: numba.pycc is not available; runs use the JIT kernels only")
-        return None
-    # the signatures the warm-up compiled (argument and return types, as the engine calls them)
-    sigs = {e: _jit(e).nopython_signatures for e in ENTRY_POINTS}
-    bad = [e for e, s in sigs.items() if len(s) != 1]
-    if bad:
-        raise RuntimeError(f"warm-up compiled {[len(sigs[e]) for e in bad]} signatures of {bad}; "
-                           "the engine must call each entry point with one set of types")
-    if aot_available():
-        log(f"granchain warm-up: ahead-of-time kernels already built for this machine "
-            f"({cache_dir() / 'aot'}, {module_name()})")
-        return next(p for p in (cache_dir() / "aot").iterdir() if p.name.startswith(module_name()))
-    out = cache_dir() / "aot"
-    out.mkdir(parents=True, exist_ok=True)
-    name = module_name()
-    t1 = time.perf_counter()
-    tmp = out / f".build-{os.getpid()}"
-    tmp.mkdir(exist_ok=True)
-    cc = CC(name)
-    cc.output_dir = str(tmp)
-    cc.target_cpu = "host"
-    cc.verbose = False
-    for e in ENTRY_POINTS:
-        cc.export(e, sigs[e][0])(_jit(e).py_func)
-    cc.compile()
-    built = next(tmp.iterdir())
-    final = out / built.name
-    os.replace(built, final)            # atomic: a concurrent build or reader sees old or new
-    tmp.rmdir()
-    _aot_module.cache_clear()
-    log(f"granchain warm-up: ahead-of-time kernels compiled in {time.perf_counter() - t1:.1f} s "
-        f"-> {final}")
-    return final

@@ -1,0 +1,80 @@
+"""Compile the reference engine's kernels for this machine (``granchain warm-up``, the
+workflow's ``jit_cache`` rule): numba's JIT cache, then the ahead-of-time module that
+``engines.backend`` loads for serial calls."""
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+from .backend import ENTRY_POINTS, aot_module, jit_entry, aot_available, cache_dir, module_name
+
+
+
+
+def _warm_up_runs() -> None:
+    """Small chains through every method of the reference engine (every effect on, gaps)."""
+    import numpy as np
+
+    from ..scene import scene_from_dict
+    from . import reference
+    raw = {"name": "warm-up", "material": "ss440c", "chain": {"n": 4, "radius": 150e-6},
+           "striker": {"velocity": 0.1}, "gaps": {"distribution": "fixed", "mean": 5e-9},
+           "effects": ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
+                       "rolling_friction"],
+           "rolling": {"k_roll": 1e3}, "probes": [2, 3], "t_end": 2e-7}
+    for method in reference.METHOD_CODES:
+        integ = {"method": method, "dt": 1e-9}
+        if method not in ("rk4", "verlet"):
+            integ["tolerance"] = 1e-6
+        scene = scene_from_dict({**raw, "integrator": integ})
+        gaps = np.full((1, scene.n - 1), 5e-9)
+        list(reference.run(scene, gaps, np.array([0.1]), progress=False))
+
+
+def build(log=print) -> Path | None:
+    """Warm numba's JIT cache and compile the ahead-of-time module for this machine.
+    Returns the module's path (None if numba.pycc is not available)."""
+    t0 = time.perf_counter()
+    _warm_up_runs()
+    log(f"granchain warm-up: JIT kernels compiled or loaded from numba's cache in "
+        f"{time.perf_counter() - t0:.1f} s")
+    try:
+        import warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            from numba.pycc import CC
+    except ImportError:
+        log("granchain warm-up: numba.pycc is not available; runs use the JIT kernels only")
+        return None
+    # the signatures the warm-up compiled (argument and return types, as the engine calls them)
+    sigs = {e: jit_entry(e).nopython_signatures for e in ENTRY_POINTS}
+    bad = [e for e, s in sigs.items() if len(s) != 1]
+    if bad:
+        raise RuntimeError(f"warm-up compiled {[len(sigs[e]) for e in bad]} signatures of {bad}; "
+                           "the engine must call each entry point with one set of types")
+    if aot_available():
+        log(f"granchain warm-up: ahead-of-time kernels already built for this machine "
+            f"({cache_dir() / 'aot'}, {module_name()})")
+        return next(p for p in (cache_dir() / "aot").iterdir() if p.name.startswith(module_name()))
+    out = cache_dir() / "aot"
+    out.mkdir(parents=True, exist_ok=True)
+    name = module_name()
+    t1 = time.perf_counter()
+    tmp = out / f".build-{os.getpid()}"
+    tmp.mkdir(exist_ok=True)
+    cc = CC(name)
+    cc.output_dir = str(tmp)
+    cc.target_cpu = "host"
+    cc.verbose = False
+    for e in ENTRY_POINTS:
+        cc.export(e, sigs[e][0])(jit_entry(e).py_func)
+    cc.compile()
+    built = next(tmp.iterdir())
+    final = out / built.name
+    os.replace(built, final)            # atomic: a concurrent build or reader sees old or new
+    tmp.rmdir()
+    aot_module.cache_clear()
+    log(f"granchain warm-up: ahead-of-time kernels compiled in {time.perf_counter() - t1:.1f} s "
+        f"-> {final}")
+    return final
