@@ -16,7 +16,7 @@ import pytest
 from granchain import cost, costmodel
 from granchain.costmodel import resolve_auto
 from granchain.errors import GranchainError, SceneError
-from granchain.scene import load_scene, scene_from_dict
+from granchain.scene import TOLERANCE_METHODS, load_scene, scene_from_dict
 from granchain.simulate import run_scene
 
 # A small study: packed and 20 nm gaps, four fixed steps a factor 4 apart, two tolerances.
@@ -43,7 +43,7 @@ def _slope(dt, err):
 def test_table_has_every_method_and_its_columns(study):
     df, info = study
     assert list(df.columns) == list(cost.COLUMNS)
-    expected = {"rk4", "verlet", "adaptive", "lammps"}
+    expected = {"rk4", "verlet", "adaptive", "event", "lammps"}
     why = cost.lammps_unavailable()
     if why:                             # skipped cleanly, with its reason kept
         assert info["skipped"]["lammps"] == why
@@ -53,7 +53,11 @@ def test_table_has_every_method_and_its_columns(study):
     for col in ("err_v_max_2", "err_v_g", "err_v_g_front"):
         assert (df[col] >= 0).all() and np.isfinite(df[col]).all(), col
     assert (df.steps_per_chain > 0).all() and (df.status == "passed").all()
-    fixed = df[df.method != "adaptive"]
+    fixed = df[~df.method.isin(TOLERANCE_METHODS)]
+    # force evaluations: 4 per RK4 step, 1 per Verlet step (+ its setup call)
+    rk4, verlet = df[df.method == "rk4"], df[df.method == "verlet"]
+    assert (rk4.force_evaluations_per_chain == 4 * rk4.steps_per_chain).all()
+    assert (verlet.force_evaluations_per_chain == verlet.steps_per_chain + 1).all()
     # dt = t_c / N snapped down onto the sample grid (k steps per sample, or k samples)
     tc, sdt = info["scenes"]["packed"]["contact_time_s"], info["scenes"]["packed"]["sample_dt_s"]
     ratio = fixed.dt_s * fixed.steps_per_contact / tc
@@ -145,14 +149,14 @@ def test_cheapest_meets_the_tolerance_and_is_the_cheapest(study):
         c = cost.cheapest(df, tol, "v_g")
         assert c is not None, tol
         same = df[(df.method == c["method"])]
-        same = same[same.tolerance == c["tolerance"]] if c["method"] == "adaptive" else \
-            same[same.steps_per_contact == c["steps_per_contact"]]
+        same = same[same.tolerance == c["tolerance"]] if c["method"] in TOLERANCE_METHODS \
+            else same[same.steps_per_contact == c["steps_per_contact"]]
         assert len(same) == 2 and (same.err_v_g <= tol).all(), (tol, c)
         # brute force: settings meeting tol on every scene, also at every finer setting
         ok = []
         for (m, n, t), g in df.groupby(["method", "steps_per_contact", "tolerance"], dropna=False):
             finer = df[df.method == m]
-            finer = finer[finer.tolerance <= t] if m == "adaptive" else \
+            finer = finer[finer.tolerance <= t] if m in TOLERANCE_METHODS else \
                 finer[finer.steps_per_contact >= n]
             if (finer.err_v_g <= tol).all():
                 ok.append(g.wall_s_per_chain.mean())
@@ -216,7 +220,7 @@ def test_cost_model_is_package_data_with_provenance():
     assert list(model.columns) == list(cost.MODEL_COLUMNS)
     assert set(model.scene_class) == {"packed", "gapped"}
     assert set(model.method) == set(cost.SCENE_METHODS)
-    fixed = model[model.method != "adaptive"]
+    fixed = model[~model.method.isin(TOLERANCE_METHODS)]
     assert (fixed.steps_per_contact >= 20).all()
     assert prov["scenes"]["packed"]["scene_hash"] and prov["machine"]["cores"]
     assert set(prov["sampling_floor_v_g"]) == {"packed", "gapped"}
@@ -258,7 +262,7 @@ def test_auto_step_sits_on_the_sample_grid_and_is_pure():
     again = _scene316(0.0, 1e-5)
     assert (sc.method, sc.dt, sc.tolerance) == (again.method, again.dt, again.tolerance)
     from granchain.schedule import sample_interval
-    if sc.method != "adaptive":
+    if sc.method not in TOLERANCE_METHODS:
         assert sc.dt <= sc.contact_time(0.05) / 20
         k = sample_interval(sc, 0.05) / sc.dt
         k = k if k >= 1 - 1e-9 else 1 / k       # steps per sample, or samples per step
@@ -269,7 +273,7 @@ def test_auto_step_sits_on_the_sample_grid_and_is_pure():
     sweep = resolve_auto(scene_from_dict({"striker": {"velocity": [0.05, 0.1]},
                                           "effects": ALL_EFFECTS,
                                           "integrator": {"method": "auto", "tolerance": tol}}))
-    assert sweep.method == "adaptive"
+    assert sweep.method in TOLERANCE_METHODS
 
 
 def test_auto_in_cli_json_reports_the_resolved_setting(tmp_path, capsys):
