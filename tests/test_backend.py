@@ -83,3 +83,13 @@ def test_stale_module_is_not_loaded(aot_cache, tmp_path, monkeypatch):
         assert backend.kernels(serial=True)._aot is None
     finally:
         backend.aot_module.cache_clear()
+
+
+def test_warm_up_again_with_the_module_built(aot_cache):
+    # a second warm-up (another workflow run, a new process) finds the module built: its
+    # small runs must still compile the JIT kernels for ensembles, and it must succeed
+    env = dict(os.environ, GRANCHAIN_CACHE_DIR=str(aot_cache))
+    out = subprocess.run([sys.executable, "-m", "granchain.cli", "warm-up"], capture_output=True,
+                         text=True, env=env)
+    assert out.returncode == 0, out.stderr
+    assert "already built" in out.stderr
