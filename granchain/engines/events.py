@@ -214,48 +214,6 @@ def _predict(y, dy, gaps, LO, n, band, dscale):
 
 
 @njit(cache=True)
-def _trial(y, h, gaps, P, FL, LO, Kst, ynew, tmp, f, scale_abs, rel, rtol,
-           A, Bw, C, E5, E3, dopnorm):
-    """One embedded RK trial step from y, Kst[0] = f(y) given (FSAL); Kst[S] = f(ynew).
-    Returns the scaled error norm (accept if <= 1)."""
-    ny = y.shape[0]
-    S = Bw.shape[0]
-    for s in range(1, S):
-        for j in range(ny):
-            acc = 0.0
-            for q in range(s):
-                acc += A[s, q] * Kst[q, j]
-            tmp[j] = y[j] + h * acc
-        forces(tmp, gaps, P, FL, LO, 0.0, Kst[s], f)
-    for j in range(ny):
-        acc = 0.0
-        for q in range(S):
-            acc += Bw[q] * Kst[q, j]
-        ynew[j] = y[j] + h * acc
-    forces(ynew, gaps, P, FL, LO, 0.0, Kst[S], f)
-    e5 = 0.0
-    e3 = 0.0
-    for j in range(ny):
-        sc = rtol * scale_abs[j]
-        if rel[j] != 0:
-            sc += rtol * max(abs(y[j]), abs(ynew[j]))
-        if sc <= 0.0:
-            continue
-        a5 = 0.0
-        a3 = 0.0
-        for q in range(S + 1):
-            a5 += E5[q] * Kst[q, j]
-            a3 += E3[q] * Kst[q, j]
-        e5 += (a5 / sc) ** 2
-        e3 += (a3 / sc) ** 2
-    if e5 == 0.0 and e3 == 0.0:
-        return 0.0
-    if dopnorm != 0:
-        return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * ny)
-    return abs(h) * math.sqrt(e5 / ny)
-
-
-@njit(cache=True)
 def _straddle(y, ynew, gaps, LO, n, band, h):
     """After a trial step: the first tau in (0, 1) at which a pair's overlap crosses its
     band (onset or release inside the step), or -1 if none does."""
@@ -574,8 +532,8 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
             rejected = False
             while tries < MAX_TRIES:
                 tries += 1
-                err = _trial(y, h, g, P, FL, LO, Kst, ynew, tmp, f, scale_abs, rel, rtol,
-                             A, Bw, C, E5, E3, dopnorm)
+                err = K.rk_trial(y, h, g, P, FL, LO, Kst, ynew, tmp, f, scale_abs, rel, rtol,
+                                 A, Bw, E5, E3, dopnorm)
                 NEV[b] += S
                 if not math.isfinite(err):
                     # a trial step far too long (into a stiff contact): shrink hard

@@ -508,23 +508,28 @@ def verlet_step(y, acc, h, gaps, P, FL, LO, f):
     verlet_block(_col(y), _col(acc), h, _col(gaps), P, FL, LO, _col(f))
 
 @njit(cache=True)
-def dop853_try(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol):
-    """One DOP853 trial step; returns the scaled error norm (accept if <= 1)."""
+def rk_trial(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol,
+             A, Bw, E5, E3, dopnorm):
+    """One trial step of an explicit embedded Runge-Kutta pair (tableau ``A``, weights
+    ``Bw``, error weights ``E5``/``E3`` over the stages and f(ynew)) from y, with
+    K[0] = f(y) already evaluated; leaves ynew and K[S] = f(ynew). Returns the scaled
+    error norm (accept if <= 1): DOP853's combined 5th/3rd-order norm if ``dopnorm``,
+    else the RMS of the ``E5`` estimate."""
     ny = y.shape[0]
-    forces(y, gaps, P, FL, LO, 0.0, K[0], f)
-    for s in range(1, NST):
+    S = Bw.shape[0]
+    for s in range(1, S):
         for j in range(ny):
             acc = 0.0
             for q in range(s):
-                acc += DOP_A[s, q] * K[q, j]
+                acc += A[s, q] * K[q, j]
             tmp[j] = y[j] + h * acc
         forces(tmp, gaps, P, FL, LO, 0.0, K[s], f)
     for j in range(ny):
         acc = 0.0
-        for q in range(NST):
-            acc += DOP_B[q] * K[q, j]
+        for q in range(S):
+            acc += Bw[q] * K[q, j]
         ynew[j] = y[j] + h * acc
-    forces(ynew, gaps, P, FL, LO, 0.0, K[NST], f)
+    forces(ynew, gaps, P, FL, LO, 0.0, K[S], f)
     e5 = 0.0
     e3 = 0.0
     for j in range(ny):
@@ -535,14 +540,25 @@ def dop853_try(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol):
             continue
         a5 = 0.0
         a3 = 0.0
-        for q in range(NST + 1):
-            a5 += DOP_E5[q] * K[q, j]
-            a3 += DOP_E3[q] * K[q, j]
+        for q in range(S + 1):
+            a5 += E5[q] * K[q, j]
+            a3 += E3[q] * K[q, j]
         e5 += (a5 / sc) ** 2
         e3 += (a3 / sc) ** 2
     if e5 == 0.0 and e3 == 0.0:
         return 0.0
-    return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * ny)
+    if dopnorm != 0:
+        return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * ny)
+    return abs(h) * math.sqrt(e5 / ny)
+
+
+@njit(cache=True)
+def dop853_try(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol):
+    """One DOP853 trial step from y (evaluates K[0] = f(y) first); returns the scaled
+    error norm (accept if <= 1)."""
+    forces(y, gaps, P, FL, LO, 0.0, K[0], f)
+    return rk_trial(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol,
+                    DOP_A, DOP_B, DOP_E5, DOP_E3, 1)
 
 
 @njit(cache=True)
