@@ -5,8 +5,8 @@ resolves to.
 
 The cost model (``granchain/data/cost_model.csv``, provenance beside it) holds one row per
 (scene class, setting): class ``packed`` (no realisation has a gap) or ``gapped``; a setting
-is rk4 or verlet at N steps per contact time, or adaptive at a tolerance; the errors are
-the largest measured over the class's scenes, the wall time their mean. It is written by
+is rk4 or verlet at N steps per contact time, or adaptive or event at a tolerance; the
+errors are the largest measured over the class's scenes, the wall time their mean. It is written by
 ``python -m granchain.cost model`` from a measurement (``granchain.accuracy``).
 
 dt is stored as N steps per contact time: under Hertz scaling the error of a setting at
@@ -14,9 +14,12 @@ given N transfers across striker speeds, materials and radii (the auto sample in
 a fixed fraction of the contact time t_c).
 
 :func:`resolve_auto` turns a scene with ``method == "auto"`` into the scene that runs: the
-cheapest setting of the scene's class whose v_g error meets ``integrator.tolerance`` with a
-margin (``AUTO_SAFETY``), and keeps meeting it at every finer setting of its method (the
-envelope: a lucky cancellation at a coarse step is never taken for accuracy).
+setting of the scene's class whose v_g error (``AUTO_OBSERVABLE``: arrival-time v_g on
+gapped chains) meets ``integrator.tolerance`` with a margin (``AUTO_SAFETY``), and keeps
+meeting it at every finer setting of its method (the envelope: a lucky cancellation at a
+coarse step is never taken for accuracy), at the least wall time on this scene: the
+measured wall time times the scene's work over the measurement's (:func:`chain_work`; a
+slow striker over wide gaps multiplies the fixed-step cost, not the event method's).
 """
 from __future__ import annotations
 
@@ -32,7 +35,7 @@ import numpy as np
 
 from .errors import GranchainError, SceneError
 from .scene import TOLERANCE_METHODS, Scene
-from .schedule import sample_interval
+from .schedule import expected_duration, sample_interval
 
 SCENE_METHODS = ("rk4", "verlet", "adaptive", "event")   # what ``method: auto`` may resolve to
 SCENE_CLASSES = ("packed", "gapped")
@@ -40,6 +43,10 @@ SCENE_CLASSES = ("packed", "gapped")
 # on other scenes (316 and 440C, 0.03-0.5 m/s, packed and 10-190 nm gaps) the error of a
 # setting at the same N was up to 2.3x the model's (README, "method: auto").
 AUTO_SAFETY = 4.0
+# the observable whose error auto bounds, per scene class: the peak-time v_g of a packed
+# chain; the arrival-time v_g (half-peak crossings) of a gapped one, whose probes often
+# peak on a flight plateau where the peak time is set to a few 1e-5 by the sample grid
+AUTO_OBSERVABLE = {"packed": "v_g", "gapped": "v_g_front"}
 MODEL_FILE = "data/cost_model.csv"
 MODEL_PROVENANCE = "data/cost_model.provenance.json"
 MODEL_COLUMNS = ("scene_class", "method", "steps_per_contact", "tolerance", "wall_s_per_chain",
@@ -99,18 +106,34 @@ class CostModel:
         return out
 
     def cheapest(self, tol: float, observable: str = "v_g", *, methods=None,
-                 scene_class: str | None = None) -> dict | None:
+                 scene_class: str | None = None, work: dict | None = None) -> dict | None:
         """The least wall time per chain among settings whose envelope and reference
         uncertainty are <= ``tol`` (ties: by method name, then envelope order); None if
-        none is. method, steps_per_contact, tolerance, wall_s_per_chain, err, envelope."""
+        none is. method, steps_per_contact, tolerance, wall_s_per_chain, err, envelope.
+        ``work`` (method -> factor): rank on the measured wall time times the factor of
+        its method (the wall time carried to another scene, :func:`work_ratio`)."""
         env = [r for r in self.envelope(observable, scene_class)
                if (methods is None or r["method"] in methods)
                and r["envelope"] <= tol and r["ref_uncertainty"] <= tol]
         if not env:
             return None
-        best = min(range(len(env)), key=lambda k: (env[k]["wall_s_per_chain"],
+        w = work or {}
+        best = min(range(len(env)), key=lambda k: (env[k]["wall_s_per_chain"]
+                                                   * w.get(env[k]["method"], 1.0),
                                                    env[k]["method"], k))
         return {k: v for k, v in env[best].items() if k != "ref_uncertainty"}
+
+    def work(self, scene_class: str) -> dict:
+        """Method -> mean :func:`chain_work` of the measurement's scenes of the class (the
+        work behind the model's wall times)."""
+        scenes = [s for k, s in self.provenance["scenes"].items()
+                  if self.provenance["scene_class"][k] == scene_class]
+        return {m: sum(float(s["work"][m]) for s in scenes) / len(scenes)
+                for m in SCENE_METHODS}
+
+    def event_max_n(self) -> int:
+        """The longest chain the model measured the event method on."""
+        return int(self.provenance["base"]["n"])
 
     def achievable(self, observable: str = "v_g", *, methods=None,
                    scene_class: str | None = None) -> float:
@@ -176,6 +199,31 @@ def fixed_step(scene, steps_per_contact: int) -> float:
     return sdt * math.floor(dt / sdt * (1.0 + 1e-12))
 
 
+def chain_work(scene, method: str) -> float:
+    """Relative work of one realisation of ``scene`` (all its striker speeds) under
+    ``method``: what carries the model's wall times from its measurement scenes to
+    another scene. Fixed steps (t_c / N at the fastest striker) and the adaptive method
+    (its steps held to the sample grid, a fixed fraction of t_c) cost the simulated time
+    (``schedule.expected_duration``: wave travel plus flight over the gaps) over the
+    contact time. The event method's steps follow the contacts and skip the flight:
+    within a factor of about 5 the same per contact over 20 nm to 1 um gaps and 0.01 to
+    0.1 m/s (benchmarks/gapped.py), so its work is the n - 1 contacts per speed."""
+    vs = [float(v) for v in scene.striker_velocities if v > 0]
+    if not vs:
+        return 1.0
+    if method == "event":
+        return float(len(vs) * (scene.n - 1))
+    if method == "adaptive":
+        return sum(expected_duration(scene, v) / scene.contact_time(v) for v in vs)
+    return sum(expected_duration(scene, v) for v in vs) / scene.contact_time(max(vs))
+
+
+def work_ratio(scene, model: CostModel, scene_class: str) -> dict:
+    """Method -> the work of ``scene`` over that of the model's scenes of its class."""
+    ref = model.work(scene_class)
+    return {m: chain_work(scene, m) / ref[m] for m in SCENE_METHODS}
+
+
 def _round_up(x: float) -> float:
     """x rounded up to two significant digits (a bound that prints as what it is)."""
     if not (x > 0 and math.isfinite(x)):
@@ -186,22 +234,26 @@ def _round_up(x: float) -> float:
 
 def auto_setting(scene: Scene, model: CostModel | None = None) -> tuple[str, float, float | None]:
     """(method, dt, tolerance) of the cheapest setting meeting ``scene.tolerance`` on v_g
-    with a margin: its measured error (envelope) is <= tolerance / AUTO_SAFETY.
+    (``AUTO_OBSERVABLE`` of the scene's class) with a margin: its measured error
+    (envelope) is <= tolerance / AUTO_SAFETY. Cheapest on this scene: measured wall time
+    times :func:`work_ratio`. The event method is offered only on chains no longer than
+    the model measured it on (its step count grows faster than n).
 
     Pure: reads only the scene and the cost model (rows of the scene's class, packed or
     gapped). dt = ``fixed_step(scene, N)``, as in the measurement, so that the samples
     fall on the reference's. With several sample intervals (a sweep of striker speeds at
     auto sampling) that cannot hold for every member, so when the target is below the
-    measured misalignment floor only adaptive is used. Adaptive keeps the scene's dt as
-    its first step and gets the model's tolerance as its rtol."""
+    measured misalignment floor only the tolerance methods are used. They keep the
+    scene's dt as their first step and get the model's tolerance as their rtol."""
     model = model or load_model()
     tol = float(scene.tolerance)
     target = tol / AUTO_SAFETY
     cls = "packed" if is_packed(scene) else "gapped"
-    lo = _round_up(AUTO_SAFETY * model.achievable("v_g", scene_class=cls))
+    obs = AUTO_OBSERVABLE[cls]
+    lo = _round_up(AUTO_SAFETY * model.achievable(obs, scene_class=cls))
     if tol < lo:
         raise SceneError("integrator.tolerance",
-                         f"{tol:g} is tighter than method auto can deliver on v_g "
+                         f"{tol:g} is tighter than method auto can deliver on {obs} "
                          f"({cls} chains: {lo:.2g} to 0.1, granchain/data/cost_model.csv)",
                          f"give a tolerance in [{lo:.2g}, 0.1], or choose method adaptive "
                          "with its own tolerance")
@@ -210,7 +262,10 @@ def auto_setting(scene: Scene, model: CostModel | None = None) -> tuple[str, flo
     if (len({sample_interval(scene, v) for v in vs}) > 1
             and target < float(model.provenance["sampling_floor_v_g"][cls])):
         methods = list(TOLERANCE_METHODS)
-    pick = model.cheapest(target, "v_g", methods=methods, scene_class=cls)
+    if scene.n > model.event_max_n():            # not measured on chains this long
+        methods = [m for m in methods if m != "event"]
+    pick = model.cheapest(target, obs, methods=methods, scene_class=cls,
+                          work=work_ratio(scene, model, cls))
     if pick is None:
         raise SceneError("integrator.tolerance", f"{tol:g}: no setting of the cost model meets it",
                          f"give a tolerance in [{lo:.2g}, 0.1]")

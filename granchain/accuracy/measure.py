@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..costmodel import fixed_step
+from ..costmodel import SCENE_METHODS, chain_work, fixed_step
 from ..errors import GranchainError
 from ..observables import ChainResult
 from ..scene import MIN_STEPS_PER_CONTACT, TOLERANCE_METHODS, scene_from_dict
@@ -182,7 +182,8 @@ def reference_runs(raw: dict, cost: dict, batch: int, log=_log) -> tuple[list[Ch
             "plateau_at_probes": sum(bool(r.plateau[p - 1]) for r in ref for p in r.probes),
             "contact_time_s": contact_time(raw),
             "sample_dt_s": sample_interval(ref_scene, max(ref_scene.striker_velocities)),
-            "realisations": batch, "seed": ref_scene.gap_seed}
+            "realisations": batch, "seed": ref_scene.gap_seed,
+            "work": {m: chain_work(ref_scene, m) for m in SCENE_METHODS}}
     info["sampling_floor_v_g"] = sampling_floor(raw, cost, batch)
     log(f"reference {raw['name']}: adaptive tol {ref_set.tolerance:g} vs rk4 N={n_fine}: "
         + ", ".join(f"{k} {v:.2g}" for k, v in unc.items())

@@ -78,7 +78,8 @@ def write_model(timing_csv, out, *, force: bool = False) -> None:
     prov = {"source": f"python -m granchain.cost model {Path(timing_csv).as_posix()}",
             "preset": src.get("preset"),
             "scenes": {k: {kk: v.get(kk) for kk in ("name", "scene_hash", "uncertainty",
-                                                    "plateau_at_probes", "realisations")}
+                                                    "plateau_at_probes", "realisations",
+                                                    "work")}
                        for k, v in src["scenes"].items()},
             "scene_class": {k: scene_class(k) for k in src["scenes"]},
             "sampling_floor_v_g": floor, "machine": src.get("machine"),
