@@ -450,7 +450,7 @@ def _flush(b, y, k1, g, P, FL, LO, n, sdt, NT, NS, YP, KP, TP, T, Vout, Eout, co
 
 @njit(parallel=True, cache=True)
 def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, FL, LO,
-               scale_abs, rel, rtol, band, land, A, Bw, C, E5, E3, qexp, dopnorm,
+               scale_abs, rel, rtol, band, land, A, Bw, E5, E3, qexp, dopnorm,
                t_stop, auto_stop, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, VINIT,
                E0, BAL, trace, sdt, NT, NS, YP, KP, TP, Vout, Eout, counts):
     """Advance every running chain until it stops (without trace), or until its window

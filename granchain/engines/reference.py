@@ -243,7 +243,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
     P, FL = pack(terms)
     LO = layout.LO
     B, n, ny = gaps.shape[0], terms.n, layout.ny
-    A, Bw, Ct, E5, E3, qexp, dopnorm = C.PAIRS[pair]
+    A, Bw, _nodes, E5, E3, qexp, dopnorm = C.PAIRS[pair]   # no step uses the nodes
     S = Bw.shape[0]
     Y = np.zeros((B, ny))
     Y[:, LO[C.L_V]] = vs
@@ -291,7 +291,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
     t0 = time.perf_counter()
     while np.any(STATUS == C.S_RUNNING):
         kern.run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, FL, LO,
-                      scale_abs, rel, rtol, band, land, A, Bw, Ct, E5, E3, qexp, dopnorm,
+                      scale_abs, rel, rtol, band, land, A, Bw, E5, E3, qexp, dopnorm,
                       t_stop, auto, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, VINIT,
                       E0, BAL, trace, sample_dt, NT, NS, YP, KP, TP, Vbuf, Ebuf, counts)
         for b in range(B):
