@@ -1,8 +1,11 @@
 """The ahead-of-time kernels (engines.backend): built for this machine, used for one-chain
 runs without importing numba, and bit-identical to numba's JIT kernels."""
+import importlib.util
 import os
+import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,20 +20,19 @@ METHODS = ({"method": "rk4", "dt": 1e-9}, {"method": "verlet", "dt": 1e-9},
 
 @pytest.fixture(scope="module")
 def aot_cache(tmp_path_factory):
+    """A cache directory of its own with the ahead-of-time module built into it (the
+    build compiles every entry point: slow)."""
     d = tmp_path_factory.mktemp("gc-cache")
-    old = os.environ.get("GRANCHAIN_CACHE_DIR")
-    os.environ["GRANCHAIN_CACHE_DIR"] = str(d)
-    backend.aot_module.cache_clear()
-    try:
-        path = warmup.build(log=lambda msg: None)
-        assert path is not None and path.exists(), "numba.pycc did not build the module"
-        yield d
-    finally:
-        if old is None:
-            del os.environ["GRANCHAIN_CACHE_DIR"]
-        else:
-            os.environ["GRANCHAIN_CACHE_DIR"] = old
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("GRANCHAIN_CACHE_DIR", str(d))
         backend.aot_module.cache_clear()
+        try:
+            path = warmup.build(log=lambda msg: None)
+            assert path is not None and path.exists(), "numba.pycc did not build the module"
+            yield d
+        finally:
+            backend.aot_module.cache_clear()
+    backend.aot_module.cache_clear()
 
 
 def _run(scene, gaps, serial, monkeypatch):
@@ -43,6 +45,7 @@ def _run(scene, gaps, serial, monkeypatch):
         monkeypatch.setattr(backend, "kernels", real)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("integ", METHODS, ids=lambda i: i["method"])
 def test_aot_kernels_bit_identical_to_jit(aot_cache, integ, monkeypatch):
     scene = load_scene(f"{SCENES}/gaps-20nm-440c.yaml").derive(
@@ -58,6 +61,7 @@ def test_aot_kernels_bit_identical_to_jit(aot_cache, integ, monkeypatch):
     assert np.array_equal(a.v, b.v) and np.array_equal(a.energy, b.energy)
 
 
+@pytest.mark.slow
 def test_one_chain_run_imports_no_numba(aot_cache):
     code = ("import sys, io, contextlib\n"
             "from granchain.cli import main\n"
@@ -70,21 +74,89 @@ def test_one_chain_run_imports_no_numba(aot_cache):
     assert out == ["0", "False"]
 
 
-def test_stale_module_is_not_loaded(aot_cache, tmp_path, monkeypatch):
+# --- the module's name: a hash of everything the kernels are compiled from -------------
+PKG = Path(backend.__file__).resolve().parents[1]
+# scipy's file of Dormand-Prince 8(5,3) coefficients, where engines/codes.py reads DOP853 from
+SCIPY = Path(importlib.util.find_spec("scipy").origin).parent
+DOP853_FILE = Path("integrate", "_ivp", "dop853_coefficients.py")
+# (file, text in it, replacement): one change of what the kernels compute, per source
+EDITS = {
+    "kernel": ("engines/kernels.py", "return y[ox + k] - y[ox + k + 1] - gaps[k]\n",
+               "return y[ox + k] - y[ox + k + 1] + gaps[k]\n"),
+    "effect": ("effects/hertz.py", "return K * d * math.sqrt(d) if d > 0.0",
+               "return 0.5 * K * d * math.sqrt(d) if d > 0.0"),
+    "codes": ("engines/codes.py", "RB_SIZE = 48 ", "RB_SIZE = 47 "),
+    "schedule": ("schedule.py", "PEAK_TOL = 1e-4 ", "PEAK_TOL = 2e-4 "),
+}
+
+
+def _copy_package(root: Path) -> Path:
+    shutil.copytree(PKG, root / "granchain", ignore=shutil.ignore_patterns("__pycache__"))
+    return root / "granchain"
+
+
+def _edit(path: Path, old: str, new: str) -> None:
+    text = path.read_text()
+    assert text.count(old) == 1, (path, old)
+    path.write_text(text.replace(old, new))
+
+
+def _in_copy(code: str, *pythonpath: Path) -> list[str]:
+    """Run ``code`` in a new interpreter that imports granchain from ``pythonpath`` (run
+    there: ``python -c`` puts its working directory first on sys.path)."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(map(str, pythonpath)))
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                       cwd=pythonpath[0])
+    assert p.returncode == 0, p.stderr
+    return p.stdout.split()
+
+
+def _module_name_in(*pythonpath: Path) -> str:
+    where, name = _in_copy("import granchain\nfrom granchain.engines import backend\n"
+                           "print(granchain.__file__, backend.module_name())", *pythonpath)
+    assert Path(where).parent == pythonpath[0] / "granchain", where
+    return name
+
+
+@pytest.mark.parametrize("what", list(EDITS))
+def test_module_name_changes_with_every_compiled_source(what, tmp_path):
     # a module built from other sources has another name: it is simply not found
-    monkeypatch.setenv("GRANCHAIN_CACHE_DIR", str(tmp_path))
-    (tmp_path / "aot").mkdir()
-    for f in (aot_cache / "aot").iterdir():
-        (tmp_path / "aot" / f.name.replace(backend.module_name(), "granchain_kernels_0000")
-         ).write_bytes(f.read_bytes())
-    backend.aot_module.cache_clear()
-    try:
-        assert not backend.aot_available()
-        assert backend.kernels(serial=True)._aot is None
-    finally:
-        backend.aot_module.cache_clear()
+    rel, old, new = EDITS[what]
+    _edit(_copy_package(tmp_path) / rel, old, new)
+    assert _module_name_in(tmp_path) != backend.module_name()
 
 
+def test_module_name_changes_with_the_dop853_tableau(tmp_path):
+    # the coefficients come from scipy's file: a scipy whose file differs by one
+    # coefficient gives another module
+    pkg, fake = tmp_path / "pkg", tmp_path / "scipy-root"
+    _copy_package(pkg)
+    dst = fake / "scipy" / DOP853_FILE
+    dst.parent.mkdir(parents=True)
+    (fake / "scipy" / "__init__.py").write_text("")
+    dst.write_bytes((SCIPY / DOP853_FILE).read_bytes())
+    _edit(dst, "A[1, 0] = 5.26001519587677318785587544488e-2", "A[1, 0] = 5.26e-2")
+    a10, = _in_copy("from granchain.engines import codes\nprint(float(codes.DOP_A[1, 0]))",
+                    pkg, fake)
+    assert float(a10) == 5.26e-2         # the engine reads the changed file
+    assert _module_name_in(pkg, fake) != backend.module_name()
+
+
+def test_module_name_ignores_code_the_kernels_do_not_import(tmp_path):
+    pkg = _copy_package(tmp_path)
+    assert _module_name_in(tmp_path) == backend.module_name()
+    _edit(pkg / "figures" / "style.py", '"savefig.dpi": 150,', '"savefig.dpi": 151,')
+    assert _module_name_in(tmp_path) == backend.module_name()
+
+
+def test_hashed_sources_are_every_module_the_kernels_load():
+    loaded = _in_copy("import sys\nimport granchain.engines.kernels, granchain.engines.events\n"
+                      "print(*sorted(m.__file__ for m in list(sys.modules.values())\n"
+                      "              if m.__name__.split('.')[0] == 'granchain'))", PKG.parent)
+    assert {str(Path(f).relative_to(PKG)) for f in loaded} == set(backend.kernel_sources())
+
+
+@pytest.mark.slow
 def test_warm_up_again_with_the_module_built(aot_cache):
     # a second warm-up (another workflow run, a new process) finds the module built: its
     # small runs must still compile the JIT kernels for ensembles, and it must succeed

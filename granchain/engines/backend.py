@@ -20,8 +20,11 @@ numba at run time.
   bit-identical results (tested).
 
 The cache directory is ``granchain.fileio.cache_dir()``. The module's name carries a hash of everything it was compiled
-from (kernel and effect sources, Python, numpy and numba versions, CPU model and flags):
-a stale module is never loaded; it is simply not found. Without ``numba.pycc`` (it is
+from (:func:`kernel_sources`: the package's modules the kernels import, transitively, found
+from their import statements, so the effects' laws, ``codes`` and ``schedule`` included;
+the Runge-Kutta tableaux they embed as constants, by value, whatever file they are read
+from; Python, numpy and numba versions; CPU model and flags): a stale module is never
+loaded; it is simply not found. Without ``numba.pycc`` (it is
 scheduled for removal from numba) the warm-up still warms the JIT cache and says so.
 """
 from __future__ import annotations
@@ -39,9 +42,76 @@ from ..fileio import cache_dir, source_hash
 # The kernels' entry points that the engines call (:func:`kernels`), by module.
 ENTRY_POINTS = {"run_window": "kernels", "run_blocks": "kernels", "energies": "kernels",
                 "run_events": "events", "finalize": "events"}
-# Every source the compiled kernels are made of.
-_SOURCES = ("engines/kernels.py", "engines/events.py", "engines/codes.py", "schedule.py",
-            "effects")
+# The modules that define the entry points; every module of the package they import,
+# transitively, is compiled into them (:func:`kernel_sources`).
+_ENTRY_MODULES = ("granchain.engines.kernels", "granchain.engines.events")
+_PKG = Path(__file__).resolve().parents[1]
+
+
+def _module_file(module: str) -> Path | None:
+    """The source file of a module of the package (``granchain.x.y``), or None."""
+    parts = module.split(".")
+    if parts[0] != _PKG.name:
+        return None
+    base = _PKG.joinpath(*parts[1:])
+    for f in (base / "__init__.py", base.with_suffix(".py")):
+        if f.is_file():
+            return f
+    return None
+
+
+def _imports(module: str, path: Path) -> set[str]:
+    """The package's modules that ``module`` (source ``path``) imports, anywhere in it
+    (``from . import x`` may name a submodule: it counts if one exists)."""
+    import ast
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_bytes(), str(path))):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[:len(base) - (node.level - 1)]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module
+            out.add(target)
+            out.update(f"{target}.{a.name}" for a in node.names)
+    return {m for m in out if _module_file(m) is not None}
+
+
+@lru_cache(maxsize=1)
+def kernel_sources() -> tuple[str, ...]:
+    """Every source file the compiled kernels are made of, relative to the package: the
+    entry points' modules and every module of the package they import, transitively,
+    with the packages' ``__init__.py`` that importing them runs."""
+    seen: set[str] = set()
+    todo = list(_ENTRY_MODULES)
+    while todo:
+        mod = todo.pop()
+        parts = mod.split(".")
+        parents = [".".join(parts[:k]) for k in range(1, len(parts))]
+        for m in [mod] + parents:
+            if m not in seen:
+                seen.add(m)
+                todo.extend(_imports(m, _module_file(m)))
+    return tuple(sorted(str(_module_file(m).relative_to(_PKG)) for m in seen))
+
+
+def _tableaux() -> bytes:
+    """The Runge-Kutta tableaux the kernels embed, by value (the DOP853 coefficients are
+    read from scipy's file, outside the package's sources)."""
+    import numpy as np
+
+    from . import codes
+    out = []
+    for name in sorted(codes.PAIRS):
+        out.append(name.encode())
+        for x in codes.PAIRS[name]:
+            a = np.asarray(x, dtype=np.float64)
+            out += [repr(a.shape).encode(), a.tobytes()]
+    return b"".join(out)
 
 
 def _cpu() -> str:
@@ -69,7 +139,8 @@ def _versions() -> str:
 @lru_cache(maxsize=1)
 def module_name() -> str:
     """``granchain_kernels_<hash>``: the hash of everything the module is compiled from."""
-    h = hashlib.sha256(source_hash(*_SOURCES).encode())
+    h = hashlib.sha256(source_hash(*kernel_sources()).encode())
+    h.update(_tableaux())
     h.update(_versions().encode())
     h.update(_cpu().encode())
     return "granchain_kernels_" + h.hexdigest()[:20]
