@@ -149,11 +149,34 @@ def test_module_name_ignores_code_the_kernels_do_not_import(tmp_path):
     assert _module_name_in(tmp_path) == backend.module_name()
 
 
-def test_hashed_sources_are_every_module_the_kernels_load():
-    loaded = _in_copy("import sys\nimport granchain.engines.kernels, granchain.engines.events\n"
-                      "print(*sorted(m.__file__ for m in list(sys.modules.values())\n"
-                      "              if m.__name__.split('.')[0] == 'granchain'))", PKG.parent)
-    assert {str(Path(f).relative_to(PKG)) for f in loaded} == set(backend.kernel_sources())
+def test_module_name_changes_with_every_module_the_kernels_load(tmp_path):
+    # every module of the package that importing the kernels runs, changed in turn (a line
+    # appended) in a copy of the package, gives another name
+    pkg = _copy_package(tmp_path)
+    code = """
+import sys
+from pathlib import Path
+import granchain.engines.kernels, granchain.engines.events
+from granchain import fileio
+from granchain.engines import backend
+loaded = sorted(m.__file__ for m in list(sys.modules.values())
+                if m.__name__.split(".")[0] == "granchain" and m.__name__ not in
+                ("granchain.engines.backend", "granchain.fileio"))
+base = backend.module_name()
+for f in loaded:
+    text = Path(f).read_text()
+    Path(f).write_text(text + "\\n# changed\\n")
+    for cached in (backend.module_name, backend.kernel_sources, fileio.source_hash):
+        if hasattr(cached, "cache_clear"):
+            cached.cache_clear()
+    print(Path(f).relative_to(Path(granchain.__file__).parent), base != backend.module_name())
+    Path(f).write_text(text)
+"""
+    out = _in_copy(code, tmp_path)
+    changed = dict(zip(out[::2], out[1::2]))
+    assert {"engines/kernels.py", "engines/events.py", "engines/codes.py",
+            "effects/hertz.py", "schedule.py"} <= set(changed)
+    assert [f for f, c in changed.items() if c != "True"] == []
 
 
 @pytest.mark.slow
