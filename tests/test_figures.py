@@ -130,15 +130,222 @@ def _paths(tdir, rdir):
 
 
 # ---------------------------------------------------------------------------------------
+# What each figure draws, against the tables: the test grabs the Figure a drawing function
+# saves and compares its artists' data with the columns of the CSV tables and npz traces
+# the fixture wrote, read and reduced here with plain pandas/numpy and the chapter's
+# formulas.
+RADIUS = 150e-6                      # the chapter's spheres (the figures' default radius)
+N_CHAIN = 15
+# handbook E (Pa), nu, rho (kg/m^3) of the physics notes, for Nesterenko's speed
+HANDBOOK = {"ss316": (193e9, 0.30, 8000.0), "ss440c": (200e9, 0.28, 7800.0)}
+LABEL = {"ss316": "316", "ss440c": "440C"}
+VMAX_COLS = [f"vmax_p{i:02d}_m_s" for i in range(1, N_CHAIN + 1)]
+
+
+def _nesterenko(mat, v_m):
+    """Nesterenko's V_s = (16/25)^(1/5) c^(4/5) v_m^(1/5), c^2 = 2E / (pi rho (1 - nu^2))."""
+    E, nu, rho = HANDBOOK[mat]
+    c = math.sqrt(2 * E / (math.pi * rho * (1 - nu ** 2)))
+    return (16 / 25) ** 0.2 * c ** 0.8 * np.asarray(v_m, dtype=float) ** 0.2
+
+
+def _eq54(vg0, gbar, vs, radius=RADIUS):
+    """Chapter Eq. 5.4, (2R + gbar)/v_g = 2R/v_g(no gaps) + gbar/v_s, solved for v_g."""
+    return (2 * radius + gbar) / (2 * radius / vg0 + gbar / vs)
+
+
+def _arrived(d):
+    return d[d["wave_arrived"].astype(bool) & np.isfinite(d["v_g_m_s"])]
+
+
+def _slope(x, y):
+    """Least-squares slope of y = a x (a line through the origin)."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    return float((x * y).sum() / (x * x).sum())
+
+
+def _draw(name, paths, out, monkeypatch):
+    """Render figure ``name``; return (the Figure it saved, the files written)."""
+    mod = sys.modules[figures.FIGURES[name][0].__wrapped__.__module__]
+    grabbed, real = [], mod.save
+    monkeypatch.setattr(mod, "save", lambda fig, o: grabbed.append(fig) or real(fig, o))
+    written = figures.render(name, paths, out)
+    assert len(grabbed) == 1
+    return grabbed[0], written
+
+
+def _line_is(xy, x, y, rtol):
+    return (xy.shape == (x.size, 2) and np.allclose(xy[:, 0], x, rtol=rtol, atol=0)
+            and np.allclose(xy[:, 1], y, rtol=rtol, atol=0))
+
+
+def _assert_drawn(ax, x, y, what, rtol=1e-12):
+    """Some line of ``ax`` has exactly the points (x, y)."""
+    x, y = np.asarray(x, dtype=float).ravel(), np.asarray(y, dtype=float).ravel()
+    drawn = [ln.get_xydata() for ln in ax.get_lines()]
+    assert any(_line_is(xy, x, y, rtol) for xy in drawn), \
+        f"{ax.get_title()!r}: no line of {what}: x = {x}, y = {y}"
+
+
+def _assert_curve(ax, f, what, lo, hi, rtol=1e-9):
+    """Some line of ``ax`` (10 points or more, spanning lo..hi) follows y = f(x)."""
+    for ln in ax.get_lines():
+        xy = ln.get_xydata()
+        if (len(xy) >= 10 and xy[:, 0].min() <= lo * (1 + 1e-12)
+                and xy[:, 0].max() >= hi * (1 - 1e-12)
+                and np.allclose(xy[:, 1], f(xy[:, 0]), rtol=rtol, atol=0)):
+            return
+    raise AssertionError(f"{ax.get_title()!r}: no curve of {what} over {lo:g}..{hi:g}")
+
+
+def _panel(fig, prefix):
+    """The axes whose title starts with ``prefix`` (one per material in some figures)."""
+    axes = [ax for ax in fig.axes if ax.get_title().startswith(prefix)]
+    assert len(axes) == 1, (prefix, [ax.get_title() for ax in fig.axes])
+    return axes[0]
+
+
+def _check_fig5_1a(fig, tdir, rdir):
+    z = np.load(rdir / "packed_trace_ss440c.npz")
+    t_us, v = z["t_s"] * 1e6, z["v_m_s"]
+    lines = fig.axes[0].get_lines()
+    assert len(lines) == N_CHAIN == v.shape[1]
+    for i, ln in enumerate(lines):          # particle i + 1, in colour order, in mm/s vs us
+        np.testing.assert_allclose(ln.get_xydata(), np.column_stack([t_us, v[:, i] * 1e3]),
+                                   rtol=1e-12, atol=0, err_msg=f"particle {i + 1}")
+
+
+def _check_fig5_1b(fig, tdir, rdir):
+    ps = pd.read_csv(tdir / "packed_sweep.csv")
+    ax, ax_norm = fig.axes[:2]
+    for mat, d in ps.groupby("material"):
+        d = d.sort_values("v_striker_m_s")
+        x = d["v_striker_m_s"].to_numpy()
+        for c in ("v_max_1_m_s", "v_max_2_m_s"):
+            y = d[c].to_numpy()
+            _assert_drawn(ax, x, y, f"{mat} {c} vs v_s")
+            _assert_drawn(ax_norm, x, y / x, f"{mat} {c} / v_s vs v_s")
+            a = _slope(x, y)
+            _assert_curve(ax, lambda v: a * v, f"{mat} {c} fit through 0", 0.0, x.max())
+
+
+def _check_fig5_1c(fig, tdir, rdir):
+    ps = pd.read_csv(tdir / "packed_sweep.csv")
+    ax, ax_ratio = fig.axes[:2]
+    for mat, d in ps.groupby("material"):
+        a = _slope(d["v_striker_m_s"], d["v_max_2_m_s"])
+        d = _arrived(d).sort_values("v_striker_m_s")
+        x, y = d["v_striker_m_s"].to_numpy(), d["v_g_m_s"].to_numpy()
+        _assert_drawn(ax, x, y, f"{mat} v_g vs v_s")
+        for k in (a, 0.64):
+            _assert_curve(ax, lambda v: _nesterenko(mat, k * v),
+                          f"{mat} Nesterenko at v_m = {k} v_s", x.min(), x.max())
+            _assert_drawn(ax_ratio, x, y / _nesterenko(mat, k * x),
+                          f"{mat} v_g / Nesterenko({k} v_s)", rtol=1e-9)
+
+
+def _check_fig5_3b(fig, tdir, rdir):
+    gp = pd.read_csv(tdir / "gap_profile.csv")
+    ps = pd.read_csv(tdir / "packed_sweep.csv")
+    ax = fig.axes[0]
+    idx = np.arange(1, N_CHAIN + 1)
+    prof = gp[VMAX_COLS].to_numpy() / gp["v_striker_m_s"].to_numpy()[:, None]
+    for k, row in enumerate(prof):
+        _assert_drawn(ax, idx, row, f"realisation {k}: v_max,i / v_s")
+    _assert_drawn(ax, idx, np.median(prof, axis=0), "median v_max,i / v_s")
+    vs = float(gp["v_striker_m_s"].iloc[0])
+    packed = ps[(ps["material"] == "ss440c") & (ps["v_striker_m_s"] == vs)]
+    assert len(packed) == 1
+    _assert_drawn(ax, idx, packed[VMAX_COLS].to_numpy()[0] / vs, "packed v_max,i / v_s")
+
+
+def _check_fig5_3c(fig, tdir, rdir):
+    gs = pd.read_csv(tdir / "gap_sweep.csv")
+    ps = pd.read_csv(tdir / "packed_sweep.csv")
+    for mat in MATERIALS:
+        ax = _panel(fig, LABEL[mat] + ":")
+        pk = _arrived(ps[ps["material"] == mat]).sort_values("v_striker_m_s")
+        xp, yp = pk["v_striker_m_s"].to_numpy(), pk["v_g_m_s"].to_numpy()
+        _assert_drawn(ax, xp, yp, f"packed {mat} v_g")
+        vg0 = lambda v: np.exp(np.interp(np.log(v), np.log(xp), np.log(yp)))  # noqa: E731
+        dm = gs[gs["material"] == mat]
+        lo, hi = dm["v_striker_m_s"].min(), dm["v_striker_m_s"].max()
+        for g, dg in dm.groupby("gap_mean_nm"):
+            med = _arrived(dg).groupby("v_striker_m_s")["v_g_m_s"].median()
+            _assert_drawn(ax, med.index, med.to_numpy(), f"{mat} {g} nm median v_g")
+            _assert_curve(ax, lambda v: _eq54(vg0(v), g * 1e-9, v),
+                          f"{mat} Eq. 5.4 at {g} nm", lo, hi)
+
+
+def _check_fig5_4b(fig, tdir, rdir):
+    el = pd.read_csv(tdir / "extra_length.csv")
+    ps = pd.read_csv(tdir / "packed_sweep.csv")
+    for mat in MATERIALS:
+        ax = _panel(fig, LABEL[mat] + ",")
+        ok = _arrived(el[el["material"] == mat])
+        gbar = ok["extra_length_um"].to_numpy() * 1e3 / (N_CHAIN - 1)       # nm
+        _assert_drawn(ax, gbar, ok["v_g_m_s"], f"{mat} v_g at nominal gbar")
+        _assert_drawn(ax, ok["gap_mean_probes_nm"], ok["v_g_m_s"], f"{mat} v_g at own gbar")
+        by = ok.groupby("extra_length_um")["v_g_m_s"]
+        x = by.median().index.to_numpy() * 1e3 / (N_CHAIN - 1)
+        med = by.median().to_numpy()
+        q5, q95 = by.quantile(0.05).to_numpy(), by.quantile(0.95).to_numpy()
+        (bars,) = ax.containers
+        _, _, (segments,) = bars
+        np.testing.assert_allclose(bars[0].get_xydata(), np.column_stack([x, med]),
+                                   rtol=1e-12, atol=0)
+        np.testing.assert_allclose(np.array(segments.get_segments()),
+                                   np.stack([np.column_stack([x, q5]), np.column_stack([x, q95])],
+                                            axis=1), rtol=1e-12, atol=0)
+        (vs,) = set(ok["v_striker_m_s"])
+        vg0 = float(ps[(ps["material"] == mat) & (ps["v_striker_m_s"] == vs)]["v_g_m_s"].iloc[0])
+        lo = min(gbar.min(), ok["gap_mean_probes_nm"].min())
+        hi = max(gbar.max(), ok["gap_mean_probes_nm"].max())
+        _assert_curve(ax, lambda g: _eq54(vg0, g * 1e-9, vs), f"{mat} Eq. 5.4", lo, hi)
+
+
+def _check_fig5_2a(fig, tdir, rdir):
+    z = np.load(rdir / "vibrometer_ss440c.npz")
+    vs = float(z["v_striker_m_s"])
+    for f in (str(f) for f in z["filters"]):
+        ax = _panel(fig, f + " ")
+        for j, p in enumerate(z["probes"]):
+            _assert_drawn(ax, z["t_s"] * 1e6, z["v_m_s"][:, j] / vs, f"true v / v_s of {p}")
+            _assert_drawn(ax, z["t_rec_s"] * 1e6, z[f"v_rec_{f}_m_s"][:, j] / vs,
+                          f"recorded v / v_s of {p}")
+            _assert_drawn(ax, z["t_peak_true_s"][j] * 1e6, z["vmax_true_m_s"][j] / vs,
+                          f"true peak of {p}")
+            _assert_drawn(ax, z[f"t_peak_rec_{f}_s"][j] * 1e6, z[f"vmax_rec_{f}_m_s"][j] / vs,
+                          f"recorded peak of {p}")
+
+
+def _check_vibrometer(fig, tdir, rdir):
+    vb = pd.read_csv(tdir / "vibrometer.csv")
+    vb["dt_rel"] = vb["dt_peak_bias_s"] / vb["dt_peak_s"]
+    panels = ("v_max_1_measured_over_true", "v_max_2_measured_over_true", "dt_rel")
+    for ax, col in zip(fig.axes[:3], panels):
+        for key, d in vb.groupby(["material", "gap_mean_nm", "filter"]):
+            med = d.groupby("bandwidth_hz")[col].median()
+            _assert_drawn(ax, med.index / 1e6, med.to_numpy(), f"{key} median {col} vs MHz")
+
+
+FIGURE_DATA = {"fig5_1a": _check_fig5_1a, "fig5_1b": _check_fig5_1b,
+               "fig5_1c": _check_fig5_1c, "fig5_3b": _check_fig5_3b,
+               "fig5_3c": _check_fig5_3c, "fig5_4b": _check_fig5_4b,
+               "fig5_2a": _check_fig5_2a, "vibrometer": _check_vibrometer}
+
+
+def test_every_figure_has_its_data_check():
+    assert set(FIGURE_DATA) == set(figures.FIGURES)
+
+
 @pytest.mark.parametrize("name", list(figures.FIGURES))
-def test_every_figure_writes_png_and_pdf(tables, tmp_path, name):
-    out = tmp_path / name
-    written = figures.render(name, _paths(*tables), out)
+def test_every_figure_draws_its_tables(tables, tmp_path, name, monkeypatch):
+    fig, written = _draw(name, _paths(*tables), tmp_path / name, monkeypatch)
     assert [p.name for p in written] == [f"{name}.png", f"{name}.pdf"]
-    for p in written:
-        assert p.stat().st_size > 5000
     assert (tmp_path / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (tmp_path / f"{name}.pdf").read_bytes()[:5] == b"%PDF-"
+    FIGURE_DATA[name](fig, *tables)
 
 
 def test_figures_are_byte_identical_on_rerun(tables, tmp_path):
