@@ -1,10 +1,29 @@
 #!/usr/bin/env bash
 # The project's test command (README quick start, and .ci/run): installs the package with
-# its test extras from this checkout, then runs the whole suite. The SLURM test installs
-# and starts its own one-node cluster (Debian packages) and skips, with the reason, only
-# on machines that cannot host it; under CI it is required.
+# its test extras from this checkout, then runs the tests.
+#
+#   bash scripts/test.sh           everything (CI): about 15 min on an idle 2-core machine
+#   bash scripts/test.sh --fast    the quick tier: -m "not slow and not workflow and not slurm"
+#                                  (quick LAMMPS tests stay in), at most 2 min with warm caches
+#   bash scripts/test.sh [--fast] ARGS...   ARGS go to pytest (e.g. -k name, a test file)
+#
+# The SLURM tests install and start their own one-node cluster (Debian packages) and skip,
+# with the reason, only on machines that cannot host it; with GRANCHAIN_REQUIRE_SLURM=1
+# (set by .ci/run, and here when CI=true) that is a failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+marks=()
+if [ "${1:-}" = "--fast" ]; then
+    shift
+    marks=(-m "not slow and not workflow and not slurm")
+fi
 python -m pip install --quiet --disable-pip-version-check -e '.[test]'
 if [ "${CI:-}" = "true" ]; then export GRANCHAIN_REQUIRE_SLURM=1; fi
-exec python -m pytest -q -ra "$@"
+rc=0
+python -m pytest -q -ra "${marks[@]}" "$@" || rc=$?
+if [ "$rc" -eq 5 ]; then
+    # pytest's "no tests collected": a selection (-k, a path, a marker) that matches nothing
+    # is a mistake in the command, not a pass
+    echo "scripts/test.sh: no tests were collected for: pytest ${marks[*]} $*" >&2
+fi
+exit "$rc"

@@ -1,5 +1,16 @@
+"""Shared fixtures, and what every test session sets up before anything runs:
+
+- one temporary cache directory (``GRANCHAIN_CACHE_DIR``) for the session: the compiled
+  kernels' ahead-of-time module and the LAMMPS plugin go there, never to ~/.cache;
+  subprocesses (snakemake, its jobs, SLURM jobs) inherit it. numba's JIT cache stays in
+  the package's ``__pycache__`` (warm from earlier sessions).
+- markers by what a test runs, from the fixtures it uses (``END_TO_END``): a test cannot
+  use a snakemake run without being deselected by ``-m "not workflow"``.
+"""
 import dataclasses
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +21,62 @@ from granchain.simulate import run_scene
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = REPO / "granchain" / "scenes"
+
+# fixture -> the markers every test using it (directly or through another fixture) gets
+END_TO_END = {
+    "tiny_run": ("workflow", "lammps", "slow"),          # tiny runs lammps_check on LAMMPS too
+    "tiny_lammps_run": ("workflow", "lammps", "slow"),
+    "slurm_cluster": ("slurm", "slow"),
+}
+_SESSION_CACHE = "_granchain_session_cache"
+
+
+def pytest_configure(config):
+    """Point GRANCHAIN_CACHE_DIR at a fresh directory for this session, before any test
+    module is imported or anything is built."""
+    d = tempfile.mkdtemp(prefix="granchain-test-cache-")
+    setattr(config, _SESSION_CACHE, (d, os.environ.get("GRANCHAIN_CACHE_DIR")))
+    os.environ["GRANCHAIN_CACHE_DIR"] = d
+
+
+def pytest_unconfigure(config):
+    d, old = getattr(config, _SESSION_CACHE, (None, None))
+    if d is None:
+        return
+    if old is None:
+        os.environ.pop("GRANCHAIN_CACHE_DIR", None)
+    else:
+        os.environ["GRANCHAIN_CACHE_DIR"] = old
+    shutil.rmtree(d, ignore_errors=True)
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        have = {m.name for m in item.iter_markers()}
+        for fixture, marks in END_TO_END.items():
+            if fixture in getattr(item, "fixturenames", ()):
+                for m in marks:
+                    if m not in have:
+                        item.add_marker(m)
+                        have.add(m)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    # the running test's markers, for helpers that start snakemake or SLURM runs
+    import slurm_support
+    slurm_support.RUNNING_TEST_MARKS = {m.name for m in item.iter_markers()}
+
+
+def pytest_runtest_teardown(item):
+    import slurm_support
+    slurm_support.RUNNING_TEST_MARKS = None
+
+
+@pytest.fixture(scope="session")
+def session_cache_dir():
+    """This session's GRANCHAIN_CACHE_DIR."""
+    return Path(os.environ["GRANCHAIN_CACHE_DIR"])
 
 
 @pytest.fixture(scope="session")

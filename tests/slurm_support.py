@@ -42,6 +42,22 @@ _TAIL_CHARS = 12_000
 # Snakemake's log line per submitted job (snakemake-executor-plugin-slurm 2.x).
 SUBMITTED_RE = re.compile(r"has been submitted with SLURM jobid (\d+)")
 
+# The markers of the test that is running (set by conftest.py's pytest_runtest_setup,
+# None outside a test): the helpers below refuse to start runs a test is not marked for.
+RUNNING_TEST_MARKS: set[str] | None = None
+
+
+def require_marks(what: str, *names: str) -> None:
+    """Fail the running test if it starts *what* without the markers *names*: an
+    unmarked test would run snakemake or SLURM in the quick tier."""
+    if RUNNING_TEST_MARKS is None:
+        return
+    missing = [n for n in names if n not in RUNNING_TEST_MARKS]
+    if missing:
+        pytest.fail(f"this test runs {what} but is not marked {', '.join(missing)} "
+                    "(add @pytest.mark.<name>, or use a fixture conftest.END_TO_END marks)",
+                    pytrace=False)
+
 
 @dataclasses.dataclass(frozen=True)
 class SlurmCluster:
@@ -138,15 +154,7 @@ def run_snakemake_on_slurm(
     with ``check`` (the default) a non-zero exit fails the test showing both.
     """
     workdir = Path(workdir)
-    cmd = [
-        "timeout", "-k", "30", str(int(timeout_s)),
-        sys.executable, "-m", "snakemake",
-        "--profile", str(SLURM_PROFILE),
-        "--snakefile", str(Path(snakefile).resolve()),
-        "--directory", str(workdir.resolve()),
-        *extra_args,
-        *targets,
-    ]
+    cmd = slurm_snakemake_command(workdir, snakefile, targets, extra_args, timeout_s)
     proc = subprocess.run(cmd, cwd=workdir, capture_output=True, text=True, env=_clean_env())
     if check and proc.returncode != 0:
         what = {124: "timed out (SIGTERM)", 137: "timed out and was killed (SIGKILL)"}.get(
@@ -158,6 +166,51 @@ def run_snakemake_on_slurm(
             pytrace=False,
         )
     return proc
+
+
+def slurm_snakemake_command(workdir, snakefile, targets=(), extra_args=(), timeout_s=300):
+    """The command line :func:`run_snakemake_on_slurm` runs (for a run started with
+    :func:`start_snakemake_on_slurm`)."""
+    require_marks("snakemake through SLURM", "workflow", "slurm")
+    return [
+        "timeout", "-k", "30", str(int(timeout_s)),
+        sys.executable, "-m", "snakemake",
+        "--profile", str(SLURM_PROFILE),
+        "--snakefile", str(Path(snakefile).resolve()),
+        "--directory", str(Path(workdir).resolve()),
+        *extra_args,
+        *targets,
+    ]
+
+
+def start_snakemake_on_slurm(workdir, snakefile, log_path, targets=(), extra_args=(),
+                             timeout_s=300) -> subprocess.Popen:
+    """Start the same run in the background, stdout and stderr to *log_path*, in a
+    session of its own (``os.killpg(proc.pid, ...)`` reaches snakemake and ``timeout``)."""
+    cmd = slurm_snakemake_command(workdir, snakefile, targets, extra_args, timeout_s)
+    with open(log_path, "w") as log:
+        return subprocess.Popen(cmd, cwd=workdir, stdout=log, stderr=subprocess.STDOUT,
+                                env=_clean_env(), start_new_session=True)
+
+
+def squeue_jobs(states: str = "all") -> dict[int, tuple[str, str]]:
+    """{job id: (state, comment)} of the jobs squeue lists in *states*. The SLURM
+    executor plugin puts ``rule_<rule>_wildcards_<...>`` in each job's comment."""
+    proc = subprocess.run(["squeue", "-h", "-t", states, "-o", "%i|%T|%k"], capture_output=True,
+                          text=True, timeout=30, env=_clean_env())
+    assert proc.returncode == 0, proc.stderr
+    out = {}
+    for ln in proc.stdout.splitlines():
+        if ln.strip():
+            jid, state, comment = ln.strip().split("|", 2)
+            out[int(jid)] = (state, comment)
+    return out
+
+
+def scancel(job_id: int) -> None:
+    proc = subprocess.run(["scancel", str(job_id)], capture_output=True, text=True, timeout=30,
+                          env=_clean_env())
+    assert proc.returncode == 0, f"scancel {job_id}: {proc.stderr}"
 
 
 def submitted_slurm_job_ids(proc: subprocess.CompletedProcess) -> list[int]:
