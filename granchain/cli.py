@@ -13,10 +13,11 @@ import re
 import sys
 from pathlib import Path
 
-from .costmodel import describe_auto, resolve_auto
+from .costmodel import (DEFAULT_MAX_TOTAL_STEPS, add_estimates, describe_auto, resolve_auto,
+                        run_estimate)
 from .errors import GranchainError
 from .fileio import atomic_write_text, check_output_path
-from .guards import scene_warnings
+from .guards import check_run, run_size, scene_warnings
 from .schedule import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost
 from .scene import load_scene
 
@@ -119,12 +120,22 @@ def cmd_validate(args) -> int:
     return 0
 
 
+SCENE_SIZE_FIX = "lower ensemble.realisations, the striker speeds (striker.velocity) or chain.n"
+
+
+def check_whole_run(scene, args, est) -> None:
+    """Refuse a run of every member of ``scene`` beyond the command's whole-run limits."""
+    check_run(f"scene '{scene.name}'", est, size=run_size(scene), fix=SCENE_SIZE_FIX,
+              max_total_steps=args.max_total_steps, max_memory_gb=args.max_memory_gb)
+
+
 def cmd_run(args) -> int:
     from .simulate import run_scene
     scene = load(args)
     if args.out:
         check_output_path(args.out, args.force, "--out")     # refuse before spending the compute
     check_cost(scene, args.max_steps, args.max_memory_gb)
+    check_whole_run(scene, args, run_estimate(scene, engine=args.engine))
     runs = run_scene(scene, engine=args.engine, max_steps=args.max_steps,
                      max_memory_gb=args.max_memory_gb, **_engine_kw(args))
     if len(runs) == 1:
@@ -207,6 +218,12 @@ def cmd_compare(args) -> int:
     if args.np < 1:
         raise GranchainError(f"--np: must be >= 1 (got {args.np})")
     check_cost(scene, args.max_steps, args.max_memory_gb)
+    # both engines run every member with velocity Verlet at the scene's step, and the
+    # comparison holds both records of every member
+    verlet = scene.derive(**{"integrator.method": "verlet"})
+    check_whole_run(scene, args, add_estimates(
+        run_estimate(verlet, engine="reference", trace=True),
+        run_estimate(verlet, engine="lammps")))
     cmp = compare(scene, nprocs=args.np,
                   workdir=Path(args.workdir) if args.workdir else None, force=args.force,
                   trajectory=args.trajectory)
@@ -249,6 +266,42 @@ def _print_inference(res, out=None) -> None:
             "no_simulated_match": "no simulated mean gap reproduces the timings"}[f], file=out)
 
 
+def check_grid(base, args) -> None:
+    """Refuse an inference whose simulated grid (mean gaps x striker speeds x
+    realisations, the points not in the cache) is beyond the whole-run limits. Values
+    the inference itself refuses (too few points or realisations) are left to it."""
+    import numpy as np
+
+    from .inference import _cache_file, check_base, grid_scene
+    check_base(base)
+    G, R = args.gap_points, args.realisations
+    if G < 3 or R < 2 or min(base.striker_velocities) <= 0:
+        return
+    speeds = sorted({float(v) for v in base.striker_velocities})
+    base = base.derive(striker={"velocity": speeds})
+    cache = None if args.no_cache else args.cache_dir
+    points = []
+    for g in np.linspace(0.0, args.gap_max_nm * 1e-9, G):
+        scene = resolve_auto(grid_scene(base, g, R))
+        if cache is None or not _cache_file(cache, scene).exists():
+            points.append(run_estimate(scene))
+    if not points:
+        return
+    est = add_estimates(*points)
+    # the grid points run one after another: at most two points' results are held at
+    # once, with the grid's timings (two columns of G x S x R)
+    est["result_bytes"] = 2 * max(p["result_bytes"] for p in points) + 16.0 * G * len(speeds) * R
+    est["record_bytes"] = 2 * max(p["record_bytes"] for p in points)
+    est["bytes"] = est["result_bytes"] + est["record_bytes"]
+    size = (f"{len(points) * len(speeds) * R} chains to simulate: {len(points)} of --gap-points "
+            f"{G} mean gaps x {len(speeds)} striker speed{'s' if len(speeds) != 1 else ''} "
+            f"(striker.velocity of --scene) x {R} realisations (--realisations) of {base.n} "
+            "spheres (chain.n)")
+    check_run("the inference grid", est, size=size,
+              fix="lower --realisations, --gap-points or the base scene's striker speeds",
+              max_total_steps=args.max_total_steps, max_memory_gb=args.max_memory_gb)
+
+
 def cmd_infer(args) -> int:
     from .inference import infer, read_measurements
     if args.plot:
@@ -260,6 +313,7 @@ def cmd_infer(args) -> int:
         check_output_path(args.out, args.force, "--out")
     meas = read_measurements(args.measurements)
     base = resolve_auto(load_scene(args.scene, args.set))
+    check_grid(base, args)
     res = infer(base, meas, gap_max=args.gap_max_nm * 1e-9, gap_points=args.gap_points,
                 realisations=args.realisations, cache_dir=None if args.no_cache else args.cache_dir,
                 source=f"{args.measurements}, ", prior=args.prior)
@@ -298,13 +352,21 @@ def _limit(text: str) -> float:
     return value
 
 
+def _run_limits(sp) -> None:
+    sp.add_argument("--max-total-steps", type=_limit, default=DEFAULT_MAX_TOTAL_STEPS,
+                    metavar="N", help=f"refuse a run needing more integration steps over all "
+                    f"its chains (estimate; default {DEFAULT_MAX_TOTAL_STEPS:.0e})")
+    sp.add_argument("--max-memory-gb", type=_limit, default=DEFAULT_MAX_MEMORY_GB, metavar="X",
+                    help=f"refuse a run that would hold more GB: every chain's results and "
+                         f"the sample records kept until it ends, or one chain's record "
+                         f"(estimate; default {DEFAULT_MAX_MEMORY_GB:g})")
+
+
 def _cost_args(sp) -> None:
     sp.add_argument("--max-steps", type=_limit, default=DEFAULT_MAX_STEPS, metavar="N",
                     help=f"refuse a scene needing more integration steps per chain "
                          f"(estimate; default {DEFAULT_MAX_STEPS:.0e})")
-    sp.add_argument("--max-memory-gb", type=_limit, default=DEFAULT_MAX_MEMORY_GB, metavar="X",
-                    help=f"refuse a scene whose sample record needs more GB per chain "
-                         f"(estimate; default {DEFAULT_MAX_MEMORY_GB:g})")
+    _run_limits(sp)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -392,6 +454,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="where simulated grids are kept, keyed by scene hash "
                          "(default $GRANCHAIN_CACHE_DIR/inference, else $XDG_CACHE_HOME/granchain/inference)")
     sp.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+    _run_limits(sp)
     sp.set_defaults(func=cmd_infer)
 
     return p

@@ -35,7 +35,7 @@ import numpy as np
 
 from .errors import GranchainError, SceneError
 from .scene import TOLERANCE_METHODS, Scene
-from .schedule import expected_duration, sample_interval
+from .schedule import cost_estimate, expected_duration, sample_interval
 
 SCENE_METHODS = ("rk4", "verlet", "adaptive", "event")   # what ``method: auto`` may resolve to
 SCENE_CLASSES = ("packed", "gapped")
@@ -300,3 +300,70 @@ def describe_auto(scene: Scene) -> str:
     how = (f"tolerance {scene.tolerance:g}" if scene.method in TOLERANCE_METHODS
            else f"dt {scene.dt:.6g} s")
     return f"auto (tolerance {scene.auto_tolerance:g}) -> {scene.method}, {how}"
+
+
+# ---------------------------------------------------------------------------------------
+# what a whole run costs: every member (striker speed x realisation) of a scene
+# ---------------------------------------------------------------------------------------
+# Bytes a run holds per member until it ends, besides its sample record: the ChainResult
+# (tuples of n per-particle values; tracemalloc: 4.4 kB at n = 15, 7.4 kB at n = 40), its
+# Member and its row of gaps.
+MEMBER_BYTES = 3000.0
+MEMBER_BYTES_PER_PARTICLE = 110.0
+# Rough wall time of one force evaluation per particle on one core (s), per engine, and
+# force evaluations per step, per method: only to tell the user how long a run would
+# take, never for results (reference RK4 on 15 spheres: ~1.3e-8 s per particle and
+# evaluation; LAMMPS: ~1.5e-5 s per step of a 15-sphere chain, dumps included).
+EVAL_SECONDS_PER_PARTICLE = {"reference": 2.0e-8, "lammps": 1.0e-6}
+EVALS_PER_STEP = {"rk4": 4, "verlet": 1, "adaptive": 13, "event": 13}
+DEFAULT_MAX_TOTAL_STEPS = 1e11      # whole run, raised with --max-total-steps
+
+
+def holds_records(scene, engine: str = "reference", trace: bool = False) -> bool:
+    """Does a run keep each member's sample record until it ends? LAMMPS reads back the
+    dump of all its chains at once. The reference engine yields chains in member order
+    but runs them ordered by sampling and total gap, so a chain may wait for every other
+    one; it records the sampled trajectory except under the event method without a
+    trace (``trace``, or a measured scene: ``measurement.needs_trace``)."""
+    if engine == "lammps":
+        return True
+    return scene.method != "event" or trace or scene.measurement is not None
+
+
+def run_estimate(scene, realisations=None, engine: str = "reference", *,
+                 trace: bool = False, speeds_apart: bool = False) -> dict:
+    """Estimated cost of a whole run of a resolved scene: every striker speed x
+    ``realisations`` (a count or the realisation indices; the scene's own count if None);
+    ``speeds_apart``: one run per striker speed, each freeing its records before the next
+    (``workflow.run_members`` on LAMMPS).
+    members; steps (integration steps, all members); worst_chain_steps; record_bytes
+    (sample records held, :func:`holds_records`); result_bytes (per-member results);
+    bytes (their sum); seconds (rough wall time on one core)."""
+    if realisations is None:
+        reals = scene.realisations
+    elif isinstance(realisations, (int, np.integer)):
+        reals = int(realisations)
+    else:
+        reals = len(realisations)
+    reals = max(0, reals)
+    per_v = [cost_estimate(scene, v) for v in scene.striker_velocities]
+    members = reals * len(per_v)
+    steps = reals * sum(c["steps"] for c in per_v)
+    rec = [c["record_bytes"] for c in per_v]
+    held = max(rec, default=0.0) if speeds_apart else sum(rec)
+    records = reals * held if holds_records(scene, engine, trace) else 0.0
+    results = members * (MEMBER_BYTES + MEMBER_BYTES_PER_PARTICLE * scene.n)
+    evals = EVALS_PER_STEP.get(scene.method, 4)
+    return {"members": members, "steps": steps,
+            "worst_chain_steps": max((c["steps"] for c in per_v), default=0.0),
+            "record_bytes": records, "result_bytes": results, "bytes": records + results,
+            "seconds": steps * evals * scene.n * EVAL_SECONDS_PER_PARTICLE[engine]}
+
+
+def add_estimates(*ests: dict) -> dict:
+    """The cost of runs made one after another in one process holding all their results
+    (e.g. both engines of a comparison): sums, and the worst chain of any."""
+    out = {k: sum(e[k] for e in ests) for k in ("members", "steps", "record_bytes",
+                                                  "result_bytes", "bytes", "seconds")}
+    out["worst_chain_steps"] = max((e["worst_chain_steps"] for e in ests), default=0.0)
+    return out

@@ -8,6 +8,9 @@ No numba or scipy, so ``granchain validate`` stays light. The solitary wave come
 * :func:`physics_warnings`: where the scene leaves the model's range (Hertz overlap) or
   ends before its wave arrives.
 * :func:`require_resolved`: what needs the step refuses a scene still at method auto.
+* :func:`check_run`: the whole run (every member of an ensemble or sweep, a grid, a
+  workflow job) refused in one line when its estimated steps or memory
+  (``granchain.costmodel.run_estimate``) exceed a limit.
 """
 from __future__ import annotations
 
@@ -95,6 +98,73 @@ def physics_warnings(scene, v_striker: float) -> list[str]:
                        f"reach probe {scene.probes[-1]} (~{arrive:.3g} s): use t_end: auto or a "
                        "longer t_end")
     return out
+
+
+def run_size(scene, realisations: int | None = None,
+             realisations_key: str = "ensemble.realisations") -> str:
+    """'8 chains: 2 striker speeds (striker.velocity) x 4 realisations
+    (ensemble.realisations) of 15 spheres (chain.n)': the factors of a run's size,
+    each with the key that sets it."""
+    reals = scene.realisations if realisations is None else int(realisations)
+    nv = len(scene.striker_velocities)
+    return (f"{nv * reals} chains: {nv} striker speed{'s' if nv != 1 else ''} "
+            f"(striker.velocity) x {reals} realisation{'s' if reals != 1 else ''} "
+            f"({realisations_key}) of {scene.n} spheres (chain.n)")
+
+
+def _duration(seconds: float) -> str:
+    for unit, s in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
+        if seconds >= 2 * s:
+            return f"{seconds / s:.2g} {unit}"
+    return f"{seconds:.2g} s"
+
+
+def _raise_to(x: float) -> str:
+    """x rounded up to 2 significant digits, as text: a limit that accepts x."""
+    if not (x > 0 and math.isfinite(x)):
+        return f"{x:g}"
+    e = math.floor(math.log10(x)) - 1
+    return f"{math.ceil(round(x / 10.0**e, 9)) * 10.0**e:.2g}"
+
+
+def _raise_limit(option: str, value: str) -> str:
+    """How to raise a limit: a command-line option is passed, a configuration key raised."""
+    return f"pass {option} {value}" if option.startswith("--") else f"raise {option} to {value}"
+
+
+def check_run(what: str, est: dict, *, size: str, fix: str, max_total_steps: float,
+              max_memory_gb: float, steps_option: str = "--max-total-steps",
+              memory_option: str = "--max-memory-gb", memory_unit: str = "GB") -> None:
+    """Refuse (GranchainError, one line) a whole run whose estimate ``est``
+    (``costmodel.run_estimate``) needs more than ``max_total_steps`` integration steps or
+    ``max_memory_gb`` GB. ``what`` names the run ("scene 'x'"), ``size`` its factors and
+    their keys (:func:`run_size`), ``fix`` what to lower; ``steps_option`` and
+    ``memory_option`` (a command-line option or a configuration key, whose value is in
+    ``memory_unit``, GB or MB) are the limits to raise."""
+    from .errors import GranchainError
+    if not (max_total_steps > 0) or not (max_memory_gb > 0):
+        raise GranchainError(f"{steps_option} / {memory_option}: limits must be > 0 (got "
+                             f"{max_total_steps:g}, {max_memory_gb:g}); give positive numbers")
+    gb = est["bytes"] / 1e9
+    if gb > max_memory_gb:
+        held = f"{est['result_bytes'] / 1e9:.2g} GB of results"
+        if est["record_bytes"]:
+            held += f" and {est['record_bytes'] / 1e9:.2g} GB of sample records"
+        scale = {"GB": 1.0, "MB": 1e3}[memory_unit]
+        need = _raise_to(gb * scale)
+        if memory_unit == "MB":                 # a whole number of MB, as the key takes
+            need = str(math.ceil(float(need)))
+        raise GranchainError(
+            f"{memory_option}: {what} would hold an estimated {gb:.3g} GB over its whole run "
+            f"({size}; {held}), above the limit {max_memory_gb * scale:g} {memory_unit}; "
+            f"{fix}, or {_raise_limit(memory_option, need)} if the machine "
+            "has the memory")
+    if est["steps"] > max_total_steps:
+        raise GranchainError(
+            f"{steps_option}: {what} needs an estimated {est['steps']:.3g} integration steps "
+            f"over its whole run ({size}; ~{_duration(est['seconds'])} on one core), above the "
+            f"limit {max_total_steps:.3g}; {fix}, or "
+            f"{_raise_limit(steps_option, _raise_to(est['steps']))} if you mean it")
 
 
 def scene_warnings(scene) -> list[str]:

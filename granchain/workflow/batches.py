@@ -14,8 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import analytic
+from ..costmodel import DEFAULT_MAX_TOTAL_STEPS, add_estimates, run_estimate
 from ..errors import GranchainError
+from ..guards import check_run
 from ..scene import Scene
+from .config import ConfigError
 from .studies import ENGINE_ORDER, StudyScene, study_scenes
 
 # Rough cost of one integration step of one chain on one core (s), per engine: used only
@@ -142,6 +145,79 @@ def find_batch(preset: dict, study: str, name: str,
         if b.name == name:
             return b
     raise GranchainError(f"study '{study}' has no batch '{name}' in this configuration")
+
+
+# A study cut into more jobs than this is refused before its jobs are listed (the
+# Snakemake graph and the plan's own lists grow with the number of jobs and members).
+MAX_JOBS_PER_STUDY = 10000
+
+
+def _job_limits(preset: dict, name: str, job: str, est: dict, size: str) -> None:
+    """Refuse a job (or a study's average job) beyond the preset's memory per job
+    (``batch.mem_mb``) or the whole-run step limit, as a one-line ConfigError naming the
+    preset's keys."""
+    key = f"presets.{name}.batch"
+    try:
+        check_run(job, est, size=size,
+                  fix=f"lower {key}.members_per_job or the study's realisations",
+                  max_total_steps=DEFAULT_MAX_TOTAL_STEPS,
+                  max_memory_gb=preset["batch"].get("mem_mb", 1000) / 1e3,
+                  steps_option=f"{key}.members_per_job (steps per job)",
+                  memory_option=f"{key}.mem_mb", memory_unit="MB")
+    except GranchainError as exc:
+        where, _, rest = str(exc).partition(": ")
+        raise ConfigError(f"invalid configuration at '{where.split(' ')[0]}': {rest}") from None
+
+
+def _unit_estimate(scene: Scene, realisations, engine: str) -> dict:
+    """``run_estimate`` of one scene's realisations in a job (``run.run_members``: LAMMPS
+    runs each striker speed apart)."""
+    return run_estimate(scene, realisations, engine, speeds_apart=engine == "lammps")
+
+
+def check_study(preset: dict, name: str, study: str, scenes: list[StudyScene]) -> None:
+    """The whole-run guard of a study of preset ``name``, before its jobs are listed:
+    per engine, its members over ``batch.members_per_job`` jobs (at most
+    ``MAX_JOBS_PER_STUDY``), and its average job within the job limits (the largest job
+    is at least the average)."""
+    k = members_per_job(preset)
+    for eng in ENGINE_ORDER:
+        mine = [ss for ss in scenes if eng in ss.engines]
+        if not mine:
+            continue
+        ests = [_unit_estimate(ss.scene, None, eng) for ss in mine]
+        est = add_estimates(*ests)
+        members = int(est["members"])
+        njobs = max(1, math.ceil(members / k))
+        where = f"presets.{name}.studies.{study}.realisations"
+        if njobs > MAX_JOBS_PER_STUDY:
+            raise ConfigError(
+                f"invalid configuration at '{where}': study {study} has {members} members on "
+                f"{eng}, {njobs} jobs of presets.{name}.batch.members_per_job = {k}, above "
+                f"{MAX_JOBS_PER_STUDY} jobs per study; lower {where} or raise "
+                f"presets.{name}.batch.members_per_job")
+        avg = {key: v / njobs for key, v in est.items() if key != "worst_chain_steps"}
+        avg["worst_chain_steps"] = est["worst_chain_steps"]
+        # a job holds the records of one scene's run at a time: at least one realisation's
+        avg["record_bytes"] = min(e["record_bytes"] / max(1, e["members"]) for e in ests)
+        avg["bytes"] = avg["result_bytes"] + avg["record_bytes"]
+        _job_limits(preset, name, f"an average job of study {study} ({eng})", avg,
+                    f"{members / njobs:.0f} of its {members} members, "
+                    f"{len(mine)} scene{'s' if len(mine) != 1 else ''}")
+
+
+def check_jobs(preset: dict, name: str, study: str, jobs: list[Batch],
+               scenes: list[StudyScene]) -> None:
+    """Each job of a study within the job limits: its members' results, all held until
+    the job writes its table, and the sample records of the largest of its scenes' runs
+    (``run.run_batch`` runs its scenes one after another)."""
+    for b in jobs:
+        ests = [_unit_estimate(scenes[si].scene, reals, b.engine) for si, reals in b.units]
+        est = add_estimates(*ests)
+        est["record_bytes"] = max(e["record_bytes"] for e in ests)
+        est["bytes"] = est["result_bytes"] + est["record_bytes"]
+        _job_limits(preset, name, f"job {study} {b.name}", est,
+                    f"{b.members} members of {len(b.units)} scene{'s' if len(b.units) != 1 else ''}")
 
 
 def runtime_minutes(seconds: float, threads: int = 1) -> int:

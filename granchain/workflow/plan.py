@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import GranchainError
-from .batches import Batch, batches
+from .batches import Batch, batches, check_jobs, check_study
 from .config import ConfigError, read_config, select_preset
 from .studies import (ENGINE_ORDER, STUDIES, StudyScene, study_scenes, vibrometer_scenes,
                       vibrometer_settings)
@@ -35,7 +35,9 @@ class Plan:
         for study in STUDIES:
             try:
                 scenes[study] = study_scenes(preset, study)
+                check_study(preset, name, study, scenes[study])
                 jobs[study] = batches(preset, study, scenes=scenes[study])
+                check_jobs(preset, name, study, jobs[study], scenes[study])
             except ConfigError as exc:
                 raise ConfigError(str(exc).replace("at 'studies.", f"at 'presets.{name}.studies.",
                                                    1)) from None
