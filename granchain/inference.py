@@ -135,30 +135,55 @@ def _number(text: str, where: str) -> float:
     return x
 
 
+def _read_text(path, name: str) -> str:
+    """The text of a measurement file: a regular file, UTF-8 (a byte-order mark is
+    dropped); every problem one GranchainError naming the file (and the line of a byte
+    that is not UTF-8)."""
+    p = Path(path)
+    try:
+        if p.is_dir():
+            raise _bad(name, "is a directory, not a CSV file",
+                       "give the path of the measurement CSV file")
+        if p.exists() and not p.is_file():
+            raise _bad(name, "is not a regular file", "give the path of a measurement CSV file")
+        data = p.read_bytes()
+    except OSError as exc:
+        raise _bad(name, f"cannot read the file ({exc.strerror or exc})",
+                   "give a readable CSV file") from None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        col = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise _bad(f"{name}, line {line}", f"is not UTF-8 text (byte 0x{data[exc.start]:02x} "
+                   f"at character {col})", "save the file as UTF-8 CSV") from None
+
+
 def read_measurements(path) -> Measurements:
     """Read and check a measurement CSV (module doc). Lines starting with '#' are comments.
     Every problem is one GranchainError naming the file and the column or row."""
     name = str(path)
-    try:
-        text = Path(path).read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise _bad(name, f"cannot read the file ({getattr(exc, 'strerror', None) or exc})",
-                   "give a readable CSV file") from None
+    text = _read_text(path, name)
     lines = [(k + 1, ln) for k, ln in enumerate(text.splitlines())
              if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise _bad(name, "the file is empty", "give a header line (v_striker_m_s, dt_peak_s or "
                    "dt_front_s, optional dt_err_s, chain_id) and at least one row")
-    rows = list(csv.reader(io.StringIO("\n".join(ln for _, ln in lines))))
+    try:
+        rows = list(csv.reader(io.StringIO("\n".join(ln for _, ln in lines)), strict=True))
+    except csv.Error as exc:
+        raise _bad(name, f"is not a valid CSV file ({exc})",
+                   "give comma-separated values with balanced quotes") from None
     header = [h.strip() for h in rows[0]]
     for h in header:
         if h not in COLUMNS:
             close = difflib.get_close_matches(h, COLUMNS, n=1)
             raise _bad(f"{name}, column {h!r}", "unknown column",
                        f"did you mean {close[0]!r}?" if close else f"use {', '.join(COLUMNS)}")
-    for h in set(header):
-        if header.count(h) > 1:
-            raise _bad(f"{name}, column {h!r}", "given twice", "keep one")
+    for j, h in enumerate(header):
+        if h in header[:j]:
+            raise _bad(f"{name}, column {h!r}", f"given twice (header cells {header.index(h) + 1} "
+                       f"and {j + 1})", "keep one")
     if "v_striker_m_s" not in header:
         raise _bad(f"{name}, column 'v_striker_m_s'", "missing",
                    "add the striker speed of each measurement in m/s")
