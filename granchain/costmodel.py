@@ -35,7 +35,8 @@ import numpy as np
 
 from .errors import GranchainError, SceneError
 from .scene import TOLERANCE_METHODS, Scene
-from .schedule import cost_estimate, expected_duration, sample_interval
+from .schedule import (RECORD_EXTRA_COLUMNS, cost_estimate, expected_duration,
+                       sample_interval)
 
 SCENE_METHODS = ("rk4", "verlet", "adaptive", "event")   # what ``method: auto`` may resolve to
 SCENE_CLASSES = ("packed", "gapped")
@@ -317,6 +318,14 @@ MEMBER_BYTES_PER_PARTICLE = 110.0
 EVAL_SECONDS_PER_PARTICLE = {"reference": 2.0e-8, "lammps": 1.0e-6}
 EVALS_PER_STEP = {"rk4": 4, "verlet": 1, "adaptive": 13, "event": 13}
 DEFAULT_MAX_TOTAL_STEPS = 1e11      # whole run, raised with --max-total-steps
+# The reference engine's chunks (engines.reference: CHUNK_BYTES, CHUNK_CHAINS, and the
+# samples per kernel call WINDOW, BLOCK_WINDOW): while a chunk's records are joined their
+# pieces are held as well, and each chain of a chunk has its window of samples and, under
+# the event method, its peak-tracking buffers (tracemalloc: ~3.7 kB per particle).
+RECORD_CHUNK_BYTES = 256 * 2**20
+CHUNK_CHAINS = 512
+WINDOW_SAMPLES = {"rk4": 256, "verlet": 256, "adaptive": 2048, "event": 2048}
+EVENT_BYTES_PER_PARTICLE = 3700.0
 
 
 def holds_records(scene, engine: str = "reference", trace: bool = False) -> bool:
@@ -352,6 +361,13 @@ def run_estimate(scene, realisations=None, engine: str = "reference", *,
     rec = [c["record_bytes"] for c in per_v]
     held = max(rec, default=0.0) if speeds_apart else sum(rec)
     records = reals * held if holds_records(scene, engine, trace) else 0.0
+    if engine == "reference":
+        recorded = holds_records(scene, engine, trace)
+        window = WINDOW_SAMPLES.get(scene.method, 256) if recorded else 0
+        per_chain = window * (scene.n + RECORD_EXTRA_COLUMNS) * 8.0
+        if scene.method == "event":
+            per_chain += EVENT_BYTES_PER_PARTICLE * scene.n
+        records += min(records, RECORD_CHUNK_BYTES) + min(members, CHUNK_CHAINS) * per_chain
     results = members * (MEMBER_BYTES + MEMBER_BYTES_PER_PARTICLE * scene.n)
     evals = EVALS_PER_STEP.get(scene.method, 4)
     return {"members": members, "steps": steps,
