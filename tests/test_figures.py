@@ -2,7 +2,8 @@
 
 The fixture ``tables`` builds small contract tables through the real engine
 (granchain.simulate.run_scene on tiny ensembles, converted to the contract's columns), so
-these tests do not depend on the workflow having run.
+these tests do not depend on the workflow having run. Building them takes about 10 s on
+two cores, so the tests that use them are marked slow.
 """
 from __future__ import annotations
 
@@ -338,6 +339,7 @@ def test_every_figure_has_its_data_check():
     assert set(FIGURE_DATA) == set(figures.FIGURES)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(figures.FIGURES))
 def test_every_figure_draws_its_tables(tables, tmp_path, name, monkeypatch):
     fig, written = _draw(name, _paths(*tables), tmp_path / name, monkeypatch)
@@ -347,6 +349,7 @@ def test_every_figure_draws_its_tables(tables, tmp_path, name, monkeypatch):
     FIGURE_DATA[name](fig, *tables)
 
 
+@pytest.mark.slow
 def test_figures_are_byte_identical_on_rerun(tables, tmp_path):
     paths = _paths(*tables)
     digests = []
@@ -357,6 +360,7 @@ def test_figures_are_byte_identical_on_rerun(tables, tmp_path):
     assert digests[0] == digests[1]
 
 
+@pytest.mark.slow
 def test_fit_slope_is_least_squares_through_origin(tables):
     packed = _read(tables[0], "packed_sweep")
     fits = analysis.vmax_fits(packed)
@@ -371,6 +375,7 @@ def test_fit_slope_is_least_squares_through_origin(tables):
     assert 0.5 < fits["ss440c"]["v_max_2"] < fits["ss440c"]["v_max_1"] < 1.0
 
 
+@pytest.mark.slow
 def test_packed_vg_is_exact_on_the_sweep_and_interpolates_between(tables):
     packed = _read(tables[0], "packed_sweep")
     d = packed[packed["material"] == "ss440c"].sort_values("v_striker_m_s")
@@ -380,6 +385,7 @@ def test_packed_vg_is_exact_on_the_sweep_and_interpolates_between(tables):
     assert d["v_g_m_s"].iloc[0] < mid < d["v_g_m_s"].iloc[1]
 
 
+@pytest.mark.slow
 def test_gapped_chains_are_below_packed_and_the_eq54_bound(tables):
     """The data the figures draw obey the chapter's claims (not a tautology: v_g comes
     from the probes' timing in simulated chains, the bound from the packed chain's v_g).
@@ -407,6 +413,7 @@ def test_oscillation_measure():
 
 
 # --- clear errors ----------------------------------------------------------------------
+@pytest.mark.slow
 def test_missing_column_is_one_clear_line(tables, tmp_path):
     packed = _read(tables[0], "packed_sweep").drop(columns=["v_max_2_m_s"])
     with pytest.raises(GranchainError) as e:
@@ -423,6 +430,7 @@ def test_missing_column_is_one_clear_line(tables, tmp_path):
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.slow
 def test_missing_table_and_trace_are_clear(tables, tmp_path):
     with pytest.raises(GranchainError, match=r"table '.*nothere.csv' not found"):
         figures.render("fig5_1b", {"packed_sweep": tmp_path / "nothere.csv"}, tmp_path / "a")
@@ -513,6 +521,7 @@ def _project_values(tdir):
     }
 
 
+@pytest.mark.slow
 def test_thesis_table_has_every_reported_number(tables, tmp_path):
     tdir, rdir = tables
     paths = _paths(tdir, rdir)
@@ -564,6 +573,7 @@ def test_thesis_cli_missing_table_is_one_line(tmp_path):
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and "not found" in p.stderr
 
 
+@pytest.mark.slow
 def test_radius_enters_eq54(tables, tmp_path):
     with pytest.raises(GranchainError, match="radius"):
         figures.render("fig5_4b", _paths(*tables), tmp_path / "r", radius=-1.0)
@@ -622,6 +632,7 @@ TABLE_IDS = (["vmax_slope", "vmax1_over_vs", "vmax2_over_vs", "vmax_ratio", "vg_
                 for q in ("vmax1", "vmax2", "dt")])
 
 
+@pytest.mark.slow
 def test_thesis_table_supporting_rows(tables):
     tdir, rdir = tables
     df = thesis.comparison(**thesis.read_inputs(_paths(tdir, rdir)))
@@ -650,6 +661,7 @@ def test_thesis_table_supporting_rows(tables):
         "vibrometer table")
 
 
+@pytest.mark.slow
 def test_row_builders_without_their_tables(tables):
     tdir, rdir = tables
     kw = thesis.read_inputs(_paths(tdir, rdir))
