@@ -11,6 +11,7 @@ from granchain.engines import reference
 from granchain.engines.reference import Layout, pack
 
 from conftest import packed, pair, run1
+from independent import SS440C, hertz_chain_peaks
 
 
 def test_hertz_force_matches_closed_form():
@@ -78,11 +79,31 @@ def test_vmax_over_vs_is_scale_free_for_hertz_chain():
         assert np.allclose(got, ref[:13], rtol=2e-5, atol=0), over
 
 
+# Group velocity of the packed chain (Hertz only, RK4 at 1 ns) between particles 2 and 13.
+# Against the independent solution (tests/independent.py: peak and half-peak times of its
+# DOP853 solution), measured: v_g within 2.0e-7, v_g_front within 5.9e-7 for v_s = 0.01,
+# 0.1, 1 m/s (the engine's sampled peak and front times). Against Nesterenko's long-wave
+# speed with v_m = v_max,2 both give v_g 1.40 % below it (v_g_front 0.50 %), at every v_s
+# alike: not a numerical error but the discrete chain with the wave still forming near
+# particle 2, which the long-wave theory leaves out; it bounds that deficit.
+VG_TOL, VG_FRONT_TOL = 6e-7, 2e-6
+NESTERENKO_TOL = 0.02
+
+
 def test_group_velocity_matches_nesterenko():
+    sc = packed()
+    E, nu, rho = SS440C
+    assert (sc.material.E, sc.material.nu, sc.material.rho) == (E, nu, rho)
+    two_r = 2 * sc.radius
     for vs in (0.01, 0.1, 1.0):
         r = run1(packed(**{"striker.velocity": vs}))
-        V = analytic.nesterenko_speed(packed().material, r.v_max_2)
-        assert abs(r.v_g / V - 1) < 0.03, (vs, r.v_g, V)
+        ind = hertz_chain_peaks(E, nu, rho, sc.radius, sc.n, vs)
+        vg = 11 * two_r / (ind.t_peak[1] - ind.t_peak[0])
+        vg_front = 11 * two_r / (ind.t_front[1] - ind.t_front[0])
+        assert abs(r.v_g / vg - 1) < VG_TOL, (vs, r.v_g, vg)
+        assert abs(r.v_g_front / vg_front - 1) < VG_FRONT_TOL, (vs, r.v_g_front, vg_front)
+        V = analytic.nesterenko_speed(sc.material, r.v_max_2)
+        assert abs(r.v_g / V - 1) < NESTERENKO_TOL, (vs, r.v_g, V)
 
 
 def test_particle_friction_opposes_slip_on_both_spheres():
@@ -157,15 +178,33 @@ def test_eq54_is_an_upper_bound_for_gapped_chains():
                 assert r.v_g < 0.97 * pk.v_g             # gaps slow the wave
 
 
+# Eq. 5.2 on the chapter's Fig. 5.1a scene (every effect, RK4 at 1 ns, to t_end auto,
+# 10.9 us). The groove friction's work is -(2 g mu_pg / s) dx / v_s^2 of E(0) with the
+# groove's normal force m g / s and dx the distance the spheres slid, sum_i int |v_i| dt
+# (1.32 um): measured 6.5e-4 apart (the spin the groove friction gives each sphere
+# lowers its slip below |v|). With the chapter's round dx = 2 um and no 1/s the estimate
+# is 1.150e-3 against the measured 1.072e-3, 6.7 % apart.
+EQ52_TOL = 2e-3
+EQ52_CHAPTER_TOL = 0.2
+
+
 def test_energy_estimates_of_chapter_order_of_magnitude():
-    from granchain.simulate import run_scene
     from conftest import SCENES
+    from granchain.observables import energy_ledger
     from granchain.scene import load_scene
-    r = run_scene(load_scene(SCENES / "packed-440c.yaml"))[0]
-    e = r.energy
-    frac = e.work_groove_friction / e.initial
-    assert -2e-3 < frac < -5e-4          # chapter Eq. 5.2 estimate: ~0.1 %
+    sc = load_scene(SCENES / "packed-440c.yaml")
+    vs = sc.striker_velocities[0]
+    tr = next(reference.run(sc, np.zeros((1, sc.n - 1)), [vs]))
+    e = energy_ledger(tr)
     assert e.balance_error < 1e-8
+    frac = e.work_groove_friction / e.initial
+    g, mu, s = 9.81, 0.293, math.sqrt(0.5)                 # chapter 4; 90-degree groove
+    dx = np.trapezoid(np.abs(tr.v), tr.t, axis=0).sum()
+    assert frac / analytic.coulomb_energy_fraction(g, mu / s, dx, vs) - 1 == pytest.approx(
+        0, abs=EQ52_TOL)
+    # the chapter's order of magnitude, ~0.1 % (dx ~ 2 um)
+    chapter = analytic.coulomb_energy_fraction(g, mu, 2e-6, vs)
+    assert frac / chapter - 1 == pytest.approx(0, abs=EQ52_CHAPTER_TOL), (frac, chapter)
 
 
 @pytest.mark.parametrize("method", ["rk4", "verlet", "adaptive"])
