@@ -128,6 +128,27 @@ def test_module_name_changes_with_every_compiled_source(what, tmp_path):
     assert _module_name_in(tmp_path) != before
 
 
+@pytest.mark.parametrize("what", list(EDITS))
+def test_jit_cache_folder_changes_with_every_compiled_source(what, tmp_path):
+    # numba keys its cache by the stamp of the kernel's own file only: the kernels inline
+    # the effects' laws and freeze codes/schedule constants, so an edit in any of them
+    # must move the JIT cache to another folder, or old machine code would run
+    rel, old, new = EDITS[what]
+    pkg = _copy_package(tmp_path)
+    code = "from granchain.engines import backend\nprint(backend.jit_cache_dir().name)"
+    before, = _in_copy(code, tmp_path)
+    _edit(pkg / rel, old, new)
+    after, = _in_copy(code, tmp_path)
+    assert after != before and after.startswith("granchain-jit-")
+
+
+def test_the_jit_kernels_cache_into_the_hashed_folder():
+    from granchain.engines import events, kernels
+    folder = str(backend.jit_cache_dir())
+    for disp in (kernels.forces, kernels.run_blocks, kernels._drag_force, events.run_events):
+        assert disp._cache._cache_path.startswith(folder + os.sep), disp
+
+
 def test_module_name_changes_with_the_dop853_tableau(tmp_path):
     # the coefficients come from scipy's file: a scipy whose file differs by one
     # coefficient gives another module

@@ -136,14 +136,51 @@ def _versions() -> str:
     return "\n".join(out)
 
 
+def _sources_hash() -> "hashlib._Hash":
+    """sha256 of what the kernels are made of: their sources and the tableaux by value."""
+    h = hashlib.sha256(source_hash(*kernel_sources()).encode())
+    h.update(_tableaux())
+    return h
+
+
 @lru_cache(maxsize=1)
 def module_name() -> str:
     """``granchain_kernels_<hash>``: the hash of everything the module is compiled from."""
-    h = hashlib.sha256(source_hash(*kernel_sources()).encode())
-    h.update(_tableaux())
+    h = _sources_hash()
     h.update(_versions().encode())
     h.update(_cpu().encode())
     return "granchain_kernels_" + h.hexdigest()[:20]
+
+
+@lru_cache(maxsize=1)
+def jit_cache_dir() -> Path:
+    """Where numba caches the JIT kernels: a folder named by :func:`_sources_hash`.
+
+    numba keys its cache by the stamp of the file that defines each kernel only, but the
+    kernels inline the effects' laws and freeze ``codes`` and ``schedule`` constants from
+    other files: an edit there would otherwise load machine code of the old physics. The
+    folder sits in the package's ``__pycache__`` (kept across test sessions and runs),
+    under ``$NUMBA_CACHE_DIR`` if the user set one, else in :func:`cache_dir` when the
+    package is not writable. numba itself keys the entries by Python, numba and CPU."""
+    tag = "granchain-jit-" + _sources_hash().hexdigest()[:20]
+    user = os.environ.get("NUMBA_CACHE_DIR")
+    if user:
+        return Path(user) / tag
+    pyc = _PKG / "engines" / "__pycache__"
+    try:
+        pyc.mkdir(exist_ok=True)
+        if os.access(pyc, os.W_OK):
+            return pyc / tag
+    except OSError:
+        pass
+    return cache_dir() / "jit" / tag
+
+
+def use_jit_cache() -> None:
+    """Point numba's cache at :func:`jit_cache_dir`; called before any kernel is defined
+    (numba reads ``config.CACHE_DIR`` when a ``cache=True`` function is decorated)."""
+    from numba.core import config
+    config.CACHE_DIR = str(jit_cache_dir())
 
 
 @lru_cache(maxsize=1)

@@ -25,6 +25,10 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .backend import use_jit_cache
+
+use_jit_cache()   # before the first @njit(cache=True): a cache keyed by every source compiled in
+
 from ..effects import air_drag, groove_friction, hertz, particle_friction, rolling_friction
 
 # the kernels' numbering of parameters, flags, layout blocks, methods, energy columns,
