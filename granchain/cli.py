@@ -268,35 +268,29 @@ def _print_inference(res, out=None) -> None:
 
 def check_grid(base, args) -> None:
     """Refuse an inference whose simulated grid (mean gaps x striker speeds x
-    realisations, the points not in the cache) is beyond the whole-run limits. Values
-    the inference itself refuses (too few points or realisations) are left to it."""
-    import numpy as np
-
-    from .inference import _cache_file, check_base, grid_scene
+    realisations) is beyond the whole-run limits, cached points included. Values the
+    inference itself refuses (too few points or realisations) are left to it."""
+    from .inference import check_base, grid_scene
     check_base(base)
     G, R = args.gap_points, args.realisations
     if G < 3 or R < 2 or min(base.striker_velocities) <= 0:
         return
     speeds = sorted({float(v) for v in base.striker_velocities})
     base = base.derive(striker={"velocity": speeds})
-    cache = None if args.no_cache else args.cache_dir
-    points = []
-    for g in np.linspace(0.0, args.gap_max_nm * 1e-9, G):
-        scene = resolve_auto(grid_scene(base, g, R))
-        if cache is None or not _cache_file(cache, scene).exists():
-            points.append(run_estimate(scene))
-    if not points:
-        return
-    est = add_estimates(*points)
-    # the grid points run one after another: at most two points' results are held at
-    # once, with the grid's timings (two columns of G x S x R)
-    est["result_bytes"] = 2 * max(p["result_bytes"] for p in points) + 16.0 * G * len(speeds) * R
-    est["record_bytes"] = 2 * max(p["record_bytes"] for p in points)
+    # a chain's steps and record grow linearly with its gaps' mean (flight over them):
+    # the grid's total is G times the mean of its two ends
+    ends = [run_estimate(resolve_auto(grid_scene(base, g, R)))
+            for g in (0.0, args.gap_max_nm * 1e-9)]
+    est = {k: G * (ends[0][k] + ends[1][k]) / 2 for k in ("members", "steps", "seconds")}
+    est["worst_chain_steps"] = ends[1]["worst_chain_steps"]
+    # the points run one after another: at most two points' results and records are held
+    # at once, with the grid's timings (two columns of G x S x R)
+    est["result_bytes"] = 2 * ends[1]["result_bytes"] + 16.0 * G * len(speeds) * R
+    est["record_bytes"] = 2 * ends[1]["record_bytes"]
     est["bytes"] = est["result_bytes"] + est["record_bytes"]
-    size = (f"{len(points) * len(speeds) * R} chains to simulate: {len(points)} of --gap-points "
-            f"{G} mean gaps x {len(speeds)} striker speed{'s' if len(speeds) != 1 else ''} "
-            f"(striker.velocity of --scene) x {R} realisations (--realisations) of {base.n} "
-            "spheres (chain.n)")
+    size = (f"{G * len(speeds) * R} chains: {G} mean gaps (--gap-points) x {len(speeds)} "
+            f"striker speed{'s' if len(speeds) != 1 else ''} (striker.velocity of --scene) x "
+            f"{R} realisations (--realisations) of {base.n} spheres (chain.n)")
     check_run("the inference grid", est, size=size,
               fix="lower --realisations, --gap-points or the base scene's striker speeds",
               max_total_steps=args.max_total_steps, max_memory_gb=args.max_memory_gb)

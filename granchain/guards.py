@@ -133,17 +133,20 @@ def _raise_limit(option: str, value: str) -> str:
 
 
 def check_run(what: str, est: dict, *, size: str, fix: str, max_total_steps: float,
-              max_memory_gb: float, steps_option: str = "--max-total-steps",
-              memory_option: str = "--max-memory-gb", memory_unit: str = "GB") -> None:
+              max_memory_gb: float, steps_option: str | None = "--max-total-steps",
+              memory_option: str = "--max-memory-gb", memory_unit: str = "GB",
+              steps_key: str | None = None) -> None:
     """Refuse (GranchainError, one line) a whole run whose estimate ``est``
     (``costmodel.run_estimate``) needs more than ``max_total_steps`` integration steps or
     ``max_memory_gb`` GB. ``what`` names the run ("scene 'x'"), ``size`` its factors and
     their keys (:func:`run_size`), ``fix`` what to lower; ``steps_option`` and
     ``memory_option`` (a command-line option or a configuration key, whose value is in
-    ``memory_unit``, GB or MB) are the limits to raise."""
+    ``memory_unit``, GB or MB) are the limits to raise; with ``steps_option`` None the step
+    limit cannot be raised and the message starts with ``steps_key``, the key to lower."""
     from .errors import GranchainError
+    steps_key = steps_key or steps_option
     if not (max_total_steps > 0) or not (max_memory_gb > 0):
-        raise GranchainError(f"{steps_option} / {memory_option}: limits must be > 0 (got "
+        raise GranchainError(f"{steps_key} / {memory_option}: limits must be > 0 (got "
                              f"{max_total_steps:g}, {max_memory_gb:g}); give positive numbers")
     gb = est["bytes"] / 1e9
     if gb > max_memory_gb:
@@ -160,11 +163,12 @@ def check_run(what: str, est: dict, *, size: str, fix: str, max_total_steps: flo
             f"{fix}, or {_raise_limit(memory_option, need)} if the machine "
             "has the memory")
     if est["steps"] > max_total_steps:
+        how = (f", or {_raise_limit(steps_option, _raise_to(est['steps']))} if you mean it"
+               if steps_option else "")
         raise GranchainError(
-            f"{steps_option}: {what} needs an estimated {est['steps']:.3g} integration steps "
+            f"{steps_key}: {what} needs an estimated {est['steps']:.3g} integration steps "
             f"over its whole run ({size}; ~{_duration(est['seconds'])} on one core), above the "
-            f"limit {max_total_steps:.3g}; {fix}, or "
-            f"{_raise_limit(steps_option, _raise_to(est['steps']))} if you mean it")
+            f"limit {max_total_steps:.3g}; {fix}{how}")
 
 
 def scene_warnings(scene) -> list[str]:

@@ -162,7 +162,7 @@ def _job_limits(preset: dict, name: str, job: str, est: dict, size: str) -> None
                   fix=f"lower {key}.members_per_job or the study's realisations",
                   max_total_steps=DEFAULT_MAX_TOTAL_STEPS,
                   max_memory_gb=preset["batch"].get("mem_mb", 1000) / 1e3,
-                  steps_option=f"{key}.members_per_job (steps per job)",
+                  steps_option=None, steps_key=f"{key}.members_per_job",
                   memory_option=f"{key}.mem_mb", memory_unit="MB")
     except GranchainError as exc:
         where, _, rest = str(exc).partition(": ")
