@@ -7,7 +7,8 @@ spheres), delta_i = 2R + g_i - (z_{i+1} - z_i); particle 1, the striker, starts 
 others at rest, touching or separated by gaps g_i. It uses
 ``scipy.integrate.solve_ivp(method="DOP853", rtol=1e-12)`` with dense output and returns
 each probe's peak velocity, the time of that peak and the time the velocity first reaches
-half of it (the arrival, or front), plus the solution itself.
+half of it (the arrival, or front), plus the solution itself. Its own error on the packed
+15-sphere chain's v_max,2 (against rtol 1e-13): 1.4e-12 at rtol 1e-12, 4.8e-10 at 1e-10.
 
 The equations are written in scaled units: length delta0 = (m v_s^2 / k)^(2/5), velocity
 v_s, time t0 = delta0 / v_s, with k = (4/3) E* sqrt(R*). In them m u_i'' = k delta^(3/2)
