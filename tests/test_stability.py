@@ -199,7 +199,6 @@ def test_striker_at_1e_minus_4_m_per_s_all_effects():
     assert runs[0].v_max[2] == pytest.approx(runs[1].v_max[2], rel=1e-5)
 
 
-@pytest.mark.slow
 def test_micron_gaps_at_1_cm_per_s():
     outs = _stable({"effects": "[hertz]", "striker.velocity": 0.01,
                     "gaps": "{distribution: fixed, mean: 1.0e-6}"}, (4e-9, 2e-9), 1e-4, 1e-6)
