@@ -325,7 +325,8 @@ def test_lammps_truths_read_like_reference_truths(grids, trials, calibration):
                 for o, c in zip(res, ref))
     print(f"\nLAMMPS truths: timings vs reference {dt_rel:.2e} relative; median and 95% "
           f"bounds moved by <= {shift:.2e} of the width; covered "
-          f"{sum(o.covered for o in res)} of {len(res)} (reference {sum(c.covered for c in ref)})")
+          f"{sum(o.covered for o in res)} "
+          f"of {len(res)} (reference truths {sum(c.covered for c in ref)})")
     assert dt_rel < 1e-3                                # measured 1.8e-4
     assert shift < 0.01                                 # measured 3.7e-4
     assert [o.covered for o in res] == [c.covered for c in ref]
