@@ -360,9 +360,9 @@ def run_estimate(scene, realisations=None, engine: str = "reference", *,
     steps = reals * sum(c["steps"] for c in per_v)
     rec = [c["record_bytes"] for c in per_v]
     held = max(rec, default=0.0) if speeds_apart else sum(rec)
-    records = reals * held if holds_records(scene, engine, trace) else 0.0
+    recorded = holds_records(scene, engine, trace)
+    records = reals * held if recorded else 0.0
     if engine == "reference":
-        recorded = holds_records(scene, engine, trace)
         window = WINDOW_SAMPLES.get(scene.method, 256) if recorded else 0
         per_chain = window * (scene.n + RECORD_EXTRA_COLUMNS) * 8.0
         if scene.method == "event":
