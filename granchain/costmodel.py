@@ -263,7 +263,8 @@ def auto_setting(scene: Scene, model: CostModel | None = None) -> tuple[str, flo
     if (len({sample_interval(scene, v) for v in vs}) > 1
             and target < float(model.provenance["sampling_floor_v_g"][cls])):
         methods = list(TOLERANCE_METHODS)
-    if scene.n > model.event_max_n():            # not measured on chains this long
+    if scene.n > model.event_max_n() or scene.wall is not None:
+        # not measured on chains this long; an end wall is not an event the method locates
         methods = [m for m in methods if m != "event"]
     pick = model.cheapest(target, obs, methods=methods, scene_class=cls,
                           work=work_ratio(scene, model, cls))

@@ -1,8 +1,13 @@
-"""Materials are data (granchain/data/materials.yaml), not code."""
+"""Materials are data (granchain/data/materials.yaml), not code.
+
+Two bodies in Hertz contact see the effective modulus E* of
+1/E* = (1 - nu_i^2)/E_i + (1 - nu_j^2)/E_j (:func:`effective_modulus`); a rigid wall
+(:data:`RIGID`, E infinite) adds nothing to the sum.
+"""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
 
@@ -15,6 +20,7 @@ class Material:
     E: float    # Young's modulus, Pa
     nu: float   # Poisson ratio
     rho: float  # density, kg/m^3
+    source: str = field(default="", compare=False, repr=False)   # where the values come from
 
     @property
     def G(self) -> float:
@@ -26,9 +32,31 @@ class Material:
         """Nesterenko's c: c^2 = 2E / (pi rho (1 - nu^2)), m/s."""
         return math.sqrt(2.0 * self.E / (math.pi * self.rho * (1.0 - self.nu**2)))
 
+    @property
+    def rigid(self) -> bool:
+        return math.isinf(self.E)
+
+    def compliance(self) -> float:
+        """(1 - nu^2)/E (1/Pa), this body's share of 1/E*; 0 for a rigid body."""
+        return 0.0 if self.rigid else (1.0 - self.nu**2) / self.E
+
+
+# A wall that does not deform: 1/E_w = 0.
+RIGID = Material("rigid", math.inf, 0.0, 0.0, "infinite stiffness (1/E = 0)")
+
+
+def effective_modulus(a: Material, b: Material) -> float:
+    """E* (Pa) of a Hertz contact of bodies of materials a and b:
+    1/E* = (1 - nu_a^2)/E_a + (1 - nu_b^2)/E_b. For two bodies of one material this is
+    E/(2(1 - nu^2)), computed in that form."""
+    if a == b and not a.rigid:
+        return a.E / (2.0 * (1.0 - a.nu**2))
+    return 1.0 / (a.compliance() + b.compliance())
+
 
 @lru_cache(maxsize=1)
 def library() -> dict[str, Material]:
     text = resources.files("granchain").joinpath("data/materials.yaml").read_text()
     raw = yaml.safe_load(text)
-    return {k: Material(k, float(v["E"]), float(v["nu"]), float(v["rho"])) for k, v in raw.items()}
+    return {k: Material(k, float(v["E"]), float(v["nu"]), float(v["rho"]), str(v.get("source", "")))
+            for k, v in raw.items()}

@@ -97,9 +97,30 @@ def peak_final(traj: Trajectory, i: int) -> bool:
     top = float(y[j])
     if not top > schedule.arrival_speed(traj.v_striker):
         return False            # the wave never reached it
-    if i == traj.n - 1:
+    if i == traj.n - 1 and traj.wall_force is None:
         return bool(schedule.last_detached(y[-1], traj.last_overlap, traj.v_striker))
+    # an inner particle, or the last one pressed against an end wall
     return schedule.inner_passed(y[j + 1:], top)
+
+
+def wall_peak(traj: Trajectory) -> tuple[float, float, bool]:
+    """(F_max, t_peak, final) of the end wall's dynamic force F_w(t) - F_w(0): its
+    maximum, refined by the parabola through the samples around it, and whether it is
+    final (``schedule.wall_passed``: the force has fallen below half its dynamic peak
+    after it). NaN values when not final."""
+    F = np.asarray(traj.wall_force, dtype=float) - traj.wall_static
+    j = int(np.argmax(F))
+    top = float(F[j])
+    if not (top > 0.0 and schedule.wall_passed(F[j + 1:], top)):
+        return math.nan, math.nan, False
+    tpk = float(traj.t[j])
+    if 0 < j < len(F) - 1:
+        y0, y2 = float(F[j - 1]), float(F[j + 1])
+        den = y0 - 2.0 * top + y2
+        off = min(max(0.5 * (y0 - y2) / den, -0.5), 0.5) if den < 0.0 else 0.0
+        top = top - 0.25 * (y0 - y2) * off
+        tpk += off * float(traj.t[j + 1] - traj.t[j])
+    return top, tpk, True
 
 
 def peaks(traj: Trajectory):
@@ -165,6 +186,12 @@ MEASURED_FIELDS = ("measured", "v_max_1_measured", "v_max_2_measured", "dt_peak_
 MEASURED_COLUMNS = ("v_max_1_measured_m_s", "v_max_2_measured_m_s", "v_max_ratio_measured",
                     "dt_peak_measured_s", "dt_front_measured_s", "v_g_measured_m_s",
                     "v_g_front_measured_m_s", "measured_not_final")
+
+
+# ChainResult fields of the end wall, and the table columns of a walled scene's run
+WALL_FIELDS = ("walled", "wall_force_max", "t_wall_peak", "wall_force_static",
+               "wall_peak_final")
+WALL_COLUMNS = ("wall_force_max_N", "t_wall_peak_s", "wall_force_static_N")
 
 
 def vmax_columns(n: int) -> list[str]:
@@ -241,6 +268,15 @@ class ChainResult:
     v_g_measured: float | None = None
     v_g_front_measured: float | None = None
     measured_not_final: tuple[int, ...] = ()
+    # The end wall (walled True, a scene with walls.end; otherwise left out of the JSON
+    # and the table row): wall_force_max, the peak of the wall's dynamic force (N, the
+    # force less its static preload wall_force_static), at t_wall_peak (s); NaN with
+    # wall_peak_final False when the run did not measure that peak.
+    walled: bool = False
+    wall_force_max: float | None = None
+    t_wall_peak: float | None = None
+    wall_force_static: float | None = None
+    wall_peak_final: bool | None = None
 
     @property
     def n(self) -> int:
@@ -255,6 +291,8 @@ class ChainResult:
         out = {}
         for f in dataclasses.fields(self):
             if not self.measured and f.name in MEASURED_FIELDS:
+                continue
+            if not self.walled and f.name in WALL_FIELDS:
                 continue
             v = getattr(self, f.name)
             if isinstance(v, tuple):
@@ -298,6 +336,10 @@ class ChainResult:
             row[col] = float(getattr(self.energy, entry))
         if self.measured:
             row.update(self.measured_row())
+        if self.walled:
+            row.update({"wall_force_max_N": float(self.wall_force_max),
+                        "t_wall_peak_s": float(self.t_wall_peak),
+                        "wall_force_static_N": float(self.wall_force_static)})
         for col, v in zip(vmax_columns(self.n), self.v_max):
             row[col] = float(v)
         return row
@@ -342,9 +384,14 @@ def energy_ledger(traj: Trajectory) -> EnergyLedger:
 
 def probe_span(traj: Trajectory, probes=(2, 13)) -> tuple[float, float]:
     """(gbar, span): the mean gap over the contacts between the probes and the probes'
-    distance along the chain, (p2 - p1)(2R + gbar), in m."""
+    distance along the chain, (p2 - p1)(2R + gbar), in m; for spheres of different radii
+    the sum of R_i + R_{i+1} + g_i over those contacts."""
     p1, p2 = probes[0], probes[1]
     gbar = float(np.mean(traj.gaps[p1 - 1:p2 - 1])) if p2 > p1 else 0.0
+    if traj.radii is not None:
+        R = np.asarray(traj.radii, dtype=float)
+        span = float(np.sum(R[p1 - 1:p2 - 1] + R[p1:p2] + traj.gaps[p1 - 1:p2 - 1]))
+        return gbar, span
     return gbar, (p2 - p1) * (2.0 * traj.radius + gbar)
 
 
@@ -357,6 +404,11 @@ def summarize(traj: Trajectory, probes=(2, 13)) -> ChainResult:
     # both probes' peaks measured, by a run that did not fail numerically
     arrived = bool(traj.v_striker > 0 and final[i1] and final[i2]
                    and traj.status in ("passed", "done", "timeout"))
+    wall = {}
+    if traj.wall_force is not None:
+        fmax, tw, wfinal = wall_peak(traj)
+        wall = {"walled": True, "wall_force_max": fmax, "t_wall_peak": tw,
+                "wall_force_static": float(traj.wall_static), "wall_peak_final": wfinal}
     dt_peak = float(t_peak[i2] - t_peak[i1]) if arrived else math.nan
     dt_front = float(t_front[i2] - t_front[i1]) if arrived else math.nan
     v_g = span / dt_peak if arrived and dt_peak > 0 else math.nan
@@ -386,4 +438,5 @@ def summarize(traj: Trajectory, probes=(2, 13)) -> ChainResult:
         wall_s=float(traj.wall_s),
         t_end=float(traj.t[-1]),
         samples=int(traj.t.size),
+        **wall,
     )

@@ -29,7 +29,7 @@ from typing import Any
 from .errors import SceneError
 from .scenefile import apply_overrides, read_scene_file
 from .guards import MIN_SAMPLES_PER_PULSE, floor_sig, max_sample_dt, pulse_width
-from .materials import Material, library
+from .materials import RIGID, Material, effective_modulus, library
 
 EFFECTS = ("hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
            "rolling_friction")
@@ -45,8 +45,11 @@ TANGENTIAL_MODELS = ("mindlin", "linear_history")
 DEFAULTS: dict[str, Any] = {
     "name": None,                       # defaults to the file stem
     "material": "ss440c",
-    "chain": {"n": 15, "radius": 150e-6},
-    "striker": {"velocity": 0.1},
+    # chain.radius: one radius, or a list of n (particle 1 is the striker);
+    # chain.materials: a list of n materials (default: every sphere is `material`)
+    "chain": {"n": 15, "radius": 150e-6, "materials": None},
+    # striker.radius / striker.material: particle 1's own (default: as the chain gives)
+    "striker": {"velocity": 0.1, "radius": None, "material": None},
     "gaps": {"distribution": "none", "mean": None, "seed": 0, "values": None,
              "extra_length": None},
     "effects": ["hertz"],
@@ -63,7 +66,18 @@ DEFAULTS: dict[str, Any] = {
     # the virtual laser vibrometer (granchain.measurement); None: the scene is not
     # measured. A given block is filled from MEASUREMENT_DEFAULTS.
     "measurement": None,
+    # a flat wall touching the last sphere: a material (name or {E, nu}) or 'rigid';
+    # None: the far end is free (the chapter's chain)
+    "walls": {"end": None},
+    # a dead load (N) on particle 2 pushing the chain onto the end wall; the chain starts
+    # at its static overlaps
+    "precompression": {"force": None},
 }
+
+# Keys that are left out of a scene's normalised spec when not given, so that a scene
+# using none of them keeps the hash it had before they existed.
+OPTIONAL_KEYS = ("chain.materials", "striker.radius", "striker.material", "walls.end",
+                 "precompression.force")
 
 # Defaults of the measurement block. The chapter's vibrometers have a 2.5 MHz bandwidth;
 # their decoders' filter response is not given, so butterworth and bessel are offered
@@ -152,10 +166,17 @@ class Scene:
     given: frozenset = field(default=frozenset(), repr=False, compare=False)
     # the vibrometer (None: the probes are not measured)
     measurement: Measurement | None = None
+    # every sphere's radius (m) and material, particle 1 (the striker) first
+    radii: tuple[float, ...] = ()
+    materials: tuple[Material, ...] = ()
+    wall: Material | None = None           # the end wall (None: free end)
+    precompression: float = 0.0            # dead load on particle 2 (N)
 
     # --- derived quantities -------------------------------------------------------------
     @property
     def mass(self) -> float:
+        """Mass (kg) of a bead of the chain's material and radius (``chain.radius``,
+        particle 2's of a list)."""
         return self.material.rho * 4.0 / 3.0 * math.pi * self.radius**3
 
     @property
@@ -164,9 +185,58 @@ class Scene:
 
     @property
     def hertz_k(self) -> float:
-        """K of f = K delta^(3/2): (4/3) E* sqrt(R*), E* = E/(2(1-nu^2)), R* = R/2."""
+        """K of f = K delta^(3/2): (4/3) E* sqrt(R*), E* = E/(2(1-nu^2)), R* = R/2, for
+        two beads of the chain's material and radius."""
         E_star = self.material.E / (2.0 * (1.0 - self.material.nu**2))
         return 4.0 / 3.0 * E_star * math.sqrt(self.radius / 2.0)
+
+    @property
+    def heterogeneous(self) -> bool:
+        """Do the spheres differ (radius or material) from the chain's one bead?"""
+        return any(r != self.radius for r in self.radii) or \
+            any(m != self.material for m in self.materials)
+
+    @property
+    def masses(self) -> tuple[float, ...]:
+        """Each sphere's mass (kg), particle 1 first."""
+        if not self.heterogeneous:
+            return (self.mass,) * self.n
+        return tuple(m.rho * 4.0 / 3.0 * math.pi * r**3
+                     for m, r in zip(self.materials, self.radii))
+
+    @property
+    def inertias(self) -> tuple[float, ...]:
+        """Each sphere's moment of inertia (2/5) m R^2 (kg m^2)."""
+        if not self.heterogeneous:
+            return (self.inertia,) * self.n
+        return tuple(0.4 * m * r * r for m, r in zip(self.masses, self.radii))
+
+    @property
+    def contact_k(self) -> tuple[float, ...]:
+        """K of each contact i, i+1 (n-1 of them): (4/3) E* sqrt(R*) with
+        1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j and R* = R_i R_j / (R_i + R_j)."""
+        if not self.heterogeneous:
+            return (self.hertz_k,) * (self.n - 1)
+        return tuple(hertz_constant(self.materials[i], self.radii[i], self.materials[i + 1],
+                                    self.radii[i + 1]) for i in range(self.n - 1))
+
+    @property
+    def wall_k(self) -> float | None:
+        """K of the last sphere on the end wall (R* = R_n), or None without a wall."""
+        if self.wall is None:
+            return None
+        return hertz_constant(self.materials[-1], self.radii[-1], self.wall, math.inf)
+
+    @property
+    def static_overlaps(self) -> tuple[tuple[float, ...], float]:
+        """Overlaps (m) of the contacts (n-1) and of the wall contact at t = 0: under a
+        dead load F0 every contact from particle 2 to the wall carries F0, delta_0 =
+        (F0/K)^(2/3); the striker touches particle 2 at zero overlap. Zeros without load."""
+        F0 = self.precompression
+        if F0 <= 0.0:
+            return (0.0,) * (self.n - 1), 0.0
+        inner = (0.0,) + tuple((F0 / k) ** (2.0 / 3.0) for k in self.contact_k[1:])
+        return inner, (F0 / self.wall_k) ** (2.0 / 3.0)
 
     @property
     def has(self):
@@ -209,10 +279,46 @@ class Scene:
         return dataclasses.replace(scene, given=self.given | frozenset(changed))
 
     def contact_time(self, v: float) -> float:
-        """Duration of a head-on Hertz collision of two free spheres at closing speed v."""
-        mu = self.mass / 2.0
-        delta_m = (5.0 * mu * v * v / (4.0 * self.hertz_k)) ** 0.4
-        return 2.9432 * delta_m / v
+        """Duration of the shortest collision of the scene at closing speed v: a head-on
+        Hertz collision of two free spheres, for every contact of the chain (reduced mass
+        m_i m_j/(m_i + m_j)) and of the last sphere on the wall (its own mass); under a
+        preload, also half the period pi sqrt(mu/k2) of a preloaded contact's linear
+        oscillation (k2 = (3/2) K^(2/3) F0^(1/3))."""
+        if not self.heterogeneous and self.wall is None:
+            return hertz_contact_time(self.mass / 2.0, self.hertz_k, v)
+        ms, ks = self.masses, self.contact_k
+        pairs = [(ms[i] * ms[i + 1] / (ms[i] + ms[i + 1]), ks[i]) for i in range(self.n - 1)]
+        if self.wall is not None:
+            pairs.append((ms[-1], self.wall_k))
+        tc = min(hertz_contact_time(mu, k, v) for mu, k in pairs)
+        F0 = self.precompression
+        if F0 > 0.0:
+            tc = min([tc] + [math.pi * math.sqrt(mu / (1.5 * k ** (2.0 / 3.0) * F0 ** (1.0 / 3.0)))
+                             for mu, k in pairs[1:]])
+        return tc
+
+    def pulse_width(self, v_m: float) -> float:
+        """Temporal width (s) of the solitary wave at peak particle velocity v_m: about 5
+        diameters over Nesterenko's speed, the shortest over the beads' materials and
+        radii (particles 2 to n)."""
+        if not self.heterogeneous:
+            return float(pulse_width(self.material, self.radius, v_m))
+        return min(float(pulse_width(m, r, v_m))
+                   for m, r in set(zip(self.materials[1:], self.radii[1:])))
+
+
+def hertz_constant(a: Material, Ra: float, b: Material, Rb: float) -> float:
+    """K (N/m^1.5) of f = K delta^(3/2) between bodies of materials a, b and radii Ra, Rb
+    (Rb = inf: a flat wall): (4/3) E* sqrt(R*), R* = Ra Rb/(Ra + Rb)."""
+    R_star = Ra if math.isinf(Rb) else (Ra / 2.0 if Ra == Rb else Ra * Rb / (Ra + Rb))
+    return 4.0 / 3.0 * effective_modulus(a, b) * math.sqrt(R_star)
+
+
+def hertz_contact_time(mu: float, K: float, v: float) -> float:
+    """Duration (s) of a head-on Hertz collision of reduced mass mu (kg) and constant K
+    at closing speed v: 2.9432 delta_m / v, delta_m = (5 mu v^2 / (4 K))^(2/5)."""
+    delta_m = (5.0 * mu * v * v / (4.0 * K)) ** 0.4
+    return 2.9432 * delta_m / v
 
 
 def _flatten(changes: dict) -> list[tuple[str, Any]]:
@@ -338,32 +444,83 @@ def _get(spec, dotted):
     return node
 
 
-def _material(value) -> Material:
+def _material(value, where: str = "material", *, wall: bool = False) -> Material:
+    """A library material by name or a mapping {E, nu, rho} (a wall: {E, nu}, or 'rigid');
+    ``where`` names the key in errors."""
     lib = library()
+    keys = ("E", "nu") if wall else ("E", "nu", "rho")
+    example = "{E: 200e9, nu: 0.28}" if wall else "{E: 200e9, nu: 0.28, rho: 7800}"
     if isinstance(value, str):
+        if wall and value == "rigid":
+            return RIGID
         if value not in lib:
-            close = difflib.get_close_matches(value, list(lib), n=1)
-            hint = f"did you mean '{close[0]}'?" if close else f"use one of {', '.join(lib)}"
-            raise SceneError("material", f"unknown material {_short(value)}",
-                             f"{hint} or give {{E: ..., nu: ..., rho: ...}}")
+            names = list(lib) + (["rigid"] if wall else [])
+            close = difflib.get_close_matches(value, names, n=1)
+            hint = f"did you mean '{close[0]}'?" if close else f"use one of {', '.join(names)}"
+            raise SceneError(where, f"unknown material {_short(value)}",
+                             f"{hint} or give {example}")
         return lib[value]
     if isinstance(value, dict):
-        extra = set(value) - {"E", "nu", "rho", "name"}
+        extra = set(value) - set(keys) - {"name"} - ({"rho"} if wall else set())
         if extra:
-            raise SceneError(f"material.{sorted(map(str, extra))[0]}", "unknown key",
-                             "a material mapping has E, nu, rho (and optional name)")
-        for k in ("E", "nu", "rho"):
+            raise SceneError(f"{where}.{sorted(map(str, extra))[0]}", "unknown key",
+                             f"a material mapping has {', '.join(keys)} (and optional name)")
+        for k in keys:
             if k not in value:
-                raise SceneError(f"material.{k}", "missing", "give E (Pa), nu and rho (kg/m^3)")
-        spec = {"material": value}
-        E = _num(spec, "material.E", positive=True)
-        nu = _num(spec, "material.nu", lo=-0.999, hi=0.4999,
-                  fix="a Poisson ratio lies in (-1, 0.5)")
-        rho = _num(spec, "material.rho", positive=True)
-        name = check_name(value.get("name", "custom"), "material.name")
+                raise SceneError(f"{where}.{k}", "missing",
+                                 "give E (Pa), nu" + ("" if wall else " and rho (kg/m^3)"))
+        E = _value(value["E"], f"{where}.E", positive=True)
+        nu = _value(value["nu"], f"{where}.nu", lo=-0.999, hi=0.4999,
+                    fix="a Poisson ratio lies in (-1, 0.5)")
+        rho = _value(value["rho"], f"{where}.rho", positive=True) if "rho" in value else 0.0
+        name = check_name(value.get("name", "custom"), f"{where}.name")
         return Material(name, E, nu, rho)
-    raise SceneError("material", f"expected a name or a mapping, got {_short(value)}",
-                     "write material: ss440c or material: {E: 200e9, nu: 0.28, rho: 7800}")
+    raise SceneError(where, f"expected a name or a mapping, got {_short(value)}",
+                     f"write {where.rpartition('.')[2].split('[')[0]}: ss440c or {example}")
+
+
+def _chain_spheres(spec: dict, n: int, material: Material):
+    """(radii, materials) of the n spheres, particle 1 (the striker) first, from
+    chain.radius, chain.materials, striker.radius and striker.material."""
+    rad = spec["chain"]["radius"]
+    fix = "give the sphere radius in metres, e.g. 150e-6"
+    if isinstance(rad, list):
+        if len(rad) != n:
+            raise SceneError("chain.radius", f"has {len(rad)} entries but the chain has n = {n} "
+                             "spheres", f"give one radius, or a list of exactly n = {n} radii "
+                             "(particle 1, the striker, first)")
+        radii = [_value(r, f"chain.radius[{i}]", positive=True, fix=fix) for i, r in enumerate(rad)]
+    else:
+        radii = [_num(spec, "chain.radius", positive=True, fix=fix)] * n
+    mats = spec["chain"].get("materials")
+    if mats is None:
+        materials = [material] * n
+    else:
+        if not isinstance(mats, list):
+            raise SceneError("chain.materials", f"expected a list, got {_short(mats)}",
+                             f"give a list of n = {n} materials, or drop it")
+        if len(mats) != n:
+            raise SceneError("chain.materials", f"has {len(mats)} entries but the chain has "
+                             f"n = {n} spheres", f"give exactly n = {n} materials "
+                             "(particle 1, the striker, first)")
+        materials = [_material(m, f"chain.materials[{i}]") for i, m in enumerate(mats)]
+    if spec["striker"].get("radius") is not None:
+        radii[0] = _num(spec, "striker.radius", positive=True,
+                        fix="give the striker's radius in metres, e.g. 189e-6")
+    if spec["striker"].get("material") is not None:
+        materials[0] = _material(spec["striker"]["material"], "striker.material")
+    return tuple(radii), tuple(materials)
+
+
+def _drop_unset(spec: dict) -> None:
+    """Leave the optional keys that were not given out of the normalised spec."""
+    for dotted in OPTIONAL_KEYS:
+        section, _, key = dotted.partition(".")
+        node = spec.get(section)
+        if isinstance(node, dict) and node.get(key) is None:
+            node.pop(key, None)
+            if not node:
+                spec.pop(section)
 
 
 def given_keys(raw: dict) -> set[str]:
@@ -494,7 +651,15 @@ def _validate(raw: dict, given: set[str]) -> Scene:
 
     n = _num(spec, "chain.n", integer=True, lo=3,
              fix="a chain needs at least 3 particles (the striker and two probes)")
-    radius = _num(spec, "chain.radius", positive=True, fix="give the sphere radius in metres, e.g. 150e-6")
+    radii, materials = _chain_spheres(spec, n, material)
+    radius = radii[1]
+    if spec["chain"].get("materials") is not None:
+        material = materials[1]
+    wall = None
+    if spec["walls"]["end"] is not None:
+        wall = _material(spec["walls"]["end"], "walls.end", wall=True)
+    load = _num(spec, "precompression.force", nonneg=True, allow_none=True,
+                fix="give the dead load on particle 2 in newtons (>= 0)") or 0.0
 
     vel = spec["striker"]["velocity"]
     vlist = vel if isinstance(vel, list) else [vel]
@@ -576,6 +741,17 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     tol = _num(spec, "integrator.tolerance", positive=True, allow_none=True, hi=0.1,
                fix="give a relative tolerance such as 1e-6")
     _check_unused(given, dist, eff, method, tangential)
+    if "precompression.force" in given:
+        if wall is None:
+            raise SceneError("precompression.force", "needs an end wall to push the chain onto",
+                             "add walls: {end: ss440c} (or rigid), or drop precompression")
+        if dist != "none":
+            raise SceneError("precompression.force", f"given together with gaps "
+                             f"(distribution '{dist}'): a preloaded chain has no gaps",
+                             "drop the gaps block (distribution none) or the precompression")
+    if wall is not None and method == "event":
+        raise SceneError("integrator.method", "event does not handle an end wall",
+                         "use rk4, verlet or adaptive with walls.end")
     if method in ("adaptive", "event", "auto") and tol is None:
         tol = {"adaptive": 1e-8, "event": 1e-6, "auto": 1e-4}[method]
         spec["integrator"]["tolerance"] = tol
@@ -589,6 +765,7 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     realisations = _num(spec, "ensemble.realisations", integer=True, lo=1,
                         fix="give a whole number of gap realisations >= 1")
     measurement = _measurement(spec, given)
+    _drop_unset(spec)
     try:
         scene_hash(spec)
     except (TypeError, ValueError, OverflowError) as exc:
@@ -605,7 +782,8 @@ def _validate(raw: dict, given: set[str]) -> Scene:
         contact_kt=contact_kt, k_roll=k_roll, gamma_roll=gamma_roll, mu_roll=mu_roll,
         probes=tuple(pr), method=method, dt=dt, tolerance=tol, t_end=t_end,
         sample_dt=sample_dt, realisations=realisations, spec=spec, given=frozenset(given),
-        measurement=measurement,
+        measurement=measurement, radii=radii, materials=materials, wall=wall,
+        precompression=load,
     )
     _check_derived(scene)
     check_step(scene)

@@ -41,7 +41,7 @@ SAMPLES_PER_PULSE = 400    # auto sampling: samples per solitary-wave width
 DEFAULT_MAX_STEPS = 1e8
 DEFAULT_MAX_MEMORY_GB = 4.0
 # columns of a chain's sample record besides the n velocities (kernels.E_LEN)
-RECORD_EXTRA_COLUMNS = 8
+RECORD_EXTRA_COLUMNS = 10
 ARRIVAL_FRACTION = 1e-3    # a particle has seen the wave once v > ARRIVAL_FRACTION * v_s
 PASS_FRACTION = 0.5        # the wave has passed an inner particle once v < this * its peak
 PEAK_TOL = 1e-4            # a peak: samples within PEAK_TOL of the maximum (observables.peak)
@@ -79,6 +79,12 @@ def last_detached(v_last, overlap_last, v_striker):
     v_last: velocity of particle n (m/s); overlap_last: Hertz overlap of contact n-1, n
     (m, > 0 in contact)."""
     return (np.asarray(v_last) > arrival_speed(v_striker)) & (np.asarray(overlap_last) <= 0.0)
+
+
+def wall_passed(f_after_peak: np.ndarray, f_peak: float) -> bool:
+    """Has the end wall's dynamic force passed its peak? f_after_peak: its samples
+    after the peak, which must fall below PASS_FRACTION of it."""
+    return bool(np.any(np.asarray(f_after_peak) < PASS_FRACTION * f_peak))
 
 
 def inner_passed(v_after_peak: np.ndarray, v_peak: float) -> bool:

@@ -25,7 +25,7 @@ class OnTheFly:
 class Trajectory:
     """Sampled history of one chain.
 
-    t: (S,) s; v: (S, n) velocity along the chain, m/s; energy: (S, 7) J in the order of
+    t: (S,) s; v: (S, n) velocity along the chain, m/s; energy: (S, len(ENERGY_COLUMNS)) J in the order of
     ENERGY_COLUMNS (work = work done ON the particles by that effect, accumulated from
     t = 0); gaps: (n-1,) m; radius: m; v_striker: m/s.
     """
@@ -50,6 +50,12 @@ class Trajectory:
     # hold only the initial and final states (no trace asked for), and
     # ``observables.summarize`` reads the peaks and the balance error from here
     observed: OnTheFly | None = None
+    # each sphere's radius (m), particle 1 first, when they differ (None: all ``radius``)
+    radii: np.ndarray | None = None
+    # force (N) of the end wall on the last sphere at each sample (None: free end), and
+    # its static part (the preload at t = 0)
+    wall_force: np.ndarray | None = None
+    wall_static: float = 0.0
 
     @property
     def n(self) -> int:

@@ -29,7 +29,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from . import air_drag, groove_friction, hertz, particle_friction, rolling_friction, rotation
+from . import air_drag, chain, groove_friction, hertz, particle_friction, rolling_friction, rotation
+from .chain import Chain
 from .air_drag import AirDrag
 from .groove_friction import GrooveFriction
 from .hertz import Hertz
@@ -43,9 +44,10 @@ MODULES = (hertz, rotation, groove_friction, air_drag, particle_friction, rollin
 SPECS: dict[str, EffectSpec] = {m.SPEC.name: m.SPEC for m in MODULES}
 
 # Energy ledger columns, in the order engines store them: the mechanical energies, then the
-# work done ON the particles by each effect that does work, accumulated from t = 0.
+# work done ON the particles by each effect that does work, accumulated from t = 0, then
+# the work of the dead load (precompression: F0 times particle 2's displacement).
 ENERGY_COLUMNS = ("kinetic_translational", "kinetic_rotational", "hertz_potential") + tuple(
-    s.work for s in SPECS.values() if s.work)
+    s.work for s in SPECS.values() if s.work) + ("work_load",)
 
 
 def residual_work(effects) -> tuple[str, ...]:
@@ -58,9 +60,10 @@ def residual_work(effects) -> tuple[str, ...]:
 class Terms:
     """The physics of one scene: the chain and its enabled effects."""
     n: int
-    R: float
+    R: float          # a bead's radius (m) and mass (kg); each sphere's: ``chain``
     m: float
     hertz: Hertz
+    chain: Chain | None = None
     air_drag: AirDrag | None = None
     groove_friction: GrooveFriction | None = None
     rotation: Rotation | None = None
@@ -79,9 +82,9 @@ class Terms:
 def physics_terms(scene) -> Terms:
     kw = {m.SPEC.name: m.build(scene) for m in MODULES if scene.has(m.SPEC.name)}
     kw["hertz"] = hertz.build(scene)
-    return Terms(n=scene.n, R=scene.radius, m=scene.mass, **kw)
+    return Terms(n=scene.n, R=scene.radius, m=scene.mass, chain=chain.build(scene), **kw)
 
 
 __all__ = ["MODULES", "SPECS", "ENERGY_COLUMNS", "EffectSpec", "Terms", "physics_terms",
-           "residual_work", "Hertz", "AirDrag", "GrooveFriction", "Rotation",
+           "residual_work", "Chain", "Hertz", "AirDrag", "GrooveFriction", "Rotation",
            "ParticleFriction", "RollingFriction"]

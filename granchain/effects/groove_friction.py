@@ -66,37 +66,62 @@ class GrooveFriction:
     kt_source: str    # "mindlin" or "scene"
     gamma: float      # stick dashpot, N s/m
     damping: float    # its ratio to critical damping
+    # each sphere's own Fc, kt and gamma (its mass, radius and material), particle 1 first;
+    # the scalars above are a bead's
+    Fc_each: tuple[float, ...] = ()
+    kt_each: tuple[float, ...] = ()
+    gamma_each: tuple[float, ...] = ()
 
 
-def mindlin_stiffness(scene) -> float:
-    """Tangential stiffness (N/m) of the two groove-wall contacts under the sphere's weight."""
-    E, nu = scene.material.E, scene.material.nu
-    G = scene.material.G
-    N_wall = scene.mass * scene.gravity / (2.0 * scene.groove_s)
+def mindlin_stiffness(scene, material=None, radius=None, mass=None) -> float:
+    """Tangential stiffness (N/m) of the two groove-wall contacts under a sphere's weight
+    (the chain's bead unless material, radius and mass are given; the groove is of the
+    sphere's own material)."""
+    material = material or scene.material
+    radius = scene.radius if radius is None else radius
+    mass = scene.mass if mass is None else mass
+    E, nu = material.E, material.nu
+    G = material.G
+    N_wall = mass * scene.gravity / (2.0 * scene.groove_s)
     E_w = E / (2.0 * (1.0 - nu * nu))
     G_w = G / (2.0 * (2.0 - nu))
     if N_wall <= 0:
         raise ValueError("groove stiffness needs g > 0")
-    a = (3.0 * N_wall * scene.radius / (4.0 * E_w)) ** (1.0 / 3.0)
+    a = (3.0 * N_wall * radius / (4.0 * E_w)) ** (1.0 / 3.0)
     return 2.0 * 8.0 * G_w * a
 
 
-def build(scene) -> GrooveFriction:
-    m, R = scene.mass, scene.radius
+def _sphere(scene, material, R, m, I):
+    """(Fc, kt, gamma) of one sphere."""
     Fc = scene.groove_mu * m * scene.gravity / scene.groove_s
     if scene.groove_kt is None:
-        kt, src = (mindlin_stiffness(scene) if scene.gravity > 0 else 1.0), "mindlin"
+        kt = mindlin_stiffness(scene, material, R, m) if scene.gravity > 0 else 1.0
     else:
-        kt, src = scene.groove_kt, "scene"
-    m_u = m / (1.0 + scene.groove_s**2 * m * R * R / scene.inertia) if scene.has("rotation") else m
-    gamma = 2.0 * scene.groove_damping * math.sqrt(kt * m_u)
-    return GrooveFriction(scene.groove_s, scene.groove_mu, scene.gravity, Fc, kt, src, gamma,
-                          scene.groove_damping)
+        kt = scene.groove_kt
+    m_u = m / (1.0 + scene.groove_s**2 * m * R * R / I) if scene.has("rotation") else m
+    return Fc, kt, 2.0 * scene.groove_damping * math.sqrt(kt * m_u)
+
+
+def build(scene) -> GrooveFriction:
+    Fc, kt, gamma = _sphere(scene, scene.material, scene.radius, scene.mass, scene.inertia)
+    if scene.heterogeneous:
+        each = [_sphere(scene, *a) for a in zip(scene.materials, scene.radii, scene.masses,
+                                                 scene.inertias)]
+    else:
+        each = [(Fc, kt, gamma)] * scene.n
+    return GrooveFriction(scene.groove_s, scene.groove_mu, scene.gravity, Fc, kt,
+                          "mindlin" if scene.groove_kt is None else "scene", gamma,
+                          scene.groove_damping, *(tuple(c) for c in zip(*each)))
 
 
 def kernel(gf: GrooveFriction) -> tuple[dict, dict]:
     """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
     return {"P_S": gf.s, "P_FC": gf.Fc, "P_KG": gf.kt, "P_GG": gf.gamma}, {"F_GROOVE": 1}
+
+
+def rows(gf: GrooveFriction, chain) -> dict:
+    """Per-sphere rows of the kernels' per-chain array, by G slot name."""
+    return {"G_FC": gf.Fc_each, "G_KG": gf.kt_each, "G_GG": gf.gamma_each}
 
 
 def error_scale(gf: GrooveFriction, terms, delta: float, v: float) -> float:

@@ -47,6 +47,17 @@ class ParticleFriction:
     model: str        # "mindlin" | "linear_history"
     kt: float         # linear_history: k_t (N/m); mindlin: 8 G_eff sqrt(R*) (N/m^1.5)
     G_eff: float
+    # each contact's k_t (its spheres' materials and radii; the scalars above are two
+    # beads'): mindlin mixes 1/G_eff = 2(2-nu_i)(1+nu_i)/E_i + 2(2-nu_j)(1+nu_j)/E_j and
+    # R* = R_i R_j/(R_i + R_j), as LAMMPS's mix_stiffnessG
+    kt_each: tuple[float, ...] = ()
+
+
+def _mindlin(a, Ra, b, Rb) -> float:
+    if a == b and Ra == Rb:
+        return 8.0 * (a.G / (2.0 * (2.0 - a.nu))) * math.sqrt(Ra / 2.0)
+    G_eff = 1.0 / (2.0 * (2.0 - a.nu) * (1.0 + a.nu) / a.E + 2.0 * (2.0 - b.nu) * (1.0 + b.nu) / b.E)
+    return 8.0 * G_eff * math.sqrt(Ra * Rb / (Ra + Rb))
 
 
 def build(scene) -> ParticleFriction:
@@ -54,9 +65,19 @@ def build(scene) -> ParticleFriction:
     G_eff = mat.G / (2.0 * (2.0 - mat.nu))
     if scene.tangential == "mindlin":
         kt = 8.0 * G_eff * math.sqrt(scene.radius / 2.0)
+        each = tuple(_mindlin(scene.materials[k], scene.radii[k], scene.materials[k + 1],
+                              scene.radii[k + 1]) for k in range(scene.n - 1)) \
+            if scene.heterogeneous else (kt,) * (scene.n - 1)
     else:
         kt = scene.contact_kt
-    return ParticleFriction(scene.mu_pp, scene.tangential, kt, G_eff)
+        each = (kt,) * (scene.n - 1)
+    return ParticleFriction(scene.mu_pp, scene.tangential, kt, G_eff, each)
+
+
+def rows(pf: ParticleFriction, chain) -> dict:
+    """Per-contact rows of the kernels' per-chain array (the wall contact has no
+    tangential friction)."""
+    return {"G_KT": pf.kt_each + (0.0,)}
 
 
 def kernel(pf: ParticleFriction) -> tuple[dict, dict]:

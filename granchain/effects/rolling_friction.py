@@ -71,6 +71,16 @@ def build(scene) -> RollingFriction:
     return RollingFriction(scene.k_roll, scene.gamma_roll, scene.mu_roll)
 
 
+def rows(rf: RollingFriction, chain) -> dict:
+    """Per-contact rows of the kernels' per-chain array: each contact's R_eff =
+    R_i R_j/(R_i + R_j) (R/2 for equal spheres; the wall contact has no rolling
+    friction)."""
+    R = chain.radii
+    reff = tuple(0.5 * R[k] if R[k] == R[k + 1] else R[k] * R[k + 1] / (R[k] + R[k + 1])
+                 for k in range(len(R) - 1))
+    return {"G_RE": reff + (0.0,)}
+
+
 def kernel(rf: RollingFriction) -> tuple[dict, dict]:
     """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
     return {"P_KR": rf.k_roll, "P_GR": rf.gamma_roll, "P_MUR": rf.mu_roll}, {"F_ROLL": 1}

@@ -11,16 +11,25 @@ from __future__ import annotations
 import numpy as np
 
 # parameter vector P
-P_N, P_R, P_M, P_I, P_K, P_S, P_FC, P_KG, P_T0, P_L, P_MU, P_KT, P_KR, P_GR, P_MUR, P_GG, P_LEN = range(17)
-# flags FL
-F_ROT, F_GROOVE, F_DRAG, F_ODD, F_PP, F_MINDLIN, F_ROLL, F_LEN = range(8)
+(P_N, P_R, P_M, P_I, P_K, P_S, P_FC, P_KG, P_T0, P_L, P_MU, P_KT, P_KR, P_GR, P_MUR, P_GG,
+ P_F0, P_LEN) = range(18)
+# flags FL (F_WALL: an end wall; F_LOAD: a dead load on particle 2; F_HET: the spheres
+# differ, so the ledger sums each sphere's own mass and inertia)
+(F_ROT, F_GROOVE, F_DRAG, F_ODD, F_PP, F_MINDLIN, F_ROLL, F_WALL, F_LOAD, F_HET,
+ F_LEN) = range(11)
+# rows of a chain's per-chain array G (B, G_LEN * n), each block n rows long: row
+# G_X * n + i is entry i of block G_X. Per contact (G_GAP, G_K, G_KT, G_RE): contacts
+# 0 .. n-2 (spheres k, k+1), then the end wall at n-1. Per sphere: the rest.
+# G_GAP: kernel gaps (overlap_k = x_k - x_{k+1} - G_GAP_k; the wall's x_n - G_GAP_{n-1})
+(G_GAP, G_M, G_I, G_R, G_K, G_FC, G_KG, G_GG, G_KT, G_RE, G_LEN) = range(11)
 # layout offsets LO (-1: absent)
 L_X, L_V, L_W, L_XG, L_XT, L_PS, L_WG, L_WD, L_WT, L_WR, L_NY, L_LEN = range(12)
 # methods
 M_RK4, M_VERLET, M_DOP853 = 0, 1, 2
 # sample columns of the energy array: kinetic translational, kinetic rotational, Hertz
-# potential, then the work done on the particles by groove, drag, contact friction, rolling
-E_KT, E_KR, E_H, E_WG, E_WD, E_WT, E_WR, E_LEN = range(8)
+# potential, then the work done on the particles by groove, drag, contact friction,
+# rolling, and the dead load
+E_KT, E_KR, E_H, E_WG, E_WD, E_WT, E_WR, E_WL, E_LEN = range(9)
 # status
 S_RUNNING, S_DONE, S_PASSED, S_TIMEOUT, S_NONFINITE, S_STEPFAIL = 0, 1, 2, 3, 4, 5
 

@@ -236,22 +236,23 @@ def _straddle(y, ynew, gaps, LO, n, band, h):
 
 
 @njit(cache=True)
-def _straddle_groove(y, ynew, K0, K1, P, FL, LO, n, h, bandg):
+def _straddle_groove(y, ynew, K0, K1, G, P, FL, LO, n, h, bandg):
     """After a trial step: the first tau in (0, 1) at which a sphere's groove contact
     switches between stick and slip, i.e. its trial force q = k_g xi + gamma_g u crosses
     +-Fc (``effects.groove_friction``), or -1 if none does."""
     if FL[K.F_GROOVE] == 0:
         return -1.0
-    kg = P[K.P_KG]
-    gam = P[K.P_GG]
-    Fc = P[K.P_FC]
-    sR = P[K.P_S] * P[K.P_R]
+    s_g = P[K.P_S]
     rot = FL[K.F_ROT] != 0
     og = LO[K.L_XG]
     ov = LO[K.L_V]
     ow = LO[K.L_W]
     best = 2.0
     for i in range(n):
+        kg = G[K.G_KG * n + i]
+        gam = G[K.G_GG * n + i]
+        Fc = G[K.G_FC * n + i]
+        sR = s_g * G[K.G_R * n + i]
         u0 = y[ov + i] - (sR * y[ow + i] if rot else 0.0)
         u1 = ynew[ov + i] - (sR * ynew[ow + i] if rot else 0.0)
         du0 = K0[ov + i] - (sR * K0[ow + i] if rot else 0.0)
@@ -424,7 +425,7 @@ def _dense(yp, kp, y1, k1, h, tau, LO, n, out):
 def _mech_balance(y, gaps, P, FL, LO, ebuf, e0):
     energies(y, gaps, P, FL, LO, ebuf)
     tot = ebuf[K.E_KT] + ebuf[K.E_KR] + ebuf[K.E_H]
-    work = ebuf[K.E_WG] + ebuf[K.E_WD] + ebuf[K.E_WT] + ebuf[K.E_WR]
+    work = ebuf[K.E_WG] + ebuf[K.E_WD] + ebuf[K.E_WT] + ebuf[K.E_WR] + ebuf[K.E_WL]
     return abs(tot - e0 - work)
 
 
@@ -480,7 +481,7 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
         y = Y[b]
         Kst = KST[b]
         g = gaps[b]
-        f = np.zeros(max(n - 1, 1))
+        f = np.zeros(n)
         ynew = np.empty(ny)
         tmp = np.empty(ny)
         ebuf = np.empty(K.E_LEN)
@@ -562,7 +563,7 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                     h = max(tau * h, 1e-22)
                     clipped = True
                     continue
-                tau = _straddle_groove(y, ynew, Kst[0], Kst[S], P, FL, LO, n, h, bandg)
+                tau = _straddle_groove(y, ynew, Kst[0], Kst[S], g, P, FL, LO, n, h, bandg)
                 if tau > 0.0:
                     REJ[b] += 1
                     h = max(tau * h, 1e-22)

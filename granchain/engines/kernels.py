@@ -34,11 +34,13 @@ from ..effects import air_drag, groove_friction, hertz, particle_friction, rolli
 # the kernels' numbering of parameters, flags, layout blocks, methods, energy columns,
 # statuses, and the DOP853 tableau (numba-free, shared with the engines' Python side)
 from .codes import (DOP_A, DOP_B, DOP_C, DOP_E3, DOP_E5, E_H, E_KR, E_KT, E_LEN,  # noqa: E402,F401
-                    E_WD, E_WG, E_WR, E_WT, F_DRAG, F_GROOVE, F_LEN, F_MINDLIN, F_ODD, F_PP,
-                    F_ROLL, F_ROT, L_LEN, L_NY, L_PS, L_V, L_W, L_WD, L_WG, L_WR, L_WT, L_X,
-                    L_XG, L_XT, M_DOP853, M_RK4, M_VERLET, NST, P_FC, P_GG, P_GR, P_I, P_K,
-                    P_KG, P_KR, P_KT, P_L, P_LEN, P_M, P_MU, P_MUR, P_N, P_R, P_S, P_T0,
-                    S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL, S_TIMEOUT)
+                    E_WD, E_WG, E_WL, E_WR, E_WT, F_DRAG, F_GROOVE, F_HET, F_LEN, F_LOAD,
+                    F_MINDLIN, F_ODD, F_PP, F_ROLL, F_ROT, F_WALL, G_FC, G_GG, G_I, G_K, G_KG,
+                    G_KT, G_LEN, G_M, G_R, G_RE, L_LEN, L_NY, L_PS, L_V, L_W, L_WD, L_WG,
+                    L_WR, L_WT, L_X, L_XG, L_XT, M_DOP853, M_RK4, M_VERLET, NST, P_F0, P_FC,
+                    P_GG, P_GR, P_I, P_K, P_KG, P_KR, P_KT, P_L, P_LEN, P_M, P_MU, P_MUR, P_N,
+                    P_R, P_S, P_T0, S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL,
+                    S_TIMEOUT)
 
 
 @njit(cache=True, inline="always")
@@ -119,8 +121,12 @@ def _moving(a, r, L):
 
 @_blk
 def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
-    """Time derivative dy (ny, L) of the block state y (ny, L); f (n-1, L) receives the
-    Hertz force of every contact.
+    """Time derivative dy (ny, L) of the block state y (ny, L); f (n, L) receives the
+    Hertz force of every contact (row n-1: the end wall's, when there is one).
+
+    gaps (G_LEN * n, L): each chain's own rows (``codes.G_*``): kernel gaps, masses,
+    inertias, radii, Hertz constants and the effects' per-sphere and per-contact
+    parameters.
 
     With hist_dt > 0 (velocity Verlet), the friction histories in y are first advanced
     by slip*hist_dt and return-mapped, as LAMMPS does inside its force call; with
@@ -129,13 +135,15 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
     """
     n = int(P[P_N])
     L = y.shape[1]
-    R = P[P_R]
-    m = P[P_M]
-    K = P[P_K]
     ox = LO[L_X]
     ov = LO[L_V]
     ow = LO[L_W]
+    oM = G_M * n
+    oI = G_I * n
+    oR = G_R * n
+    oK = G_K * n
     rot = FL[F_ROT] != 0
+    wall = FL[F_WALL] != 0
     # a row that exists when rotation is off (its value is then never used)
     owr = ow if rot else ov
     # bit k of shut: contact k (k < 63) is open in every lane, its row of f is zero
@@ -143,26 +151,39 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
     for k in range(n - 1):
         if _any_contact(y, ox, gaps, k, L):
             for l in range(L):
-                f[k, l] = _hertz_force(K, _overlap_l(y, ox, gaps, k, l))
+                f[k, l] = _hertz_force(gaps[oK + k, l], _overlap_l(y, ox, gaps, k, l))
         else:
             for l in range(L):
                 f[k, l] = 0.0
             if k < 63:
                 shut |= 1 << k
-    for i in range(n):
-        if (i == 0 or _bit(shut, i - 1)) and (i == n - 1 or _bit(shut, i)):
-            # no force on sphere i in any lane: (0 + 0 - 0) / m
+    if wall or FL[F_LOAD] != 0:
+        # the end wall (contact n-1, overlap x_n - G_{n-1}) and the dead load on particle 2
+        F0 = P[P_F0]
+        if wall:
             for l in range(L):
-                dy[ov + i, l] = 0.0
-        elif i == 0:
+                f[n - 1, l] = _hertz_force(gaps[oK + n - 1, l], y[ox + n - 1, l] - gaps[n - 1, l])
+        for i in range(n):
             for l in range(L):
-                dy[ov, l] = (0.0 - f[0, l]) / m
-        elif i == n - 1:
-            for l in range(L):
-                dy[ov + i, l] = (0.0 + f[i - 1, l]) / m
-        else:
-            for l in range(L):
-                dy[ov + i, l] = (0.0 + f[i - 1, l] - f[i, l]) / m
+                fl = f[i - 1, l] if i > 0 else 0.0
+                fr = f[i, l] if (i < n - 1 or wall) else 0.0
+                ext = F0 if i == 1 else 0.0
+                dy[ov + i, l] = (0.0 + fl - fr + ext) / gaps[oM + i, l]
+    else:
+        for i in range(n):
+            if (i == 0 or _bit(shut, i - 1)) and (i == n - 1 or _bit(shut, i)):
+                # no force on sphere i in any lane: (0 + 0 - 0) / m
+                for l in range(L):
+                    dy[ov + i, l] = 0.0
+            elif i == 0:
+                for l in range(L):
+                    dy[ov, l] = (0.0 - f[0, l]) / gaps[oM, l]
+            elif i == n - 1:
+                for l in range(L):
+                    dy[ov + i, l] = (0.0 + f[i - 1, l]) / gaps[oM + i, l]
+            else:
+                for l in range(L):
+                    dy[ov + i, l] = (0.0 + f[i - 1, l] - f[i, l]) / gaps[oM + i, l]
     yf, dyf = _flat(y), _flat(dy)
     nL = n * L
     for j in range(nL):
@@ -183,16 +204,16 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                 continue
             for l in range(L):
                 v = y[ov + i, l]
+                m = gaps[oM + i, l]
                 F = _drag_force(m, v, T0, Ld, odd)
                 dy[ov + i, l] += F / m
                 dy[owd, l] += F * v
 
     if FL[F_GROOVE] != 0:
-        sR = P[P_S] * R
-        Fc = P[P_FC]
-        kg = P[P_KG]
-        gam = P[P_GG]
-        I = P[P_I]
+        s_g = P[P_S]
+        oFc = G_FC * n
+        oKg = G_KG * n
+        oGg = G_GG * n
         og = LO[L_XG]
         owg = LO[L_WG]
         for l in range(L):
@@ -205,23 +226,26 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                 continue
             if hist_dt > 0.0:
                 for l in range(L):
+                    sR = s_g * gaps[oR + i, l]
                     u = _groove_slip(y[ov + i, l], y[owr + i, l], sR, rot)
-                    xi = _groove_map(y[og + i, l] + u * hist_dt, u, kg, gam, Fc)
+                    xi = _groove_map(y[og + i, l] + u * hist_dt, u, gaps[oKg + i, l],
+                                     gaps[oGg + i, l], gaps[oFc + i, l])
                     y[og + i, l] = xi
             for l in range(L):
+                sR = s_g * gaps[oR + i, l]
                 u = _groove_slip(y[ov + i, l], y[owr + i, l], sR, rot)
                 # history rate: xi' = u in stick; held while sliding at the cap
-                F, rate = _groove_force(y[og + i, l], u, kg, gam, Fc)
+                F, rate = _groove_force(y[og + i, l], u, gaps[oKg + i, l], gaps[oGg + i, l],
+                                        gaps[oFc + i, l])
                 dy[og + i, l] = rate
-                dy[ov + i, l] += F / m
+                dy[ov + i, l] += F / gaps[oM + i, l]
                 dy[owg, l] += F * u
                 if rot:
-                    dy[ow + i, l] += -sR * F / I
+                    dy[ow + i, l] += -sR * F / gaps[oI + i, l]
 
     if FL[F_PP] != 0:
         mu = P[P_MU]
-        ktc = P[P_KT]
-        I = P[P_I]
+        oKt = G_KT * n
         mindlin = FL[F_MINDLIN] != 0
         ot = LO[L_XT]
         owt = LO[L_WT]
@@ -239,30 +263,43 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                 for l in range(L):
                     fn = f[k, l]
                     d = _overlap_l(y, ox, gaps, k, l)
+                    ktc = gaps[oKt + k, l]
                     kt = ktc * math.sqrt(d) if mindlin else ktc
-                    w = R * (y[ow + k, l] + y[ow + k + 1, l])
+                    Ra = gaps[oR + k, l]
+                    Rb = gaps[oR + k + 1, l]
+                    wk = y[ow + k, l]
+                    wk1 = y[ow + k + 1, l]
+                    w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
                     xi = _contact_map(y[ot + k, l] + w * hist_dt, kt, mu * fn)
                     y[ot + k, l] = xi if fn > 0.0 else 0.0
             for l in range(L):
                 fn = f[k, l]
                 loaded = fn > 0.0
                 d = _overlap_l(y, ox, gaps, k, l)
+                ktc = gaps[oKt + k, l]
                 kt = ktc * math.sqrt(d) if mindlin else ktc
+                Ra = gaps[oR + k, l]
+                Rb = gaps[oR + k + 1, l]
                 wk = y[ow + k, l]
                 wk1 = y[ow + k + 1, l]
-                w = R * (wk + wk1)
+                # slip R_k omega_k + R_k+1 omega_k+1 (LAMMPS: radi omega_i + radj omega_j)
+                w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
                 T, rate = _contact_force(y[ot + k, l], w, kt, mu * fn)
                 # LAMMPS applies the tangential force at the contact point: lever arm
-                # R - delta/2 (the slip above uses full radii, as LAMMPS does)
-                arm = R - 0.5 * d
-                tq = arm * T / I
+                # R_i - delta/2 on each sphere (the slip above uses full radii, as LAMMPS
+                # does)
+                arm = Ra - 0.5 * d
+                arm1 = Rb - 0.5 * d
+                tq = arm * T / gaps[oI + k, l]
+                tq1 = arm1 * T / gaps[oI + k + 1, l]
+                pw = T * arm * (wk + wk1) if Ra == Rb else T * (arm * wk + arm1 * wk1)
                 dy[ot + k, l] = rate if loaded else 0.0
                 a = dy[ow + k, l]
                 dy[ow + k, l] = a + tq if loaded else a
                 a = dy[ow + k + 1, l]
-                dy[ow + k + 1, l] = a + tq if loaded else a
+                dy[ow + k + 1, l] = a + tq1 if loaded else a
                 a = dy[owt, l]
-                dy[owt, l] = a + T * arm * (wk + wk1) if loaded else a
+                dy[owt, l] = a + pw if loaded else a
 
     if FL[F_ROLL] != 0:
         # LAMMPS rolling sds on the 1D line (docs/lammps_laws.md sections 5 and 8):
@@ -272,8 +309,7 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
         kr = P[P_KR]
         gr = P[P_GR]
         mur = P[P_MUR]
-        I = P[P_I]
-        Reff = 0.5 * R
+        oRe = G_RE * n
         op = LO[L_PS]
         owro = LO[L_WR]
         for l in range(L):
@@ -291,15 +327,17 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                     # Verlet: LAMMPS's order with the half-step spins
                     fn = f[k, l]
                     loaded = fn > 0.0
+                    Reff = gaps[oRe + k, l]
                     vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
                     rho, M = _rolling_moment_lammps(y[op + k, l], vr, kr, gr, mur * fn, hist_dt)
                     y[op + k, l] = rho if loaded else 0.0
                     dy[op + k, l] = vr if loaded else 0.0
-                    tq = Reff * M / I
+                    tq = Reff * M / gaps[oI + k, l]
+                    tq1 = Reff * M / gaps[oI + k + 1, l]
                     a = dy[ow + k, l]
                     dy[ow + k, l] = a + tq if loaded else a
                     a = dy[ow + k + 1, l]
-                    dy[ow + k + 1, l] = a - tq if loaded else a
+                    dy[ow + k + 1, l] = a - tq1 if loaded else a
                     a = dy[owro, l]
                     dy[owro, l] = a + M * vr if loaded else a
             else:
@@ -308,14 +346,16 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                     # rho after the step
                     fn = f[k, l]
                     loaded = fn > 0.0
+                    Reff = gaps[oRe + k, l]
                     vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
                     M = _rolling_moment(y[op + k, l], vr, kr, gr, mur * fn)
                     dy[op + k, l] = vr if loaded else 0.0
-                    tq = Reff * M / I
+                    tq = Reff * M / gaps[oI + k, l]
+                    tq1 = Reff * M / gaps[oI + k + 1, l]
                     a = dy[ow + k, l]
                     dy[ow + k, l] = a + tq if loaded else a
                     a = dy[ow + k + 1, l]
-                    dy[ow + k + 1, l] = a - tq if loaded else a
+                    dy[ow + k + 1, l] = a - tq1 if loaded else a
                     a = dy[owro, l]
                     dy[owro, l] = a + M * vr if loaded else a
 
@@ -331,24 +371,26 @@ def project_block(y, gaps, P, FL, LO, f):
     ow = LO[L_W]
     rot = FL[F_ROT] != 0
     owr = ow if rot else ov
-    K = P[P_K]
+    oK = G_K * n
     if FL[F_GROOVE] != 0:
-        Fc = P[P_FC]
-        kg = P[P_KG]
-        gam = P[P_GG]
-        sR = P[P_S] * P[P_R]
+        oFc = G_FC * n
+        oKg = G_KG * n
+        oGg = G_GG * n
+        oR = G_R * n
+        s_g = P[P_S]
         og = LO[L_XG]
         for i in range(n):
             if not (_moving(y, ov + i, L) or _moving(y, og + i, L)
                     or (rot and _moving(y, ow + i, L))):
                 continue
             for l in range(L):
-                u = _groove_slip(y[ov + i, l], y[owr + i, l], sR, rot)
-                y[og + i, l] = _groove_map(y[og + i, l], u, kg, gam, Fc)
+                u = _groove_slip(y[ov + i, l], y[owr + i, l], s_g * gaps[oR + i, l], rot)
+                y[og + i, l] = _groove_map(y[og + i, l], u, gaps[oKg + i, l], gaps[oGg + i, l],
+                                           gaps[oFc + i, l])
     if FL[F_PP] != 0:
         ot = LO[L_XT]
         mu = P[P_MU]
-        ktc = P[P_KT]
+        oKt = G_KT * n
         mindlin = FL[F_MINDLIN] != 0
         for k in range(n - 1):
             if not _any_contact(y, ox, gaps, k, L):
@@ -357,12 +399,13 @@ def project_block(y, gaps, P, FL, LO, f):
                 continue
             for l in range(L):
                 d = _overlap_l(y, ox, gaps, k, l)
+                ktc = gaps[oKt + k, l]
                 kt = ktc * math.sqrt(d) if mindlin else ktc
-                xi = _contact_map(y[ot + k, l], kt, mu * K * d * math.sqrt(d))
+                xi = _contact_map(y[ot + k, l], kt, mu * gaps[oK + k, l] * d * math.sqrt(d))
                 y[ot + k, l] = 0.0 if d <= 0.0 else xi
     if FL[F_ROLL] != 0:
         op = LO[L_PS]
-        Reff = 0.5 * P[P_R]
+        oRe = G_RE * n
         kr = P[P_KR]
         gr = P[P_GR]
         mur = P[P_MUR]
@@ -373,8 +416,8 @@ def project_block(y, gaps, P, FL, LO, f):
                 continue
             for l in range(L):
                 d = _overlap_l(y, ox, gaps, k, l)
-                vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
-                rho = _rolling_map(y[op + k, l], vr, kr, gr, mur * K * d * math.sqrt(d))
+                vr = gaps[oRe + k, l] * (y[ow + k, l] - y[ow + k + 1, l])
+                rho = _rolling_map(y[op + k, l], vr, kr, gr, mur * gaps[oK + k, l] * d * math.sqrt(d))
                 y[op + k, l] = 0.0 if d <= 0.0 else rho
 
 
@@ -385,29 +428,47 @@ def energies_block(y, gaps, P, FL, LO, out):
     L = y.shape[1]
     ox = LO[L_X]
     ov = LO[L_V]
-    m = P[P_M]
-    K = P[P_K]
+    oK = G_K * n
+    het = FL[F_HET] != 0
     for e in range(E_LEN):
         for l in range(L):
             out[e, l] = 0.0
-    for i in range(n):
-        for l in range(L):
-            out[E_KT, l] += y[ov + i, l] * y[ov + i, l]
-    for l in range(L):
-        out[E_KT, l] = 0.5 * m * out[E_KT, l]
-    if FL[F_ROT] != 0:
-        ow = LO[L_W]
+    if het:
+        oM = G_M * n
         for i in range(n):
             for l in range(L):
-                out[E_KR, l] += y[ow + i, l] * y[ow + i, l]
-        hI = 0.5 * P[P_I]
+                out[E_KT, l] += 0.5 * gaps[oM + i, l] * y[ov + i, l] * y[ov + i, l]
+    else:
+        for i in range(n):
+            for l in range(L):
+                out[E_KT, l] += y[ov + i, l] * y[ov + i, l]
         for l in range(L):
-            out[E_KR, l] *= hI
+            out[E_KT, l] = 0.5 * gaps[G_M * n, l] * out[E_KT, l]
+    if FL[F_ROT] != 0:
+        ow = LO[L_W]
+        oI = G_I * n
+        if het:
+            for i in range(n):
+                for l in range(L):
+                    out[E_KR, l] += 0.5 * gaps[oI + i, l] * y[ow + i, l] * y[ow + i, l]
+        else:
+            for i in range(n):
+                for l in range(L):
+                    out[E_KR, l] += y[ow + i, l] * y[ow + i, l]
+            for l in range(L):
+                out[E_KR, l] *= 0.5 * gaps[oI, l]
     for k in range(n - 1):
         if not _any_contact(y, ox, gaps, k, L):
             continue
         for l in range(L):
-            out[E_H, l] += _hertz_energy(K, _overlap_l(y, ox, gaps, k, l))
+            out[E_H, l] += _hertz_energy(gaps[oK + k, l], _overlap_l(y, ox, gaps, k, l))
+    if FL[F_WALL] != 0:
+        for l in range(L):
+            out[E_H, l] += _hertz_energy(gaps[oK + n - 1, l], y[ox + n - 1, l] - gaps[n - 1, l])
+    if FL[F_LOAD] != 0:
+        F0 = P[P_F0]
+        for l in range(L):
+            out[E_WL, l] = F0 * y[ox + 1, l]
     for slot, col in ((L_WG, E_WG), (L_WD, E_WD), (L_WT, E_WT), (L_WR, E_WR)):
         o = LO[slot]
         if o >= 0:
@@ -597,7 +658,7 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
             continue
         y = Y[b]
         g = gaps[b]
-        f = np.zeros(max(n - 1, 1))
+        f = np.zeros(n)
         k1 = np.empty(ny)
         k2 = np.empty(ny)
         k3 = np.empty(ny)
@@ -611,6 +672,8 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
                 forces(y, g, P, FL, LO, 0.0, ACC[b], f)
             for i in range(n):
                 Vout[b, 0, i] = y[ov + i]
+            if Vout.shape[2] > n:
+                Vout[b, 0, n] = _wall_force(y, g, n, LO[L_X])
             energies(y, g, P, FL, LO, ebuf)
             Eout[b, 0, :] = ebuf
             counts[b] = 1
@@ -661,6 +724,8 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
             c = counts[b]
             for i in range(n):
                 Vout[b, c, i] = y[ov + i]
+            if Vout.shape[2] > n:
+                Vout[b, c, n] = _wall_force(y, g, n, LO[L_X])
             energies(y, g, P, FL, LO, ebuf)
             Eout[b, c, :] = ebuf
             counts[b] = c + 1
@@ -668,8 +733,33 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
             if not _finite(y, LO, n):
                 STATUS[b] = S_NONFINITE
                 break
-            if auto_stop and y[ov + n - 1] > VTHR[b] and _overlap(y, LO[L_X], g, n - 2) <= 0.0:
+            if auto_stop and _left(y[ov + n - 1], _overlap(y, LO[L_X], g, n - 2),
+                                   y[LO[L_X] + n - 1], VTHR[b], FL[F_WALL] != 0):
                 STATUS[b] = S_PASSED
+
+
+@njit(cache=True, inline="always")
+def _left(v_last, overlap_last, x_last, vthr, wall):
+    """Has the wave left the chain (``schedule.last_detached``)? Free end: the last
+    sphere moves faster than the arrival speed with its contact open. End wall: the last
+    sphere moves back from the wall faster than the arrival speed and is back at (or
+    behind) its starting position x_last = 0: the wave has reflected and the wall force
+    is back at (or below) its static value, so its dynamic peak is behind."""
+    if wall:
+        return v_last < -vthr and x_last <= 0.0
+    return v_last > vthr and overlap_last <= 0.0
+
+
+@njit(cache=True, inline="always")
+def _wall_force(y, g, n, ox):
+    """Force (N) of the end wall on one chain (state y, per-chain array g)."""
+    return _hertz_force(g[G_K * n + n - 1], y[ox + n - 1] - g[n - 1])
+
+
+@njit(cache=True, inline="always")
+def _wall_force_l(y, g, n, ox, l):
+    """Force (N) of the end wall on lane l of a block."""
+    return _hertz_force(g[G_K * n + n - 1, l], y[ox + n - 1, l] - g[n - 1, l])
 
 
 @njit(cache=True, inline="always")
@@ -718,7 +808,7 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                 ns = NS[base + l]
         if ns < 0:
             continue
-        f = np.zeros((max(n - 1, 1), L))
+        f = np.zeros((n, L))
         k1 = np.empty((ny, L))
         k2 = np.empty((ny, L))
         k3 = np.empty((ny, L))
@@ -736,6 +826,8 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                     continue
                 for i in range(n):
                     Vout[b, 0, i] = y[ov + i, l]
+                if Vout.shape[2] > n:
+                    Vout[b, 0, n] = _wall_force_l(y, g, n, ox, l)
                 for e in range(E_LEN):
                     Eout[b, 0, e] = ebuf[e, l]
                 counts[b] = 1
@@ -769,6 +861,8 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                 T[b] += every * dt
                 for i in range(n):
                     Vout[b, c, i] = y[ov + i, l]
+                if Vout.shape[2] > n:
+                    Vout[b, c, n] = _wall_force_l(y, g, n, ox, l)
                 for e in range(E_LEN):
                     Eout[b, c, e] = ebuf[e, l]
                 counts[b] = c + 1
@@ -779,7 +873,7 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                         finite = False
                 if not finite:
                     _stop_lane(y, acc, l, YF, b, S_NONFINITE, STATUS)
-                elif auto_stop and y[ov + n - 1, l] > VTHR[b] and \
-                        _overlap_l(y, ox, g, n - 2, l) <= 0.0:
+                elif auto_stop and _left(y[ov + n - 1, l], _overlap_l(y, ox, g, n - 2, l),
+                                         y[ox + n - 1, l], VTHR[b], FL[F_WALL] != 0):
                     _stop_lane(y, acc, l, YF, b, S_PASSED, STATUS)
             c += 1

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..schedule import (arrival_speed, auto_t_max, expected_duration, last_detached,
                         sample_interval)
-from ..effects import MODULES, SPECS, Terms, physics_terms
+from ..effects import MODULES, SPECS, Terms, chain as chain_mod, physics_terms
 from ..guards import require_resolved
 from ..scene import Scene
 from ..trajectory import OnTheFly, Trajectory
@@ -76,8 +76,8 @@ def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
     P = np.zeros(C.P_LEN)
     FL = np.zeros(C.F_LEN, dtype=np.int64)
     P[C.P_N], P[C.P_R], P[C.P_M] = terms.n, terms.R, terms.m
-    for mod in MODULES:
-        term = getattr(terms, mod.SPEC.name)
+    for mod, term in [(chain_mod, terms.chain)] + [(m, getattr(terms, m.SPEC.name))
+                                                   for m in MODULES]:
         if term is not None:
             params, flags = mod.kernel(term)
             for slot, value in params.items():
@@ -85,6 +85,31 @@ def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
             for slot, value in flags.items():
                 FL[getattr(C, slot)] = value
     return P, FL
+
+
+def chain_rows(terms: Terms, gaps: np.ndarray) -> np.ndarray:
+    """The kernels' per-chain array G (B, G_LEN * n) of chains with physical gaps
+    (B, n-1): the kernel gaps, then each sphere's and contact's rows from the chain and
+    the enabled effects (``codes.G_*``; rows no effect fills stay 0)."""
+    n = terms.n
+    gaps = np.atleast_2d(gaps)
+    G = np.zeros((gaps.shape[0], C.G_LEN * n))
+    G[:, :n] = terms.chain.kernel_gaps(gaps)
+    rows = dict(chain_mod.rows(terms.chain))
+    for mod in MODULES:
+        term = getattr(terms, mod.SPEC.name)
+        if term is not None and hasattr(mod, "rows"):
+            rows.update(mod.rows(term, terms.chain))
+    for slot, values in rows.items():
+        o = getattr(C, slot) * n
+        G[:, o:o + n] = values
+    return G
+
+
+def record_width(terms: Terms) -> int:
+    """Columns of a chain's velocity record: the n velocities, and the wall force (N)
+    with an end wall."""
+    return terms.n + (1 if terms.chain.K_wall is not None else 0)
 
 
 
@@ -172,6 +197,8 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
     layout = Layout.of(terms)
     P, FL = pack(terms)
     B, n, ny = gaps.shape[0], terms.n, layout.ny
+    G = chain_rows(terms, gaps)
+    nv = record_width(terms)
     Y = np.zeros((B, ny))
     Y[:, layout.LO[C.L_V]] = vs            # particle 1 (index 0) is the striker
     ACC = np.zeros((B, ny))
@@ -201,20 +228,21 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
     counts = np.zeros(B, dtype=np.int64)
     t0 = time.perf_counter()
     if mcode == C.M_DOP853:
-        Vbuf = np.empty((B, WINDOW, n))
+        Vbuf = np.empty((B, WINDOW, nv))
         Ebuf = np.empty((B, WINDOW, C.E_LEN))
         while np.any(STATUS == C.S_RUNNING):
-            kern.run_window(mcode, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL,
+            kern.run_window(mcode, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, G, P, FL,
                          layout.LO, scale_abs, rel, rtol, dt, every, sdt, NT, auto, Vbuf, Ebuf,
                          counts)
             _collect(counts, Vbuf, Ebuf, V_parts, E_parts)
     else:
-        Y, T, STEPS, STATUS = _run_blocks(mcode, Y, gaps, VTHR, P, FL, layout, dt, every, NT,
+        Y, T, STEPS, STATUS = _run_blocks(mcode, Y, G, nv, VTHR, P, FL, layout, dt, every, NT,
                                           auto, V_parts, E_parts)
     wall = time.perf_counter() - t0
     eff = tuple(sorted(scene.effects))
     for b in range(B):
-        v = np.concatenate(V_parts[b])
+        rec = np.concatenate(V_parts[b])
+        v = rec[:, :n]
         e = np.concatenate(E_parts[b])
         t = np.arange(v.shape[0]) * sdt
         status = STATUS[b]
@@ -233,7 +261,8 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
                          v_striker=float(vs[b]), effects=eff, steps=int(STEPS[b]),
                          rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
                          wall_s=wall / B, last_overlap=last_overlap, force_evaluations=nev,
-                         meta={"method": method, "dt": dt, "rtol": rtol, "sample_dt": sdt})
+                         meta={"method": method, "dt": dt, "rtol": rtol, "sample_dt": sdt},
+                         **_chain_fields(terms, rec))
 
 
 def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt, trace, pair):
@@ -243,6 +272,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
     P, FL = pack(terms)
     LO = layout.LO
     B, n, ny = gaps.shape[0], terms.n, layout.ny
+    G = chain_rows(terms, gaps)
     A, Bw, _nodes, E5, E3, qexp, dopnorm = C.PAIRS[pair]   # no step uses the nodes
     S = Bw.shape[0]
     Y = np.zeros((B, ny))
@@ -290,7 +320,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
     E_parts = [[] for _ in range(B)]
     t0 = time.perf_counter()
     while np.any(STATUS == C.S_RUNNING):
-        kern.run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, FL, LO,
+        kern.run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, G, P, FL, LO,
                       scale_abs, rel, rtol, band, land, A, Bw, E5, E3, qexp, dopnorm,
                       t_stop, auto, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, VINIT,
                       E0, BAL, trace, sample_dt, NT, NS, YP, KP, TP, Vbuf, Ebuf, counts)
@@ -309,7 +339,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
             status = C.S_TIMEOUT
         last_overlap = float(Y[b, ox + n - 2] - Y[b, ox + n - 1] - gaps[b, n - 2])
         y_end = Y[b]
-        kern.energies(y_end, gaps[b], P, FL, LO, ebuf)
+        kern.energies(y_end, G[b], P, FL, LO, ebuf)
         e_end = ebuf.copy()
         if trace:
             v = np.concatenate(V_parts[b])
@@ -318,7 +348,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
         else:
             y0 = np.zeros(ny)
             y0[ov] = vs[b]
-            kern.energies(y0, gaps[b], P, FL, LO, ebuf)
+            kern.energies(y0, G[b], P, FL, LO, ebuf)
             t = np.array([0.0, float(T[b])])
             v = np.stack([y0[ov:ov + n], y_end[ov:ov + n]])
             e = np.stack([ebuf.copy(), e_end])
@@ -339,7 +369,8 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
                          wall_s=wall / B, last_overlap=last_overlap,
                          force_evaluations=int(NEV[b]), observed=obs,
                          meta={"method": "event", "dt": dt, "rtol": rtol, "sample_dt": sample_dt,
-                               "pair": pair, "trace": bool(trace), "t_last": float(T[b])})
+                               "pair": pair, "trace": bool(trace), "t_last": float(T[b])},
+                         **_chain_fields(terms, None))
 
 
 def _collect(counts, Vbuf, Ebuf, V_parts, E_parts):
@@ -350,23 +381,26 @@ def _collect(counts, Vbuf, Ebuf, V_parts, E_parts):
             E_parts[b].append(Ebuf[b, :c].copy())
 
 
-def _run_blocks(mcode, Y0, gaps, VTHR, P, FL, layout, dt, every, NT, auto, V_parts, E_parts):
+def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V_parts,
+                E_parts):
     kern = backend.kernels(serial=gaps.shape[0] == 1)
     """Fixed-step methods: the chains in blocks of LANES (consecutive chains share a block,
     the last block padded with lanes at rest that record nothing), stepped in lockstep by
     ``kernels.run_blocks``. Returns each chain's final state, time, steps and status."""
     B, ny = Y0.shape
-    n = gaps.shape[1] + 1
+    ng = gaps.shape[1]
     Lb = LANES
     nblk = -(-B // Lb)
     Bp = nblk * Lb
     Yp = np.zeros((Bp, ny))
     Yp[:B] = Y0
-    Gp = np.zeros((Bp, n - 1))
+    Gp = np.zeros((Bp, ng))
     Gp[:B] = gaps
+    # padding lanes hold the first chain's rows (positive masses), at rest
+    Gp[B:] = gaps[0]
     # (nblk, ny, L): chains innermost
     YB = np.ascontiguousarray(Yp.reshape(nblk, Lb, ny).transpose(0, 2, 1))
-    GB = np.ascontiguousarray(Gp.reshape(nblk, Lb, n - 1).transpose(0, 2, 1))
+    GB = np.ascontiguousarray(Gp.reshape(nblk, Lb, ng).transpose(0, 2, 1))
     ACC = np.zeros_like(YB)
     YF = np.zeros((Bp, ny))
     T = np.zeros(Bp)
@@ -378,7 +412,7 @@ def _run_blocks(mcode, Y0, gaps, VTHR, P, FL, layout, dt, every, NT, auto, V_par
     VT[:B] = VTHR
     NTp = np.ones(Bp, dtype=np.int64)
     NTp[:B] = NT
-    Vbuf = np.empty((Bp, BLOCK_WINDOW, n))
+    Vbuf = np.empty((Bp, BLOCK_WINDOW, nv))
     Ebuf = np.empty((Bp, BLOCK_WINDOW, C.E_LEN))
     counts = np.zeros(Bp, dtype=np.int64)
     while np.any(STATUS[:B] == C.S_RUNNING):
@@ -386,6 +420,19 @@ def _run_blocks(mcode, Y0, gaps, VTHR, P, FL, layout, dt, every, NT, auto, V_par
                      every, NTp, auto, Vbuf, Ebuf, counts)
         _collect(counts[:B], Vbuf, Ebuf, V_parts, E_parts)
     return YF[:B], T[:B], STEPS[:B], STATUS[:B]
+
+
+def _chain_fields(terms: Terms, rec: np.ndarray) -> dict:
+    """Trajectory fields of a heterogeneous or walled chain: each sphere's radius, and the
+    wall force (N) from the record's last column (the event method, which has no record
+    here, runs no walled scene)."""
+    out = {}
+    if terms.chain.heterogeneous:
+        out["radii"] = np.asarray(terms.chain.radii)
+    if terms.chain.K_wall is not None:
+        out["wall_force"] = rec[:, terms.n].copy()
+        out["wall_static"] = float(terms.chain.K_wall * terms.chain.wall_overlap ** 1.5)
+    return out
 
 
 def _error_scales(scene, terms, layout, v):
