@@ -97,8 +97,9 @@ def pair(**over):
     """Two spheres, for kernel-level tests. A scene needs n >= 3 (the striker and two
     probes from 2 to n), so this is a valid 3-sphere scene cut to its first two spheres,
     with probes (1, 2) that no scene may give."""
-    return dataclasses.replace(packed(**{"chain.n": 3, "probes": "[2, 3]", **over}), n=2,
-                               probes=(1, 2))
+    sc = packed(**{"chain.n": 3, "probes": "[2, 3]", **over})
+    return dataclasses.replace(sc, n=2, probes=(1, 2), radii=sc.radii[:2],
+                               materials=sc.materials[:2])
 
 
 def run1(scene, **kw):

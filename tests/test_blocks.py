@@ -83,6 +83,7 @@ def test_blocks_agree_with_the_per_chain_window(method):
     lay = reference.Layout.of(terms)
     P, FL = reference.pack(terms)
     n, ny, B = sc.n, lay.ny, len(vs)
+    G = reference.chain_rows(terms, gaps)      # the kernels' per-chain rows
     every, samples = 10, 300
     code = reference.METHOD_CODES[method]
     # per chain
@@ -94,17 +95,18 @@ def test_blocks_agree_with_the_per_chain_window(method):
     V1 = np.full((B, samples, n), np.nan)
     E1 = np.full((B, samples, K.E_LEN), np.nan)
     K.run_window(code, Y, np.zeros((B, ny)), np.zeros(B), np.full(B, sc.dt), NS, STEPS, REJ,
-                 STATUS, np.full(B, 1e-4), gaps, P, FL, lay.LO, np.ones(ny),
+                 STATUS, np.full(B, 1e-4), G, P, FL, lay.LO, np.ones(ny),
                  np.ones(ny, dtype=np.int64), 1e-8, sc.dt, every, every * sc.dt,
                  np.full(B, samples, dtype=np.int64), False, V1, E1, counts)
     # blocks of 4 lanes
     L = 4
     nblk = -(-B // L)
     YB = np.zeros((nblk, ny, L))
-    GB = np.zeros((nblk, n - 1, L))
+    GB = np.zeros((nblk, G.shape[1], L))
+    GB[:, :, :] = G[0][None, :, None]        # padding lanes: the first chain's rows, at rest
     for b in range(B):
         YB[b // L, lay.LO[K.L_V], b % L] = vs[b]
-        GB[b // L, :, b % L] = gaps[b]
+        GB[b // L, :, b % L] = G[b]
     Bp = nblk * L
     STATUS2 = np.full(Bp, K.S_DONE, dtype=np.int64)
     STATUS2[:B] = K.S_RUNNING

@@ -8,7 +8,7 @@ from granchain import analytic
 from granchain.effects import physics_terms
 from granchain.engines import kernels as K
 from granchain.engines import reference
-from granchain.engines.reference import Layout, pack
+from granchain.engines.reference import Layout, chain_rows, pack
 
 from conftest import packed, pair, run1
 from independent import SS440C, hertz_chain_peaks
@@ -30,8 +30,8 @@ def test_hertz_force_matches_closed_form():
     y = np.zeros(lay.ny)
     y[lay.LO[K.L_X]] = 3.7e-8              # particle 1 pushed into particle 2
     dy = np.zeros(lay.ny)
-    f = np.zeros(1)
-    K.forces(y, np.zeros(1), P, FL, lay.LO, 0.0, dy, f)
+    f = np.zeros(2)
+    K.forces(y, chain_rows(t2, np.zeros(1))[0], P, FL, lay.LO, 0.0, dy, f)
     assert f[0] == pytest.approx(expect[-1], rel=1e-14)
     assert dy[lay.LO[K.L_V]] == pytest.approx(-expect[-1] / two.mass, rel=1e-14)
     assert dy[lay.LO[K.L_V] + 1] == pytest.approx(expect[-1] / two.mass, rel=1e-14)
@@ -136,8 +136,8 @@ def test_particle_friction_opposes_slip_on_both_spheres():
     y = np.zeros(lay.ny)
     y[LO[K.L_X]] = 1e-7                      # loaded contact (stays loaded for > 400 ns)
     y[LO[K.L_W]:LO[K.L_W] + 2] = [50.0, 30.0]
-    gaps = np.zeros(1)
-    f = np.zeros(1)
+    gaps = chain_rows(terms, np.zeros(1))[0]
+    f = np.zeros(2)
     slip0 = y[LO[K.L_W]] + y[LO[K.L_W] + 1]
     k = [np.zeros(lay.ny) for _ in range(5)]
     torques = []
@@ -258,7 +258,7 @@ def _window(sc, P, FL, lay, method, dt=2e-9, samples=64, every=10):
     Eout = np.full((1, samples, K.E_LEN), np.nan)
     K.run_window(reference.METHOD_CODES[method], Y, np.zeros((1, ny)), np.zeros(1),
                  np.full(1, dt), NS, STEPS, REJ, STATUS, np.full(1, 1e-4),
-                 np.zeros((1, n - 1)), P, FL, lay.LO, scale, np.ones(ny, dtype=np.int64),
+                 chain_rows(physics_terms(sc), np.zeros((1, n - 1))), P, FL, lay.LO, scale, np.ones(ny, dtype=np.int64),
                  1e-8, dt, every, every * dt, np.full(1, samples, dtype=np.int64), False,
                  Vout, Eout, counts)
     return Y[0], Vout[0], Eout[0], int(counts[0])

@@ -11,7 +11,7 @@ import pytest
 from granchain.effects import physics_terms
 from granchain.engines import kernels as K
 from granchain.engines import reference
-from granchain.engines.reference import Layout, pack
+from granchain.engines.reference import Layout, chain_rows, pack
 
 from tests.conftest import SCENES, packed, pair, run1
 
@@ -44,8 +44,10 @@ class Chain:
         self.y[self.LO[K.L_V]] = scene.striker_velocities[0]
         if w0 is not None:
             self.y[self.LO[K.L_W]:self.LO[K.L_W] + n] = w0
-        self.gaps = np.zeros(n - 1) if gaps is None else np.asarray(gaps, dtype=float)
-        self.f = np.zeros(max(n - 1, 1))
+        gaps = np.zeros(n - 1) if gaps is None else np.asarray(gaps, dtype=float)
+        # the kernels' per-chain rows: the gaps first, then masses, radii, constants
+        self.gaps = chain_rows(self.terms, gaps)[0]
+        self.f = np.zeros(n)
 
     def block(self, slot, size=None):
         o = self.LO[slot]
@@ -184,7 +186,7 @@ def test_zero_history_above_the_cap_gives_zero_moment_in_verlet():
     c = two_spheres(5e-8, w, -(vr * dt))              # rho + dt v_roll == 0 exactly
     dy = np.zeros(c.lay.ny)
     K.forces(c.y, c.gaps, c.P, c.FL, c.LO, dt, dy, c.f)
-    assert c.gaps.size == 1 and c.f[0] > 0
+    assert c.n == 2 and c.f[0] > 0
     assert c.terms.rolling_friction.gamma_roll * vr > c.terms.rolling_friction.mu_roll * c.f[0]
     assert c.block(K.L_PS, 1)[0] == 0.0
     assert dy[c.LO[K.L_W]] == 0.0 and dy[c.LO[K.L_W] + 1] == 0.0

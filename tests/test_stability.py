@@ -7,7 +7,7 @@ from numba import njit
 
 from granchain.effects import physics_terms
 from granchain.engines import kernels as K
-from granchain.engines.reference import Layout, pack
+from granchain.engines.reference import Layout, chain_rows, pack
 
 from conftest import SCENES, packed, run1
 from independent import SS440C, hertz_chain_peaks
@@ -38,7 +38,7 @@ def _friction_record(y, gaps, P, FL, LO, dt, steps):
     ny = y.shape[0]
     k1, k2, k3, k4 = np.empty(ny), np.empty(ny), np.empty(ny), np.empty(ny)
     tmp, dy = np.empty(ny), np.empty(ny)
-    f = np.zeros(n - 1)
+    f = np.zeros(n)
     fmax = 0.0
     w = np.empty((steps, n - 1))
     u = np.empty((steps, n))
@@ -102,7 +102,8 @@ def test_all_effects_pass_a_wave_without_chatter():
     n, vs, steps = sc.n, 0.1, 40000
     y = np.zeros(lay.ny)
     y[LO[K.L_V]] = vs
-    w, u, groove, contact, fmax = _friction_record(y, np.zeros(n - 1), P, FL, LO, 1e-9, steps)
+    w, u, groove, contact, fmax = _friction_record(y, chain_rows(terms, np.zeros(n - 1))[0], P, FL,
+                                                   LO, 1e-9, steps)
     assert np.all(np.isfinite(w)) and np.all(np.isfinite(u)) and np.all(np.isfinite(groove))
     loaded = np.isfinite(contact)
     assert 1.4 * fmax * sc.radius / sc.inertia > 1e8    # what a sgn() law applies per step
