@@ -45,8 +45,13 @@ def _fmt(x, unit="", digits=4):
 
 def _print_human(scene, runs, out=None):
     out = out or sys.stdout
-    print(f"scene {scene.name} ({scene.hash}): {scene.n} x {scene.material.name}, "
-          f"R = {scene.radius:g} m, effects: {', '.join(sorted(scene.effects))}", file=out)
+    if scene.heterogeneous:
+        what = (f"{scene.n} spheres ({', '.join(sorted({m.name for m in scene.materials}))}; "
+                f"R = {min(scene.radii):g} to {max(scene.radii):g} m)")
+    else:
+        what = f"{scene.n} x {scene.material.name}, R = {scene.radius:g} m"
+    print(f"scene {scene.name} ({scene.hash}): {what}, effects: "
+          f"{', '.join(sorted(scene.effects))}", file=out)
     p1, p2 = scene.probes[:2]
     for r in runs:
         vs = r.v_striker
@@ -73,6 +78,12 @@ def _print_human(scene, runs, out=None):
                   f"{m.sampling_rate_hz:g} S/s): v_max,1 = {_fmt(r.v_max_1_measured)} m/s, "
                   f"v_max,2 = {_fmt(r.v_max_2_measured)} m/s; dt = {_fmt(r.dt_peak_measured)} s; "
                   f"v_g = {_fmt(r.v_g_measured)} m/s{lost}", file=out)
+        if r.walled:
+            static = (f" over its static preload {_fmt(r.wall_force_static)} N"
+                      if r.wall_force_static else "")
+            peak = (f"{_fmt(r.wall_force_max)} N{static} at t = {_fmt(r.t_wall_peak)} s"
+                    if r.wall_peak_final else "n/a (its peak is not inside the run)")
+            print(f"  end wall ({scene.wall.name}): dynamic force peak {peak}", file=out)
     _print_warnings([w for r in runs for w in r.warnings], out)
 
 

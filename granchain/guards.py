@@ -38,7 +38,7 @@ def max_sample_dt(scene) -> float | None:
     vmax = max(scene.striker_velocities)
     if vmax <= 0:
         return None
-    return float(pulse_width(scene.material, scene.radius, 0.64 * vmax)) / MIN_SAMPLES_PER_PULSE
+    return scene.pulse_width(0.64 * vmax) / MIN_SAMPLES_PER_PULSE
 
 
 def floor_sig(x: float, digits: int = 2) -> float:

@@ -300,11 +300,21 @@ class Scene:
     def pulse_width(self, v_m: float) -> float:
         """Temporal width (s) of the solitary wave at peak particle velocity v_m: about 5
         diameters over Nesterenko's speed, the shortest over the beads' materials and
-        radii (particles 2 to n)."""
+        radii (particles 2 to n); under a preload at most 5 diameters over the sound
+        speed c0 = 2R sqrt(k2/m) of the stiffest preloaded contact."""
         if not self.heterogeneous:
-            return float(pulse_width(self.material, self.radius, v_m))
-        return min(float(pulse_width(m, r, v_m))
-                   for m, r in set(zip(self.materials[1:], self.radii[1:])))
+            width = float(pulse_width(self.material, self.radius, v_m))
+        else:
+            width = min(float(pulse_width(m, r, v_m))
+                        for m, r in set(zip(self.materials[1:], self.radii[1:])))
+        F0 = self.precompression
+        if F0 > 0.0:
+            ms, rs = self.masses, self.radii
+            for k, K in enumerate(self.contact_k[1:], start=1):
+                k2 = 1.5 * K ** (2.0 / 3.0) * F0 ** (1.0 / 3.0)
+                c0 = 2.0 * rs[k] * math.sqrt(k2 / ms[k])
+                width = min(width, 10.0 * rs[k] / c0)
+        return width
 
 
 def hertz_constant(a: Material, Ra: float, b: Material, Rb: float) -> float:

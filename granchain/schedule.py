@@ -54,7 +54,7 @@ def sample_interval(scene, v_striker: float) -> float:
     if scene.sample_dt is not None:
         return scene.sample_dt
     v = max(v_striker, 1e-6)
-    return float(analytic.pulse_width(scene.material, scene.radius, 0.64 * v)) / SAMPLES_PER_PULSE
+    return scene.pulse_width(0.64 * v) / SAMPLES_PER_PULSE
 
 
 def auto_t_max(scene, gaps, v_striker: float) -> float:

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .observables import ENERGY_MAP, MEASURED_COLUMNS, ChainResult, vmax_columns
+from .observables import ENERGY_MAP, MEASURED_COLUMNS, WALL_COLUMNS, ChainResult, vmax_columns
 
 FLOAT_FORMAT = "%.17g"
 NA_REP = "NaN"
@@ -63,11 +63,12 @@ TIMING_COLUMNS = ("study", "engine", "batch", "scene_hash", "members", "steps", 
                   "wall_per_member_s")
 
 
-def columns(n: int, measured: bool = False) -> list[str]:
+def columns(n: int, measured: bool = False, walled: bool = False) -> list[str]:
     """The table's columns: ``BASE_COLUMNS``, for a table of measured scenes the
-    vibrometer's ``MEASURED_COLUMNS`` (``granchain.measurement``), then one v_max per
-    particle."""
-    return list(BASE_COLUMNS) + (list(MEASURED_COLUMNS) if measured else []) + vmax_columns(n)
+    vibrometer's ``MEASURED_COLUMNS`` (``granchain.measurement``), for scenes with an end
+    wall its ``WALL_COLUMNS``, then one v_max per particle."""
+    return (list(BASE_COLUMNS) + (list(MEASURED_COLUMNS) if measured else [])
+            + (list(WALL_COLUMNS) if walled else []) + vmax_columns(n))
 
 
 def member_row(meta: dict, run: ChainResult, n: int) -> dict:
@@ -91,7 +92,7 @@ def member_row(meta: dict, run: ChainResult, n: int) -> dict:
         "scene_hash": meta["scene_hash"],
         "v_g_bound_eq54_m_s": math.nan,
     })
-    cols = columns(n, run.measured)
+    cols = columns(n, run.measured, run.walled)
     if set(row) != set(cols):
         raise ValueError(f"row columns differ from the table's: missing "
                          f"{sorted(set(cols) - set(row))}, extra {sorted(set(row) - set(cols))}")
@@ -102,9 +103,10 @@ def study_table(rows: list[dict], n: int) -> pd.DataFrame:
     """Rows as a DataFrame with exactly ``columns(n, measured)``, in order and with
     stable dtypes; measured: the rows carry the vibrometer's columns (all or none)."""
     measured = {MEASURED_COLUMNS[0] in r for r in rows}
-    if len(measured) > 1:
-        raise ValueError("a table mixes measured and unmeasured rows")
-    cols = columns(n, measured == {True})
+    walled = {WALL_COLUMNS[0] in r for r in rows}
+    if len(measured) > 1 or len(walled) > 1:
+        raise ValueError("a table mixes measured and unmeasured rows, or walled and free-end ones")
+    cols = columns(n, measured == {True}, walled == {True})
     df = pd.DataFrame(rows, columns=cols)
     for c in ("realisation", "seed", "steps", "force_evaluations"):
         df[c] = df[c].astype("int64")

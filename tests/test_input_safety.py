@@ -489,10 +489,11 @@ def test_results_are_frozen_typed_and_keep_their_json_and_row_layout():
     assert ledger == [*ENERGY_COLUMNS, "initial", "final_mechanical", "balance_error"]
     assert pickle.loads(pickle.dumps(run)) == run
     doc = run.to_json()
-    # an unmeasured run's JSON leaves the vibrometer's fields out (granchain.measurement)
-    from granchain.observables import MEASURED_FIELDS
+    # an unmeasured run's JSON leaves the vibrometer's fields out (granchain.measurement),
+    # a free-end run the end wall's
+    from granchain.observables import MEASURED_FIELDS, WALL_FIELDS
     assert list(doc) == [f.name for f in dataclasses.fields(ChainResult)
-                         if f.name not in MEASURED_FIELDS]
+                         if f.name not in MEASURED_FIELDS + WALL_FIELDS]
     assert list(doc["energy"]) == ledger and isinstance(doc["v_max"], list)
     assert doc["member"] == 0 and doc["engine"] == "reference" and doc["method"] == "rk4"
     # to_row: the run's columns; member_row adds the study's, in table order

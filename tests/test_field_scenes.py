@@ -1,0 +1,177 @@
+"""Scenes of the chains the field builds (spheres of their own size and material, a
+striker of its own, an end wall, a dead load): what a scene may say, what it refuses in
+one line, and that scenes using none of it are unchanged."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from granchain.errors import SceneError
+from granchain.materials import RIGID, effective_modulus, library
+from granchain.scene import hertz_constant, scene_from_dict
+from granchain.simulate import run_scene
+
+ALL = ["hertz", "rotation", "groove_friction", "air_drag", "particle_friction",
+       "rolling_friction"]
+
+
+def _refused(raw: dict) -> SceneError:
+    with pytest.raises(SceneError) as info:
+        scene_from_dict(dict(raw, name="bad"))
+    assert "\n" not in str(info.value)
+    return info.value
+
+
+@pytest.mark.parametrize("raw, field, words", [
+    ({"chain": {"n": 5, "radius": [1e-4, 1e-4]}, "probes": [2, 5]}, "chain.radius",
+     "has 2 entries but the chain has n = 5"),
+    ({"chain": {"n": 3, "radius": [1e-4, -1e-4, 1e-4]}, "probes": [2, 3]}, "chain.radius[1]",
+     "must be > 0"),
+    ({"chain": {"n": 3, "materials": ["ss440c", "bras", "ss440c"]}, "probes": [2, 3]},
+     "chain.materials[1]", "did you mean 'brass'"),
+    ({"chain": {"n": 3, "materials": ["ss440c"]}, "probes": [2, 3]}, "chain.materials",
+     "has 1 entries"),
+    ({"striker": {"velocity": 0.1, "radius": 0.0}}, "striker.radius", "must be > 0"),
+    ({"striker": {"velocity": 0.1, "material": "unobtainium"}}, "striker.material",
+     "unknown material"),
+    ({"walls": {"end": "rigd"}}, "walls.end", "did you mean 'rigid'"),
+    ({"walls": {"end": {"E": 2e11}}}, "walls.end.nu", "missing"),
+    ({"precompression": {"force": 0.01}}, "precompression.force", "needs an end wall"),
+    ({"precompression": {"force": -0.01}, "walls": {"end": "rigid"}}, "precompression.force",
+     "must be >= 0"),
+    ({"precompression": {"force": 0.01}, "walls": {"end": "rigid"},
+      "gaps": {"distribution": "fixed", "mean": 2e-8}}, "precompression.force", "gaps"),
+    ({"walls": {"end": "rigid"}, "integrator": {"method": "event"}}, "integrator.method",
+     "end wall"),
+])
+def test_bad_field_chain_inputs_are_refused_in_one_line(raw, field, words):
+    err = _refused(raw)
+    assert err.field == field and words in str(err), str(err)
+
+
+def test_new_keys_not_given_leave_the_spec_and_hash_unchanged():
+    """A scene that uses none of the new keys has the spec (and so the hash) it had before
+    they existed; each new key given changes the hash."""
+    base = scene_from_dict({})
+    assert set(base.spec) == {"name", "material", "chain", "striker", "gaps", "effects",
+                              "groove", "drag", "contact", "rolling", "probes", "integrator",
+                              "t_end", "output", "ensemble"}
+    assert base.spec["chain"] == {"n": 15, "radius": 150e-6}
+    assert base.spec["striker"] == {"velocity": 0.1}
+    # the hash of the default scene on the head before these keys existed
+    assert base.hash == "f36668771dcbdf3e"
+    for extra in ({"walls": {"end": "rigid"}}, {"striker": {"velocity": 0.1, "radius": 2e-4}},
+                  {"chain": {"n": 15, "materials": ["brass"] * 15}}):
+        assert scene_from_dict(extra).hash != base.hash
+
+
+# v_max of particle 13, its peak time and the balance error of five chapter scenes, on
+# the head before per-sphere parameters reached the kernels (every method, every effect):
+# the kernels now read each sphere's mass, radius and constants from per-chain rows, and
+# must give these numbers to the last bit.
+PREVIOUS_HEAD = {
+    "hertz": ({}, (0.06817145133652067, 9.024353935232954e-06, 6.256355021891258e-10)),
+    "rk4_all": ({"effects": ALL, "rolling": {"k_roll": 100.0},
+                 "gaps": {"distribution": "uniform", "mean": 20e-9},
+                 "ensemble": {"realisations": 3}},
+                (0.09242858764084441, 1.1819877634168376e-05, 2.7307263016372235e-09)),
+    "verlet_all": ({"effects": ALL[:5], "integrator": {"method": "verlet", "dt": 1e-9},
+                    "gaps": {"distribution": "uniform", "mean": 20e-9},
+                    "ensemble": {"realisations": 2}},
+                   (0.09242856494360384, 1.181987555727536e-05, 6.498681357130116e-07)),
+    "adaptive": ({"effects": ALL[:4], "integrator": {"method": "adaptive"},
+                  "gaps": {"distribution": "fixed", "mean": 20e-9}},
+                 (0.08872010208409718, 1.1607681410237037e-05, 1.3636022835111235e-07)),
+    "event": ({"effects": ALL[:5], "integrator": {"method": "event"},
+               "gaps": {"distribution": "uniform", "mean": 20e-9},
+               "ensemble": {"realisations": 2}},
+              (0.09242868894711803, 1.1819877100858192e-05, 5.801707486286597e-06)),
+}
+
+
+@pytest.mark.parametrize("case", sorted(PREVIOUS_HEAD))
+def test_chapter_scenes_give_bit_identical_results(case):
+    raw, expect = PREVIOUS_HEAD[case]
+    r = run_scene(scene_from_dict(dict(raw, name=case)))[0]
+    assert (r.v_max[12], r.t_peak[12], r.energy.balance_error) == expect
+
+
+def test_a_list_of_equal_spheres_is_the_chapter_chain():
+    """Radii and materials given per sphere, all equal to the chain's, run the chapter
+    chain bit for bit (same hash-independent physics)."""
+    plain = run_scene(scene_from_dict({"name": "a"}))[0]
+    listed = run_scene(scene_from_dict({"name": "b", "chain": {
+        "n": 15, "radius": [150e-6] * 15, "materials": ["ss440c"] * 15}}))[0]
+    assert plain.v_max == listed.v_max and plain.t_peak == listed.t_peak
+
+
+def test_contact_law_of_unequal_spheres_and_walls():
+    """K = (4/3) E* sqrt(R*), 1/E* = sum (1-nu^2)/E, R* = Ri Rj/(Ri+Rj); a flat wall R* = Ri;
+    a rigid wall adds no compliance; equal spheres give the chapter's E/(2(1-nu^2))."""
+    lib = library()
+    s, b = lib["ss440c"], lib["brass"]
+    Es = 1.0 / ((1 - s.nu**2) / s.E + (1 - b.nu**2) / b.E)
+    assert hertz_constant(s, 150e-6, b, 100e-6) == pytest.approx(
+        4 / 3 * Es * math.sqrt(150e-6 * 100e-6 / 250e-6), rel=1e-15)
+    assert hertz_constant(s, 150e-6, RIGID, math.inf) == pytest.approx(
+        4 / 3 * s.E / (1 - s.nu**2) * math.sqrt(150e-6), rel=1e-15)
+    assert effective_modulus(s, s) == s.E / (2 * (1 - s.nu**2))
+    sc = scene_from_dict({"name": "w", "walls": {"end": "ss440c"}})
+    assert sc.wall_k == pytest.approx(4 / 3 * s.E / (2 * (1 - s.nu**2)) * math.sqrt(150e-6),
+                                      rel=1e-15)
+
+
+def test_static_overlaps_hold_the_load_on_every_contact():
+    sc = scene_from_dict({"name": "p", "chain": {"n": 6, "radius": [150e-6, 100e-6] * 3},
+                          "probes": [2, 6], "walls": {"end": "brass"},
+                          "precompression": {"force": 0.02}})
+    inner, wall = sc.static_overlaps
+    assert inner[0] == 0.0                         # the striker only touches particle 2
+    for K, d in zip(sc.contact_k[1:], inner[1:]):
+        assert K * d**1.5 == pytest.approx(0.02, rel=1e-14)
+    assert sc.wall_k * wall**1.5 == pytest.approx(0.02, rel=1e-14)
+
+
+def test_precompressed_chain_at_rest_stays_at_rest():
+    """With no striker speed the preloaded chain sits in its static state: every sphere's
+    velocity stays below 1e-12 m/s over 20 us, and the wall carries F0."""
+    sc = scene_from_dict({"name": "rest", "chain": {"n": 10}, "probes": [2, 10],
+                          "walls": {"end": "ss440c"}, "precompression": {"force": 0.05},
+                          "striker": {"velocity": 0.0}, "t_end": 2e-5,
+                          "output": {"sample_dt": 1e-7}, "effects": ["hertz", "air_drag"]})
+    from granchain.engines import reference
+    from granchain.gaps import member_gaps, members
+    mem = members(sc)
+    traj = next(reference.run(sc, member_gaps(sc, mem), np.zeros(1)))
+    assert np.max(np.abs(traj.v)) < 1e-12
+    assert np.allclose(traj.wall_force, 0.05, rtol=1e-12)
+
+
+def test_every_material_names_its_source():
+    for name, mat in library().items():
+        assert mat.source, name
+    for name in ("brass", "al6061", "chrome_steel_52100", "tungsten_carbide", "ptfe",
+                 "soda_lime_glass"):
+        assert name in library()
+
+
+def test_wall_table_columns_and_json():
+    sc = scene_from_dict({"name": "w", "walls": {"end": "rigid"}})
+    r = run_scene(sc)[0]
+    doc = r.to_json()
+    assert doc["walled"] and doc["wall_peak_final"] and doc["wall_force_static"] == 0.0
+    assert doc["wall_force_max"] > 0 and doc["t_wall_peak"] > r.t_peak[13]
+    from granchain.tables import columns, member_row
+    meta = {"study": "s", "material": "ss440c", "gap_distribution": "none", "gap_mean_nm": 0.0,
+            "extra_length_um": 0.0, "seed": 0, "scene_hash": "h"}
+    row = member_row(meta, r, 15)
+    assert list(row) == columns(15, walled=True) and row["wall_force_max_N"] == r.wall_force_max
+
+
+def test_a_wall_peak_cut_off_by_t_end_is_not_reported():
+    """A fixed t_end that ends before the wall force has passed its peak: NaN, flagged."""
+    sc = scene_from_dict({"name": "cut", "walls": {"end": "rigid"}, "t_end": 1.0e-5})
+    r = run_scene(sc)[0]
+    assert not r.wall_peak_final and math.isnan(r.wall_force_max) and math.isnan(r.t_wall_peak)
