@@ -4,7 +4,9 @@
    External per-particle forces for 1D chains of spheres in a V-groove
    (chain along x, spheres roll about y; omega_y > 0 rolls a sphere in +x):
 
-   groove Coulomb friction (keyword "groove s S mu MU g G kt KT [gamma GAMMA]")
+   groove Coulomb friction (keyword "groove s S mu MU g G kt KT [gamma GAMMA]";
+   KT and GAMMA may instead name a per-atom property d_NAME of fix property/atom,
+   for spheres that differ in size or material)
      slip velocity of the sphere on the groove walls
        u = v_x - s*R*omega_y      (rotation yes)
        u = v_x                    (rotation no)
@@ -68,6 +70,7 @@ FixGrooveDrag::FixGrooveDrag(LAMMPS *lmp, int narg, char **arg) :
   rotation = 1;
   drag_form = DRAG_AS_PRINTED;
   sfac = mu = gravity = kt = gamma = t0 = lenL = 0.0;
+  kt_index = gamma_index = -1;
   work_local[0] = work_local[1] = 0.0;
   work_all[0] = work_all[1] = 0.0;
 
@@ -101,7 +104,15 @@ FixGrooveDrag::FixGrooveDrag(LAMMPS *lmp, int narg, char **arg) :
         } else break;
         if (*have) bad_arg(fmt::format("groove value '{}' given twice", key));
         if (iarg + 1 >= narg) bad_arg(fmt::format("groove value '{}' needs a number", key));
-        *dest = parse_positive(key, arg[iarg + 1], allow_zero);
+        if ((dest == &kt || dest == &gamma) && strncmp(arg[iarg + 1], "d_", 2) == 0) {
+          // a per-atom value: the custom property d_NAME (fix property/atom)
+          std::string &name = (dest == &kt) ? kt_name : gamma_name;
+          name = arg[iarg + 1] + 2;
+          if (name.empty())
+            bad_arg(fmt::format("groove value '{}' needs a property name after d_", key));
+        } else {
+          *dest = parse_positive(key, arg[iarg + 1], allow_zero);
+        }
         *have = 1;
         iarg += 2;
       }
@@ -238,6 +249,49 @@ void FixGrooveDrag::init()
                  "Fix groove/drag: 'rotation yes' needs atom attributes radius, omega, torque "
                  "(atom_style sphere)");
   }
+  kt_index = custom_index(kt_name, "kt");
+  gamma_index = custom_index(gamma_name, "gamma");
+}
+
+/* ----------------------------------------------------------------------
+   index of the per-atom double vector d_NAME (fix property/atom), -1 if the value is
+   a number
+------------------------------------------------------------------------- */
+
+int FixGrooveDrag::custom_index(const std::string &name, const char *key)
+{
+  if (name.empty()) return -1;
+  int flag = -1, cols = -1;
+  const int index = atom->find_custom(name.c_str(), flag, cols);
+  if (index < 0 || flag != 1 || cols != 0)
+    error->all(FLERR,
+               "Fix groove/drag: groove value '{}' names d_{}, which is not a per-atom "
+               "floating-point vector: define it with fix property/atom d_{} (before this fix)",
+               key, name, name);
+  return index;
+}
+
+/* ----------------------------------------------------------------------
+   per-atom kt must be > 0 and gamma >= 0 (finite) on every atom of the group
+------------------------------------------------------------------------- */
+
+void FixGrooveDrag::check_peratom()
+{
+  if (kt_index < 0 && gamma_index < 0) return;
+  const double *ktv = kt_index >= 0 ? atom->dvector[kt_index] : nullptr;
+  const double *gav = gamma_index >= 0 ? atom->dvector[gamma_index] : nullptr;
+  const int *mask = atom->mask;
+  int bad = 0;
+  for (int i = 0; i < atom->nlocal; i++) {
+    if (!(mask[i] & groupbit)) continue;
+    if (ktv && !(std::isfinite(ktv[i]) && ktv[i] > 0.0)) bad = 1;
+    if (gav && !(std::isfinite(gav[i]) && gav[i] >= 0.0)) bad = 1;
+  }
+  int any = 0;
+  MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, world);
+  if (any)
+    error->all(FLERR, "Fix groove/drag: a per-atom groove value is out of range on some atom "
+                      "(kt must be > 0, gamma >= 0, both finite)");
 }
 
 /* ----------------------------------------------------------------------
@@ -246,6 +300,7 @@ void FixGrooveDrag::init()
 
 void FixGrooveDrag::setup(int /*vflag*/)
 {
+  check_peratom();
   apply(0);
 }
 
@@ -278,6 +333,9 @@ void FixGrooveDrag::apply(int increment)
   const int nlocal = atom->nlocal;
   const double dt = update->dt;
   const int use_rot = groove_flag && rotation;
+  // per-atom stick spring and dashpot (d_NAME), or the fix's own values
+  const double *ktv = kt_index >= 0 ? atom->dvector[kt_index] : nullptr;
+  const double *gav = gamma_index >= 0 ? atom->dvector[gamma_index] : nullptr;
 
   for (int i = 0; i < nlocal; i++) {
     if (!(mask[i] & groupbit)) continue;
@@ -293,7 +351,9 @@ void FixGrooveDrag::apply(int increment)
       double &xi = peratom[i][0];
       if (increment) xi += u * dt;
 
-      double fg = -kt * xi - gamma * u;
+      const double kti = ktv ? ktv[i] : kt;
+      const double gai = gav ? gav[i] : gamma;
+      double fg = -kti * xi - gai * u;
       const double fc = mu * m * gravity / sfac;
       if (std::fabs(fg) > fc) {
         fg = std::copysign(fc, fg);    // sign of the trial force, not of a velocity
@@ -301,7 +361,7 @@ void FixGrooveDrag::apply(int increment)
         // linear_history we do not store the dashpot in the history: with
         // gamma*u >> Fc (fast slides) that would wind up a history which later
         // cancels the friction while the sphere still slides.
-        if (increment) xi = -fg / kt;
+        if (increment) xi = -fg / kti;
       }
 
       f[i][0] += fg;

@@ -15,6 +15,8 @@
 
 #include "fix.h"
 
+#include <string>
+
 namespace LAMMPS_NS {
 
 class FixGrooveDrag : public Fix {
@@ -60,6 +62,10 @@ class FixGrooveDrag : public Fix {
   double gravity;     // g
   double kt;          // stiffness of the groove tangential spring (force/distance)
   double gamma;       // optional dashpot in parallel with the spring (force/velocity)
+  // per-atom kt / gamma: names of fix property/atom vectors d_NAME ("" if a number)
+  // and their indices in atom->dvector (-1 if a number), resolved in init()
+  std::string kt_name, gamma_name;
+  int kt_index, gamma_index;
   double t0;          // drag time constant T0
   double lenL;        // drag length L
 
@@ -74,6 +80,8 @@ class FixGrooveDrag : public Fix {
   double work_all[2];
 
   void apply(int increment);
+  int custom_index(const std::string &name, const char *key);
+  void check_peratom();
   [[noreturn]] void bad_arg(const std::string &msg);
   double parse_positive(const char *key, const char *val, bool allow_zero);
 };
