@@ -14,6 +14,10 @@ Choices (also stated in the deck's comments):
   2R + skin, so no two chains ever share a neighbour-list pair.
 * Positions: x_1 = 0, x_{i+1} = x_i + 2R + g_i in um, evaluated left to right in
   floating point from R and g converted by :func:`to_micro`; written with ``repr``.
+* The field's chains (:mod:`granchain.lammps.field`): each sphere's own diameter and
+  density, an atom type per material with a ``pair_coeff`` per type pair, an end wall
+  (chains laid out right to left from the wall plane x = 0) and a dead load. A chain of
+  identical spheres with a free end and no load gives the same bytes as before.
 * Rotation off: ``fix nve`` (omega is never integrated and stays exactly 0); the
   tangential law is then ``linear_history 0.0 0.0 0.0`` (k_t = 0, mu = 0: the force
   -k_t xi is exactly zero, and the cap test 0 > 0 never fires, so no division by k_t).
@@ -67,8 +71,10 @@ from granchain.fileio import atomic_write_text, check_output_path
 from granchain.scene import NAME_RE, NAME_RULE, Scene
 from granchain.lammps.plan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, DECK_NAME,
                                    DUMP_COLUMNS, DUMP_NAME, ENERGY_NAME, LEDGER_BINARY_NAME,
-                                   LEDGER_INPUTS, LEDGER_NAME, OUTPUTS, WORK_COLUMNS, DeckPlan,
+                                   LEDGER_INPUTS, LEDGER_NAME, OUTPUTS, WALL_FORCE_COLUMN,
+                                   WORK_COLUMNS, DeckPlan,
                                    ledger_binary_columns, max_travel, plan)
+from granchain.lammps import field
 from granchain.lammps.units import MICRO_EXPONENT, lmp_float as _r, to_micro
 from granchain.schedule import ARRIVAL_FRACTION, arrival_speed
 
@@ -76,19 +82,18 @@ __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "wr
            "plan", "DeckPlan", "DECK_NAME", "DATA_NAME", "DUMP_NAME", "ENERGY_NAME",
            "LEDGER_NAME", "DUMP_COLUMNS", "WORK_COLUMNS", "LEDGER_INPUTS", "OUTPUTS",
            "BINARY_NAME", "LEDGER_BINARY_NAME", "BINARY_COLUMNS", "max_travel",
-           "ledger_binary_columns"]
+           "ledger_binary_columns", "WALL_FORCE_COLUMN", "field"]
 
 def template_path() -> Path:
     return Path(__file__).resolve().parents[2] / "lammps_inputs" / "templates" / "chain.lmp.in"
 
 
 def chain_positions(scene: Scene, gaps) -> np.ndarray:
-    """x (um) of the n spheres of one chain: x_1 = 0, x_{i+1} = x_i + 2R + g_i."""
-    R = to_micro(scene.radius, "length")
-    x = [0.0]
-    for g in np.asarray(gaps, dtype=float):
-        x.append(x[-1] + 2.0 * R + to_micro(float(g), "length"))
-    return np.array(x)
+    """x (um) of the n spheres of one chain with gaps (n-1,) in m: x_1 = 0,
+    x_{i+1} = x_i + (R_i + R_{i+1}) + g_i (2R + g_i for equal spheres); with an end wall,
+    right to left from the wall plane x = 0 through the static overlaps
+    (:func:`granchain.lammps.field.positions`)."""
+    return field.positions(field.spheres(physics_terms(scene)), gaps)
 
 
 def _id_ranges(ids) -> str:
@@ -122,18 +127,24 @@ def _ledger_block(scene: Scene, pl: DeckPlan) -> str:
     notes = {"kinetic_rotational": "rotational kinetic energy (compute erotate/sphere/atom)",
              "work_groove_friction": f"cumulative work of the groove friction "
                                      f"({WORK_COLUMNS['groove_friction']})",
-             "work_air_drag": f"cumulative work of the air drag ({WORK_COLUMNS['air_drag']})"}
+             "work_air_drag": f"cumulative work of the air drag ({WORK_COLUMNS['air_drag']})",
+             WALL_FORCE_COLUMN: f"x force of the end wall on the last sphere "
+                                f"({field.WALL_FORCE_INPUT}, 1e-9 N)"}
     inputs = [LEDGER_INPUTS[eff][1] for eff in LEDGER_INPUTS if scene.has(eff)]
+    if WALL_FORCE_COLUMN in pl.ledger_columns:
+        inputs.append(field.WALL_FORCE_INPUT)
+    units = "1e-15 J" if WALL_FORCE_COLUMN not in pl.ledger_columns else "1e-15 J unless noted"
     k = len(inputs)
     values = 'c_ledger[*]' if k > 1 else 'c_ledger'
     if pl.output == "dump":
         lines = [f"# per-chain energy ledger ({LEDGER_NAME}): at every sample, one row per chain "
-                 "(row b+1 =", "# chain b), each column the sum over the chain's atoms (1e-15 J) of:"]
+                 "(row b+1 =", f"# chain b), each column the sum over the chain's atoms ({units}) "
+                 "of:"]
     else:
         lines = [f"# per-chain energy ledger ({LEDGER_BINARY_NAME}, LAMMPS binary dump): at every "
                  "sample, the sums", "# over each chain's atoms are spread onto its atoms (compute "
                  "chunk/spread/atom) and", "# dumped for the chain's first atom (group heads, "
-                 f"ids b*{pl.n}+1), sorted by id; column j+1 (1e-15 J):"]
+                 f"ids b*{pl.n}+1), sorted by id; column j+1 ({units}):"]
     lines += [f"#   {j + 1}: {notes[c]}" for j, c in enumerate(pl.ledger_columns)]
     lines += [f'variable        chain atom "floor((id-1)/{pl.n})+1"',
               "compute         chain all chunk/atom v_chain nchunk once ids once compress no"]
@@ -177,24 +188,42 @@ def _trajectory_block(pl: DeckPlan, spacing: str) -> str:
             "'dump' or\n# 'binary' to read the chains back)")
 
 
-def _halt_block(n: int, vs: np.ndarray, every: int) -> str:
+def _halt_block(n: int, vs: np.ndarray, every: int, x_last: str | None = None) -> str:
     """Deck lines of the t_end auto stop rule (granchain.schedule): halt at the first
-    sample at which the last particle of every moving chain has left. Chains are grouped
-    by striker speed, each group with its own arrival speed, as the engines apply it."""
+    sample at which the wave has left every moving chain. Free end: its last particle
+    moves forward faster than the arrival speed with no contact left; end wall: its last
+    particle moves back from the wall faster than the arrival speed and is back at or
+    behind its initial position x_last (um, as written in chain.data: the same in every
+    chain). Chains are grouped by striker speed, each group with its own arrival speed,
+    as the engines apply it."""
+    wall = x_last is not None
     speeds = sorted({float(v) for v in vs if v > 0})
-    lines = [
-        "# t_end auto: stop at the first sample at which the wave has left every moving chain:",
-        f"# the chain's last particle (particle {n}) moves faster than {ARRIVAL_FRACTION:g} x its",
-        "# striker speed and has no contact left (compute contact/atom = 0), the stop rule of",
-        "# the reference engine. One group of last particles per striker speed.",
-        "compute         contacts all contact/atom",
-    ]
+    if wall:
+        lines = [
+            "# t_end auto: stop at the first sample at which the wave has left every moving "
+            "chain:",
+            f"# the chain's last particle (particle {n}) moves back from the end wall faster "
+            f"than {ARRIVAL_FRACTION:g} x",
+            f"# its striker speed and is back at or behind its initial x = {x_last} um (the wave "
+            "has",
+            "# reflected and the wall force is back at its static value), the stop rule of the",
+            "# reference engine. One group of last particles per striker speed.",
+        ]
+    else:
+        lines = [
+            "# t_end auto: stop at the first sample at which the wave has left every moving chain:",
+            f"# the chain's last particle (particle {n}) moves faster than {ARRIVAL_FRACTION:g} x its",
+            "# striker speed and has no contact left (compute contact/atom = 0), the stop rule of",
+            "# the reference engine. One group of last particles per striker speed.",
+            "compute         contacts all contact/atom",
+        ]
     waiting = []
     for k, v in enumerate(speeds, start=1):
         ids = [b * n + n for b in range(len(vs)) if float(vs[b]) == v]
         thr = _r(to_micro(arrival_speed(v), "velocity"))
+        rule = f"!((vx<-{thr})&&(x<={x_last}))" if wall else f"!((vx>{thr})&&(c_contacts==0))"
         lines += [f"group           last{k} id {_id_ranges(ids)}",
-                  f'variable        waiting{k} atom "!((vx>{thr})&&(c_contacts==0))"',
+                  f'variable        waiting{k} atom "{rule}"',
                   f"compute         nwaiting{k} last{k} reduce sum v_waiting{k}"]
         waiting.append(f"c_nwaiting{k}")
     lines += [f'variable        nwaiting equal "{"+".join(waiting)}"',
@@ -221,10 +250,9 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
     gaps, vs = pl.gaps, pl.v_striker
     B, n = gaps.shape[0], scene.n
 
-    L = lambda v: to_micro(v, "length")  # noqa: E731
-    R = L(terms.R)
+    sp = field.spheres(terms)
+    R = max(sp.radii)           # the largest sphere sets the skin and the chain spacing
     D = 2.0 * R
-    rho = to_micro(scene.material.rho, "density")
     dt = to_micro(scene.dt, "time")
     skin = 0.1 * R
     spacing = 4.0 * R
@@ -235,13 +263,13 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
     t_run_us = nsteps * dt
 
     # ---- positions, velocities, box --------------------------------------------------
-    xs = [chain_positions(scene, gaps[b]) for b in range(B)]
+    xs = [field.positions(sp, gaps[b]) for b in range(B)]
     # no sphere can leave the box: each side has room for twice the farthest any sphere
     # can travel in the run (max_travel: the fastest striker, sped up by a propulsive
     # air drag) plus a diameter
     vmax = float(vs.max()) if B else 0.0
     margin = 2.0 * to_micro(max_travel(scene, vmax, pl.t_run), "length") + 2.0 * D
-    xlo = -R - margin
+    xlo = min(float(x[0]) for x in xs) - R - margin if B else -R - margin
     xhi = max(float(x[-1]) for x in xs) + R + margin
     ylo, yhi = -spacing, B * spacing
     zlo, zhi = -D, D
@@ -250,7 +278,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
             "spheres; atom-ID type diameter density x y z (micro units)",
             "",
             f"{B * n} atoms",
-            "1 atom types",
+            f"{sp.ntypes} atom types",
             "",
             f"{_r(xlo)} {_r(xhi)} xlo xhi",
             f"{_r(ylo)} {_r(yhi)} ylo yhi",
@@ -258,24 +286,31 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
             "",
             "Atoms # sphere",
             ""]
+    cols = [f"{t} {_r(2.0 * r)} {_r(rho)}" for t, r, rho in zip(sp.types, sp.radii, sp.densities)]
     for b in range(B):
         y = b * spacing
         for i in range(n):
-            data.append(f"{b * n + i + 1} 1 {_r(D)} {_r(rho)} {_r(xs[b][i])} {_r(y)} 0.0")
+            data.append(f"{b * n + i + 1} {cols[i]} {_r(xs[b][i])} {_r(y)} 0.0")
     data += ["", "Velocities", ""]
     for b in range(B):
         for i in range(n):
             vx = to_micro(float(vs[b]), "velocity") if i == 0 else 0.0
             data.append(f"{b * n + i + 1} {_r(vx)} 0.0 0.0 0.0 0.0 0.0")
+    groove_each = field.groove_per_sphere(terms)
+    if groove_each:
+        data += field.groove_section(terms, B)
     data_text = "\n".join(data) + "\n"
 
     # ---- physics from the terms ------------------------------------------------------
     pairs = [hertz.lammps_pair(terms.hertz), particle_friction.lammps_pair(terms.particle_friction)]
     if terms.rolling_friction is not None:
         pairs.append(rolling_friction.lammps_pair(terms.rolling_friction))
-    pair_comment = [c for c, _ in pairs]
-    parts = [p for _, p in pairs]
-    pair_coeff = "\n".join(pair_comment) + "\n" + " &\n                ".join(parts)
+    if sp.ntypes == 1:
+        pair_comment = [c for c, _ in pairs]
+        parts = [p for _, p in pairs]
+        pair_coeff = "\n".join(pair_comment) + "\n" + " &\n                ".join(parts)
+    else:
+        pair_coeff = field.pair_coeff(terms, sp, pairs[1:])
 
     rot = terms.rotation is not None
     gf, ad = terms.groove_friction, terms.air_drag
@@ -289,6 +324,9 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
                            f"variable        plugin index {plugin}")
         fixes = ([groove_friction.lammps_fix(gf)] if gf is not None else []) + \
             ([air_drag.lammps_fix(ad)] if ad is not None else [])
+        if groove_each:
+            fixes[0] = (fixes[0][0] + "; kt and gamma each sphere's own",
+                        field.groove_fix_args(fixes[0][1]))
         notes = [c for c, _ in fixes]
         args = [a for _, a in fixes]
         args.append(f"rotation {'yes' if rot else 'no'}")
@@ -315,16 +353,29 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
     ledger_note += " (energy 1e-15 J)"
 
     if pl.auto:
-        halt = _halt_block(n, vs, every)
+        halt = _halt_block(n, vs, every, x_last=None if sp.wall is None else _r(xs[0][-1]))
     else:
         halt = "# (t_end given: the run has a fixed length)"
 
-    mass_expected = to_micro(scene.mass, "mass")
+    mass_expected = to_micro(terms.chain.masses[0], "mass")
+    if sp.uniform:
+        atoms_note = (f"diameter {_r(D)} um, density {_r(sp.densities[0])} pg/um^3 (rmass = 4/3 pi "
+                      "r^3 rho)")
+    else:
+        atoms_note = ("each sphere's own diameter and density (chain.data; rmass = 4/3 pi r^3 "
+                      "rho)")
+    read_data_fix = ""
+    if groove_each:
+        props, read_data_fix = field.groove_property_fix()
+        atoms_note += props
     subs = dict(
         name=scene.name, scene_hash=scene.hash, n_chains=B, n=n, spacing=_r(spacing),
         min_spacing=_r(D + skin), effects=", ".join(sorted(scene.effects)),
-        plugin_variable=plugin_variable, diameter=_r(D), density=_r(rho), skin=_r(skin),
+        plugin_variable=plugin_variable, atoms_note=atoms_note, read_data_fix=read_data_fix,
+        skin=_r(skin),
+        mass_note="scene.mass" if not terms.chain.heterogeneous else "the striker's mass",
         mass_expected=f"{mass_expected:.17g}", pair_coeff=pair_coeff, groove_fix=groove_fix,
+        end_fixes=field.end_fixes(terms, sp, B, _id_ranges),
         integrator=integrator, timestep=_r(dt), nsteps=nsteps, t_run=_r(t_run_us),
         t_run_note=t_note, every=every, sample_us=f"{every * dt:.15g}",
         sample_note="round(sample_interval/dt) of the reference engine, finest member",

@@ -44,6 +44,10 @@ LEDGER_INPUTS = {name: (spec.work or "kinetic_rotational", spec.lammps_ledger)
 # the per-atom cumulative works of the effects LAMMPS reports
 WORK_COLUMNS = {name: spec.lammps_ledger for name, spec in SPECS.items()
                 if spec.work and spec.lammps_ledger}
+# the per-chain ledger's column of a chain with an end wall: the x force of the wall on
+# the chain's last sphere (fix wall/gran's per-atom 'contacts' output, force units), after
+# the energy columns
+WALL_FORCE_COLUMN = "wall_force"
 
 def batch_members(scene: Scene, gaps, v_striker):
     if gaps is None and v_striker is None:
@@ -116,6 +120,7 @@ class DeckPlan:
     output: str                # one of OUTPUTS
     dump_columns: tuple[str, ...]   # columns of the trajectory file (() if output "none")
     ledger_columns: tuple[str, ...]   # ENERGY_COLUMNS entries of ledger.txt, in order
+    #                                   (and WALL_FORCE_COLUMN last with an end wall)
     gaps: np.ndarray           # (B, n-1) m
     v_striker: np.ndarray      # (B,) m/s
 
@@ -159,6 +164,8 @@ def plan(scene: Scene, *, gaps=None, v_striker=None, output: str = "dump") -> De
     nsamples = int(math.ceil(t_si / sdt - 1e-9)) if t_si > 0 else 0
     nsteps = nsamples * every
     ledger = tuple(col for eff, (col, _) in LEDGER_INPUTS.items() if scene.has(eff))
+    if scene.wall is not None:
+        ledger += (WALL_FORCE_COLUMN,)
     return DeckPlan(n_chains=B, n=scene.n, every=every, nsteps=nsteps, sample_dt=sdt,
                     dt=scene.dt, t_run=nsteps * scene.dt, auto=auto and nsteps > 0,
                     t_note=t_note, output=output,

@@ -1,0 +1,248 @@
+"""What the field's chains add to a LAMMPS deck: spheres of their own size and material,
+an end wall and a dead load (docs/lammps_laws.md section 11).
+
+All of it comes from the chain record of :func:`granchain.effects.physics_terms`
+(``terms.chain``, SI) and is converted once with :func:`~granchain.lammps.units.to_micro`.
+A chain of identical spheres with a free end and no load gives the deck and data file
+of the chapter's chain byte for byte (one atom type, ``pair_coeff * *``, x_1 = 0).
+
+* Sizes and densities: per atom, in the data file (``atom_style sphere``: diameter and
+  density; LAMMPS sets rmass = 4/3 pi r^3 rho). Geometry needs no atom type: pair
+  granular takes R_i, R_j and R* = R_i R_j/(R_i + R_j) from the atoms.
+* Materials: one atom type per distinct (E, nu), numbered in order of first appearance
+  from the striker on. Every type pair gets its own ``pair_coeff I J``: I = J the
+  type's own ``hertz/material E 0 nu`` (LAMMPS: E* = E/(2(1 - nu^2))); I != J
+  ``hertz/material 2E* 0 0`` with 1/E* = (1 - nu_I^2)/E_I + (1 - nu_J^2)/E_J, which
+  LAMMPS's one-material formula turns back into E*. LAMMPS's automatic mixing would get
+  the Hertz E* right too (``mix_stiffnessE``), but ``tangential mindlin NULL`` then
+  derives its stiffness from the mixed E* and the geometric mean of nu, not from the two
+  materials: an unlike pair with Mindlin friction gets its k = 8 G* explicitly,
+  1/G* = 2(2 - nu_I)(1 + nu_I)/E_I + 2(2 - nu_J)(1 + nu_J)/E_J (``mix_stiffnessG``).
+* End wall: one ``fix wall/gran ... xplane NULL 0.0`` on the last sphere of every chain.
+  Chains with an end wall are laid out right to left from the plane x = 0, so that the
+  wall touches the last sphere of every chain of an ensemble whatever its gaps. The
+  wall's law has no second material: ``hertz/material E 0 nu`` gives
+  E* = E/(2(1 - nu^2)) and R* = R_n, so the fix gets E = 2 E*_w, nu = 0 with
+  1/E*_w = (1 - nu_n^2)/E_n + (1 - nu_w^2)/E_w (a rigid wall: 1/E_w = 0). Its per-atom
+  output (``contacts``) holds the wall's force on the sphere, summed per chain into the
+  per-chain ledger.
+* Dead load: ``fix addforce`` F0 along +x on particle 2 of every chain; the data file's
+  positions hold the static overlaps (F0/K_k)^(2/3) of every contact from particle 2 to
+  the wall (the striker touches particle 2 at zero overlap).
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from granchain.lammps.units import lmp_float as _r, to_micro
+from granchain.materials import effective_modulus
+
+WALL_FIX = "wall"                    # fix ID of the end wall
+WALL_FORCE_INPUT = f"f_{WALL_FIX}[2]"   # its per-atom x force on the sphere (contacts col. 2)
+WALL_X = 0.0                         # um: the wall plane of a chain with an end wall
+# per-sphere groove stick springs: fix property/atom vectors, read from the data file
+GROOVE_PROPS = "groove_props"        # its fix ID
+GROOVE_SECTION = "Groove"            # chain.data section: atom-ID kt gamma
+
+
+def shear_mix(a, b) -> float:
+    """G* (Pa) of LAMMPS's ``mix_stiffnessG`` for materials a and b:
+    1/G* = 2(2 - nu_a)(1 + nu_a)/E_a + 2(2 - nu_b)(1 + nu_b)/E_b (Mindlin's k_t = 8 G* a)."""
+    return 1.0 / (2.0 * (2.0 - a.nu) * (1.0 + a.nu) / a.E + 2.0 * (2.0 - b.nu) * (1.0 + b.nu) / b.E)
+
+
+@dataclass(frozen=True)
+class Spheres:
+    """The spheres of one chain as the deck writes them (micro units)."""
+    radii: tuple[float, ...]          # um, particle 1 (the striker) first
+    densities: tuple[float, ...]      # pg/um^3
+    types: tuple[int, ...]            # atom type of each sphere (1-based)
+    type_materials: tuple             # Material of each atom type
+    wall: object                      # Material of the end wall, or None
+    load: float                       # dead load on particle 2 (1e-9 N), 0: none
+    static_overlap: tuple[float, ...]  # um, each contact at t = 0
+    wall_overlap: float               # um
+
+    @property
+    def n(self) -> int:
+        return len(self.radii)
+
+    @property
+    def ntypes(self) -> int:
+        return len(self.type_materials)
+
+    @property
+    def uniform(self) -> bool:
+        """One radius and one density: the deck's comments can name them."""
+        return len(set(self.radii)) == 1 and len(set(self.densities)) == 1
+
+    @property
+    def field(self) -> bool:
+        """Anything beyond the chapter's chain (sizes, materials, wall, load)?"""
+        return not self.uniform or self.ntypes > 1 or self.wall is not None or self.load > 0
+
+
+def spheres(terms) -> Spheres:
+    """The spheres of the scene's chain (``terms.chain``) in micro units."""
+    ch = terms.chain
+    key_of = [(m.E, m.nu) for m in ch.materials]
+    keys: list = []
+    mats: list = []
+    for k, m in zip(key_of, ch.materials):
+        if k not in keys:
+            keys.append(k)
+            mats.append(m)
+    L = lambda v: to_micro(v, "length")  # noqa: E731
+    return Spheres(radii=tuple(L(r) for r in ch.radii),
+                   densities=tuple(to_micro(m.rho, "density") for m in ch.materials),
+                   types=tuple(keys.index(k) + 1 for k in key_of), type_materials=tuple(mats),
+                   wall=ch.wall, load=to_micro(ch.load, "force") if ch.load > 0 else 0.0,
+                   static_overlap=tuple(L(s) for s in ch.static_overlap),
+                   wall_overlap=L(ch.wall_overlap))
+
+
+def positions(sp: Spheres, gaps) -> np.ndarray:
+    """x (um) of the n spheres of one chain with gaps (n-1,) in m.
+
+    Free end: x_1 = 0, x_{i+1} = x_i + (R_i + R_{i+1}) + g_i, left to right (for equal
+    spheres exactly the chapter chain's x_i + 2R + g_i). End wall: right to left from
+    the wall plane x = 0, x_n = -(R_n - w_0), x_i = x_{i+1} - ((R_i + R_{i+1} - s_i) + g_i),
+    with s_i the static overlap of contact i and w_0 the wall's."""
+    R = sp.radii
+    g = [to_micro(float(v), "length") for v in np.asarray(gaps, dtype=float)]
+    n = len(R)
+    if sp.wall is None:
+        x = [0.0]
+        for i in range(n - 1):
+            x.append(x[-1] + (R[i] + R[i + 1]) + g[i])
+        return np.array(x)
+    x = [WALL_X - (R[-1] - sp.wall_overlap)]
+    for i in range(n - 2, -1, -1):
+        x.append(x[-1] - ((R[i] + R[i + 1] - sp.static_overlap[i]) + g[i]))
+    return np.array(x[::-1])
+
+
+def pair_coeff(terms, sp: Spheres, parts: list[tuple[str, str]]) -> str:
+    """The deck's pair_coeff lines for a chain of several materials (sp.ntypes > 1).
+
+    parts: the effects' (comment, pair_coeff part) after the normal law (tangential,
+    rolling), as for the one-material line; the tangential part of an unlike pair with
+    Mindlin friction is replaced by its explicit stiffness."""
+    pf = terms.particle_friction
+    mindlin = pf is not None and pf.model == "mindlin"
+    lines = ["# pair_coeff I J per pair of atom types (materials below): hertz/material E eta_n0 "
+             "nu with",
+             "# eta_n0 = 0 (no damping; 'damping viscoelastic' is then exactly zero). I = J: the "
+             "type's",
+             "# own E and nu (LAMMPS: E* = E/(2(1-nu^2))). I != J: E = 2 E*_IJ, nu = 0, with",
+             "# 1/E*_IJ = (1-nu_I^2)/E_I + (1-nu_J^2)/E_J, which LAMMPS's one-material formula "
+             "turns",
+             "# back into E*_IJ (docs/lammps_laws.md section 11)."]
+    if mindlin:
+        lines += ["# Mindlin stiffness of an unlike pair given explicitly, k = 8 G*_IJ with "
+                  "1/G*_IJ =",
+                  "# 2(2-nu_I)(1+nu_I)/E_I + 2(2-nu_J)(1+nu_J)/E_J (LAMMPS's own mixing would "
+                  "derive it",
+                  "# from the mixed E*_IJ)."]
+    for t, m in enumerate(sp.type_materials, start=1):
+        lines.append(f"# type {t}: {m.name} (E {_r(m.E)} Pa, nu {_r(m.nu)})")
+    lines += [c for c, _ in parts]
+    mats = sp.type_materials
+    for i in range(1, sp.ntypes + 1):
+        for j in range(i, sp.ntypes + 1):
+            a, b = mats[i - 1], mats[j - 1]
+            if i == j:
+                normal = f"hertz/material {_r(to_micro(a.E, 'pressure'))} 0.0 {_r(a.nu)}"
+            else:
+                normal = (f"hertz/material {_r(to_micro(2.0 * effective_modulus(a, b), 'pressure'))}"
+                          " 0.0 0.0")
+            rest = [p for _, p in parts]
+            if mindlin and i != j:
+                rest[0] = (f"tangential mindlin {_r(to_micro(8.0 * shear_mix(a, b), 'pressure'))} "
+                           f"0.0 {_r(pf.mu)}")
+            lines.append(f"pair_coeff      {i} {j} " + " &\n                ".join(
+                [f"{normal} damping viscoelastic"] + rest))
+    return "\n".join(lines)
+
+
+def wall_modulus(terms) -> float:
+    """E*_w (Pa) of the last sphere on the end wall."""
+    ch = terms.chain
+    return effective_modulus(ch.materials[-1], ch.wall)
+
+
+def end_fixes(terms, sp: Spheres, n_chains: int, id_ranges) -> str:
+    """Deck lines of the end wall and the dead load ('' for neither); id_ranges formats
+    an atom id list."""
+    if sp.wall is None and sp.load <= 0:
+        return ""
+    n = sp.n
+    out = []
+    if sp.wall is not None:
+        w = sp.wall
+        Ew = wall_modulus(terms)
+        kind = "rigid, 1/E_w = 0" if math.isinf(w.E) else f"{w.name}: E {_r(w.E)} Pa, nu {_r(w.nu)}"
+        out += [
+            f"# end wall ({kind}): the plane x = {_r(WALL_X)} touches the last sphere "
+            "of every chain",
+            "# (chains are laid out right to left from it). fix wall/gran hertz/material E 0 nu "
+            "gives",
+            "# E* = E/(2(1-nu^2)) and R* = R_n (the wall takes the fix's own material): E = "
+            "2 E*_w, nu = 0,",
+            f"# 1/E*_w = (1-nu_n^2)/E_n + (1-nu_w^2)/E_w, E*_w = {_r(Ew)} Pa. No tangential "
+            "force at the wall.",
+            "# 'contacts': per-atom wall force (f_wall[2] = its x component on the sphere).",
+            f"group           lasts id {id_ranges([b * n + n for b in range(n_chains)])}",
+            f"fix             {WALL_FIX} lasts wall/gran granular hertz/material "
+            f"{_r(to_micro(2.0 * Ew, 'pressure'))} 0.0 0.0 damping viscoelastic &",
+            "                tangential linear_history 0.0 0.0 0.0 "
+            f"xplane NULL {_r(WALL_X)} contacts"]
+    if sp.load > 0:
+        out += [
+            f"# dead load (precompression): F0 = {_r(terms.chain.load)} N on particle 2 of every "
+            "chain, toward",
+            "# the end wall (+x); chain.data holds the static overlaps (F0/K)^(2/3) it causes",
+            f"group           second id {id_ranges([b * n + 2 for b in range(n_chains)])}",
+            f"fix             load second addforce {_r(sp.load)} 0.0 0.0"]
+    return "\n" + "\n".join(out) + "\n"
+
+
+def groove_per_sphere(terms) -> bool:
+    """Do the spheres' groove stick springs differ (``groove_friction.kt_each``,
+    ``gamma_each``: each sphere's mass, radius and material)? Then fix groove/drag reads
+    kt and gamma per atom (d_groove_kt, d_groove_gamma of fix property/atom, from the
+    data file's Groove section); else it gets the one value of every sphere."""
+    gf = terms.groove_friction
+    return gf is not None and (len(set(gf.kt_each)) > 1 or len(set(gf.gamma_each)) > 1)
+
+
+def groove_fix_args(args: str) -> str:
+    """fix groove/drag arguments with kt and gamma read per atom."""
+    out, k = re.subn(r"\bkt \S+ gamma \S+", "kt d_groove_kt gamma d_groove_gamma", args)
+    assert k == 1, args
+    return out
+
+
+def groove_property_fix() -> tuple[str, str]:
+    """(deck lines before read_data, read_data suffix) of the per-sphere groove springs."""
+    return ("\n# per-sphere groove stick spring kt (1e-3 N/m) and dashpot gamma (1e-9 kg/s), read "
+            f"from\n# chain.data's {GROOVE_SECTION} section (fix groove/drag kt d_groove_kt gamma "
+            f"d_groove_gamma)\nfix             {GROOVE_PROPS} all property/atom d_groove_kt "
+            "d_groove_gamma",
+            f" fix {GROOVE_PROPS} NULL {GROOVE_SECTION}")
+
+
+def groove_section(terms, n_chains: int) -> list[str]:
+    """chain.data lines of the Groove section: atom-ID kt gamma of every sphere."""
+    gf = terms.groove_friction
+    vals = [f"{_r(to_micro(k, 'stiffness'))} {_r(to_micro(g, 'damping'))}"
+            for k, g in zip(gf.kt_each, gf.gamma_each)]
+    n = len(vals)
+    lines = ["", GROOVE_SECTION, ""]
+    for b in range(n_chains):
+        lines += [f"{b * n + i + 1} {vals[i]}" for i in range(n)]
+    return lines
