@@ -98,6 +98,8 @@ MAX_FILTER_ORDER = 10
 # Fewest integration steps that must fit in the shortest Hertz collision of a scene (the
 # step guard; the accuracy study's coarsest setting).
 MIN_STEPS_PER_CONTACT = 20
+# The longest chain a scene may describe (each sphere has its own radius and material)
+MAX_SPHERES = 1_000_000
 # Fewest samples per solitary-wave width that output.sample_dt must give:
 # MIN_SAMPLES_PER_PULSE (granchain/guards.py).
 
@@ -659,8 +661,8 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     name = check_name(spec["name"], "name") if spec["name"] is not None else "scene"
     material = _material(spec["material"])
 
-    n = _num(spec, "chain.n", integer=True, lo=3,
-             fix="a chain needs at least 3 particles (the striker and two probes)")
+    n = _num(spec, "chain.n", integer=True, lo=3, hi=MAX_SPHERES,
+             fix=f"a chain has from 3 particles (the striker and two probes) to {MAX_SPHERES}")
     radii, materials = _chain_spheres(spec, n, material)
     radius = radii[1]
     if spec["chain"].get("materials") is not None:

@@ -41,7 +41,7 @@ SAMPLES_PER_PULSE = 400    # auto sampling: samples per solitary-wave width
 DEFAULT_MAX_STEPS = 1e8
 DEFAULT_MAX_MEMORY_GB = 4.0
 # columns of a chain's sample record besides the n velocities (kernels.E_LEN)
-RECORD_EXTRA_COLUMNS = 10
+RECORD_EXTRA_COLUMNS = 9
 ARRIVAL_FRACTION = 1e-3    # a particle has seen the wave once v > ARRIVAL_FRACTION * v_s
 PASS_FRACTION = 0.5        # the wave has passed an inner particle once v < this * its peak
 PEAK_TOL = 1e-4            # a peak: samples within PEAK_TOL of the maximum (observables.peak)

@@ -785,7 +785,7 @@ def test_auto_duration_covers_the_whole_chain():
     assert schedule.expected_duration(sc, v) == pytest.approx(travel + 14 * 1e-8 / v)
     est = schedule.cost_estimate(sc, v)
     assert est["steps"] == pytest.approx(est["duration_s"] / sc.dt)
-    assert est["record_bytes"] == pytest.approx(est["samples"] * (15 + 8) * 8)
+    assert est["record_bytes"] == pytest.approx(est["samples"] * (15 + 9) * 8)
 
 
 def test_workflow_presets_pass_the_default_limits():

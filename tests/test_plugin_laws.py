@@ -37,7 +37,7 @@ import pytest
 
 from granchain.effects import physics_terms
 from granchain.engines import kernels as K
-from granchain.engines.reference import Layout, pack
+from granchain.engines.reference import Layout, chain_rows, pack
 from granchain.lammps import build_plugin, run_lammps
 from granchain.lammps.deck import render
 from granchain.lammps.units import to_micro
@@ -135,12 +135,13 @@ def run_reference(sc, states, steps: int, every: int) -> Run:
     chains as one chain of 3B spheres GAP apart (sphere 3b+1 is chain b's striker), which
     is the same physics, integrated in one pass."""
     B = len(states)
-    terms = physics_terms(dataclasses.replace(sc, n=3 * B))
+    terms = physics_terms(dataclasses.replace(sc, n=3 * B, radii=(sc.radius,) * (3 * B),
+                                              materials=(sc.material,) * (3 * B)))
     lay = Layout.of(terms)
     P, FL = pack(terms)
     LO = lay.LO
-    gaps = np.full(3 * B - 1, GAP)
-    f = np.zeros(3 * B - 1)
+    gaps = chain_rows(terms, np.full(3 * B - 1, GAP))[0]   # the kernels' per-chain rows
+    f = np.zeros(3 * B)
     ks = [np.zeros(lay.ny) for _ in range(5)]
     y = np.zeros(lay.ny)
     for b, (v0, w0) in enumerate(states):
