@@ -29,9 +29,13 @@ that would cost; see docs/lammps_engine.md).
 Energy ledger per chain (columns of ``granchain.trajectory.ENERGY_COLUMNS``), at every
 sample:
 
-* kinetic translational 1/2 m sum v^2 (SI m of ``granchain.effects``) from the dumped vx;
-* Hertz potential per contact, ``effects.Hertz.energy`` of delta = 2R - (x_{k+1} - x_k),
-  the float64 positions LAMMPS integrates;
+* kinetic translational 1/2 sum m_i v_i^2 (each sphere's SI mass, ``terms.chain``) from
+  the dumped vx;
+* Hertz potential per contact, (2/5) K_k delta^(5/2) (the law of ``effects.hertz``, each
+  contact's own K_k) of delta = (R_k + R_{k+1}) - (x_{k+1} - x_k), the float64 positions
+  LAMMPS integrates, plus the end wall's (2/5) K_w delta_w^(5/2), delta_w = x_n + R_n
+  (the wall plane is x = 0);
+* the work of the dead load F0 (x_2 - x_2(0)) (``work_load``), from the dumped x;
 * kinetic rotational and the works of the groove friction and of the air drag: summed
   per chain inside LAMMPS (``compute chunk/atom`` + ``reduce/chunk`` of
   ``erotate/sphere/atom`` and of the per-atom cumulative works of ``fix groove/drag``),
@@ -42,6 +46,11 @@ sample:
   output in LAMMPS: their sum is reported as the residual of the energy balance in
   ``work_particle_friction`` and ``work_rolling_friction`` is 0. Such a ledger balances
   by construction: ``meta["balance"] = "residual"`` (``"independent"`` otherwise).
+
+End wall: ``Trajectory.wall_force`` is the force fix wall/gran applied to the last
+sphere at each sample (its per-atom ``contacts`` output, summed per chain into the
+ledger; N, > 0 in compression), ``wall_static`` its static part K_w w_0^(3/2) as the
+reference engine states it. Spheres of different radii: ``Trajectory.radii``.
 
 With t_end auto the deck stops the batch when every chain has passed (fix halt) and each
 chain's record is cut where the reference engine would have stopped that chain (same
@@ -57,6 +66,7 @@ import sys
 import tempfile
 import time
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -66,17 +76,51 @@ from ..errors import GranchainError
 from ..guards import require_resolved
 from ..lammps import deck as deckmod
 from ..scene import Scene
-from ..schedule import auto_t_max, last_detached
+from ..schedule import arrival_speed, auto_t_max, last_detached
 from ..trajectory import ENERGY_COLUMNS, Trajectory
 
 METHOD = "lammps-verlet"
 DUMP_READ = ("x", "vx")   # the dump columns read as MDAnalysis additional (float64) columns
 # output path -> (trajectory file, reader)
 READERS = {"binary": ("traj.bin", "read_binary"), "dump": ("traj.dump", "read_dump")}
-E_KT, E_KR, E_H, E_WG, E_WD, E_WT, E_WR = range(len(ENERGY_COLUMNS))
+(E_KT, E_KR, E_H, E_WG, E_WD, E_WT, E_WL) = (ENERGY_COLUMNS.index(c) for c in (
+    "kinetic_translational", "kinetic_rotational", "hertz_potential", "work_groove_friction",
+    "work_air_drag", "work_particle_friction", "work_load"))
 # SI factors of 'units micro' values (docs/lammps_laws.md section 1)
 UM = 1e-6          # um -> m
 ENERGY = 1e-15     # 1e-15 J -> J
+FORCE = 1e-9       # 1e-9 N -> N
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """What the readers need of a deck's spheres to build the ledger from the dumped
+    positions and velocities (``geometry``): contact overlaps
+    delta_k = (R_k + R_{k+1}) - (x_{k+1} - x_k) and the wall's x_n + R_n - x_wall (um),
+    each contact's Hertz constant (``terms.chain``), the masses and the dead load."""
+    rsum: np.ndarray              # (n-1,) um: R_k + R_{k+1}
+    K: np.ndarray                 # (n-1,) N/m^1.5
+    masses: np.ndarray | float    # (n,) kg, or one float for identical spheres
+    R_last: float                 # um
+    K_wall: float | None          # N/m^1.5, None: free end
+    load: float                   # N on particle 2 (0: none)
+    x2_0: np.ndarray              # (B,) um: particle 2's initial x in each chain
+    x_last0: float                # um: the last sphere's initial x (the same in every
+    #                               chain of a deck with an end wall)
+
+
+def geometry(scene: Scene, pl: "deckmod.DeckPlan") -> Geometry:
+    """The :class:`Geometry` of the deck of ``pl`` (its chains' spheres and positions)."""
+    terms = physics_terms(scene)
+    ch = terms.chain
+    sp = deckmod.field.spheres(terms)
+    R = np.asarray(sp.radii)
+    x0 = [deckmod.field.positions(sp, g) for g in pl.gaps] if ch.load > 0 or ch.wall else []
+    x2 = np.array([x[1] for x in x0]) if ch.load > 0 else np.zeros(pl.n_chains)
+    masses = np.asarray(ch.masses, dtype=float) if ch.heterogeneous else terms.m
+    return Geometry(rsum=R[:-1] + R[1:], K=np.asarray(ch.K, dtype=float), masses=masses,
+                    R_last=float(R[-1]), K_wall=ch.K_wall, load=float(ch.load), x2_0=x2,
+                    x_last0=float(x0[0][-1]) if ch.wall and x0 else math.nan)
 
 
 def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: bool = False,
@@ -203,12 +247,11 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     if not path.is_file() or path.stat().st_size == 0:
         raise GranchainError(f"LAMMPS dump {path} is missing or empty: the run wrote no "
                              "trajectory (see log.lammps next to it)")
-    terms = physics_terms(scene)
     missing = [c for c in DUMP_READ if c not in pl.dump_columns]
     if missing:
         raise GranchainError(f"LAMMPS dump {path}: the deck does not dump {', '.join(missing)}")
     job = {"path": str(path), "B": B, "n": n, "velocities": velocities,
-           "D": 2.0 * deckmod.to_micro(scene.radius, "length"), "hertz": terms.hertz}
+           "geometry": geometry(scene, pl)}
     readers = max(1, int(readers))
     if readers == 1:
         parts = [_read_part(job, 0, 1)]
@@ -224,10 +267,19 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     V = _chain_major(np.concatenate([p[2] for p in parts]).reshape(len(step), B * n), B, n)
     EH = np.concatenate([p[3] for p in parts])
     last_overlap = np.concatenate([p[4] for p in parts])
-    V2 = np.concatenate([p[5] for p in parts])
+    KE = np.concatenate([p[5] for p in parts])
+    WL = None if parts[0][6] is None else np.concatenate([p[6] for p in parts])
     ledger = read_ledger(path.with_name(deckmod.LEDGER_NAME), pl, step) if pl.ledger_columns else None
-    return {"step": step, "v": V, "energy": _energies(scene, V2, EH, pl, ledger),
-            "last_overlap": last_overlap}
+    E = _new_energies(*EH.shape)
+    _fill_mechanical(E, KE, EH, WL)
+    walled = deckmod.WALL_FORCE_COLUMN in pl.ledger_columns
+    WF = np.empty(EH.shape) if walled else None
+    XL = np.concatenate([p[7] for p in parts]) if walled else None
+    if ledger is not None:
+        _fill_ledger(E, WF, pl, ledger)
+    _fill_residual(scene, E)
+    return {"step": step, "v": V, "energy": E, "last_overlap": last_overlap, "wall_force": WF,
+            "last_disp": XL}
 
 
 def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
@@ -247,21 +299,25 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
     if pl.output != "binary" or missing:
         raise GranchainError(f"{what}: the deck does not write the binary trajectory "
                              f"(output {pl.output!r}, columns {' '.join(pl.dump_columns)})")
-    terms = physics_terms(scene)
-    D = 2.0 * deckmod.to_micro(scene.radius, "length")
+    geo = geometry(scene, pl)
+    walled = deckmod.WALL_FORCE_COLUMN in pl.ledger_columns
     out = {}
 
     def consume(lo, block, frames):
         """A block of samples: each chain's velocities into its contiguous record, the
-        Hertz energy, last overlap and kinetic energy straight into the result arrays
-        (sized for ``frames`` samples at the first block)."""
+        Hertz energy, last overlap, kinetic energy and load work straight into the result
+        arrays (sized for ``frames`` samples at the first block)."""
         if not out:
             out.update(V=_zeros((B, frames, n)), E=_new_energies(frames, B),
-                       OL=np.empty((frames, B)))
+                       OL=np.empty((frames, B)), WF=np.empty((frames, B)) if walled else None,
+                       XL=np.empty((frames, B)) if walled else None)
         hi = lo + len(block["x"])
-        EH, out["OL"][lo:hi] = _hertz(block["x"].reshape(-1, B, n), D, terms.hertz)
+        x = block["x"].reshape(-1, B, n)
+        EH, out["OL"][lo:hi], WL = _hertz(x, geo)
+        if walled:
+            out["XL"][lo:hi] = (x[..., -1] - geo.x_last0) * UM
         v = block["vx"].reshape(-1, B, n)
-        _fill_mechanical(out["E"][lo:hi], terms.m, np.sum(v * v, axis=2), EH)
+        _fill_mechanical(out["E"][lo:hi], _kinetic(v, geo), EH, WL)
         out["V"][:, lo:hi] = v.transpose(1, 0, 2)
 
     step, _ = read_binary_dump(path, pl.dump_columns, B * n, pl.nsamples, what, consume=consume)
@@ -269,6 +325,8 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
     S = len(step)
     V = out["V"][:, :S].transpose(1, 0, 2)           # (S, B, n) view, each chain contiguous
     E, OL = out["E"][:S], out["OL"][:S]
+    WF = out["WF"][:S] if walled else None
+    XL = out["XL"][:S] if walled else None
     if pl.ledger_columns:
         lpath = path.with_name(deckmod.LEDGER_BINARY_NAME)
         lwhat = f"LAMMPS ledger {lpath}"
@@ -279,14 +337,16 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
             if hi > S:
                 raise GranchainError(f"{lwhat} does not match the trajectory: more than {S} "
                                      f"samples; {path.name} has {S}")
-            _fill_ledger(E[lo:hi], pl, np.stack([block[c] for c in lcols], axis=2))
+            _fill_ledger(E[lo:hi], None if WF is None else WF[lo:hi], pl,
+                         np.stack([block[c] for c in lcols], axis=2))
 
         lstep, _ = read_binary_dump(lpath, lcols, B, pl.nsamples, lwhat, consume=ledger)
         if not np.array_equal(lstep, step):
             raise GranchainError(f"{lwhat} does not match the trajectory: {len(lstep)} samples; "
                                  f"{path.name} has {S}")
     _fill_residual(scene, E)
-    return {"step": step, "v": V, "energy": E, "last_overlap": OL}
+    return {"step": step, "v": V, "energy": E, "last_overlap": OL, "wall_force": WF,
+            "last_disp": XL}
 
 
 _BIN_MAGIC = b"DUMPCUSTOM"
@@ -490,11 +550,26 @@ def _check_steps(what: str, pl: "deckmod.DeckPlan", step, rundir: Path) -> None:
                              f"{2 * pl.every}, ... (was it written by this deck?)")
 
 
-def _hertz(x, D: float, hertz):
-    """Hertz energy per chain (J) and overlap of each chain's last contact (m) from the
-    positions x (..., B, n) in um."""
-    overlap = (D - (x[..., 1:] - x[..., :-1])) * UM
-    return np.sum(hertz.energy(overlap), axis=-1), overlap[..., -1]
+def _hertz(x, geo: Geometry):
+    """From the positions x (..., B, n) in um: the Hertz energy per chain (J), the
+    contacts' and the end wall's (the law of ``effects.hertz.energy``, each contact with
+    its own K), the overlap of each chain's last contact (m) and the work of the dead
+    load F0 (x_2 - x_2(0)) (J; None without load)."""
+    overlap = (geo.rsum - (x[..., 1:] - x[..., :-1])) * UM
+    d = np.maximum(overlap, 0.0)
+    EH = np.sum(0.4 * geo.K * d * d * np.sqrt(d), axis=-1)
+    if geo.K_wall is not None:
+        dw = np.maximum((x[..., -1] + geo.R_last - deckmod.field.WALL_X) * UM, 0.0)
+        EH = EH + 0.4 * geo.K_wall * dw * dw * np.sqrt(dw)
+    WL = geo.load * (x[..., 1] - geo.x2_0) * UM if geo.load > 0 else None
+    return EH, overlap[..., -1], WL
+
+
+def _kinetic(v, geo: Geometry):
+    """Translational kinetic energy per chain (J) of velocities v (..., B, n) in m/s."""
+    if np.ndim(geo.masses) == 0:
+        return 0.5 * geo.masses * np.sum(v * v, axis=-1)
+    return 0.5 * np.sum(geo.masses * v * v, axis=-1)
 
 
 def _zeros(shape) -> np.ndarray:
@@ -516,35 +591,30 @@ def _new_energies(S: int, B: int) -> np.ndarray:
     return _zeros((B, S, len(ENERGY_COLUMNS))).transpose(1, 0, 2)
 
 
-def _fill_mechanical(E, m: float, V2, EH) -> None:
-    """Kinetic translational energy from the sums of v^2 per chain and the Hertz energy,
-    into E (samples, B, 7)."""
-    E[:, :, E_KT] = 0.5 * m * V2
+def _fill_mechanical(E, KE, EH, WL) -> None:
+    """Kinetic translational energy, Hertz energy and the work of the dead load (or None)
+    per chain into E (samples, B, len(ENERGY_COLUMNS))."""
+    E[:, :, E_KT] = KE
     E[:, :, E_H] = EH
+    if WL is not None:
+        E[:, :, E_WL] = WL
 
 
-def _fill_ledger(E, pl: "deckmod.DeckPlan", ledger) -> None:
-    """The per-chain LAMMPS ledger (samples, B, k) in 1e-15 J into E's columns."""
+def _fill_ledger(E, WF, pl: "deckmod.DeckPlan", ledger) -> None:
+    """The per-chain LAMMPS ledger (samples, B, k) into E's columns (1e-15 J) and the end
+    wall's force on the last sphere into WF (samples, B) in N, as a compression (> 0)."""
     for j, name in enumerate(pl.ledger_columns):
-        E[:, :, ENERGY_COLUMNS.index(name)] = ledger[:, :, j] * ENERGY
+        if name == deckmod.WALL_FORCE_COLUMN:
+            WF[:] = -ledger[:, :, j] * FORCE
+        else:
+            E[:, :, ENERGY_COLUMNS.index(name)] = ledger[:, :, j] * ENERGY
 
 
 def _fill_residual(scene: Scene, E) -> None:
     """The contact frictions' work as the balance residual (when LAMMPS outputs none)."""
     if residual_balance(scene):
         mech = E[:, :, E_KT] + E[:, :, E_KR] + E[:, :, E_H]
-        E[:, :, E_WT] = mech - mech[0] - E[:, :, E_WG] - E[:, :, E_WD]
-
-
-def _energies(scene: Scene, V2, EH, pl: "deckmod.DeckPlan", ledger) -> np.ndarray:
-    """The energy ledger (S, B, 7) J from the sums of v^2 per chain (S, B), the Hertz
-    energies (S, B) and the per-chain LAMMPS ledger (S, B, k) in 1e-15 J (or None)."""
-    E = _new_energies(*EH.shape)
-    _fill_mechanical(E, physics_terms(scene).m, V2, EH)
-    if ledger is not None:
-        _fill_ledger(E, pl, ledger)
-    _fill_residual(scene, E)
-    return E
+        E[:, :, E_WT] = mech - mech[0] - E[:, :, E_WG] - E[:, :, E_WD] - E[:, :, E_WL]
 
 
 def read_ledger(path: Path, pl: "deckmod.DeckPlan", step) -> np.ndarray:
@@ -595,10 +665,11 @@ def _halted(log: Path) -> bool:
 
 def _read_part(job: dict, part: int, nparts: int):
     """Frames [part*S/nparts, (part+1)*S/nparts) of a dump: (S, step, V, E_hertz,
-    overlap of the last contact in m, sum of v^2 per chain)."""
+    overlap of the last contact in m, kinetic energy, work of the dead load (None
+    without), displacement of the last sphere in m (NaN without an end wall)), per chain."""
     import MDAnalysis as mda
 
-    path, B, n, D, hertz = job["path"], job["B"], job["n"], job["D"], job["hertz"]
+    path, B, n, geo = job["path"], job["B"], job["n"], job["geometry"]
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")       # no masses/types in a dump: MDAnalysis warns
@@ -614,7 +685,9 @@ def _read_part(job: dict, part: int, nparts: int):
             V = np.empty((hi - lo, B, n))
             EH = np.empty((hi - lo, B))
             OL = np.empty((hi - lo, B))
-            V2 = np.empty((hi - lo, B))
+            KE = np.empty((hi - lo, B))
+            WL = np.zeros((hi - lo, B))
+            XL = np.empty((hi - lo, B))
             for s, ts in enumerate(traj[lo:hi]):
                 data = ts.data
                 step[s] = data["step"]
@@ -622,28 +695,43 @@ def _read_part(job: dict, part: int, nparts: int):
                 if job["velocities"] == "float32":
                     v = v.astype(np.float32).astype(np.float64)
                 V[s] = v
-                V2[s] = np.sum(v * v, axis=1)
-                EH[s], OL[s] = _hertz(data["x"].reshape(B, n), D, hertz)
+                KE[s] = _kinetic(v, geo)
+                x = data["x"].reshape(B, n)
+                EH[s], OL[s], wl = _hertz(x, geo)
+                XL[s] = (x[:, -1] - geo.x_last0) * UM
+                if wl is not None:
+                    WL[s] = wl
     except GranchainError:
         raise
     except (ValueError, IndexError, EOFError, OSError, KeyError, TypeError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise GranchainError(f"LAMMPS dump {path} is truncated or unreadable: {msg}") from None
-    return S, step, V, EH, OL, V2
+    return S, step, V, EH, OL, KE, WL if geo.load > 0 else None, XL
 
 
 def _trajectories(scene, pl, data, wall_each, meta_common):
     step, V, E, OL = data["step"], data["v"], data["energy"], data["last_overlap"]
+    WF, XL = data.get("wall_force"), data.get("last_disp")
     eff = tuple(sorted(scene.effects))
+    ch = physics_terms(scene).chain
     for b in range(pl.n_chains):
         vsb = float(pl.v_striker[b])
         v = V[:, b, :]
         keep, status = step.size, "done"
         if scene.t_end is None:
-            keep, status = auto_stop(scene, pl.gaps[b], vsb, v[:, -1], OL[:, b], pl.sample_dt)
+            keep, status = auto_stop(scene, pl.gaps[b], vsb, v[:, -1], OL[:, b], pl.sample_dt,
+                                     last_disp=None if XL is None else XL[:, b])
         bad = np.flatnonzero(~np.all(np.isfinite(v[:keep]), axis=1))
         if bad.size:
             keep, status = int(bad[0]) + 1, "nonfinite"
+        extra = {}
+        if ch.heterogeneous:
+            extra["radii"] = np.asarray(ch.radii)
+        if ch.K_wall is not None:
+            # the wall force LAMMPS applied (fix wall/gran 'contacts'), and its static
+            # part K_w w_0^1.5 as the reference engine states it
+            extra["wall_force"] = WF[:keep, b].copy()
+            extra["wall_static"] = float(ch.K_wall * ch.wall_overlap ** 1.5)
         # v and energy: views of the chain's contiguous block of the batch arrays
         yield Trajectory(
             t=step[:keep] * scene.dt, v=v[:keep], energy=E[:keep, b, :],
@@ -651,25 +739,33 @@ def _trajectories(scene, pl, data, wall_each, meta_common):
             steps=int(step[keep - 1]), rejected=0, status=status, wall_s=wall_each,
             meta=dict(meta_common), last_overlap=float(OL[keep - 1, b]),
             # one force computation per step, plus the one of LAMMPS's setup
-            force_evaluations=int(step[keep - 1]) + 1)
+            force_evaluations=int(step[keep - 1]) + 1, **extra)
 
 
 def auto_stop(scene: Scene, gaps, v_striker: float, vlast, overlap_last,
-              sample_dt: float) -> tuple[int, str]:
+              sample_dt: float, last_disp=None) -> tuple[int, str]:
     """(samples kept, status) of a t_end auto chain, by the stop rule of
     ``granchain.schedule`` as ``engines.kernels.run_window`` applies it.
 
     vlast, overlap_last: the last particle's velocity (m/s) and its contact's overlap (m)
-    at every sample. The chain stops (that sample included) at the first sample after
-    t = 0 at which its last particle has left, status passed. A chain that never does
-    stops at its own cap, auto_t_max, with status timeout. A chain at rest keeps its
-    initial sample only.
+    at every sample; last_disp: with an end wall, the last particle's displacement (m)
+    from its initial position (None: free end). The chain stops (that sample included)
+    at the first sample after t = 0 at which the wave has left it, status passed: its
+    last particle has left (free end), or moves back from the end wall faster than the
+    arrival speed and is back at or behind its initial position (the wave has reflected
+    and the wall force is back at or below its static value; ``kernels._left``). A chain
+    that never does stops at its own cap, auto_t_max, with status timeout. A chain at
+    rest keeps its initial sample only.
     """
     S = len(vlast)
     if v_striker <= 0:
         return 1, "done"
     nt = min(S, int(math.ceil(auto_t_max(scene, np.asarray(gaps), v_striker) / sample_dt)) + 1)
-    hit = np.flatnonzero(last_detached(vlast[1:nt], overlap_last[1:nt], v_striker))
+    if last_disp is not None:
+        hit = np.flatnonzero((np.asarray(vlast[1:nt]) < -arrival_speed(v_striker))
+                             & (np.asarray(last_disp[1:nt]) <= 0.0))
+    else:
+        hit = np.flatnonzero(last_detached(vlast[1:nt], overlap_last[1:nt], v_striker))
     if hit.size:
         return int(hit[0]) + 2, "passed"
     return nt, "timeout"
