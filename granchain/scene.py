@@ -662,7 +662,8 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     material = _material(spec["material"])
 
     n = _num(spec, "chain.n", integer=True, lo=3, hi=MAX_SPHERES,
-             fix=f"a chain has from 3 particles (the striker and two probes) to {MAX_SPHERES}")
+             fix=f"a chain needs at least 3 particles (the striker and two probes) and at most "
+             f"{MAX_SPHERES}")
     radii, materials = _chain_spheres(spec, n, material)
     radius = radii[1]
     if spec["chain"].get("materials") is not None:
