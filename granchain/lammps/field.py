@@ -1,5 +1,5 @@
 """What the field's chains add to a LAMMPS deck: spheres of their own size and material,
-an end wall and a dead load (docs/lammps_laws.md section 11).
+an end wall and a dead load (docs/lammps_laws.md section 12).
 
 All of it comes from the chain record of :func:`granchain.effects.physics_terms`
 (``terms.chain``, SI) and is converted once with :func:`~granchain.lammps.units.to_micro`.
@@ -80,11 +80,6 @@ class Spheres:
         """One radius and one density: the deck's comments can name them."""
         return len(set(self.radii)) == 1 and len(set(self.densities)) == 1
 
-    @property
-    def field(self) -> bool:
-        """Anything beyond the chapter's chain (sizes, materials, wall, load)?"""
-        return not self.uniform or self.ntypes > 1 or self.wall is not None or self.load > 0
-
 
 def spheres(terms) -> Spheres:
     """The spheres of the scene's chain (``terms.chain``) in micro units."""
@@ -141,7 +136,7 @@ def pair_coeff(terms, sp: Spheres, parts: list[tuple[str, str]]) -> str:
              "# own E and nu (LAMMPS: E* = E/(2(1-nu^2))). I != J: E = 2 E*_IJ, nu = 0, with",
              "# 1/E*_IJ = (1-nu_I^2)/E_I + (1-nu_J^2)/E_J, which LAMMPS's one-material formula "
              "turns",
-             "# back into E*_IJ (docs/lammps_laws.md section 11)."]
+             "# back into E*_IJ (docs/lammps_laws.md section 12)."]
     if mindlin:
         lines += ["# Mindlin stiffness of an unlike pair given explicitly, k = 8 G*_IJ with "
                   "1/G*_IJ =",
