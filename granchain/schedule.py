@@ -81,6 +81,16 @@ def last_detached(v_last, overlap_last, v_striker):
     return (np.asarray(v_last) > arrival_speed(v_striker)) & (np.asarray(overlap_last) <= 0.0)
 
 
+def wall_left(v_last, x_last, v_striker):
+    """Has the wave left a chain that ends on a wall? (elementwise on arrays)
+
+    v_last: velocity of particle n (m/s); x_last: its displacement from its initial
+    (static) position (m). The last particle moves back from the wall faster than the
+    arrival speed and is back at or behind its start: the wave has reflected and the wall
+    force is back at or below its static value, so the wall's dynamic peak is behind."""
+    return (np.asarray(v_last) < -arrival_speed(v_striker)) & (np.asarray(x_last) <= 0.0)
+
+
 def wall_passed(f_after_peak: np.ndarray, f_peak: float) -> bool:
     """Has the end wall's dynamic force passed its peak? f_after_peak: its samples
     after the peak, which must fall below PASS_FRACTION of it."""

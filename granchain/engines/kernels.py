@@ -740,7 +740,8 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
 
 @njit(cache=True, inline="always")
 def _left(v_last, overlap_last, x_last, vthr, wall):
-    """Has the wave left the chain (``schedule.last_detached``)? Free end: the last
+    """Has the wave left the chain (``schedule.last_detached``, ``schedule.wall_left``)?
+    Free end: the last
     sphere moves faster than the arrival speed with its contact open. End wall: the last
     sphere moves back from the wall faster than the arrival speed and is back at (or
     behind) its starting position x_last = 0: the wave has reflected and the wall force

@@ -76,7 +76,7 @@ from ..errors import GranchainError
 from ..guards import require_resolved
 from ..lammps import deck as deckmod
 from ..scene import Scene
-from ..schedule import arrival_speed, auto_t_max, last_detached
+from ..schedule import arrival_speed, auto_t_max, last_detached, wall_left
 from ..trajectory import ENERGY_COLUMNS, Trajectory
 
 METHOD = "lammps-verlet"
@@ -762,8 +762,7 @@ def auto_stop(scene: Scene, gaps, v_striker: float, vlast, overlap_last,
         return 1, "done"
     nt = min(S, int(math.ceil(auto_t_max(scene, np.asarray(gaps), v_striker) / sample_dt)) + 1)
     if last_disp is not None:
-        hit = np.flatnonzero((np.asarray(vlast[1:nt]) < -arrival_speed(v_striker))
-                             & (np.asarray(last_disp[1:nt]) <= 0.0))
+        hit = np.flatnonzero(wall_left(vlast[1:nt], last_disp[1:nt], v_striker))
     else:
         hit = np.flatnonzero(last_detached(vlast[1:nt], overlap_last[1:nt], v_striker))
     if hit.size:
