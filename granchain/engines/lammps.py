@@ -76,7 +76,7 @@ from ..errors import GranchainError
 from ..guards import require_resolved
 from ..lammps import deck as deckmod
 from ..scene import Scene
-from ..schedule import arrival_speed, auto_t_max, last_detached, wall_left
+from ..schedule import auto_t_max, last_detached, wall_left
 from ..trajectory import ENERGY_COLUMNS, Trajectory
 
 METHOD = "lammps-verlet"
