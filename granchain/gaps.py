@@ -51,6 +51,36 @@ def realise_many(scene: Scene, realisations) -> np.ndarray:
         np.zeros((0, scene.n - 1))
 
 
+# the key that sets the radius draws' stream apart from the gap draws' (rng([seed, r]))
+RADIUS_STREAM = 0x52414449
+
+
+def member_radii(scene: Scene, mem: list[Member]) -> np.ndarray | None:
+    """(len(mem), n) radii (m) of the members under ``chain.radius_spread``: realisation r
+    draws e_i from numpy default_rng([spread.seed, r, RADIUS_STREAM]) (normal: i.i.d.
+    N(0, sd^2), each draw beyond NORMAL_TRUNCATION sd drawn again; uniform: on
+    +-sqrt(3) sd) and adds it to the nominal radius R_i. None without a spread."""
+    spread = scene.radius_spread
+    if spread is None:
+        return None
+    from .scene import NORMAL_TRUNCATION
+    nominal = np.asarray(scene.radii, dtype=float)
+    out = np.empty((len(mem), scene.n))
+    for j, m in enumerate(mem):
+        rng = np.random.default_rng([spread.seed, int(m.realisation), RADIUS_STREAM])
+        if spread.distribution == "uniform":
+            e = rng.uniform(-1.0, 1.0, size=scene.n) * (np.sqrt(3.0) * spread.sd)
+        else:
+            e = rng.standard_normal(scene.n)
+            bad = np.abs(e) > NORMAL_TRUNCATION
+            while np.any(bad):
+                e[bad] = rng.standard_normal(int(bad.sum()))
+                bad = np.abs(e) > NORMAL_TRUNCATION
+            e = e * spread.sd
+        out[j] = nominal + e
+    return out
+
+
 def mean_gap_between(gaps: np.ndarray, p1: int, p2: int) -> np.ndarray:
     """Mean gap over the contacts between 1-based particles p1 < p2 (last axis = contacts)."""
     return np.asarray(gaps)[..., p1 - 1:p2 - 1].mean(axis=-1)

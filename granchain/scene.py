@@ -46,8 +46,9 @@ DEFAULTS: dict[str, Any] = {
     "name": None,                       # defaults to the file stem
     "material": "ss440c",
     # chain.radius: one radius, or a list of n (particle 1 is the striker);
-    # chain.materials: a list of n materials (default: every sphere is `material`)
-    "chain": {"n": 15, "radius": 150e-6, "materials": None},
+    # chain.materials: a list of n materials (default: every sphere is `material`);
+    # chain.radius_spread: each member's radii drawn about the nominal ones
+    "chain": {"n": 15, "radius": 150e-6, "materials": None, "radius_spread": None},
     # striker.radius / striker.material: particle 1's own (default: as the chain gives)
     "striker": {"velocity": 0.1, "radius": None, "material": None},
     "gaps": {"distribution": "none", "mean": None, "seed": 0, "values": None,
@@ -76,7 +77,7 @@ DEFAULTS: dict[str, Any] = {
 
 # Keys that are left out of a scene's normalised spec when not given, so that a scene
 # using none of them keeps the hash it had before they existed.
-OPTIONAL_KEYS = ("chain.materials", "striker.radius", "striker.material", "walls.end",
+OPTIONAL_KEYS = ("chain.materials", "chain.radius_spread", "striker.radius", "striker.material", "walls.end",
                  "precompression.force")
 
 # Defaults of the measurement block. The chapter's vibrometers have a 2.5 MHz bandwidth;
@@ -126,6 +127,26 @@ class Measurement:
     seed: int
 
 
+RADIUS_SPREADS = ("normal", "uniform")
+# a normal spread is drawn truncated at this many sd (a draw beyond it is drawn again)
+NORMAL_TRUNCATION = 4.0
+
+
+@dataclass(frozen=True)
+class RadiusSpread:
+    """Each member's radii R_i + e_i, e_i i.i.d. with standard deviation ``sd`` (m):
+    ``normal`` truncated at NORMAL_TRUNCATION sd, or ``uniform`` on +-sqrt(3) sd; drawn
+    from numpy default_rng([seed, realisation, RADIUS_STREAM]) (``gaps.member_radii``)."""
+    distribution: str
+    sd: float
+    seed: int
+
+    @property
+    def half_width(self) -> float:
+        """The largest |e_i| a draw can give (m)."""
+        return (NORMAL_TRUNCATION if self.distribution == "normal" else math.sqrt(3.0)) * self.sd
+
+
 @dataclass(frozen=True)
 class Scene:
     name: str
@@ -173,6 +194,8 @@ class Scene:
     materials: tuple[Material, ...] = ()
     wall: Material | None = None           # the end wall (None: free end)
     precompression: float = 0.0            # dead load on particle 2 (N)
+    # each member's radii drawn about ``radii`` (None: every member has ``radii``)
+    radius_spread: RadiusSpread | None = None
 
     # --- derived quantities -------------------------------------------------------------
     @property
@@ -194,9 +217,16 @@ class Scene:
 
     @property
     def heterogeneous(self) -> bool:
-        """Do the spheres differ (radius or material) from the chain's one bead?"""
-        return any(r != self.radius for r in self.radii) or \
-            any(m != self.material for m in self.materials)
+        """Do the spheres differ (radius or material) from the chain's one bead, or may a
+        member's (a radius spread)?"""
+        return self.radius_spread is not None or any(r != self.radius for r in self.radii) \
+            or any(m != self.material for m in self.materials)
+
+    def with_radii(self, radii) -> "Scene":
+        """This scene with the given radii (a member's draw of a radius spread) and no
+        spread: the chain one member runs."""
+        radii = tuple(float(r) for r in radii)
+        return dataclasses.replace(self, radii=radii, radius=radii[1], radius_spread=None)
 
     @property
     def masses(self) -> tuple[float, ...]:
@@ -524,6 +554,43 @@ def _chain_spheres(spec: dict, n: int, material: Material):
     return tuple(radii), tuple(materials)
 
 
+def _radius_spread(value, radii) -> RadiusSpread | None:
+    """The validated chain.radius_spread block (None when not given)."""
+    if value is None:
+        return None
+    where = "chain.radius_spread"
+    if not isinstance(value, dict):
+        raise SceneError(where, f"expected a mapping, got {_short(value)}",
+                         "write radius_spread: {distribution: normal, sd: 0.3e-6}")
+    extra = set(value) - {"distribution", "sd", "seed"}
+    if extra:
+        key = sorted(map(str, extra))[0]
+        close = difflib.get_close_matches(key, ["distribution", "sd", "seed"], n=1)
+        raise SceneError(f"{where}.{key}", "unknown key",
+                         f"did you mean '{where}.{close[0]}'?" if close else
+                         "a radius spread has distribution, sd and seed")
+    dist = _choice(value.get("distribution", "normal"), f"{where}.distribution", RADIUS_SPREADS,
+                   "distribution")
+    if "sd" not in value:
+        raise SceneError(f"{where}.sd", "missing", "give the standard deviation of the radii in "
+                         "metres, e.g. 0.3e-6")
+    sd = _value(value["sd"], f"{where}.sd", positive=True,
+                fix="give the standard deviation of the radii in metres (> 0), e.g. 0.3e-6")
+    seed = _value(value.get("seed", 0), f"{where}.seed", integer=True, nonneg=True,
+                  fix="give a whole-number seed >= 0")
+    spread = RadiusSpread(dist, sd, seed)
+    value.clear()
+    value.update(distribution=dist, sd=sd, seed=seed)      # the normalised spec
+    smallest = min(radii)
+    if spread.half_width >= smallest:
+        how = (f"{NORMAL_TRUNCATION:g} sd (normal draws are truncated there)" if dist == "normal"
+               else "sqrt(3) sd (the uniform half-width)")
+        raise SceneError(f"{where}.sd", f"{sd:g} m can make a radius non-positive: draws reach "
+                         f"{how} = {spread.half_width:g} m, the smallest radius is {smallest:g} m",
+                         f"give sd < {floor_sig(smallest / (spread.half_width / sd)):.2g} m")
+    return spread
+
+
 def _drop_unset(spec: dict) -> None:
     """Leave the optional keys that were not given out of the normalised spec."""
     for dotted in OPTIONAL_KEYS:
@@ -671,6 +738,7 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     wall = None
     if spec["walls"]["end"] is not None:
         wall = _material(spec["walls"]["end"], "walls.end", wall=True)
+    spread = _radius_spread(spec["chain"].get("radius_spread"), radii)
     load = _num(spec, "precompression.force", nonneg=True, allow_none=True,
                 fix="give the dead load on particle 2 in newtons (>= 0)") or 0.0
 
@@ -796,7 +864,7 @@ def _validate(raw: dict, given: set[str]) -> Scene:
         probes=tuple(pr), method=method, dt=dt, tolerance=tol, t_end=t_end,
         sample_dt=sample_dt, realisations=realisations, spec=spec, given=frozenset(given),
         measurement=measurement, radii=radii, materials=materials, wall=wall,
-        precompression=load,
+        precompression=load, radius_spread=spread,
     )
     _check_derived(scene)
     check_step(scene)

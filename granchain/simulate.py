@@ -12,7 +12,7 @@ import numpy as np
 
 from .costmodel import resolve_auto
 from .errors import GranchainError
-from .gaps import Member, member_gaps, members
+from .gaps import Member, member_gaps, member_radii, members
 from .guards import physics_warnings
 from .measurement import measure, needs_trace
 from .observables import ChainResult, summarize
@@ -29,16 +29,22 @@ def trajectories(scene: Scene, mem: list[Member], engine: str = "reference", **k
     scene = resolve_auto(scene)
     g = member_gaps(scene, mem)
     vs = np.array([m.v_striker for m in mem])
+    radii = member_radii(scene, mem)
     if engine == "reference":
         from .engines import reference
         if needs_trace(scene):
             kw = {**kw, "trace": True}
+        if radii is not None:
+            kw = {**kw, "radii": radii}
         it = reference.run(scene, g, vs, **kw)
     elif engine == "lammps":
         try:
             from .engines import lammps as lmp_engine
         except ImportError as exc:
             raise GranchainError(f"the LAMMPS engine is not available: {exc}") from None
+        if radii is not None:
+            raise GranchainError("chain.radius_spread: the LAMMPS engine does not draw each "
+                                 "member's radii; run it with --engine reference")
         it = lmp_engine.run(scene, g, vs, **kw)
     else:
         raise GranchainError(f"unknown engine '{engine}'; use one of {', '.join(ENGINES)}")

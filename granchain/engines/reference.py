@@ -87,10 +87,16 @@ def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
     return P, FL
 
 
-def chain_rows(terms: Terms, gaps: np.ndarray) -> np.ndarray:
+def chain_rows(terms: Terms, gaps: np.ndarray, scene: Scene | None = None,
+               radii: np.ndarray | None = None) -> np.ndarray:
     """The kernels' per-chain array G (B, G_LEN * n) of chains with physical gaps
     (B, n-1): the kernel gaps, then each sphere's and contact's rows from the chain and
-    the enabled effects (``codes.G_*``; rows no effect fills stay 0)."""
+    the enabled effects (``codes.G_*``; rows no effect fills stay 0). With ``radii``
+    (B, n), each chain's rows come from ``scene`` with that chain's radii (a member of a
+    radius spread)."""
+    if radii is not None:
+        return np.concatenate([chain_rows(physics_terms(scene.with_radii(r)), g[None, :])
+                               for r, g in zip(np.atleast_2d(radii), np.atleast_2d(gaps))])
     n = terms.n
     gaps = np.atleast_2d(gaps)
     G = np.zeros((gaps.shape[0], C.G_LEN * n))
@@ -115,9 +121,10 @@ def record_width(terms: Terms) -> int:
 
 def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | None = None,
         dt: float | None = None, tolerance: float | None = None, progress: bool | None = None,
-        trace: bool = False, pair: str | None = None):
-    """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s. The scene's
-    method must not be auto (``simulate`` resolves it).
+        trace: bool = False, pair: str | None = None, radii: np.ndarray | None = None):
+    """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s; radii: (B, n)
+    m, each chain's own (a radius spread, ``gaps.member_radii``), or None (the scene's).
+    The scene's method must not be auto (``simulate`` resolves it).
 
     The fixed-step and adaptive methods always record the sampled trajectory. The event
     method measures the observables on the fly and records only the initial and final
@@ -149,11 +156,12 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
             stop += 1
         group = order[start:stop]
         for chunk in _chunks(group, scene, terms, key, method):
+            rc = None if radii is None else np.atleast_2d(radii)[chunk]
             if method == "event":
                 it = _run_chunk_events(scene, terms, gaps[chunk], vs[chunk], dt, rtol, key,
-                                       trace, pair or C.DEFAULT_PAIR)
+                                       trace, pair or C.DEFAULT_PAIR, rc)
             else:
-                it = _run_chunk(scene, terms, gaps[chunk], vs[chunk], method, dt, rtol, key)
+                it = _run_chunk(scene, terms, gaps[chunk], vs[chunk], method, dt, rtol, key, rc)
             for idx, traj in zip(chunk, it):
                 out[int(idx)] = traj
             done_total += len(chunk)
@@ -192,12 +200,12 @@ def _chunks(group, scene, terms, sample_dt, method):
         yield group[i:i + size]
 
 
-def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt):
+def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt, radii=None):
     kern = backend.kernels(serial=gaps.shape[0] == 1)
     layout = Layout.of(terms)
     P, FL = pack(terms)
     B, n, ny = gaps.shape[0], terms.n, layout.ny
-    G = chain_rows(terms, gaps)
+    G = chain_rows(terms, gaps, scene, radii)
     nv = record_width(terms)
     Y = np.zeros((B, ny))
     Y[:, layout.LO[C.L_V]] = vs            # particle 1 (index 0) is the striker
@@ -262,17 +270,18 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
                          rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
                          wall_s=wall / B, last_overlap=last_overlap, force_evaluations=nev,
                          meta={"method": method, "dt": dt, "rtol": rtol, "sample_dt": sdt},
-                         **_chain_fields(terms, rec))
+                         **_chain_fields(terms, rec, None if radii is None else radii[b]))
 
 
-def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt, trace, pair):
+def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt, trace, pair,
+                      radii=None):
     kern = backend.kernels(serial=gaps.shape[0] == 1)
     """The event method (``engines.events``) on a chunk of chains."""
     layout = Layout.of(terms)
     P, FL = pack(terms)
     LO = layout.LO
     B, n, ny = gaps.shape[0], terms.n, layout.ny
-    G = chain_rows(terms, gaps)
+    G = chain_rows(terms, gaps, scene, radii)
     A, Bw, _nodes, E5, E3, qexp, dopnorm = C.PAIRS[pair]   # no step uses the nodes
     S = Bw.shape[0]
     Y = np.zeros((B, ny))
@@ -370,7 +379,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
                          force_evaluations=int(NEV[b]), observed=obs,
                          meta={"method": "event", "dt": dt, "rtol": rtol, "sample_dt": sample_dt,
                                "pair": pair, "trace": bool(trace), "t_last": float(T[b])},
-                         **_chain_fields(terms, None))
+                         **_chain_fields(terms, None, None if radii is None else radii[b]))
 
 
 def _collect(counts, Vbuf, Ebuf, V_parts, E_parts):
@@ -422,13 +431,14 @@ def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V
     return YF[:B], T[:B], STEPS[:B], STATUS[:B]
 
 
-def _chain_fields(terms: Terms, rec: np.ndarray) -> dict:
-    """Trajectory fields of a heterogeneous or walled chain: each sphere's radius, and the
-    wall force (N) from the record's last column (the event method, which has no record
-    here, runs no walled scene)."""
+def _chain_fields(terms: Terms, rec: np.ndarray, radii=None) -> dict:
+    """Trajectory fields of a heterogeneous or walled chain: each sphere's radius (the
+    member's own under a radius spread), and the wall force (N) from the record's last
+    column (the event method, which has no record here, runs no walled scene) with its
+    static part (the preload K_w w_0^(3/2), which is F0)."""
     out = {}
     if terms.chain.heterogeneous:
-        out["radii"] = np.asarray(terms.chain.radii)
+        out["radii"] = np.asarray(terms.chain.radii if radii is None else radii, dtype=float)
     if terms.chain.K_wall is not None:
         out["wall_force"] = rec[:, terms.n].copy()
         out["wall_static"] = float(terms.chain.K_wall * terms.chain.wall_overlap ** 1.5)
