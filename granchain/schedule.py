@@ -33,6 +33,7 @@ import math
 import numpy as np
 
 from . import analytic
+from .effects import ENERGY_COLUMNS
 from .errors import GranchainError
 from .guards import crossing_time, require_resolved
 
@@ -40,8 +41,8 @@ SAMPLES_PER_PULSE = 400    # auto sampling: samples per solitary-wave width
 # default cost limits (per chain), raised with granchain run --max-steps / --max-memory-gb
 DEFAULT_MAX_STEPS = 1e8
 DEFAULT_MAX_MEMORY_GB = 4.0
-# columns of a chain's sample record besides the n velocities (kernels.E_LEN)
-RECORD_EXTRA_COLUMNS = 9
+# columns of a chain's sample record besides the n velocities: the energy ledger's and time
+RECORD_EXTRA_COLUMNS = len(ENERGY_COLUMNS) + 1
 ARRIVAL_FRACTION = 1e-3    # a particle has seen the wave once v > ARRIVAL_FRACTION * v_s
 PASS_FRACTION = 0.5        # the wave has passed an inner particle once v < this * its peak
 PEAK_TOL = 1e-4            # a peak: samples within PEAK_TOL of the maximum (observables.peak)

@@ -21,9 +21,13 @@ w = R (omega_k + omega_{k+1}).
 - its kernel parameters and flags by slot name (``kernel(term)``), and for an effect with
   a history the error scale the adaptive method judges it on (``error_scale``).
 
-To add an effect: a module here with these parts, its entry in ``MODULES`` and ``Terms``,
-its slots and its block in ``engines/kernels.py`` (``forces``, and ``project`` if it has a
-history), and its scene keys in ``granchain/scene.py``.
+- its per-sphere and per-contact kernel rows (``rows(term, chain)``), when the parameters
+  differ from sphere to sphere.
+
+The kernels' numbering (P, FL, G, LO, the energy columns) is generated from the SPECs
+(``engines/codes.py``). To add an effect: a module here with these parts, its entry in
+``MODULES`` and ``Terms``, its block in ``engines/kernels.py`` (``forces``, and
+``project`` if it has a history), and its scene keys in ``granchain/scene.py``.
 """
 from __future__ import annotations
 
@@ -47,7 +51,7 @@ SPECS: dict[str, EffectSpec] = {m.SPEC.name: m.SPEC for m in MODULES}
 # work done ON the particles by each effect that does work, accumulated from t = 0, then
 # the work of the dead load (precompression: F0 times particle 2's displacement).
 ENERGY_COLUMNS = ("kinetic_translational", "kinetic_rotational", "hertz_potential") + tuple(
-    s.work for s in SPECS.values() if s.work) + ("work_load",)
+    s.work for s in SPECS.values() if s.work) + (chain.SPEC.work,)
 
 
 def residual_work(effects) -> tuple[str, ...]:

@@ -13,7 +13,8 @@ from ..lammps.units import lmp_float as _r, to_micro
 from .spec import EffectSpec
 
 SPEC = EffectSpec("air_drag", work="work_air_drag", work_slot="L_WD",
-                  table_column="work_air_J", lammps_ledger="f_gd[3]")
+                  table_column="work_air_J", lammps_ledger="f_gd[3]",
+                  params=("P_T0", "P_L"), flags=("F_DRAG", "F_ODD"))
 
 
 def force(m, v, T0, L, odd):

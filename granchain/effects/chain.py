@@ -21,6 +21,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..materials import Material
+from .spec import EffectSpec
+
+# Not an effect a scene switches: the spheres themselves, declared as the effects are.
+# Its ledger column is the dead load's work F0 x_2, computed from the state (no
+# accumulated work slot).
+SPEC = EffectSpec("chain", params=("P_N", "P_R", "P_M", "P_F0"),
+                  flags=("F_WALL", "F_LOAD", "F_HET"),
+                  rows=("G_GAP", "G_M", "G_I", "G_R", "G_K"), work="work_load",
+                  state=(("L_X", "particle"), ("L_V", "particle")))
 
 
 @dataclass(frozen=True)

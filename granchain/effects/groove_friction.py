@@ -29,7 +29,9 @@ from ..lammps.units import lmp_float as _r, to_micro
 from .spec import EffectSpec
 
 SPEC = EffectSpec("groove_friction", state=(("L_XG", "particle"),), work="work_groove_friction",
-                  work_slot="L_WG", table_column="work_groove_J", lammps_ledger="f_gd[2]")
+                  work_slot="L_WG", table_column="work_groove_J", lammps_ledger="f_gd[2]",
+                  params=("P_S", "P_FC", "P_KG", "P_GG"), flags=("F_GROOVE",),
+                  rows=("G_FC", "G_KG", "G_GG"))
 
 
 def slip(v, omega, sR, rot):

@@ -15,7 +15,7 @@ import numpy as np
 from ..lammps.units import lmp_float as _r, to_micro
 from .spec import EffectSpec
 
-SPEC = EffectSpec("hertz")
+SPEC = EffectSpec("hertz", params=("P_K",))
 
 
 def force(K, d):

@@ -19,7 +19,8 @@ from .spec import EffectSpec
 
 SPEC = EffectSpec("particle_friction", state=(("L_XT", "contact"),),
                   work="work_particle_friction", work_slot="L_WT",
-                  table_column="work_particle_friction_J", lammps_reports_work=False)
+                  table_column="work_particle_friction_J", lammps_reports_work=False,
+                  params=("P_MU", "P_KT"), flags=("F_PP", "F_MINDLIN"), rows=("G_KT",))
 
 
 def contact_map(xi, kt, cap):

@@ -20,7 +20,8 @@ from .spec import EffectSpec
 
 SPEC = EffectSpec("rolling_friction", state=(("L_PS", "contact"),),
                   work="work_rolling_friction", work_slot="L_WR",
-                  table_column="work_rolling_J", lammps_reports_work=False)
+                  table_column="work_rolling_J", lammps_reports_work=False,
+                  params=("P_KR", "P_GR", "P_MUR"), flags=("F_ROLL",), rows=("G_RE",))
 
 
 def rolling_map(rho, vr, kr, gr, cap):

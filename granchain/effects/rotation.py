@@ -8,7 +8,8 @@ from dataclasses import dataclass
 
 from .spec import EffectSpec
 
-SPEC = EffectSpec("rotation", state=(("L_W", "particle"),), lammps_ledger="c_erot_atom")
+SPEC = EffectSpec("rotation", state=(("L_W", "particle"),), lammps_ledger="c_erot_atom",
+                  params=("P_I",), flags=("F_ROT",))
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,12 @@ class EffectSpec:
     lammps_reports_work: False when LAMMPS has no per-atom output for the work (contact
         friction inside ``pair granular``): the LAMMPS ledger then closes by construction
         and that column is the balance residual.
+    params, flags: the slots of the kernels' parameter vector P and flag vector FL that
+        the effect's ``kernel(term)`` fills (``P_*``, ``F_*``).
+    rows: the per-sphere or per-contact rows of the kernels' per-chain array G that the
+        effect's ``rows(term, chain)`` fills (``G_*``).
+    ``engines.codes`` numbers every slot, row, state block and ledger column from these
+    declarations, in registry order.
     """
     name: str
     state: tuple[tuple[str, str], ...] = ()
@@ -29,3 +35,12 @@ class EffectSpec:
     table_column: str | None = None
     lammps_ledger: str | None = None
     lammps_reports_work: bool = True
+    params: tuple[str, ...] = ()
+    flags: tuple[str, ...] = ()
+    rows: tuple[str, ...] = ()
+
+    @property
+    def work_code(self) -> str | None:
+        """The kernels' name of the effect's ledger column (``E_`` and the work slot's
+        suffix: L_WG -> E_WG)."""
+        return "E_" + self.work_slot[2:] if self.work_slot else None

@@ -2,34 +2,56 @@
 
 numba-free (numpy only), so that an engine running the ahead-of-time kernels
 (``engines.backend``) never imports numba: indices of the parameter vector P, the flags FL,
-the layout offsets LO, the method codes, the energy columns and the statuses; the
-Runge-Kutta tableaux (DOP853 from scipy's own coefficient file, Dormand-Prince 5(4)); the
-event method's record-step buffer.
+the layout offsets LO, the per-chain rows G and the energy columns, numbered from what the
+chain and each effect declare (``EffectSpec``: params, flags, rows, state, work_slot) in
+registry order; the method codes and the statuses; the Runge-Kutta tableaux (DOP853 from
+scipy's own coefficient file, Dormand-Prince 5(4)); the event method's record-step buffer.
+
+The generated names (``P_K``, ``F_GROOVE``, ``G_M``, ``L_XG``, ``E_WG``, ...) are module
+constants, so numba freezes them into the kernels like any other.
 """
 from __future__ import annotations
 
 import numpy as np
 
-# parameter vector P
-(P_N, P_R, P_M, P_I, P_K, P_S, P_FC, P_KG, P_T0, P_L, P_MU, P_KT, P_KR, P_GR, P_MUR, P_GG,
- P_F0, P_LEN) = range(18)
-# flags FL (F_WALL: an end wall; F_LOAD: a dead load on particle 2; F_HET: the spheres
-# differ, so the ledger sums each sphere's own mass and inertia)
-(F_ROT, F_GROOVE, F_DRAG, F_ODD, F_PP, F_MINDLIN, F_ROLL, F_WALL, F_LOAD, F_HET,
- F_LEN) = range(11)
+from ..effects import ENERGY_COLUMNS, MODULES, chain as _chain
+
+
+def _number(names) -> dict[str, int]:
+    """Consecutive indices of names in order of first appearance."""
+    out: dict[str, int] = {}
+    for name in names:
+        out.setdefault(name, len(out))
+    return out
+
+
+_SPECS = (_chain.SPEC,) + tuple(m.SPEC for m in MODULES)
+# parameter vector P (scalars of a run) and flags FL
+P_SLOTS = _number(p for s in _SPECS for p in s.params)
+F_SLOTS = _number(f for s in _SPECS for f in s.flags)
 # rows of a chain's per-chain array G (B, G_LEN * n), each block n rows long: row
 # G_X * n + i is entry i of block G_X. Per contact (G_GAP, G_K, G_KT, G_RE): contacts
 # 0 .. n-2 (spheres k, k+1), then the end wall at n-1. Per sphere: the rest.
 # G_GAP: kernel gaps (overlap_k = x_k - x_{k+1} - G_GAP_k; the wall's x_n - G_GAP_{n-1})
-(G_GAP, G_M, G_I, G_R, G_K, G_FC, G_KG, G_GG, G_KT, G_RE, G_LEN) = range(11)
-# layout offsets LO (-1: absent)
-L_X, L_V, L_W, L_XG, L_XT, L_PS, L_WG, L_WD, L_WT, L_WR, L_NY, L_LEN = range(12)
+G_SLOTS = _number(r for s in _SPECS for r in s.rows)
+# layout offsets LO (-1: absent): the state blocks (positions and velocities, then each
+# effect's), then one accumulated-work entry per effect that does work, then L_NY (the
+# state's length)
+L_SLOTS = _number([b for s in _SPECS for b, _ in s.state]
+                  + [s.work_slot for s in _SPECS if s.work_slot] + ["L_NY"])
+# sample columns of the energy array, in ENERGY_COLUMNS order: kinetic translational,
+# kinetic rotational, Hertz potential, then the works (each effect's, then the dead load's)
+E_SLOTS = {"E_KT": 0, "E_KR": 1, "E_H": 2,
+           **{s.work_code: ENERGY_COLUMNS.index(s.work) for s in _SPECS if s.work_code},
+           "E_WL": ENERGY_COLUMNS.index(_chain.SPEC.work)}
+globals().update({**P_SLOTS, **F_SLOTS, **G_SLOTS, **L_SLOTS, **E_SLOTS})
+P_LEN, F_LEN, G_LEN, L_LEN, E_LEN = (len(P_SLOTS), len(F_SLOTS), len(G_SLOTS), len(L_SLOTS),
+                                     len(ENERGY_COLUMNS))
+# (layout slot, energy column) of every accumulated work, in registry order
+WORK_SLOTS = tuple((L_SLOTS[s.work_slot], E_SLOTS[s.work_code]) for s in _SPECS if s.work_slot)
+
 # methods
 M_RK4, M_VERLET, M_DOP853 = 0, 1, 2
-# sample columns of the energy array: kinetic translational, kinetic rotational, Hertz
-# potential, then the work done on the particles by groove, drag, contact friction,
-# rolling, and the dead load
-E_KT, E_KR, E_H, E_WG, E_WD, E_WT, E_WR, E_WL, E_LEN = range(9)
 # status
 S_RUNNING, S_DONE, S_PASSED, S_TIMEOUT, S_NONFINITE, S_STEPFAIL = 0, 1, 2, 3, 4, 5
 

@@ -425,7 +425,10 @@ def _dense(yp, kp, y1, k1, h, tau, LO, n, out):
 def _mech_balance(y, gaps, P, FL, LO, ebuf, e0):
     energies(y, gaps, P, FL, LO, ebuf)
     tot = ebuf[K.E_KT] + ebuf[K.E_KR] + ebuf[K.E_H]
-    work = ebuf[K.E_WG] + ebuf[K.E_WD] + ebuf[K.E_WT] + ebuf[K.E_WR] + ebuf[K.E_WL]
+    # every work column (they follow the mechanical energies, codes.E_SLOTS)
+    work = ebuf[K.E_H + 1]
+    for c in range(K.E_H + 2, K.E_LEN):
+        work += ebuf[c]
     return abs(tot - e0 - work)
 
 

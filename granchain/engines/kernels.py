@@ -40,7 +40,7 @@ from .codes import (DOP_A, DOP_B, DOP_C, DOP_E3, DOP_E5, E_H, E_KR, E_KT, E_LEN,
                     L_WR, L_WT, L_X, L_XG, L_XT, M_DOP853, M_RK4, M_VERLET, NST, P_F0, P_FC,
                     P_GG, P_GR, P_I, P_K, P_KG, P_KR, P_KT, P_L, P_LEN, P_M, P_MU, P_MUR, P_N,
                     P_R, P_S, P_T0, S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL,
-                    S_TIMEOUT)
+                    S_TIMEOUT, WORK_SLOTS)
 
 
 @njit(cache=True, inline="always")
@@ -469,7 +469,7 @@ def energies_block(y, gaps, P, FL, LO, out):
         F0 = P[P_F0]
         for l in range(L):
             out[E_WL, l] = F0 * y[ox + 1, l]
-    for slot, col in ((L_WG, E_WG), (L_WD, E_WD), (L_WT, E_WT), (L_WR, E_WR)):
+    for slot, col in WORK_SLOTS:
         o = LO[slot]
         if o >= 0:
             for l in range(L):
@@ -522,7 +522,7 @@ def verlet_block(y, acc, h, gaps, P, FL, LO, f):
         for l in range(L):
             y[ox + i, l] += h * y[ov + i, l]
     forces_block(y, gaps, P, FL, LO, h, acc, f)
-    for c in (L_WG, L_WD, L_WT, L_WR):
+    for c, _ in WORK_SLOTS:
         o = LO[c]
         if o >= 0:
             for l in range(L):
