@@ -157,13 +157,25 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                 f[k, l] = 0.0
             if k < 63:
                 shut |= 1 << k
-    if wall or FL[F_LOAD] != 0:
+    load = FL[F_LOAD] != 0
+    if wall or load:
         # the end wall (contact n-1, overlap x_n - G_{n-1}) and the dead load on particle 2
         F0 = P[P_F0]
         if wall:
+            c = 0
             for l in range(L):
-                f[n - 1, l] = _hertz_force(gaps[oK + n - 1, l], y[ox + n - 1, l] - gaps[n - 1, l])
+                d = y[ox + n - 1, l] - gaps[n - 1, l]
+                c += 1 if d > 0.0 else 0
+                f[n - 1, l] = _hertz_force(gaps[oK + n - 1, l], d)
+            if c == 0 and n - 1 < 63:
+                shut |= 1 << (n - 1)
         for i in range(n):
+            if (i == 0 or _bit(shut, i - 1)) and (_bit(shut, i) if (i < n - 1 or wall) else True) \
+                    and not (load and i == 1):
+                # no force on sphere i in any lane
+                for l in range(L):
+                    dy[ov + i, l] = 0.0
+                continue
             for l in range(L):
                 fl = f[i - 1, l] if i > 0 else 0.0
                 fr = f[i, l] if (i < n - 1 or wall) else 0.0
