@@ -13,6 +13,13 @@ step, so they differ by rounding only: measured <= 1.3e-8 relative on v_max and
 asks for, yet keep >= 75x headroom over rounding; at
 1e-3 a missing groove friction or air drag term (~1e-4 on v_max over one pass of the
 wave) would go unnoticed.
+
+A scene with an end wall (``walls.end``) adds the wall's observables
+(``granchain.observables.wall_peak``): the peak of its dynamic force ``wall_force_max``
+and the time of that peak ``t_wall_peak`` (both NaN, and equal, when neither engine saw
+the peak end), and its static force ``wall_force_static`` (the preload F0, 0 without
+one). Measured: <= 5e-10 relative on the peak and its time over the dimer, walled-gapped
+and preloaded chains of tests/test_lammps_field_chains.py, the static force to 2e-14.
 """
 from __future__ import annotations
 
@@ -32,6 +39,7 @@ from .trajectory import ENERGY_COLUMNS
 V_TOL = 1e-6       # relative, v_max of every particle, v_max_1, v_max_2, v_g, v_g_front
 T_TOL = 1e-6       # relative, dt_peak, dt_front
 E_TOL = 1e-7       # |difference| / E0, every energy-ledger entry
+W_TOL = 1e-6       # relative, the end wall's force: dynamic peak and static preload
 
 WHY_V = ("not the 1e-3 of a loose cross-check: same law and Verlet, rounding only (measured <= 1.3e-8 over 1000 chains); "
          "1e-3 would miss a dropped groove/drag term (~1e-4)")
@@ -45,6 +53,12 @@ WHY_RESIDUAL = ("not independent: LAMMPS has no per-atom contact-friction work; 
                 "the residual of its energy balance")
 WHY_BALANCE_RESIDUAL = "not independent: the LAMMPS ledger balances by construction (residual)"
 WHY_BALANCE = "both balances carry the same Verlet error"
+WHY_WALL = ("same wall law (LAMMPS fix wall/gran, docs/lammps_laws.md 12) and Verlet: rounding "
+            "only (measured <= 5e-10); 1e-6 still resolves the 2e-4 of mixing the wall's E "
+            "and nu apart")
+WHY_WALL_T = "same integrator and sample grid: the wall's peak time differs by rounding only"
+WHY_WALL_STATIC = ("the preload F0 both engines start from (rounding only, measured 2e-14); "
+                   "relative to the larger of it and the dynamic peak, as an unloaded wall's is 0")
 
 
 @dataclass
@@ -101,7 +115,7 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
 
     from .engines import lammps as lmp_engine
     from .engines import reference
-    from .gaps import member_gaps, members
+    from .gaps import member_gaps, member_radii, members
 
     scene = resolve_auto(scene)
     cs = comparison_scene(scene)
@@ -110,15 +124,16 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
         raise GranchainError("compare: the scene has no members (no striker speed)")
     gaps = member_gaps(cs, mem)
     vs = np.array([m.v_striker for m in mem])
+    radii = member_radii(cs, mem)          # each member's own under a radius spread
     t0 = time.perf_counter()
     try:
         ref = list(reference.run(cs, gaps, vs, method="verlet", dt=cs.dt, progress=False,
-                                 trace=True))
+                                 trace=True, radii=radii))
     except NotImplementedError as exc:
         raise GranchainError(f"compare: the reference engine cannot run this scene: {exc}") from None
     t1 = time.perf_counter()
     lmp = list(lmp_engine.run(cs, gaps, vs, nprocs=nprocs, workdir=workdir, force=force,
-                              keep=keep, progress=False,
+                              keep=keep, progress=False, radii=radii,
                               output="dump" if trajectory else "binary"))
     t2 = time.perf_counter()
     rows = []
@@ -136,6 +151,8 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
             "lammps_version": lmp[0].meta.get("lammps_version"),
             "balance": lmp[0].meta.get("balance"), "deck": lmp[0].meta.get("deck"),
             "tolerances": {"v": V_TOL, "t": T_TOL, "energy_over_E0": E_TOL}}
+    if cs.wall is not None:
+        meta["tolerances"]["wall_force"] = W_TOL
     return Comparison(cs, df, meta)
 
 
@@ -149,6 +166,24 @@ def _row(q, a, b, diff, measure, tol, why):
     ok = None if tol is None else bool(diff <= tol)
     return {"quantity": q, "reference": a, "lammps": b, "diff": diff, "measure": measure,
             "tolerance": tol, "ok": ok, "why": why}
+
+
+def wall_rows(sr, sl) -> list[dict]:
+    """Rows of the end wall's observables of one member (two ChainResults): the dynamic
+    peak force and its time (NaN on both sides, when neither run measured the peak,
+    compares equal; on one side only it fails), and the static force, relative to the
+    larger of itself and the reference's dynamic peak (an unloaded wall's is 0)."""
+    if not (sr.walled and sl.walled):
+        return [_row("wall_force_max", sr.wall_force_max, sl.wall_force_max, math.inf, "rel",
+                     W_TOL, "one engine has no end wall")]
+    fa, fb = sr.wall_force_max, sl.wall_force_max
+    ta, tb = sr.wall_force_static, sl.wall_force_static
+    scale = fa if math.isfinite(fa) else 0.0
+    return [_row("wall_force_max", fa, fb, _rel(fa, fb, 0.0), "rel", W_TOL, WHY_WALL),
+            _row("t_wall_peak", sr.t_wall_peak, sl.t_wall_peak,
+                 _rel(sr.t_wall_peak, sl.t_wall_peak, 0.0), "rel", T_TOL, WHY_WALL_T),
+            _row("wall_force_static", ta, tb, _rel(ta, tb, max(scale, 1e-300)), "rel",
+                 W_TOL, WHY_WALL_STATIC)]
 
 
 def member_rows(scene: Scene, ref, lmp, *, trajectory: bool = False) -> list[dict]:
@@ -173,6 +208,8 @@ def member_rows(scene: Scene, ref, lmp, *, trajectory: bool = False) -> list[dic
         out.append(_row(q, a, b, _rel(a, b, 0.0), "rel", T_TOL, WHY_T))
     for q, a, b in (("v_g", sr.v_g, sl.v_g), ("v_g_front", sr.v_g_front, sl.v_g_front)):
         out.append(_row(q, a, b, _rel(a, b, 0.0), "rel", V_TOL, WHY_V))
+    if sr.walled or sl.walled:
+        out += wall_rows(sr, sl)
     er, el = sr.energy, sl.energy
     e0 = er.initial if er.initial > 0 else 1.0
     residual = lmp.meta.get("balance") == "residual"

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 
@@ -116,3 +117,38 @@ def test_compare_trajectory_reads_the_text_dump_and_checks_every_sample(tmp_path
     row, = [r for r in member_rows(cs, ref, bad, trajectory=True)
             if r["quantity"] == "v(t), every particle"]
     assert row["ok"] is False and row["diff"] == pytest.approx(1e-5, rel=1e-6)
+
+
+def test_walled_scene_compares_the_wall_force():
+    """A preloaded chain on an elastic end wall: rows for the wall's dynamic peak, its time
+    and the static preload, within W_TOL/T_TOL (measured <= 5e-10); a free end has none.
+    The peak row fails when one engine's wall force is 1e-5 off, the static row when its
+    preload is."""
+    import dataclasses
+
+    from granchain.engines import reference
+    from granchain.gaps import member_gaps, members
+    sc = packed(**{"chain.n": 8, "probes": "[2, 7]", "walls.end": "ss316",
+                   "precompression.force": 0.02, "striker.velocity": 0.2})
+    cmp = C.compare(sc)
+    df = cmp.rows.set_index("quantity")
+    assert cmp.ok and cmp.meta["tolerances"]["wall_force"] == C.W_TOL
+    for q, tol in (("wall_force_max", C.W_TOL), ("t_wall_peak", C.T_TOL),
+                   ("wall_force_static", C.W_TOL)):
+        r = df.loc[q]
+        assert r.ok is not None and bool(r.ok) and r.tolerance == tol and r["diff"] < 1e-8, (q, r)
+        assert math.isfinite(r.reference) and r.reference > 0, q
+    assert df.loc["wall_force_static", "reference"] == pytest.approx(0.02, rel=1e-12)
+    assert "wall_force_max" not in C.compare(packed(**{"chain.n": 6, "probes": "[2, 6]"})
+                                             ).rows.quantity.tolist()
+    # a wall force 1e-5 too large (the whole record), or a preload 1e-5 too large
+    cs = cmp.scene
+    mem = members(cs)
+    ref = next(reference.run(cs, member_gaps(cs, mem), [mem[0].v_striker], method="verlet",
+                             dt=cs.dt, trace=True))
+    for change, failing in (({"wall_force": ref.wall_force * (1 + 1e-5)}, "wall_force_max"),
+                            ({"wall_static": ref.wall_static * (1 + 1e-5)}, "wall_force_static")):
+        bad = dataclasses.replace(ref, **change)
+        rows = {r["quantity"]: r for r in C.member_rows(cs, ref, bad)}
+        assert rows[failing]["ok"] is False, failing
+        assert rows["t_wall_peak"]["ok"] is True
