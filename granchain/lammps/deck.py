@@ -18,6 +18,11 @@ Choices (also stated in the deck's comments):
   density, an atom type per material with a ``pair_coeff`` per type pair, an end wall
   (chains laid out right to left from the wall plane x = 0) and a dead load. A chain of
   identical spheres with a free end and no load gives the same bytes as before.
+* A radius spread (``chain.radius_spread``, ``radii=``): each chain its own radii, so its
+  own diameters and masses, static overlaps, wall overlap and groove springs (the data
+  file); the pair_coeff lines hold no radius (pair granular takes R* from the atoms) and
+  are every member's (checked); with an end wall the stop rule compares each last sphere
+  with its own initial x (``fix store/state 0 x``).
 * Rotation off: ``fix nve`` (omega is never integrated and stays exactly 0); the
   tangential law is then ``linear_history 0.0 0.0 0.0`` (k_t = 0, mu = 0: the force
   -k_t xi is exactly zero, and the cap test 0 > 0 never fires, so no division by k_t).
@@ -88,12 +93,14 @@ def template_path() -> Path:
     return Path(__file__).resolve().parents[2] / "lammps_inputs" / "templates" / "chain.lmp.in"
 
 
-def chain_positions(scene: Scene, gaps) -> np.ndarray:
+def chain_positions(scene: Scene, gaps, radii=None) -> np.ndarray:
     """x (um) of the n spheres of one chain with gaps (n-1,) in m: x_1 = 0,
     x_{i+1} = x_i + (R_i + R_{i+1}) + g_i (2R + g_i for equal spheres); with an end wall,
     right to left from the wall plane x = 0 through the static overlaps
-    (:func:`granchain.lammps.field.positions`)."""
-    return field.positions(field.spheres(physics_terms(scene)), gaps)
+    (:func:`granchain.lammps.field.positions`). ``radii`` (n,) m: the chain's own (a
+    member of a radius spread), else the scene's."""
+    sc = scene if radii is None else scene.with_radii(radii)
+    return field.positions(field.spheres(physics_terms(sc)), gaps)
 
 
 def _id_ranges(ids) -> str:
@@ -164,6 +171,39 @@ def _ledger_block(scene: Scene, pl: DeckPlan) -> str:
     return "\n".join(lines)
 
 
+def _member_spheres(members) -> list:
+    """Each chain's :class:`field.Spheres` (chains sharing a Terms share it)."""
+    seen: dict = {}
+    for t in members:
+        if id(t) not in seen:
+            seen[id(t)] = field.spheres(t)
+    return [seen[id(t)] for t in members]
+
+
+def _check_shared_laws(members, sps, pair_coeff: str, terms, sp) -> None:
+    """The lines a deck states once for every chain must be every member's: the atom
+    types (materials), the pair_coeff lines (materials and the contact laws' own
+    constants; R* comes from the atoms, the explicit Mindlin k = 8 G* holds no radius),
+    the end wall's E*_w and the dead load. Raises GranchainError if a member's differ."""
+    pairs_of = {}
+    for t, s in zip(members, sps):
+        if id(t) in pairs_of:
+            continue
+        pairs = [hertz.lammps_pair(t.hertz), particle_friction.lammps_pair(t.particle_friction)]
+        if t.rolling_friction is not None:
+            pairs.append(rolling_friction.lammps_pair(t.rolling_friction))
+        pc = ("\n".join(c for c, _ in pairs) + "\n" + " &\n                ".join(
+            p for _, p in pairs)) if s.ntypes == 1 else field.pair_coeff(t, s, pairs[1:])
+        same = (pc == pair_coeff and s.types == sp.types and s.type_materials == sp.type_materials
+                and s.wall == sp.wall and s.load == sp.load and s.densities == sp.densities
+                and (sp.wall is None or field.wall_modulus(t) == field.wall_modulus(terms)))
+        if not same:
+            raise GranchainError("chain.radius_spread: a member's contact laws differ from "
+                                 "the first member's in a way one LAMMPS deck cannot hold per "
+                                 "chain; run it with --engine reference")
+        pairs_of[id(t)] = pc
+
+
 def _trajectory_block(pl: DeckPlan, spacing: str) -> str:
     """Deck lines of the trajectory output (pl.output)."""
     cols = " ".join(pl.dump_columns)
@@ -194,11 +234,30 @@ def _halt_block(n: int, vs: np.ndarray, every: int, x_last: str | None = None) -
     moves forward faster than the arrival speed with no contact left; end wall: its last
     particle moves back from the wall faster than the arrival speed and is back at or
     behind its initial position x_last (um, as written in chain.data: the same in every
-    chain). Chains are grouped by striker speed, each group with its own arrival speed,
-    as the engines apply it."""
+    chain; or :data:`X0_PER_ATOM` when the chains' last spheres start at different x, a
+    radius spread: each its own initial x, stored by ``fix store/state 0 x`` when the fix
+    is defined, before the run). Chains are grouped by striker speed, each group with
+    its own arrival speed, as the engines apply it."""
     wall = x_last is not None
     speeds = sorted({float(v) for v in vs if v > 0})
-    if wall:
+    if wall and x_last == X0_PER_ATOM:
+        lines = [
+            "# t_end auto: stop at the first sample at which the wave has left every moving "
+            "chain:",
+            f"# the chain's last particle (particle {n}) moves back from the end wall faster "
+            f"than {ARRIVAL_FRACTION:g} x",
+            "# its striker speed and is back at or behind its initial x (the wave has reflected "
+            "and",
+            "# the wall force is back at its static value), the stop rule of the reference "
+            "engine.",
+            "# The chains' spheres have their own radii, so their last spheres start at their "
+            "own x:",
+            f"# fix {X0_FIX} stores each one's x as read from chain.data (store/state 0: once, "
+            "when",
+            "# defined). One group of last particles per striker speed.",
+            f"fix             {X0_FIX} lasts store/state 0 x",
+        ]
+    elif wall:
         lines = [
             "# t_end auto: stop at the first sample at which the wave has left every moving "
             "chain:",
@@ -221,7 +280,8 @@ def _halt_block(n: int, vs: np.ndarray, every: int, x_last: str | None = None) -
     for k, v in enumerate(speeds, start=1):
         ids = [b * n + n for b in range(len(vs)) if float(vs[b]) == v]
         thr = _r(to_micro(arrival_speed(v), "velocity"))
-        rule = f"!((vx<-{thr})&&(x<={x_last}))" if wall else f"!((vx>{thr})&&(c_contacts==0))"
+        x0 = f"f_{X0_FIX}" if x_last == X0_PER_ATOM else x_last
+        rule = f"!((vx<-{thr})&&(x<={x0}))" if wall else f"!((vx>{thr})&&(c_contacts==0))"
         lines += [f"group           last{k} id {_id_ranges(ids)}",
                   f'variable        waiting{k} atom "{rule}"',
                   f"compute         nwaiting{k} last{k} reduce sum v_waiting{k}"]
@@ -231,27 +291,43 @@ def _halt_block(n: int, vs: np.ndarray, every: int, x_last: str | None = None) -
     return "\n".join(lines)
 
 
+# the stop rule with an end wall when the chains' last spheres start at different x (a
+# radius spread): each compares with its own initial x, stored by this fix
+X0_FIX = "x0"
+X0_PER_ATOM = "per-atom"
+
+
 def needs_plugin(scene: Scene) -> bool:
     """Does the scene's deck load the groove/drag plugin (groove friction or air drag)?"""
     return scene.has("groove_friction") or scene.has("air_drag")
 
 
-def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None,
+def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str | None = None,
            output: str = "dump") -> tuple[str, str]:
     """The texts of deck.lmp and chain.data (no files written).
+
+    ``radii`` (B, n) m: each chain's own radii (a radius spread; default for a scene's
+    own members: ``gaps.member_radii``, see :func:`granchain.lammps.plan.batch_members`).
+    Each chain then has its own diameters and masses (chain.data), its own contacts (pair
+    granular takes R* from the atoms; no pair_coeff depends on a radius), its own groove
+    springs (the Groove section), static overlaps and wall overlap (its positions).
 
     The only text from the scene in either file is its name (in comments and the data
     file's title line), which must match ``granchain.scene.NAME_RE``: no newline, ``$``,
     ``&`` or quote can reach LAMMPS' input parser."""
     if not NAME_RE.fullmatch(scene.name):
         raise GranchainError(f"deck: scene name {scene.name!r} is not a valid name; {NAME_RULE}")
-    terms = physics_terms(scene)
-    pl = plan(scene, gaps=gaps, v_striker=v_striker, output=output)
+    pl = plan(scene, gaps=gaps, v_striker=v_striker, radii=radii, output=output)
     gaps, vs = pl.gaps, pl.v_striker
     B, n = gaps.shape[0], scene.n
+    # each chain's terms under a radius spread (None: every chain has the scene's)
+    members = None if pl.radii is None else field.member_terms(scene, pl.radii)
+    terms = physics_terms(scene) if members is None else members[0]
 
     sp = field.spheres(terms)
-    R = max(sp.radii)           # the largest sphere sets the skin and the chain spacing
+    sps = [sp] * B if members is None else _member_spheres(members)
+    # the largest sphere sets the skin and the chain spacing
+    R = max(sp.radii) if members is None else max(max(s.radii) for s in sps)
     D = 2.0 * R
     dt = to_micro(scene.dt, "time")
     skin = 0.1 * R
@@ -263,7 +339,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
     t_run_us = nsteps * dt
 
     # ---- positions, velocities, box --------------------------------------------------
-    xs = [field.positions(sp, gaps[b]) for b in range(B)]
+    xs = [field.positions(sps[b], gaps[b]) for b in range(B)]
     # no sphere can leave the box: each side has room for twice the farthest any sphere
     # can travel in the run (max_travel: the fastest striker, sped up by a propulsive
     # air drag) plus a diameter
@@ -286,9 +362,14 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
             "",
             "Atoms # sphere",
             ""]
-    cols = [f"{t} {_r(2.0 * r)} {_r(rho)}" for t, r, rho in zip(sp.types, sp.radii, sp.densities)]
+    cols_of = {}
     for b in range(B):
         y = b * spacing
+        s = sps[b]
+        if id(s) not in cols_of:
+            cols_of[id(s)] = [f"{t} {_r(2.0 * r)} {_r(rho)}"
+                              for t, r, rho in zip(s.types, s.radii, s.densities)]
+        cols = cols_of[id(s)]
         for i in range(n):
             data.append(f"{b * n + i + 1} {cols[i]} {_r(xs[b][i])} {_r(y)} 0.0")
     data += ["", "Velocities", ""]
@@ -296,9 +377,9 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
         for i in range(n):
             vx = to_micro(float(vs[b]), "velocity") if i == 0 else 0.0
             data.append(f"{b * n + i + 1} {_r(vx)} 0.0 0.0 0.0 0.0 0.0")
-    groove_each = field.groove_per_sphere(terms)
+    groove_each = field.groove_per_sphere(terms, members)
     if groove_each:
-        data += field.groove_section(terms, B)
+        data += field.groove_section(terms, B, members)
     data_text = "\n".join(data) + "\n"
 
     # ---- physics from the terms ------------------------------------------------------
@@ -311,6 +392,8 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
         pair_coeff = "\n".join(pair_comment) + "\n" + " &\n                ".join(parts)
     else:
         pair_coeff = field.pair_coeff(terms, sp, pairs[1:])
+    if members is not None:
+        _check_shared_laws(members, sps, pair_coeff, terms, sp)
 
     rot = terms.rotation is not None
     gf, ad = terms.groove_friction, terms.air_drag
@@ -353,12 +436,19 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
     ledger_note += " (energy 1e-15 J)"
 
     if pl.auto:
-        halt = _halt_block(n, vs, every, x_last=None if sp.wall is None else _r(xs[0][-1]))
+        x_last = None
+        if sp.wall is not None:
+            lasts = {_r(x[-1]) for x in xs}
+            x_last = lasts.pop() if len(lasts) == 1 else X0_PER_ATOM
+        halt = _halt_block(n, vs, every, x_last=x_last)
     else:
         halt = "# (t_end given: the run has a fixed length)"
 
     mass_expected = to_micro(terms.chain.masses[0], "mass")
-    if sp.uniform:
+    if members is not None:
+        atoms_note = ("each sphere's own diameter and density, each chain's radii its own "
+                      "(chain.radius_spread;\n# chain.data; rmass = 4/3 pi r^3 rho)")
+    elif sp.uniform:
         atoms_note = (f"diameter {_r(D)} um, density {_r(sp.densities[0])} pg/um^3 (rmass = 4/3 pi "
                       "r^3 rho)")
     else:
@@ -373,7 +463,8 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
         min_spacing=_r(D + skin), effects=", ".join(sorted(scene.effects)),
         plugin_variable=plugin_variable, atoms_note=atoms_note, read_data_fix=read_data_fix,
         skin=_r(skin),
-        mass_note="scene.mass" if not terms.chain.heterogeneous else "the striker's mass",
+        mass_note=("scene.mass" if not terms.chain.heterogeneous else "the striker's mass"
+                   if members is None else "chain 0's striker's mass"),
         mass_expected=f"{mass_expected:.17g}", pair_coeff=pair_coeff, groove_fix=groove_fix,
         end_fixes=field.end_fixes(terms, sp, B, _id_ranges),
         integrator=integrator, timestep=_r(dt), nsteps=nsteps, t_run=_r(t_run_us),
@@ -387,8 +478,8 @@ def render(scene: Scene, *, gaps=None, v_striker=None, plugin: str | None = None
     return deck_text, data_text
 
 
-def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, force: bool = False,
-               plugin: str | None = None, output: str = "dump") -> Path:
+def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=None,
+               force: bool = False, plugin: str | None = None, output: str = "dump") -> Path:
     """Write ``deck.lmp`` and ``chain.data`` into ``outdir``; return the path of deck.lmp.
 
     output: what the deck writes at every sample (:data:`OUTPUTS`): ``"dump"`` (default)
@@ -397,8 +488,11 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, force: 
     reads by default; ``"none"`` no per-sample output (LAMMPS' own cost).
 
     gaps: (B, n-1) in m and v_striker: (B,) in m/s, one chain each; default: every member
-    of the scene (``granchain.simulate.members``). Refuses to replace existing files
-    unless ``force``. ``plugin``: path of the groove/drag plugin (default: built/cached).
+    of the scene (``granchain.simulate.members``). radii: (B, n) in m, each chain's own
+    (a radius spread); default: the members' draws (``gaps.member_radii``) for the scene's
+    own members, else the scene's radii (``plan.batch_members``). Refuses to replace
+    existing files unless ``force``. ``plugin``: path of the groove/drag plugin (default:
+    built/cached).
     """
     outdir = Path(outdir)
     targets = [outdir / DECK_NAME, outdir / DATA_NAME]
@@ -411,8 +505,8 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, force: 
     if plugin is None and needs_plugin(scene):
         from granchain.lammps.plugin import build_plugin
         plugin = str(build_plugin())
-    deck_text, data_text = render(scene, gaps=gaps, v_striker=v_striker, plugin=plugin,
-                                  output=output)
+    deck_text, data_text = render(scene, gaps=gaps, v_striker=v_striker, radii=radii,
+                                  plugin=plugin, output=output)
     try:
         outdir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

@@ -29,6 +29,15 @@ of the chapter's chain byte for byte (one atom type, ``pair_coeff * *``, x_1 = 0
 * Dead load: ``fix addforce`` F0 along +x on particle 2 of every chain; the data file's
   positions hold the static overlaps (F0/K_k)^(2/3) of every contact from particle 2 to
   the wall (the striker touches particle 2 at zero overlap).
+* A radius spread (``chain.radius_spread``): each chain of the deck is a member with its
+  own radii, its own :class:`Spheres` (``member_terms``: the scene ``Scene.with_radii``
+  gives it): its own diameters, hence masses, its static and wall overlaps (positions)
+  and groove springs (the Groove section, per atom). Nothing in a ``pair_coeff`` depends
+  on a radius: Hertz and Mindlin take R* from the atoms' radii (``mindlin NULL``, and
+  the explicit k = 8 G* of an unlike pair, are per unit contact radius a), and
+  ``linear_history`` k_t and the rolling constants are the scene's; the wall's E*_w is
+  the materials'. So one atom type per material still serves every chain
+  (docs/lammps_laws.md section 12.4).
 """
 from __future__ import annotations
 
@@ -206,13 +215,37 @@ def end_fixes(terms, sp: Spheres, n_chains: int, id_ranges) -> str:
     return "\n" + "\n".join(out) + "\n"
 
 
-def groove_per_sphere(terms) -> bool:
+def member_terms(scene, radii) -> list:
+    """The physics terms of each chain of a radius-spread deck (``radii`` (B, n) m): the
+    scene each member runs (``Scene.with_radii``: its own masses, contact constants K,
+    Mindlin k_t, groove springs and static overlaps), as the reference engine builds its
+    rows (``engines.reference.chain_rows``). Members with equal radii share one Terms."""
+    from granchain.effects import physics_terms
+    seen: dict = {}
+    out = []
+    for r in np.asarray(radii, dtype=float):
+        key = r.tobytes()
+        if key not in seen:
+            seen[key] = physics_terms(scene.with_radii(r))
+        out.append(seen[key])
+    return out
+
+
+def groove_per_sphere(terms, members=None) -> bool:
     """Do the spheres' groove stick springs differ (``groove_friction.kt_each``,
-    ``gamma_each``: each sphere's mass, radius and material)? Then fix groove/drag reads
-    kt and gamma per atom (d_groove_kt, d_groove_gamma of fix property/atom, from the
-    data file's Groove section); else it gets the one value of every sphere."""
+    ``gamma_each``: each sphere's mass, radius and material), within a chain or, with
+    ``members`` (each chain's terms, a radius spread), between chains? Then fix
+    groove/drag reads kt and gamma per atom (d_groove_kt, d_groove_gamma of fix
+    property/atom, from the data file's Groove section); else it gets the one value of
+    every sphere."""
     gf = terms.groove_friction
-    return gf is not None and (len(set(gf.kt_each)) > 1 or len(set(gf.gamma_each)) > 1)
+    if gf is None:
+        return False
+    if members is None:
+        return len(set(gf.kt_each)) > 1 or len(set(gf.gamma_each)) > 1
+    kts = {k for t in members for k in t.groove_friction.kt_each}
+    gammas = {g for t in members for g in t.groove_friction.gamma_each}
+    return len(kts) > 1 or len(gammas) > 1
 
 
 def groove_fix_args(args: str) -> str:
@@ -231,13 +264,17 @@ def groove_property_fix() -> tuple[str, str]:
             f" fix {GROOVE_PROPS} NULL {GROOVE_SECTION}")
 
 
-def groove_section(terms, n_chains: int) -> list[str]:
-    """chain.data lines of the Groove section: atom-ID kt gamma of every sphere."""
-    gf = terms.groove_friction
-    vals = [f"{_r(to_micro(k, 'stiffness'))} {_r(to_micro(g, 'damping'))}"
-            for k, g in zip(gf.kt_each, gf.gamma_each)]
-    n = len(vals)
+def groove_section(terms, n_chains: int, members=None) -> list[str]:
+    """chain.data lines of the Groove section: atom-ID kt gamma of every sphere (with
+    ``members``, each chain's terms: each chain's own springs)."""
+    def values(t):
+        gf = t.groove_friction
+        return [f"{_r(to_micro(k, 'stiffness'))} {_r(to_micro(g, 'damping'))}"
+                for k, g in zip(gf.kt_each, gf.gamma_each)]
+    vals = None if members is not None else values(terms)
+    n = terms.n
     lines = ["", GROOVE_SECTION, ""]
     for b in range(n_chains):
-        lines += [f"{b * n + i + 1} {vals[i]}" for i in range(n)]
+        v = vals if members is None else values(members[b])
+        lines += [f"{b * n + i + 1} {v[i]}" for i in range(n)]
     return lines

@@ -13,7 +13,7 @@ import numpy as np
 from granchain.effects import SPECS
 from granchain.errors import GranchainError
 from granchain.guards import require_resolved
-from granchain.gaps import member_gaps, members, realise
+from granchain.gaps import member_gaps, member_radii, members, realise
 from granchain.scene import Scene
 from granchain.schedule import auto_t_max, sample_interval
 
@@ -49,10 +49,21 @@ WORK_COLUMNS = {name: spec.lammps_ledger for name, spec in SPECS.items()
 # the energy columns
 WALL_FORCE_COLUMN = "wall_force"
 
-def batch_members(scene: Scene, gaps, v_striker):
+def batch_members(scene: Scene, gaps, v_striker, radii=None):
+    """(gaps (B, n-1), v_striker (B,), radii (B, n) or None) of the chains a deck runs.
+
+    Neither gaps nor v_striker: every member of the scene (``granchain.gaps.members``),
+    and under ``chain.radius_spread`` each member's own radii (``gaps.member_radii``)
+    unless ``radii`` are given. v_striker alone: realisation 0 for every speed (its radii
+    under a spread). gaps given: ``radii`` as given, None meaning the scene's own radii
+    (the reference engine's ``radii=None``)."""
+    implicit = gaps is None
     if gaps is None and v_striker is None:
         mem = members(scene)
-        return member_gaps(scene, mem), np.array([m.v_striker for m in mem], dtype=float)
+        gaps, v = member_gaps(scene, mem), np.array([m.v_striker for m in mem], dtype=float)
+        if radii is None:
+            radii = member_radii(scene, mem)
+        return gaps, v, _check_radii(scene, radii, len(v))
     if gaps is None:
         v = np.atleast_1d(np.asarray(v_striker, dtype=float))
         gaps = np.stack([realise(scene, 0)] * len(v))
@@ -70,7 +81,24 @@ def batch_members(scene: Scene, gaps, v_striker):
         raise GranchainError("write_deck: gaps must be finite and >= 0 (m)")
     if not (np.all(np.isfinite(v)) and np.all(v >= 0)):
         raise GranchainError("write_deck: striker speeds must be finite and >= 0 (m/s)")
-    return gaps, v
+    if implicit and radii is None and scene.radius_spread is not None:
+        radii = np.repeat(member_radii(scene, members(scene, [0])[:1]), len(v), axis=0)
+    return gaps, v, _check_radii(scene, radii, len(v))
+
+
+def _check_radii(scene: Scene, radii, B: int):
+    """radii as a (B, n) float array (m), or None."""
+    if radii is None:
+        return None
+    r = np.asarray(radii, dtype=float)
+    if r.ndim == 1:
+        r = np.broadcast_to(r, (B, r.size))
+    if r.shape != (B, scene.n):
+        raise GranchainError(f"write_deck: radii has shape {r.shape}; expected ({B}, "
+                             f"{scene.n}), one radius per sphere of each chain")
+    if not (np.all(np.isfinite(r)) and np.all(r > 0)):
+        raise GranchainError("write_deck: radii must be finite and > 0 (m)")
+    return np.array(r)
 
 
 def max_travel(scene: Scene, v_max: float, t: float) -> float:
@@ -123,6 +151,9 @@ class DeckPlan:
     #                                   (and WALL_FORCE_COLUMN last with an end wall)
     gaps: np.ndarray           # (B, n-1) m
     v_striker: np.ndarray      # (B,) m/s
+    # (B, n) m: each chain's own radii (a radius spread, ``gaps.member_radii``), or None:
+    # every chain has the scene's
+    radii: np.ndarray | None = None
 
     @property
     def nsamples(self) -> int:
@@ -137,16 +168,20 @@ def ledger_binary_columns(pl: DeckPlan) -> tuple[str, ...]:
     return ("c_ledger_atom",) if k == 1 else tuple(f"c_ledger_atom[{j + 1}]" for j in range(k))
 
 
-def plan(scene: Scene, *, gaps=None, v_striker=None, output: str = "dump") -> DeckPlan:
+def plan(scene: Scene, *, gaps=None, v_striker=None, radii=None,
+         output: str = "dump") -> DeckPlan:
     """Run length and cadence of the deck for these members (as the reference engine);
     the scene's method must not be auto (resolve it first). ``output``: what the deck
-    writes at every sample, one of :data:`OUTPUTS`."""
+    writes at every sample, one of :data:`OUTPUTS`. ``radii`` (B, n) m: each chain's own
+    (:func:`batch_members` says which radii a deck gets when they are not given).
+    Run length and cadence come from the scene (its nominal radii under a spread), as
+    the reference engine's."""
     require_resolved(scene, "LAMMPS deck")
     if output not in OUTPUTS:
         raise GranchainError(f"LAMMPS deck: output must be one of {', '.join(OUTPUTS)} "
                              f"(got {output!r})")
 
-    gaps, vs = batch_members(scene, gaps, v_striker)
+    gaps, vs, radii = batch_members(scene, gaps, v_striker, radii)
     B = gaps.shape[0]
     sdts = [sample_interval(scene, float(v)) for v in vs]
     sample_si = min(sdts) if sdts else sample_interval(scene, 0.0)
@@ -171,4 +206,4 @@ def plan(scene: Scene, *, gaps=None, v_striker=None, output: str = "dump") -> De
                     t_note=t_note, output=output,
                     dump_columns={"dump": DUMP_COLUMNS, "binary": BINARY_COLUMNS,
                                   "none": ()}[output], ledger_columns=ledger,
-                    gaps=gaps, v_striker=vs)
+                    gaps=gaps, v_striker=vs, radii=radii)
