@@ -27,17 +27,20 @@ from typing import Any
 
 
 from .errors import SceneError
+from .validate import choice as _choice, number as _value, short as _short
 from .scenefile import apply_overrides, read_scene_file
 from .guards import MIN_SAMPLES_PER_PULSE, floor_sig, max_sample_dt, pulse_width
+from .effects import MODULES as EFFECT_MODULES
 from .materials import RIGID, Material, effective_modulus, library
 
-EFFECTS = ("hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
-           "rolling_friction")
+EFFECTS = tuple(m.SPEC.name for m in EFFECT_MODULES)
+# effect -> its scene section, for the effects that have one (granchain.effects: each
+# declares SECTION, its DEFAULTS and validates it with ``settings``)
+_SECTIONED = tuple(m for m in EFFECT_MODULES if hasattr(m, "SECTION"))
 GAP_DISTRIBUTIONS = ("none", "fixed", "uniform", "exponential", "list", "from_length")
 METHODS = ("rk4", "verlet", "adaptive", "event", "auto")
 FIXED_STEP_METHODS = ("rk4", "verlet")        # dt is the step
 TOLERANCE_METHODS = ("adaptive", "event")     # the step follows integrator.tolerance
-TANGENTIAL_MODELS = ("mindlin", "linear_history")
 
 # Default scene: the chapter's packed 440C chain (15 spheres, R = 150 um, v_s = 0.1 m/s,
 # RK4 with a 1 ns step). Constants of Eq. 5.1 are the chapter's Chapter-4 values;
@@ -54,11 +57,8 @@ DEFAULTS: dict[str, Any] = {
     "gaps": {"distribution": "none", "mean": None, "seed": 0, "values": None,
              "extra_length": None},
     "effects": ["hertz"],
-    "groove": {"s": None, "angle_deg": 90.0, "mu": 0.293, "g": 9.81, "kt": "mindlin",
-               "damping": 1.0},
-    "drag": {"T0": 0.052, "L": 2.5e-3, "form": "as_printed"},
-    "contact": {"mu_pp": 1.4, "tangential": "mindlin", "kt": None},
-    "rolling": {"k_roll": None, "gamma_roll": 0.0, "mu_roll": 0.01},
+    # each effect's own section (groove, drag, contact, rolling), from its module
+    **{m.SECTION: m.DEFAULTS for m in _SECTIONED},
     "probes": [2, 13],
     "integrator": {"method": "rk4", "dt": 1e-9, "tolerance": None},
     "t_end": "auto",
@@ -160,20 +160,9 @@ class Scene:
     gap_values: tuple[float, ...] | None
     gap_extra_length: float | None
     effects: frozenset[str]
-    groove_s: float
-    groove_mu: float
-    gravity: float
-    groove_kt: float | None          # None: Mindlin stiffness from the material
-    groove_damping: float            # stick dashpot as a fraction of critical
-    drag_T0: float
-    drag_L: float
-    drag_form: str
-    mu_pp: float
-    tangential: str
-    contact_kt: float | None
-    k_roll: float | None
-    gamma_roll: float
-    mu_roll: float
+    # (effect, its validated section) of every effect with a scene section, enabled or not
+    # (``granchain.effects``: each module's Settings); read them with ``setting``
+    settings: tuple[tuple[str, Any], ...]
     probes: tuple[int, ...]
     method: str
     dt: float
@@ -273,6 +262,13 @@ class Scene:
     @property
     def has(self):
         return self.effects.__contains__
+
+    def setting(self, effect: str):
+        """The validated scene section of an effect (its module's ``Settings``)."""
+        for name, st in self.settings:
+            if name == effect:
+                return st
+        raise KeyError(f"effect {effect!r} has no scene section")
 
     @property
     def hash(self) -> str:
@@ -415,58 +411,8 @@ def _merge(defaults: dict, given: dict, prefix: str = "") -> dict:
     return out
 
 
-def _short(value, limit: int = 60) -> str:
-    """repr of a value for a one-line message, cut to ``limit`` characters."""
-    text = repr(value)
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
 def _num(spec: dict, dotted: str, **kw):
     return _value(_get(spec, dotted), dotted, **kw)
-
-
-def _value(node, field: str, *, positive=False, nonneg=False, integer=False,
-           allow_none=False, lo=None, hi=None, fix=None):
-    """A number (``field`` names it in errors) checked against the given bounds."""
-    if node is None and allow_none:
-        return None
-    given = node
-    if isinstance(node, bool) or not isinstance(node, (int, float)):
-        # YAML 1.1 reads "1e-9" (no dot) as a string: accept numeric strings.
-        try:
-            node = float(node) if isinstance(node, str) else None
-        except (TypeError, ValueError, OverflowError):
-            node = None
-        if node is None:
-            raise SceneError(field, f"expected a number, got {_short(given)}",
-                             fix or "give a number in SI units")
-    try:
-        value = float(node)
-    except OverflowError:
-        value = math.inf
-    if not math.isfinite(value):
-        raise SceneError(field, f"{_short(given)} is not a finite number",
-                         fix or "give a finite number")
-    if integer and value != int(value):
-        raise SceneError(field, f"{value} is not a whole number", fix or "give an integer")
-    if positive and value <= 0:
-        raise SceneError(field, f"{value:g} must be > 0", fix or "give a positive value")
-    if nonneg and value < 0:
-        raise SceneError(field, f"{value:g} must be >= 0", fix or "give a value >= 0")
-    if lo is not None and value < lo:
-        raise SceneError(field, f"{value:g} is below {lo:g}", fix or f"give a value >= {lo:g}")
-    if hi is not None and value > hi:
-        raise SceneError(field, f"{value:g} is above {hi:g}", fix or f"give a value <= {hi:g}")
-    return int(value) if integer else value
-
-
-def _choice(value, field, options, what):
-    """A value that must be one of ``options``, with a 'did you mean' on a typo."""
-    if isinstance(value, str) and value in options:
-        return value
-    close = difflib.get_close_matches(str(value), options, n=1) if isinstance(value, str) else []
-    hint = f"did you mean '{close[0]}'?" if close else f"use one of {', '.join(options)}"
-    raise SceneError(field, f"unknown {what} {_short(value)}", hint)
 
 
 def check_name(value, field: str) -> str:
@@ -671,18 +617,13 @@ def _probes(value, n: int) -> tuple[int, int]:
 
 
 # keys that have no effect unless ... (checked only for keys the user wrote)
-_SECTION_EFFECT = {"groove": "groove_friction", "drag": "air_drag",
-                   "contact": "particle_friction", "rolling": "rolling_friction"}
+_SECTION_EFFECT = {m.SECTION: m.SPEC.name for m in _SECTIONED}
 
 
-def _check_unused(given: set[str], dist: str, eff: frozenset[str], method: str,
-                  tangential: str) -> None:
+def _check_unused(given: set[str], dist: str, eff: frozenset[str], method: str) -> None:
     def refuse(key, why, fix):
         raise SceneError(key, f"has no effect {why}", fix)
 
-    if "groove.s" in given and "groove.angle_deg" in given:
-        raise SceneError("groove.s", "given together with groove.angle_deg",
-                         "give one of them (s = sin(angle/2))")
     for key in sorted(given):
         section, _, sub = key.partition(".")
         if not sub:
@@ -704,9 +645,6 @@ def _check_unused(given: set[str], dist: str, eff: frozenset[str], method: str,
     if "integrator.tolerance" in given and method in FIXED_STEP_METHODS:
         refuse("integrator.tolerance", f"with method {method} (a fixed step)",
                "drop it, or use method adaptive, event or auto")
-    if "contact.kt" in given and "particle_friction" in eff and tangential == "mindlin":
-        refuse("contact.kt", "with tangential: mindlin (its stiffness follows from the material)",
-               "drop it, or use tangential: linear_history")
 
 
 def scene_from_dict(raw: dict, *, check_unused: bool = True) -> Scene:
@@ -781,38 +719,9 @@ def _validate(raw: dict, given: set[str]) -> Scene:
         extra = _num(spec, "gaps.extra_length", nonneg=True, fix="give the extra length in metres (>= 0)")
     seed = _num(spec, "gaps.seed", integer=True, nonneg=True, fix="give a whole-number seed >= 0")
 
-    # groove
-    if spec["groove"]["s"] is not None:
-        s = _num(spec, "groove.s", positive=True, hi=1.0, fix="the groove factor s lies in (0, 1]")
-    else:
-        ang = _num(spec, "groove.angle_deg", lo=1e-6, hi=180.0, fix="give the groove opening angle in degrees (0, 180]")
-        s = math.sin(math.radians(ang) / 2.0)
-    groove_mu = _num(spec, "groove.mu", nonneg=True)
-    gravity = _num(spec, "groove.g", nonneg=True)
-    kt = spec["groove"]["kt"]
-    groove_kt = None if kt == "mindlin" else _num(spec, "groove.kt", positive=True,
-                                                  fix="give a stiffness in N/m or 'mindlin'")
-
-    groove_damping = _num(spec, "groove.damping", nonneg=True,
-                          fix="give the stick damping as a fraction of critical (default 1)")
-    T0 = _num(spec, "drag.T0", positive=True)
-    L = _num(spec, "drag.L", positive=True)
-    form = _choice(spec["drag"]["form"], "drag.form", ("as_printed", "odd"), "form")
-
-    mu_pp = _num(spec, "contact.mu_pp", nonneg=True)
-    tangential = _choice(spec["contact"]["tangential"], "contact.tangential", TANGENTIAL_MODELS,
-                         "model")
-    contact_kt = _num(spec, "contact.kt", positive=True, allow_none=True,
-                      fix="give the tangential stiffness in N/m")
-    if tangential == "linear_history" and contact_kt is None and "particle_friction" in eff:
-        raise SceneError("contact.kt", "missing for tangential: linear_history",
-                         "give the tangential spring stiffness in N/m, or use tangential: mindlin")
-    k_roll = _num(spec, "rolling.k_roll", positive=True, allow_none=True)
-    if "rolling_friction" in eff and k_roll is None:
-        raise SceneError("rolling.k_roll", "missing while rolling_friction is on",
-                         "give the rolling spring stiffness in N/m")
-    gamma_roll = _num(spec, "rolling.gamma_roll", nonneg=True)
-    mu_roll = _num(spec, "rolling.mu_roll", nonneg=True)
+    # each effect's own section, validated by its module
+    settings = tuple((m.SPEC.name, m.settings(spec[m.SECTION], frozenset(given), m.SPEC.name in eff))
+                     for m in _SECTIONED)
 
     pr = _probes(spec["probes"], n)
 
@@ -821,7 +730,7 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     dt = _num(spec, "integrator.dt", positive=True, fix="give the time step in seconds, e.g. 1e-9")
     tol = _num(spec, "integrator.tolerance", positive=True, allow_none=True, hi=0.1,
                fix="give a relative tolerance such as 1e-6")
-    _check_unused(given, dist, eff, method, tangential)
+    _check_unused(given, dist, eff, method)
     if "precompression.force" in given:
         if wall is None:
             raise SceneError("precompression.force", "needs an end wall to push the chain onto",
@@ -857,11 +766,7 @@ def _validate(raw: dict, given: set[str]) -> Scene:
         name=name, material=material, n=n, radius=radius,
         striker_velocities=tuple(velocities), gap_distribution=dist, gap_mean=gap_mean,
         gap_seed=seed, gap_values=gap_values, gap_extra_length=extra, effects=eff,
-        groove_s=s, groove_mu=groove_mu, gravity=gravity, groove_kt=groove_kt,
-        groove_damping=groove_damping,
-        drag_T0=T0, drag_L=L, drag_form=form, mu_pp=mu_pp, tangential=tangential,
-        contact_kt=contact_kt, k_roll=k_roll, gamma_roll=gamma_roll, mu_roll=mu_roll,
-        probes=tuple(pr), method=method, dt=dt, tolerance=tol, t_end=t_end,
+        settings=settings, probes=tuple(pr), method=method, dt=dt, tolerance=tol, t_end=t_end,
         sample_dt=sample_dt, realisations=realisations, spec=spec, given=frozenset(given),
         measurement=measurement, radii=radii, materials=materials, wall=wall,
         precompression=load, radius_spread=spread,

@@ -97,14 +97,18 @@ def test_the_cycle_finder_finds_a_lazy_cycle(tmp_path):
     assert lazy and lazy[0].module == "granchain.simulate"
 
 
-# Layers, lowest first: a module may import its own layer and the layers before it.
+# Layers, lowest first: a module may import its own layer and the layers before it. The
+# effects (each one's law, parameters and scene section) sit below the scene, which
+# validates each effect's section with the effect's own code.
 LAYERS = (
-    ("data", ("granchain", "granchain.errors", "granchain.materials", "granchain.fileio",
-              "granchain.analytic", "granchain.scenefile", "granchain.scene", "granchain.gaps",
-              "granchain.guards")),
-    ("physics", ("granchain.effects", "granchain.lammps.units", "granchain.lammps")),
+    ("base", ("granchain", "granchain.errors", "granchain.materials", "granchain.fileio",
+              "granchain.analytic", "granchain.scenefile", "granchain.validate",
+              "granchain.lammps.units", "granchain.lammps")),
+    ("physics", ("granchain.effects",)),
+    ("data", ("granchain.scene", "granchain.gaps", "granchain.guards")),
     ("run plan", ("granchain.schedule",)),
     ("engines", ("granchain.trajectory", "granchain.engines", "granchain.lammps.plan",
+                 "granchain.lammps.field",
                  "granchain.lammps.deck", "granchain.lammps.plugin", "granchain.lammps.runner")),
     ("analysis", ("granchain.observables", "granchain.measurement", "granchain.tables",
                   "granchain.analysis")),

@@ -300,12 +300,13 @@ def test_travel_bound_follows_the_propulsive_drag():
     from granchain.lammps.deck import max_travel
     hertz, drag = packed(), packed(effects="[hertz, air_drag]")
     assert max_travel(hertz, 1.0, 2e-3) == 2e-3
-    L_T0 = drag.drag_L / drag.drag_T0
+    st = drag.setting("air_drag")
+    L_T0 = st.L / st.T0
     assert max_travel(drag, 0.5 * L_T0, 1.0) == 0.5 * L_T0
     w, x, h = 1.0, 0.0, 1e-8
     for _ in range(int(round(2e-3 / h))):
-        x += h * (w + 0.5 * h * (w * w / drag.drag_L - w / drag.drag_T0))
-        w += h * (w * w / drag.drag_L - w / drag.drag_T0)
+        x += h * (w + 0.5 * h * (w * w / st.L - w / st.T0))
+        w += h * (w * w / st.L - w / st.T0)
     assert max_travel(drag, 1.0, 2e-3) == pytest.approx(x, rel=1e-3)
     assert max_travel(drag, 1.0, 2e-3) > 1.9 * 2e-3
     with pytest.raises(GranchainError, match="without bound after"):

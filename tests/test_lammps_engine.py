@@ -266,7 +266,10 @@ def _one_line(exc):
 
 
 def test_bad_plugin_parameter_names_the_deck(tmp_path):
-    scene = dataclasses.replace(packed(t_end=1e-6, effects="[hertz, groove_friction]"), groove_mu=-0.1)
+    sc = packed(t_end=1e-6, effects="[hertz, groove_friction]")
+    bad = dataclasses.replace(sc.setting("groove_friction"), mu=-0.1)    # past the scene check
+    scene = dataclasses.replace(sc, settings=tuple((k, bad if k == "groove_friction" else v)
+                                                   for k, v in sc.settings))
     with pytest.raises(GranchainError) as exc:
         list(L.run(scene, np.zeros((1, 14)), [0.1], workdir=tmp_path))
     msg = _one_line(exc.value)

@@ -90,7 +90,7 @@ def deck_part(plugin: Path, sc, states, k: int, workdir: Path, frames: int) -> t
     reading ``chain_<k>.data`` and dumping the chains about ``frames`` times to
     ``t_<k>.dump``; returns the deck text and the dump interval (steps)."""
     B = len(states)
-    vmax = max(max(abs(v), abs(w) * sc.groove_s * sc.radius) for v, w in states)
+    vmax = max(max(abs(v), abs(w) * sc.setting("groove_friction").s * sc.radius) for v, w in states)
     deck, data = render(sc, gaps=np.full((B, 2), GAP), v_striker=np.full(B, vmax),
                         plugin=str(plugin), output="none")
     lines = deck.rstrip().splitlines()

@@ -58,7 +58,7 @@ def test_gap_list_of_right_length_is_accepted():
 
 def test_groove_angle_sets_s():
     s = load_scene(SCENES / "packed-440c.yaml", ["groove.angle_deg=60"])
-    assert s.groove_s == pytest.approx(0.5)
+    assert s.setting("groove_friction").s == pytest.approx(0.5)
 
 
 def test_cli_error_is_one_line_without_traceback(tmp_path):

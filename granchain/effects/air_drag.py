@@ -10,11 +10,34 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..lammps.units import lmp_float as _r, to_micro
+from ..validate import choice, number
 from .spec import EffectSpec
 
 SPEC = EffectSpec("air_drag", work="work_air_drag", work_slot="L_WD",
                   table_column="work_air_J", lammps_ledger="f_gd[3]",
                   params=("P_T0", "P_L"), flags=("F_DRAG", "F_ODD"))
+
+
+# The scene section of this effect, its defaults (the chapter's Chapter-4 constants) and
+# its validated settings (``settings``).
+SECTION = "drag"
+DEFAULTS = {"T0": 0.052, "L": 2.5e-3, "form": "as_printed"}
+FORMS = ("as_printed", "odd")
+
+
+@dataclass(frozen=True)
+class Settings:
+    T0: float         # s
+    L: float          # m
+    form: str         # as_printed | odd
+
+
+def settings(sec: dict, given: frozenset, on: bool) -> Settings:
+    """The validated ``drag`` section (a merged mapping); ``given``: the dotted keys the
+    scene wrote; ``on``: whether air_drag is enabled."""
+    return Settings(number(sec["T0"], "drag.T0", positive=True),
+                    number(sec["L"], "drag.L", positive=True),
+                    choice(sec["form"], "drag.form", FORMS, "form"))
 
 
 def force(m, v, T0, L, odd):
@@ -34,7 +57,8 @@ class AirDrag:
 
 
 def build(scene) -> AirDrag:
-    return AirDrag(scene.drag_T0, scene.drag_L, scene.drag_form == "odd")
+    st = scene.setting(SPEC.name)
+    return AirDrag(st.T0, st.L, st.form == "odd")
 
 
 def kernel(ad: AirDrag) -> tuple[dict, dict]:

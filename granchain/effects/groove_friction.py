@@ -25,13 +25,54 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..errors import SceneError
 from ..lammps.units import lmp_float as _r, to_micro
+from ..validate import number
 from .spec import EffectSpec
 
 SPEC = EffectSpec("groove_friction", state=(("L_XG", "particle"),), work="work_groove_friction",
                   work_slot="L_WG", table_column="work_groove_J", lammps_ledger="f_gd[2]",
                   params=("P_S", "P_FC", "P_KG", "P_GG"), flags=("F_GROOVE",),
                   rows=("G_FC", "G_KG", "G_GG"))
+
+
+# The scene section of this effect and its defaults: the chapter's mu_pg and g; s =
+# sin(90deg/2) for a 90-degree groove (the thesis's Chapter 4, which fixes s, is not
+# available); the Mindlin stick spring; critical damping.
+SECTION = "groove"
+DEFAULTS = {"s": None, "angle_deg": 90.0, "mu": 0.293, "g": 9.81, "kt": "mindlin",
+            "damping": 1.0}
+
+
+@dataclass(frozen=True)
+class Settings:
+    s: float              # groove geometry factor, sin(opening angle / 2)
+    mu: float             # Coulomb coefficient mu_pg
+    g: float              # m/s^2
+    kt: float | None      # stick spring (N/m); None: Mindlin stiffness from the material
+    damping: float        # stick dashpot, fraction of critical
+
+
+def settings(sec: dict, given: frozenset, on: bool) -> Settings:
+    """The validated ``groove`` section (a merged mapping); ``given``: the dotted keys the
+    scene wrote; ``on``: whether groove_friction is enabled."""
+    if "groove.s" in given and "groove.angle_deg" in given:
+        raise SceneError("groove.s", "given together with groove.angle_deg",
+                         "give one of them (s = sin(angle/2))")
+    if sec["s"] is not None:
+        s = number(sec["s"], "groove.s", positive=True, hi=1.0,
+                   fix="the groove factor s lies in (0, 1]")
+    else:
+        ang = number(sec["angle_deg"], "groove.angle_deg", lo=1e-6, hi=180.0,
+                     fix="give the groove opening angle in degrees (0, 180]")
+        s = math.sin(math.radians(ang) / 2.0)
+    mu = number(sec["mu"], "groove.mu", nonneg=True)
+    g = number(sec["g"], "groove.g", nonneg=True)
+    kt = None if sec["kt"] == "mindlin" else number(
+        sec["kt"], "groove.kt", positive=True, fix="give a stiffness in N/m or 'mindlin'")
+    damping = number(sec["damping"], "groove.damping", nonneg=True,
+                     fix="give the stick damping as a fraction of critical (default 1)")
+    return Settings(s, mu, g, kt, damping)
 
 
 def slip(v, omega, sR, rot):
@@ -79,12 +120,13 @@ def mindlin_stiffness(scene, material=None, radius=None, mass=None) -> float:
     """Tangential stiffness (N/m) of the two groove-wall contacts under a sphere's weight
     (the chain's bead unless material, radius and mass are given; the groove is of the
     sphere's own material)."""
+    st = scene.setting(SPEC.name)
     material = material or scene.material
     radius = scene.radius if radius is None else radius
     mass = scene.mass if mass is None else mass
     E, nu = material.E, material.nu
     G = material.G
-    N_wall = mass * scene.gravity / (2.0 * scene.groove_s)
+    N_wall = mass * st.g / (2.0 * st.s)
     E_w = E / (2.0 * (1.0 - nu * nu))
     G_w = G / (2.0 * (2.0 - nu))
     if N_wall <= 0:
@@ -95,13 +137,14 @@ def mindlin_stiffness(scene, material=None, radius=None, mass=None) -> float:
 
 def _sphere(scene, material, R, m, I):
     """(Fc, kt, gamma) of one sphere."""
-    Fc = scene.groove_mu * m * scene.gravity / scene.groove_s
-    if scene.groove_kt is None:
-        kt = mindlin_stiffness(scene, material, R, m) if scene.gravity > 0 else 1.0
+    st = scene.setting(SPEC.name)
+    Fc = st.mu * m * st.g / st.s
+    if st.kt is None:
+        kt = mindlin_stiffness(scene, material, R, m) if st.g > 0 else 1.0
     else:
-        kt = scene.groove_kt
-    m_u = m / (1.0 + scene.groove_s**2 * m * R * R / I) if scene.has("rotation") else m
-    return Fc, kt, 2.0 * scene.groove_damping * math.sqrt(kt * m_u)
+        kt = st.kt
+    m_u = m / (1.0 + st.s**2 * m * R * R / I) if scene.has("rotation") else m
+    return Fc, kt, 2.0 * st.damping * math.sqrt(kt * m_u)
 
 
 def build(scene) -> GrooveFriction:
@@ -111,9 +154,9 @@ def build(scene) -> GrooveFriction:
                                                  scene.inertias)]
     else:
         each = [(Fc, kt, gamma)] * scene.n
-    return GrooveFriction(scene.groove_s, scene.groove_mu, scene.gravity, Fc, kt,
-                          "mindlin" if scene.groove_kt is None else "scene", gamma,
-                          scene.groove_damping, *(tuple(c) for c in zip(*each)))
+    st = scene.setting(SPEC.name)
+    return GrooveFriction(st.s, st.mu, st.g, Fc, kt, "mindlin" if st.kt is None else "scene",
+                          gamma, st.damping, *(tuple(c) for c in zip(*each)))
 
 
 def kernel(gf: GrooveFriction) -> tuple[dict, dict]:

@@ -14,13 +14,46 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..errors import SceneError
 from ..lammps.units import lmp_float as _r, to_micro
+from ..validate import choice, number
 from .spec import EffectSpec
 
 SPEC = EffectSpec("particle_friction", state=(("L_XT", "contact"),),
                   work="work_particle_friction", work_slot="L_WT",
                   table_column="work_particle_friction_J", lammps_reports_work=False,
                   params=("P_MU", "P_KT"), flags=("F_PP", "F_MINDLIN"), rows=("G_KT",))
+
+
+# The scene section of this effect and its defaults: the chapter's mu_pp; LAMMPS's
+# Mindlin tangential law, so that both engines share one law.
+SECTION = "contact"
+DEFAULTS = {"mu_pp": 1.4, "tangential": "mindlin", "kt": None}
+MODELS = ("mindlin", "linear_history")
+
+
+@dataclass(frozen=True)
+class Settings:
+    mu_pp: float
+    tangential: str       # mindlin | linear_history
+    kt: float | None      # linear_history's spring (N/m)
+
+
+def settings(sec: dict, given: frozenset, on: bool) -> Settings:
+    """The validated ``contact`` section (a merged mapping); ``given``: the dotted keys the
+    scene wrote; ``on``: whether particle_friction is enabled."""
+    mu = number(sec["mu_pp"], "contact.mu_pp", nonneg=True)
+    model = choice(sec["tangential"], "contact.tangential", MODELS, "model")
+    kt = number(sec["kt"], "contact.kt", positive=True, allow_none=True,
+                fix="give the tangential stiffness in N/m")
+    if on and model == "linear_history" and kt is None:
+        raise SceneError("contact.kt", "missing for tangential: linear_history",
+                         "give the tangential spring stiffness in N/m, or use tangential: mindlin")
+    if on and model == "mindlin" and "contact.kt" in given:
+        raise SceneError("contact.kt", "has no effect with tangential: mindlin (its stiffness "
+                         "follows from the material)",
+                         "drop it, or use tangential: linear_history")
+    return Settings(mu, model, kt)
 
 
 def contact_map(xi, kt, cap):
@@ -62,17 +95,18 @@ def _mindlin(a, Ra, b, Rb) -> float:
 
 
 def build(scene) -> ParticleFriction:
+    st = scene.setting(SPEC.name)
     mat = scene.material
     G_eff = mat.G / (2.0 * (2.0 - mat.nu))
-    if scene.tangential == "mindlin":
+    if st.tangential == "mindlin":
         kt = 8.0 * G_eff * math.sqrt(scene.radius / 2.0)
         each = tuple(_mindlin(scene.materials[k], scene.radii[k], scene.materials[k + 1],
                               scene.radii[k + 1]) for k in range(scene.n - 1)) \
             if scene.heterogeneous else (kt,) * (scene.n - 1)
     else:
-        kt = scene.contact_kt
+        kt = st.kt
         each = (kt,) * (scene.n - 1)
-    return ParticleFriction(scene.mu_pp, scene.tangential, kt, G_eff, each)
+    return ParticleFriction(st.mu_pp, st.tangential, kt, G_eff, each)
 
 
 def rows(pf: ParticleFriction, chain) -> dict:

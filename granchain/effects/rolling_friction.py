@@ -15,13 +15,39 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..errors import SceneError
 from ..lammps.units import lmp_float as _r, to_micro
+from ..validate import number
 from .spec import EffectSpec
 
 SPEC = EffectSpec("rolling_friction", state=(("L_PS", "contact"),),
                   work="work_rolling_friction", work_slot="L_WR",
                   table_column="work_rolling_J", lammps_reports_work=False,
                   params=("P_KR", "P_GR", "P_MUR"), flags=("F_ROLL",), rows=("G_RE",))
+
+
+# The scene section of this effect and its defaults (no default k_roll: it is not in the
+# chapter)
+SECTION = "rolling"
+DEFAULTS = {"k_roll": None, "gamma_roll": 0.0, "mu_roll": 0.01}
+
+
+@dataclass(frozen=True)
+class Settings:
+    k_roll: float | None      # N/m
+    gamma_roll: float         # N s/m
+    mu_roll: float
+
+
+def settings(sec: dict, given: frozenset, on: bool) -> Settings:
+    """The validated ``rolling`` section (a merged mapping); ``given``: the dotted keys the
+    scene wrote; ``on``: whether rolling_friction is enabled."""
+    k_roll = number(sec["k_roll"], "rolling.k_roll", positive=True, allow_none=True)
+    if on and k_roll is None:
+        raise SceneError("rolling.k_roll", "missing while rolling_friction is on",
+                         "give the rolling spring stiffness in N/m")
+    return Settings(k_roll, number(sec["gamma_roll"], "rolling.gamma_roll", nonneg=True),
+                    number(sec["mu_roll"], "rolling.mu_roll", nonneg=True))
 
 
 def rolling_map(rho, vr, kr, gr, cap):
@@ -69,7 +95,8 @@ class RollingFriction:
 
 
 def build(scene) -> RollingFriction:
-    return RollingFriction(scene.k_roll, scene.gamma_roll, scene.mu_roll)
+    st = scene.setting(SPEC.name)
+    return RollingFriction(st.k_roll, st.gamma_roll, st.mu_roll)
 
 
 def rows(rf: RollingFriction, chain) -> dict:

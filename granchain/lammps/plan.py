@@ -119,7 +119,8 @@ def max_travel(scene: Scene, v_max: float, t: float) -> float:
         return 0.0
     if not scene.has("air_drag"):
         return v_max * t
-    T0, L = scene.drag_T0, scene.drag_L
+    st = scene.setting("air_drag")
+    T0, L = st.T0, st.L
     if v_max <= L / T0:
         return v_max * t
     c, u0 = T0 / L, 1.0 / v_max
