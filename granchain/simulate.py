@@ -42,10 +42,7 @@ def trajectories(scene: Scene, mem: list[Member], engine: str = "reference", **k
             from .engines import lammps as lmp_engine
         except ImportError as exc:
             raise GranchainError(f"the LAMMPS engine is not available: {exc}") from None
-        if radii is not None:
-            raise GranchainError("chain.radius_spread: the LAMMPS engine does not draw each "
-                                 "member's radii; run it with --engine reference")
-        it = lmp_engine.run(scene, g, vs, **kw)
+        it = lmp_engine.run(scene, g, vs, radii=radii, **kw)
     else:
         raise GranchainError(f"unknown engine '{engine}'; use one of {', '.join(ENGINES)}")
     yield from zip(mem, it)

@@ -24,6 +24,7 @@ from granchain.lammps.plan import ledger_binary_columns
 from granchain.materials import library
 from granchain.observables import summarize
 from granchain.scene import load_scene
+from granchain.gaps import member_radii
 from granchain.simulate import member_gaps, members
 from tests.conftest import SCENES, packed
 
@@ -295,6 +296,140 @@ def test_wall_and_load_give_the_same_record_on_every_output_path_and_rank_count(
             np.testing.assert_array_equal(getattr(b, f), getattr(a, f))
         e0 = a.energy[0, :3].sum()
         assert np.abs(b.energy - a.energy).max() <= (0.0 if "output" in kw else 1e-14 * e0)
+
+
+# ---------------------------------------------------------------------------------------
+# chain.radius_spread: every chain of the deck has its own radii
+SPREAD = {
+    # every effect, three materials, gapped chains; normal draws, sd 2 um
+    "spread-all-effects": lambda: packed(effects=ALL, **{
+        "chain.n": 8, "probes": "[2, 7]", "rolling.k_roll": 1e3, "ensemble.realisations": 3,
+        "chain.radius_spread": "{sd: 2e-6, seed: 3}",
+        "chain.materials": "[brass, ss440c, ss440c, ptfe, ss440c, ss316, ss440c, ss440c]",
+        "gaps.distribution": "uniform", "gaps.mean": 10e-9}),
+    # a 316 end wall and a dead load, every effect; uniform draws, sd 3 um
+    "spread-wall-preload": lambda: packed(effects=ALL, **{
+        "chain.n": 8, "probes": "[2, 7]", "rolling.k_roll": 1e3, "ensemble.realisations": 3,
+        "chain.radius_spread": "{distribution: uniform, sd: 3e-6, seed: 5}",
+        "walls.end": "ss316", "precompression.force": 0.5}),
+}
+
+
+def spread_members(cs):
+    mem = members(cs)
+    return (member_gaps(cs, mem), np.array([m.v_striker for m in mem]),
+            member_radii(cs, mem))
+
+
+def data_atoms(path):
+    """The Atoms rows of a chain.data: (id, type, diameter, density, x) per atom."""
+    text = path.read_text()
+    body = text.split("Atoms # sphere\n\n", 1)[1].split("\n\n", 1)[0]
+    return np.array([[float(f) for f in ln.split()[:5]] for ln in body.splitlines()])
+
+
+def data_groove(path):
+    """The Groove rows of a chain.data: (id, kt, gamma) per atom."""
+    body = path.read_text().split("\nGroove\n\n", 1)[1]
+    return np.array([[float(f) for f in ln.split()] for ln in body.strip().splitlines()])
+
+
+@pytest.mark.parametrize("name", list(SPREAD))
+def test_radius_spread_ensembles_match_the_reference_engine(name, tmp_path):
+    """One deck, each chain its own radii: its diameters and masses (chain.data), its
+    contacts (R* from the atoms; no pair_coeff holds a radius), its groove springs (the
+    Groove section), its static overlaps and wall overlap (its positions; the stop rule
+    compares each last sphere with its own initial x, fix store/state). Against the
+    reference engine's Verlet with the same radii. Measured: velocities <= 1.2e-10 v_s,
+    v_max 1.8e-10, v_g 1.6e-11 (every effect); 2.8e-10 v_s, v_max 4.4e-10, v_g 2.0e-10,
+    wall force 1.3e-11 (wall and preload). LAMMPS with the nominal radii: v_max 2-4e-2
+    off and other sample counts."""
+    cs = comparison_scene(SPREAD[name]())
+    gaps, vs, radii = spread_members(cs)
+    B, n = radii.shape
+    ref = list(reference.run(cs, gaps, vs, method="verlet", dt=cs.dt, trace=True, radii=radii))
+    lmp = list(L.run(cs, gaps, vs, radii=radii, workdir=tmp_path))
+    atoms = data_atoms(tmp_path / D.DATA_NAME)
+    np.testing.assert_allclose(atoms[:, 2].reshape(B, n) * 0.5e-6, radii, rtol=1e-15)
+    groove = data_groove(tmp_path / D.DATA_NAME)[:, 1:].reshape(B, n, 2)
+    assert np.all(groove[0] != groove[1]) and np.all(groove[1] != groove[2])
+    deck = (tmp_path / D.DECK_NAME).read_text()
+    assert "kt d_groove_kt gamma d_groove_gamma" in deck
+    if cs.wall is not None:
+        x_last = atoms[n - 1::n, 4]
+        assert len(set(x_last)) == B                      # each chain's last sphere its own x
+        assert np.all(x_last + atoms[n - 1::n, 2] / 2 > 0)    # each at its own wall overlap
+        assert "fix             x0 lasts store/state 0 x" in deck and "x<=f_x0" in deck
+    for b, (r, lt) in enumerate(zip(ref, lmp)):
+        rows = member_rows(cs, r, lt)
+        bad = [row for row in rows if row["ok"] is False]
+        assert not bad, bad
+        assert lt.status == r.status == "passed" and lt.t.size == r.t.size
+        assert np.abs(lt.v - r.v).max() < 3e-9 * r.v_striker
+        np.testing.assert_array_equal(lt.radii, radii[b])
+        np.testing.assert_array_equal(r.radii, radii[b])
+        if cs.wall is None:
+            continue
+        F = r.wall_force.max()
+        assert np.abs(lt.wall_force - r.wall_force).max() < 1e-9 * F
+        # each member's own K_w w_0^1.5 (= F0); the reference states the nominal chain's
+        assert lt.wall_static == pytest.approx(r.wall_static, rel=1e-14)
+        a, c = summarize(r, cs.probes), summarize(lt, cs.probes)
+        assert a.wall_peak_final and c.wall_peak_final
+        assert c.wall_force_max == pytest.approx(a.wall_force_max, rel=1e-8)
+        assert c.t_wall_peak == pytest.approx(a.t_wall_peak, rel=1e-9)
+
+
+@pytest.mark.parametrize("wall", ["rigid", "al6061"])
+def test_preloaded_spread_chains_at_rest_stay_static(wall, tmp_path):
+    """A dead load F0 = 1 N on chains of four materials whose radii are each member's own
+    draw (uniform, sd 3 um), striker at rest: every chain holds its own static overlaps
+    (F0/K)^(2/3), each contact's K from its own radii, so nothing moves. Measured |v| <=
+    4.8e-11 m/s, wall force F0 to 1.1e-13; the same decks with each chain's positions
+    built from the nominal chain's static overlaps: |v| up to 5.8e-2 m/s, wall force
+    1.6e-2 off."""
+    F0 = 1.0
+    sc = packed(t_end=20e-6, **{"chain.n": 6, "probes": "[2, 5]", "striker.velocity": 0.0,
+                                "chain.materials": "[ss440c, brass, ss440c, tungsten_carbide, "
+                                                   "ss316, al6061]",
+                                "chain.radius_spread": "{distribution: uniform, sd: 3e-6}",
+                                "ensemble.realisations": 3,
+                                "walls.end": wall, "precompression.force": F0})
+    gaps, vs, radii = spread_members(sc)
+    trajs = list(L.run(sc, gaps, vs, radii=radii, workdir=tmp_path))
+    assert len(trajs) == 3
+    for b, t in enumerate(trajs):
+        assert t.t[-1] >= 20e-6 and np.abs(t.v).max() < 1e-9
+        np.testing.assert_allclose(t.wall_force, F0, rtol=1e-11)
+        assert t.wall_static == pytest.approx(F0, rel=1e-14)
+        np.testing.assert_array_equal(t.radii, radii[b])
+        e_h = t.energy[0, 2]
+        assert e_h > 0 and np.abs(t.energy[:, 2] - e_h).max() < 1e-10 * e_h
+
+
+def test_deck_of_a_spread_scene_holds_each_members_radii(tmp_path):
+    """granchain deck on a radius-spread scene writes every member with its own radii
+    (gaps.member_radii), and the chapter scenes' decks are unchanged (above); the same
+    member re-drawn alone gives the same row."""
+    from granchain.cli import main as cli_main
+    scene_file = tmp_path / "spread.yaml"
+    scene_file.write_text("name: spread\nchain: {n: 15, radius_spread: {sd: 0.5e-6, seed: 7}}\n"
+                          "integrator: {method: verlet, dt: 1.0e-9}\n"
+                          "ensemble: {realisations: 4}\n")
+    assert cli_main(["deck", str(scene_file), "-o", str(tmp_path / "d")]) == 0
+    sc = load_scene(scene_file)
+    radii = member_radii(sc, members(sc))
+    atoms = data_atoms(tmp_path / "d" / D.DATA_NAME)
+    np.testing.assert_allclose(atoms[:, 2].reshape(4, 15) * 0.5e-6, radii, rtol=1e-15)
+    assert len(set(atoms[:, 2])) == 60
+    one = data_atoms_text(D.render(sc, gaps=member_gaps(sc, members(sc, [2])),
+                                   radii=member_radii(sc, members(sc, [2])))[1])
+    np.testing.assert_array_equal(one[:, 2], atoms[30:45, 2])
+
+
+def data_atoms_text(text):
+    body = text.split("Atoms # sphere\n\n", 1)[1].split("\n\n", 1)[0]
+    return np.array([[float(f) for f in ln.split()[:5]] for ln in body.splitlines()])
 
 
 @pytest.mark.parametrize("props,word", [

@@ -97,20 +97,34 @@ class Geometry:
     """What the readers need of a deck's spheres to build the ledger from the dumped
     positions and velocities (``geometry``): contact overlaps
     delta_k = (R_k + R_{k+1}) - (x_{k+1} - x_k) and the wall's x_n + R_n - x_wall (um),
-    each contact's Hertz constant (``terms.chain``), the masses and the dead load."""
-    rsum: np.ndarray              # (n-1,) um: R_k + R_{k+1}
-    K: np.ndarray                 # (n-1,) N/m^1.5
-    masses: np.ndarray | float    # (n,) kg, or one float for identical spheres
-    R_last: float                 # um
-    K_wall: float | None          # N/m^1.5, None: free end
+    each contact's Hertz constant (``terms.chain``), the masses and the dead load. Under a
+    radius spread (``pl.radii``) every per-sphere or per-contact entry is each chain's
+    own, with a leading chain axis (B, ...), so the same arithmetic broadcasts over the
+    (..., B, n) positions and velocities."""
+    rsum: np.ndarray              # (n-1,) or (B, n-1) um: R_k + R_{k+1}
+    K: np.ndarray                 # (n-1,) or (B, n-1) N/m^1.5
+    masses: np.ndarray | float    # (n,) or (B, n) kg, or one float for identical spheres
+    R_last: float | np.ndarray    # um (or (B,))
+    K_wall: float | np.ndarray | None   # N/m^1.5 (or (B,)), None: free end
     load: float                   # N on particle 2 (0: none)
     x2_0: np.ndarray              # (B,) um: particle 2's initial x in each chain
-    x_last0: float                # um: the last sphere's initial x (the same in every
-    #                               chain of a deck with an end wall)
+    x_last0: float | np.ndarray   # um: the last sphere's initial x (the same in every
+    #                               chain of a deck with an end wall; (B,) under a spread)
 
 
-def geometry(scene: Scene, pl: "deckmod.DeckPlan") -> Geometry:
-    """The :class:`Geometry` of the deck of ``pl`` (its chains' spheres and positions)."""
+def chain_terms(scene: Scene, pl: "deckmod.DeckPlan") -> list:
+    """Each chain's physics terms: the scene's for every chain, or under a radius spread
+    (``pl.radii``) each member's own (``field.member_terms``)."""
+    if pl.radii is None:
+        return [physics_terms(scene)] * pl.n_chains
+    return deckmod.field.member_terms(scene, pl.radii)
+
+
+def geometry(scene: Scene, pl: "deckmod.DeckPlan", members=None) -> Geometry:
+    """The :class:`Geometry` of the deck of ``pl`` (its chains' spheres and positions);
+    ``members``: :func:`chain_terms` if already at hand."""
+    if pl.radii is not None:
+        return _member_geometry(scene, pl, members or chain_terms(scene, pl))
     terms = physics_terms(scene)
     ch = terms.chain
     sp = deckmod.field.spheres(terms)
@@ -123,11 +137,34 @@ def geometry(scene: Scene, pl: "deckmod.DeckPlan") -> Geometry:
                     x_last0=float(x0[0][-1]) if ch.wall and x0 else math.nan)
 
 
+def _member_geometry(scene: Scene, pl: "deckmod.DeckPlan", members) -> Geometry:
+    """:func:`geometry` of a radius-spread deck: each chain's radii, K, masses, K_w and
+    initial positions its own (as the deck wrote them)."""
+    sps = [deckmod.field.spheres(t) for t in members]
+    R = np.array([s.radii for s in sps])
+    ch0 = members[0].chain
+    walled, loaded = ch0.K_wall is not None, ch0.load > 0
+    x0 = [deckmod.field.positions(s, g) for s, g in zip(sps, pl.gaps)] \
+        if loaded or walled else []
+    return Geometry(rsum=R[:, :-1] + R[:, 1:],
+                    K=np.array([t.chain.K for t in members], dtype=float),
+                    masses=np.array([t.chain.masses for t in members], dtype=float),
+                    R_last=R[:, -1].copy(),
+                    K_wall=np.array([t.chain.K_wall for t in members], dtype=float)
+                    if walled else None,
+                    load=float(ch0.load),
+                    x2_0=np.array([x[1] for x in x0]) if loaded else np.zeros(pl.n_chains),
+                    x_last0=np.array([x[-1] for x in x0]) if walled else math.nan)
+
+
 def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: bool = False,
         force: bool = False, dt: float | None = None, progress: bool | None = None,
         timeout: float | None = None, velocities: str = "float64", readers: int = 1,
-        output: str = "binary", trace: bool = True):
-    """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s. A LAMMPS
+        output: str = "binary", trace: bool = True, radii=None):
+    """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s; radii:
+    (B, n) m, each chain's own (a radius spread, ``gaps.member_radii``: its own diameters
+    and masses, contact constants, groove springs, static overlaps and wall overlap), or
+    None (the scene's), as the reference engine's ``radii``. A LAMMPS
     run always records its sampled trajectory (``trace`` is accepted for the callers
     that ask every engine for one).
 
@@ -180,8 +217,9 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
     try:
         from ..lammps.runner import lammps_version, run_lammps
         t0 = time.perf_counter()
-        pl = deckmod.plan(scene, gaps=gaps, v_striker=vs, output=output)
-        deck = deckmod.write_deck(scene, wd, gaps=gaps, v_striker=vs, force=True, output=output)
+        pl = deckmod.plan(scene, gaps=gaps, v_striker=vs, radii=radii, output=output)
+        deck = deckmod.write_deck(scene, wd, gaps=gaps, v_striker=vs, radii=pl.radii, force=True,
+                                  output=output)
         for stale in (deckmod.DUMP_NAME, deckmod.ENERGY_NAME, deckmod.LEDGER_NAME,
                       deckmod.BINARY_NAME, deckmod.LEDGER_BINARY_NAME):
             (wd / stale).unlink(missing_ok=True)
@@ -713,8 +751,10 @@ def _trajectories(scene, pl, data, wall_each, meta_common):
     step, V, E, OL = data["step"], data["v"], data["energy"], data["last_overlap"]
     WF, XL = data.get("wall_force"), data.get("last_disp")
     eff = tuple(sorted(scene.effects))
-    ch = physics_terms(scene).chain
+    terms = physics_terms(scene)
+    members = chain_terms(scene, pl)
     for b in range(pl.n_chains):
+        ch = members[b].chain
         vsb = float(pl.v_striker[b])
         v = V[:, b, :]
         keep, status = step.size, "done"
@@ -725,11 +765,14 @@ def _trajectories(scene, pl, data, wall_each, meta_common):
         if bad.size:
             keep, status = int(bad[0]) + 1, "nonfinite"
         extra = {}
-        if ch.heterogeneous:
-            extra["radii"] = np.asarray(ch.radii)
+        if terms.chain.heterogeneous:
+            # each sphere's radius (a member's own under a radius spread)
+            extra["radii"] = np.asarray(ch.radii if pl.radii is None else pl.radii[b],
+                                        dtype=float)
         if ch.K_wall is not None:
             # the wall force LAMMPS applied (fix wall/gran 'contacts'), and its static
-            # part K_w w_0^1.5 as the reference engine states it
+            # part K_w w_0^1.5 as the reference engine states it (the chain's own K_w and
+            # w_0 under a radius spread)
             extra["wall_force"] = WF[:keep, b].copy()
             extra["wall_static"] = float(ch.K_wall * ch.wall_overlap ** 1.5)
         # v and energy: views of the chain's contiguous block of the batch arrays
