@@ -756,6 +756,10 @@ def _validate(raw: dict, given: set[str]) -> Scene:
                         fix="give a whole number of gap realisations >= 1")
     measurement = _measurement(spec, given)
     _drop_unset(spec)
+    for m in _SECTIONED:
+        if getattr(m, "SECTION_OPTIONAL", False) and m.SPEC.name not in eff and not any(
+                k.startswith(m.SECTION + ".") for k in given):
+            spec.pop(m.SECTION, None)
     try:
         scene_hash(spec)
     except (TypeError, ValueError, OverflowError) as exc:

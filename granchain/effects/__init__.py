@@ -31,9 +31,10 @@ The kernels' numbering (P, FL, G, LO, the energy columns) is generated from the 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
 
-from . import air_drag, chain, groove_friction, hertz, particle_friction, rolling_friction, rotation
+from . import (air_drag, chain, contact_damping, groove_friction, hertz, particle_friction,
+               rolling_friction, rotation)
 from .chain import Chain
 from .air_drag import AirDrag
 from .groove_friction import GrooveFriction
@@ -44,7 +45,8 @@ from .rotation import Rotation
 from .spec import EffectSpec
 
 # Registry order is the order of the state blocks and of the work columns.
-MODULES = (hertz, rotation, groove_friction, air_drag, particle_friction, rolling_friction)
+MODULES = (hertz, rotation, groove_friction, air_drag, particle_friction, rolling_friction,
+           contact_damping)
 SPECS: dict[str, EffectSpec] = {m.SPEC.name: m.SPEC for m in MODULES}
 
 # Energy ledger columns, in the order engines store them: the mechanical energies, then the
@@ -60,27 +62,26 @@ def residual_work(effects) -> tuple[str, ...]:
                  and not SPECS[e].lammps_reports_work)
 
 
-@dataclass(frozen=True)
-class Terms:
-    """The physics of one scene: the chain and its enabled effects."""
-    n: int
-    R: float          # a bead's radius (m) and mass (kg); each sphere's: ``chain``
-    m: float
-    hertz: Hertz
-    chain: Chain | None = None
-    air_drag: AirDrag | None = None
-    groove_friction: GrooveFriction | None = None
-    rotation: Rotation | None = None
-    particle_friction: ParticleFriction | None = None
-    rolling_friction: RollingFriction | None = None
+def _has(self, name: str) -> bool:
+    return getattr(self, name) is not None
 
-    def has(self, name: str) -> bool:
-        return getattr(self, name) is not None
 
-    @property
-    def dissipative(self) -> tuple[str, ...]:
-        """Effects that do work on the particles (each gets a work entry in the ledger)."""
-        return tuple(n for n, s in SPECS.items() if s.work and self.has(n))
+def _dissipative(self) -> tuple[str, ...]:
+    """Effects that do work on the particles (each gets a work entry in the ledger)."""
+    return tuple(n for n, s in SPECS.items() if s.work and self.has(n))
+
+
+# The physics of one scene: n, a bead's radius R (m) and mass m (kg), the chain (each
+# sphere's: ``Chain``), and one field per registered effect holding its parameter record
+# (``build(scene)``), None when the scene leaves it off.
+Terms = dataclasses.make_dataclass(
+    "Terms", [("n", int), ("R", float), ("m", float), ("hertz", Hertz),
+              ("chain", Chain, dataclasses.field(default=None))]
+    + [(m.SPEC.name, object, dataclasses.field(default=None)) for m in MODULES if m is not hertz],
+    frozen=True, namespace={"has": _has, "dissipative": property(_dissipative),
+                            "__doc__": "The physics of one scene: the chain and its enabled "
+                                       "effects (one field per registered effect)."})
+Terms.__module__ = __name__
 
 
 def physics_terms(scene) -> Terms:

@@ -29,12 +29,14 @@ from .backend import use_jit_cache
 
 use_jit_cache()   # before the first @njit(cache=True): a cache keyed by every source compiled in
 
-from ..effects import air_drag, groove_friction, hertz, particle_friction, rolling_friction
+from ..effects import (air_drag, contact_damping, groove_friction, hertz, particle_friction,
+                       rolling_friction)
 
 # the kernels' numbering of parameters, flags, layout blocks, methods, energy columns,
 # statuses, and the DOP853 tableau (numba-free, shared with the engines' Python side)
 from .codes import (DOP_A, DOP_B, DOP_C, DOP_E3, DOP_E5, E_H, E_KR, E_KT, E_LEN,  # noqa: E402,F401
-                    E_WD, E_WG, E_WL, E_WR, E_WT, F_DRAG, F_GROOVE, F_HET, F_LEN, F_LOAD,
+                    E_WC, E_WD, E_WG, E_WL, E_WR, E_WT, F_DAMP, F_DLIM, F_DMODEL, F_DRAG,
+                    F_GROOVE, F_HET, F_LEN, F_LOAD, G_ME, G_RS, L_WC, P_DMP,
                     F_MINDLIN, F_ODD, F_PP, F_ROLL, F_ROT, F_WALL, G_FC, G_GG, G_I, G_K, G_KG,
                     G_KT, G_LEN, G_M, G_R, G_RE, L_LEN, L_NY, L_PS, L_V, L_W, L_WD, L_WG,
                     L_WR, L_WT, L_X, L_XG, L_XT, M_DOP853, M_RK4, M_VERLET, NST, P_F0, P_FC,
@@ -53,6 +55,7 @@ def _overlap(y, ox, gaps, k):
 _law = njit(cache=True, inline="always")
 _hertz_force = _law(hertz.force)
 _hertz_energy = _law(hertz.energy)
+_damping_force = _law(contact_damping.damping_force)
 _drag_force = _law(air_drag.force)
 _groove_slip = _law(groove_friction.slip)
 _groove_map = _law(groove_friction.groove_map)
@@ -104,14 +107,6 @@ def _any_contact(y, ox, gaps, k, L):
 
 
 @njit(cache=True, inline="always")
-def _any_positive(a, r, L):
-    c = 0
-    for l in range(L):
-        c += 1 if a[r, l] > 0.0 else 0
-    return c > 0
-
-
-@njit(cache=True, inline="always")
 def _moving(a, r, L):
     c = 0
     for l in range(L):
@@ -158,17 +153,47 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
             if k < 63:
                 shut |= 1 << k
     load = FL[F_LOAD] != 0
-    if wall or load:
-        # the end wall (contact n-1, overlap x_n - G_{n-1}) and the dead load on particle 2
-        F0 = P[P_F0]
-        if wall:
-            c = 0
+    if wall:
+        # the end wall: contact n-1, overlap x_n - G_{n-1}
+        c = 0
+        for l in range(L):
+            d = y[ox + n - 1, l] - gaps[n - 1, l]
+            c += 1 if d > 0.0 else 0
+            f[n - 1, l] = _hertz_force(gaps[oK + n - 1, l], d)
+        if c == 0 and n - 1 < 63:
+            shut |= 1 << (n - 1)
+    if FL[F_DAMP] != 0:
+        # contact damping (effects/contact_damping.py): f becomes the net normal force
+        # F_el + eta w of every closed contact, w its overlap rate; its work -(F - F_el) w
+        model = FL[F_DMODEL]
+        dmp = P[P_DMP]
+        lim = FL[F_DLIM] != 0
+        oME = G_ME * n
+        oRS = G_RS * n
+        owc = LO[L_WC]
+        for l in range(L):
+            dy[owc, l] = 0.0
+        for k in range(n if wall else n - 1):
+            if _bit(shut, k):
+                continue
             for l in range(L):
-                d = y[ox + n - 1, l] - gaps[n - 1, l]
-                c += 1 if d > 0.0 else 0
-                f[n - 1, l] = _hertz_force(gaps[oK + n - 1, l], d)
-            if c == 0 and n - 1 < 63:
-                shut |= 1 << (n - 1)
+                if k < n - 1:
+                    d = _overlap_l(y, ox, gaps, k, l)
+                    w = y[ov + k, l] - y[ov + k + 1, l]
+                else:
+                    d = y[ox + n - 1, l] - gaps[n - 1, l]
+                    w = y[ov + n - 1, l]
+                fel = f[k, l]
+                fd = _damping_force(fel, d, w, gaps[oME + k, l], gaps[oRS + k, l], model, dmp)
+                F = fel + fd
+                F = 0.0 if (lim and F < 0.0) else F
+                F = F if d > 0.0 else 0.0
+                f[k, l] = F
+                a = dy[owc, l]
+                dy[owc, l] = a - (F - fel) * w if d > 0.0 else a
+    if wall or load:
+        # the end wall's force and the dead load on particle 2
+        F0 = P[P_F0]
         for i in range(n):
             if (i == 0 or _bit(shut, i - 1)) and (_bit(shut, i) if (i < n - 1 or wall) else True) \
                     and not (load and i == 1):
@@ -264,7 +289,7 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
         for l in range(L):
             dy[owt, l] = 0.0
         for k in range(n - 1):
-            if _bit(shut, k) or not _any_positive(f, k, L):
+            if _bit(shut, k) or (k >= 63 and not _any_contact(y, ox, gaps, k, L)):
                 for l in range(L):
                     dy[ot + k, l] = 0.0
                 if hist_dt > 0.0:
@@ -282,12 +307,13 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                     wk = y[ow + k, l]
                     wk1 = y[ow + k + 1, l]
                     w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
-                    xi = _contact_map(y[ot + k, l] + w * hist_dt, kt, mu * fn)
-                    y[ot + k, l] = xi if fn > 0.0 else 0.0
+                    # the Coulomb cap on |F| (LAMMPS's Fncrit = |Fntot|; F < 0 only damped)
+                    xi = _contact_map(y[ot + k, l] + w * hist_dt, kt, mu * abs(fn))
+                    y[ot + k, l] = xi if d > 0.0 else 0.0
             for l in range(L):
                 fn = f[k, l]
-                loaded = fn > 0.0
                 d = _overlap_l(y, ox, gaps, k, l)
+                loaded = d > 0.0
                 ktc = gaps[oKt + k, l]
                 kt = ktc * math.sqrt(d) if mindlin else ktc
                 Ra = gaps[oR + k, l]
@@ -296,7 +322,7 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                 wk1 = y[ow + k + 1, l]
                 # slip R_k omega_k + R_k+1 omega_k+1 (LAMMPS: radi omega_i + radj omega_j)
                 w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
-                T, rate = _contact_force(y[ot + k, l], w, kt, mu * fn)
+                T, rate = _contact_force(y[ot + k, l], w, kt, mu * abs(fn))
                 # LAMMPS applies the tangential force at the contact point: lever arm
                 # R_i - delta/2 on each sphere (the slip above uses full radii, as LAMMPS
                 # does)
@@ -327,7 +353,7 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
         for l in range(L):
             dy[owro, l] = 0.0
         for k in range(n - 1):
-            if _bit(shut, k) or not _any_positive(f, k, L):
+            if _bit(shut, k) or (k >= 63 and not _any_contact(y, ox, gaps, k, L)):
                 for l in range(L):
                     dy[op + k, l] = 0.0
                 if hist_dt > 0.0:
@@ -338,10 +364,11 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                 for l in range(L):
                     # Verlet: LAMMPS's order with the half-step spins
                     fn = f[k, l]
-                    loaded = fn > 0.0
+                    loaded = _overlap_l(y, ox, gaps, k, l) > 0.0
                     Reff = gaps[oRe + k, l]
                     vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
-                    rho, M = _rolling_moment_lammps(y[op + k, l], vr, kr, gr, mur * fn, hist_dt)
+                    rho, M = _rolling_moment_lammps(y[op + k, l], vr, kr, gr, mur * abs(fn),
+                                                    hist_dt)
                     y[op + k, l] = rho if loaded else 0.0
                     dy[op + k, l] = vr if loaded else 0.0
                     tq = Reff * M / gaps[oI + k, l]
@@ -357,10 +384,10 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                     # continuous law (RK4, DOP853): rho' = v_roll, project() return-maps
                     # rho after the step
                     fn = f[k, l]
-                    loaded = fn > 0.0
+                    loaded = _overlap_l(y, ox, gaps, k, l) > 0.0
                     Reff = gaps[oRe + k, l]
                     vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
-                    M = _rolling_moment(y[op + k, l], vr, kr, gr, mur * fn)
+                    M = _rolling_moment(y[op + k, l], vr, kr, gr, mur * abs(fn))
                     dy[op + k, l] = vr if loaded else 0.0
                     tq = Reff * M / gaps[oI + k, l]
                     tq1 = Reff * M / gaps[oI + k + 1, l]
@@ -370,6 +397,21 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                     dy[ow + k + 1, l] = a - tq1 if loaded else a
                     a = dy[owro, l]
                     dy[owro, l] = a + M * vr if loaded else a
+
+
+@njit(cache=True, inline="always")
+def _cap(coef, y, gaps, P, FL, ox, ov, n, k, l, d):
+    """Coulomb cap coef |F| of inner contact k in lane l at overlap d > 0: F the Hertz
+    force, or with contact damping the net normal force (as ``forces_block`` computes
+    it), for the return mapping."""
+    K = gaps[G_K * n + k, l]
+    if FL[F_DAMP] == 0:
+        return coef * K * d * math.sqrt(d)
+    fel = K * d * math.sqrt(d)
+    w = y[ov + k, l] - y[ov + k + 1, l]
+    F = fel + _damping_force(fel, d, w, gaps[G_ME * n + k, l], gaps[G_RS * n + k, l],
+                             FL[F_DMODEL], P[P_DMP])
+    return coef * abs(0.0 if (FL[F_DLIM] != 0 and F < 0.0) else F)
 
 
 @_blk
@@ -413,7 +455,7 @@ def project_block(y, gaps, P, FL, LO, f):
                 d = _overlap_l(y, ox, gaps, k, l)
                 ktc = gaps[oKt + k, l]
                 kt = ktc * math.sqrt(d) if mindlin else ktc
-                xi = _contact_map(y[ot + k, l], kt, mu * gaps[oK + k, l] * d * math.sqrt(d))
+                xi = _contact_map(y[ot + k, l], kt, _cap(mu, y, gaps, P, FL, ox, ov, n, k, l, d))
                 y[ot + k, l] = 0.0 if d <= 0.0 else xi
     if FL[F_ROLL] != 0:
         op = LO[L_PS]
@@ -429,7 +471,8 @@ def project_block(y, gaps, P, FL, LO, f):
             for l in range(L):
                 d = _overlap_l(y, ox, gaps, k, l)
                 vr = gaps[oRe + k, l] * (y[ow + k, l] - y[ow + k + 1, l])
-                rho = _rolling_map(y[op + k, l], vr, kr, gr, mur * gaps[oK + k, l] * d * math.sqrt(d))
+                rho = _rolling_map(y[op + k, l], vr, kr, gr,
+                                   _cap(mur, y, gaps, P, FL, ox, ov, n, k, l, d))
                 y[op + k, l] = 0.0 if d <= 0.0 else rho
 
 

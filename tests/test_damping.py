@@ -1,0 +1,127 @@
+"""Contact damping (effects/contact_damping.py), LAMMPS ``pair granular`` damping laws on
+Hertz contacts: a two-sphere collision gives the requested coefficient of restitution at
+any speed (coeff_restitution), the viscoelastic law's documented velocity dependence, a
+closed ledger, and one-line refusals."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from granchain.effects import contact_damping as cd
+from granchain.engines import reference
+from granchain.errors import SceneError
+from granchain.gaps import member_gaps, members
+from granchain.scene import scene_from_dict
+
+
+def collision(v, damping, method="adaptive", t_end=2e-5, **over):
+    """Striker at v onto particle 2 of a 3-sphere chain whose third sphere is 1 mm away (it
+    never takes part): (trajectory, e = (v2' - v1')/v)."""
+    integ = ({"method": "adaptive", "tolerance": 1e-12} if method == "adaptive"
+             else {"method": method, "dt": 2e-10})
+    sc = scene_from_dict({"name": "pair", "chain": {"n": 3}, "probes": [2, 3],
+                          "effects": ["hertz", "contact_damping"], "damping": damping,
+                          "striker": {"velocity": v}, "t_end": t_end, "integrator": integ,
+                          "gaps": {"distribution": "list", "values": [0.0, 1e-3]}, **over})
+    tr = next(reference.run(sc, member_gaps(sc, members(sc)), np.array([v])))
+    return tr, (tr.v[-1, 1] - tr.v[-1, 0]) / v
+
+
+@pytest.mark.parametrize("e", [0.5, 0.8, 0.95])
+def test_coeff_restitution_gives_e_at_every_speed(e):
+    """Measured |e_sim - e| over 0.01 to 1 m/s (adaptive, tolerance 1e-12): 3.4e-10."""
+    for v in (0.01, 0.1, 1.0):
+        _, got = collision(v, {"model": "coeff_restitution", "e": e})
+        assert abs(got - e) < 1e-9, (v, got)
+
+
+def test_undamped_law_is_elastic_and_e_below_one_is_not():
+    _, one = collision(0.1, {"model": "coeff_restitution", "e": 1.0})
+    assert abs(one - 1.0) < 6e-11            # measured 1.7e-11
+    _, nine = collision(0.1, {"model": "coeff_restitution", "e": 0.9})
+    assert abs(nine - 0.9) < 1e-9 and abs(nine - 1.0) > 0.09
+
+
+def test_viscoelastic_loss_grows_as_the_fifth_root_of_speed():
+    """LAMMPS's viscoelastic law eta = eta_n0 m_eff a on Hertz contacts: for weak damping
+    1 - e grows as v^(1/5) (Kuwabara-Kono); per decade of speed by 10^(1/5) = 1.585
+    (measured 1.585 and 1.586 with RK4 at 0.2 ns)."""
+    loss = [1.0 - collision(v, {"model": "viscoelastic", "eta": 1e5}, method="rk4")[1]
+            for v in (0.01, 0.1, 1.0)]
+    for a, b in zip(loss, loss[1:]):
+        assert b / a == pytest.approx(10 ** 0.2, rel=3e-3)
+
+
+def test_the_peak_lies_above_the_final_speed_and_the_ledger_closes():
+    """The net force turns attractive before the contact opens: particle 2 peaks above
+    the speed it leaves with (0.9510 against 0.9500 v_s at e = 0.9). The damping work
+    closes the balance (RK4: measured 2.7e-11 of E0)."""
+    tr, e = collision(0.1, {"model": "coeff_restitution", "e": 0.9}, method="rk4")
+    assert tr.v[:, 1].max() / 0.1 == pytest.approx(0.95100, abs=2e-5)
+    assert tr.v[-1, 1] / 0.1 == pytest.approx(0.95, abs=2e-6)
+    E = tr.energy
+    mech = E[:, 0] + E[:, 1] + E[:, 2]
+    from granchain.effects import ENERGY_COLUMNS
+    wc = ENERGY_COLUMNS.index("work_contact_damping")
+    assert E[-1, wc] == pytest.approx(mech[-1] - mech[0], rel=1e-9)
+    assert E[-1, wc] < 0
+    assert np.max(np.abs(mech - mech[0] - E[:, 3:].sum(axis=1))) / mech[0] < 1e-10
+
+
+def test_limit_damping_keeps_the_force_repulsive():
+    """With limit_damping the net force is held at >= 0: the particle no longer peaks
+    above its final speed, and the loss is smaller than without the limit."""
+    tr, e_lim = collision(0.1, {"model": "coeff_restitution", "e": 0.5, "limit_damping": True},
+                          method="rk4")
+    _, e_free = collision(0.1, {"model": "coeff_restitution", "e": 0.5}, method="rk4")
+    assert tr.v[:, 1].max() <= tr.v[-1, 1] * (1 + 1e-12)
+    assert e_lim > e_free + 0.01
+
+
+def test_c_of_e_is_lammps_setup():
+    """c(e) = -sqrt(3/2) 2 sqrt(5/6) ln e / sqrt(pi^2 + ln^2 e) (LAMMPS's setup), 0 at e = 1."""
+    for e in (0.3, 0.8, 0.99):
+        lg = math.log(e)
+        assert cd.restitution_damp(e) == pytest.approx(
+            -math.sqrt(1.5) * 2 * math.sqrt(5 / 6) * lg / math.sqrt(math.pi**2 + lg**2), rel=1e-15)
+    assert cd.restitution_damp(1.0) == 0.0
+
+
+@pytest.mark.parametrize("damping, field, words", [
+    ({"model": "coeff_restitution"}, "damping.e", "missing"),
+    ({"model": "coeff_restitution", "e": 1.2}, "damping.e", "above 1"),
+    ({"model": "coeff_restitution", "e": 0.0}, "damping.e", "must be > 0"),
+    ({"model": "viscoelastic"}, "damping.eta", "missing"),
+    ({"model": "viscoelastic", "eta": 1.0, "e": 0.9}, "damping.e", "no effect"),
+    ({"model": "coeff_restitution", "e": 0.9, "eta": 1.0}, "damping.eta", "no effect"),
+    ({"model": "restitution", "e": 0.9}, "damping.model", "did you mean 'coeff_restitution'"),
+    ({"model": "tsuji", "e": 0.9, "limit_damping": "yes"}, "damping.limit_damping",
+     "true or false"),
+])
+def test_bad_damping_is_refused_in_one_line(damping, field, words):
+    with pytest.raises(SceneError) as info:
+        scene_from_dict({"name": "bad", "effects": ["hertz", "contact_damping"],
+                         "damping": damping})
+    assert info.value.field == field and words in str(info.value), str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_damping_keys_without_the_effect_are_refused():
+    with pytest.raises(SceneError, match="contact_damping is off"):
+        scene_from_dict({"name": "bad", "damping": {"e": 0.9}})
+
+
+def test_a_damped_chain_with_every_effect_closes_its_ledger():
+    """A 15-sphere gapped chain with every effect and e = 0.9: balance 2.1e-9 of E0
+    (RK4 at 1 ns); damping takes 69 % of the energy (14 inelastic collisions and more)."""
+    from granchain.simulate import run_scene
+    sc = scene_from_dict({"name": "all", "effects": ["hertz", "rotation", "groove_friction",
+                                                     "air_drag", "particle_friction",
+                                                     "contact_damping"],
+                          "damping": {"e": 0.9},
+                          "gaps": {"distribution": "uniform", "mean": 2e-8, "seed": 3}})
+    r = run_scene(sc)[0]
+    assert r.status == "passed" and r.energy.balance_error < 6e-9
+    assert -0.75 < r.energy.work_contact_damping / r.energy.initial < -0.6
