@@ -785,7 +785,9 @@ def test_auto_duration_covers_the_whole_chain():
     assert schedule.expected_duration(sc, v) == pytest.approx(travel + 14 * 1e-8 / v)
     est = schedule.cost_estimate(sc, v)
     assert est["steps"] == pytest.approx(est["duration_s"] / sc.dt)
-    assert est["record_bytes"] == pytest.approx(est["samples"] * (15 + 9) * 8)
+    from granchain.effects import ENERGY_COLUMNS
+    # the 15 velocities, every ledger column and the time, 8 bytes each
+    assert est["record_bytes"] == pytest.approx(est["samples"] * (15 + len(ENERGY_COLUMNS) + 1) * 8)
 
 
 def test_workflow_presets_pass_the_default_limits():
