@@ -876,3 +876,14 @@ def check_step(scene: Scene) -> None:
                          f"{tc:.3g} s and needs >= {MIN_STEPS_PER_CONTACT} steps "
                          f"(limit {floor_sig(limit):.2g} s)",
                          f"use dt <= {floor_sig(limit):.2g}, or method adaptive")
+    # an effect with a time scale of its own (a dashpot) bounds the step too
+    for m in EFFECT_MODULES:
+        if scene.has(m.SPEC.name) and hasattr(m, "time_scale"):
+            tau, what = m.time_scale(scene, vmax)
+            limit = tau / MIN_STEPS_PER_CONTACT
+            if scene.dt > limit:
+                raise SceneError("integrator.dt",
+                                 f"{scene.dt:g} s is too large: {what} at {vmax:g} m/s is "
+                                 f"{tau:.3g} s and needs >= {MIN_STEPS_PER_CONTACT} steps "
+                                 f"(limit {floor_sig(limit):.2g} s)",
+                                 f"use dt <= {floor_sig(limit):.2g}, or method adaptive")

@@ -29,7 +29,7 @@ import math
 from dataclasses import dataclass
 
 from ..errors import SceneError
-from ..lammps.units import lmp_float as _r
+from ..lammps.units import lmp_float as _r, to_micro
 from ..validate import choice, number
 from .spec import EffectSpec
 
@@ -131,6 +131,26 @@ def build(scene) -> ContactDamping:
     return ContactDamping(st.model, st.e, st.eta, damp, st.limit_damping, coef)
 
 
+def time_scale(scene, v: float) -> tuple[float, str]:
+    """(m_eff/eta, what it is): the shortest dashpot time of the scene's contacts (and
+    wall) at the peak overlap of a head-on collision at closing speed v, which a fixed
+    step must resolve as it resolves the collision."""
+    cd = build(scene)
+    m, R, K = scene.masses, scene.radii, scene.contact_k
+    pairs = [(m[k] * m[k + 1] / (m[k] + m[k + 1]), R[k] * R[k + 1] / (R[k] + R[k + 1]), K[k])
+             for k in range(scene.n - 1)]
+    if scene.wall is not None:
+        pairs.append((m[-1], R[-1], scene.wall_k))
+    rate = 0.0
+    for meff, rs, k in pairs:
+        d = (5.0 * meff * v * v / (4.0 * k)) ** 0.4
+        if cd.model == "viscoelastic":
+            rate = max(rate, cd.damp * math.sqrt(rs * d))
+        else:
+            rate = max(rate, cd.damp * math.sqrt(k * math.sqrt(d) / meff))
+    return (math.inf if rate == 0.0 else 1.0 / rate), "the contact dashpot's time m_eff/eta"
+
+
 def kernel(cd: ContactDamping) -> tuple[dict, dict]:
     """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
     return ({"P_DMP": cd.damp},
@@ -150,15 +170,68 @@ def rows(cd: ContactDamping, chain) -> dict:
     return {"G_ME": meff, "G_RS": rs}
 
 
+# LAMMPS's coeff_restitution constant: c(e) = -K_CR ln e / sqrt(pi^2 + ln^2 e), K_CR =
+# sqrt(3/2) 2 sqrt(5/6) = sqrt(5) (its constants ROOTTHREEBYTWO, TWOROOTFIVEBYSIX)
+K_CR = 1.22474487139158894067 * 1.82574185835055380345
+
+
+def equivalent_restitution(c: float) -> float:
+    """The e' whose coeff_restitution constant is c: restitution_damp(e') = c, for
+    0 <= c < sqrt(5); ln e' = -pi c / sqrt(5 - c^2). The deck's stand-in for ``tsuji``
+    (:func:`lammps_damping`)."""
+    if not 0.0 <= c < K_CR:
+        raise ValueError(f"no coefficient of restitution gives c = {c!r}")
+    return math.exp(-math.pi * c / math.sqrt(K_CR * K_CR - c * c)) if c > 0.0 else 1.0
+
+
 def lammps_damping(cd: ContactDamping | None) -> tuple[float, str]:
-    """(hertz/material's second coefficient, the ``damping ...`` words) of the deck."""
+    """(hertz/material's second coefficient in LAMMPS 'units micro', the ``damping ...``
+    words) of the deck's pair_coeff lines and end wall.
+
+    None: (0.0, 'damping viscoelastic'), LAMMPS's default, exactly zero at eta_n0 = 0.
+    viscoelastic: eta_n0 converted from 1/(m s) to 1/(um us) (x 1e-12: eta_n0 m_eff a v is
+    a force). coeff_restitution: e. tsuji: this LAMMPS (22 Jul 2025) computes tsuji's
+    constant without the sqrt(2) of the law above (Marshall 2009, Eq. 53, alone; measured,
+    docs/lammps_laws.md section 13), so the deck writes the same force,
+    eta = c sqrt(m_eff F_el / delta) with c = :func:`tsuji_damp` (e), as
+    ``damping coeff_restitution`` with the e' = :func:`equivalent_restitution` (c) whose
+    constant is that c."""
     if cd is None:
         return 0.0, "damping viscoelastic"
-    words = f"damping {cd.model}" + (" limit_damping" if cd.limit_damping else "")
-    return cd.lammps_coefficient, words
+    lim = " limit_damping" if cd.limit_damping else ""
+    if cd.model == "viscoelastic":
+        return to_micro(cd.eta, "inverse_length_time"), "damping viscoelastic" + lim
+    if cd.model == "tsuji":
+        return equivalent_restitution(cd.damp), "damping coeff_restitution" + lim
+    return cd.e, "damping coeff_restitution" + lim
+
+
+def lammps_normal(cd: ContactDamping | None, E: float, nu: float) -> str:
+    """``hertz/material E <damp> nu damping <model> [limit_damping]`` of a pair_coeff or
+    of fix wall/gran (E in Pa, converted; nu as given). Undamped (cd None): the
+    chapter's ``hertz/material E 0.0 nu damping viscoelastic``."""
+    coef, words = lammps_damping(cd)
+    return f"hertz/material {_r(to_micro(E, 'pressure'))} {_r(coef)} {_r(nu)} {words}"
 
 
 def lammps_comment(cd: ContactDamping) -> str:
-    what = (f"eta_n0 = {_r(cd.eta)} (1/(m s))" if cd.model == "viscoelastic"
-            else f"e = {_r(cd.e)}")
-    return f"# damping {cd.model}: {what}" + (", limit_damping" if cd.limit_damping else "")
+    """Comment lines of the deck stating the damping law it writes."""
+    lim = ("# limit_damping: the net normal force is held at >= 0." if cd.limit_damping
+           else "# No limit_damping: the net force may turn attractive before a contact opens.")
+    head = ("# contact damping (effects/contact_damping.py): F = F_el + eta w at every contact, "
+            "w the\n# closing rate, m_eff = m_i m_j/(m_i + m_j) and R* from the atoms (the wall: "
+            "m_n, R_n).\n# Coulomb caps use |F| (LAMMPS's Fncrit).")
+    if cd.model == "viscoelastic":
+        what = (f"# damping viscoelastic: eta = eta_n0 m_eff a, a = sqrt(R* delta); eta_n0 = "
+                f"{_r(cd.eta)} 1/(m s)\n# = {_r(lammps_damping(cd)[0])} 1/(um us) (x 1e-12), "
+                "hertz/material's second coefficient.")
+    elif cd.model == "coeff_restitution":
+        what = (f"# damping coeff_restitution: eta = c(e) sqrt(m_eff F_el/delta), e = {_r(cd.e)} "
+                "(hertz/material's\n# second coefficient) at every impact speed.")
+    else:
+        what = (f"# tsuji (e = {_r(cd.e)}): eta = c sqrt(m_eff F_el/delta), c = sqrt(2) x Marshall "
+                f"2009 Eq. 53 = {_r(cd.damp)}.\n# This LAMMPS's own 'damping tsuji' lacks the "
+                "sqrt(2) (docs/lammps_laws.md section 13): the\n# same force is written as "
+                f"'damping coeff_restitution' with e' = {_r(lammps_damping(cd)[0])}, whose "
+                "constant c(e') is c.")
+    return "\n".join((head, what, lim))
