@@ -108,12 +108,18 @@ def inner_passed(v_after_peak: np.ndarray, v_peak: float) -> bool:
 # ---------------------------------------------------------------------------------------
 def expected_duration(scene, v: float) -> float:
     """Simulated time of one chain: t_end, or with t_end auto the time for the wave to
-    leave the whole chain: n-1 contacts at V_N(0.5 v) plus the flight over all gaps at v."""
+    leave the whole chain: n-1 contacts at V_N(0.5 v) plus the flight over all gaps at v;
+    against an end wall the run lasts until the reflected wave has left the last sphere,
+    counted as one more solitary-wave width (the last sphere turns back at the wave's
+    reflection)."""
     if scene.t_end is not None:
         return scene.t_end
     if v <= 0:
         return 0.0
-    return crossing_time(scene, v, scene.n - 1, 0.5 * v)
+    t = crossing_time(scene, v, scene.n - 1, 0.5 * v)
+    if scene.wall is not None:
+        t += scene.pulse_width(0.5 * v)
+    return t
 
 
 def cost_estimate(scene, v: float) -> dict:
