@@ -229,9 +229,9 @@ def lammps_comment(cd: ContactDamping) -> str:
         what = (f"# damping coeff_restitution: eta = c(e) sqrt(m_eff F_el/delta), e = {_r(cd.e)} "
                 "(hertz/material's\n# second coefficient) at every impact speed.")
     else:
-        what = (f"# tsuji (e = {_r(cd.e)}): eta = c sqrt(m_eff F_el/delta), c = sqrt(2) x Marshall "
-                f"2009 Eq. 53 = {_r(cd.damp)}.\n# This LAMMPS's own 'damping tsuji' lacks the "
-                "sqrt(2) (docs/lammps_laws.md section 13): the\n# same force is written as "
-                f"'damping coeff_restitution' with e' = {_r(lammps_damping(cd)[0])}, whose "
-                "constant c(e') is c.")
+        what = (f"# damping tsuji, e = {_r(cd.e)}: eta = c sqrt(m_eff F_el/delta), c = sqrt(2) x "
+                f"(Marshall 2009,\n# Eq. 53) = {_r(cd.damp)}. This LAMMPS's own 'damping tsuji' "
+                "lacks the sqrt(2)\n# (docs/lammps_laws.md section 13): the deck writes the same "
+                "force as 'damping\n# coeff_restitution' with e' = "
+                f"{_r(lammps_damping(cd)[0])}, whose constant c(e') is c.")
     return "\n".join((head, what, lim))

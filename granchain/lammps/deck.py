@@ -69,8 +69,8 @@ from string import Template
 
 import numpy as np
 
-from granchain.effects import (air_drag, groove_friction, hertz, particle_friction, physics_terms,
-                               rolling_friction, rotation)
+from granchain.effects import (air_drag, contact_damping, groove_friction, hertz,
+                               particle_friction, physics_terms, rolling_friction, rotation)
 from granchain.errors import GranchainError
 from granchain.fileio import atomic_write_text, check_output_path
 from granchain.scene import NAME_RE, NAME_RULE, Scene
@@ -171,6 +171,25 @@ def _ledger_block(scene: Scene, pl: DeckPlan) -> str:
     return "\n".join(lines)
 
 
+def _pair_parts(terms) -> list[tuple[str, str]]:
+    """The effects' (comment, part) of a one-material pair_coeff line: the normal law
+    (``pair_coeff * * hertz/material ...`` with its damping: zero, or contact_damping's),
+    the tangential law and rolling if on. A chain of several materials keeps all but the
+    first (``field.pair_coeff`` writes the normal law per type pair)."""
+    cd = terms.contact_damping
+    if cd is None:
+        normal = hertz.lammps_pair(terms.hertz)
+    else:
+        h = terms.hertz
+        normal = (contact_damping.lammps_comment(cd) + "\n# pair_coeff: hertz/material E <damp> "
+                  "nu damping <model> (LAMMPS: E* = E/(2(1-nu^2)))",
+                  f"pair_coeff      * * {contact_damping.lammps_normal(cd, h.E, h.nu)}")
+    pairs = [normal, particle_friction.lammps_pair(terms.particle_friction)]
+    if terms.rolling_friction is not None:
+        pairs.append(rolling_friction.lammps_pair(terms.rolling_friction))
+    return pairs
+
+
 def _member_spheres(members) -> list:
     """Each chain's :class:`field.Spheres` (chains sharing a Terms share it)."""
     seen: dict = {}
@@ -189,9 +208,7 @@ def _check_shared_laws(members, sps, pair_coeff: str, terms, sp) -> None:
     for t, s in zip(members, sps):
         if id(t) in pairs_of:
             continue
-        pairs = [hertz.lammps_pair(t.hertz), particle_friction.lammps_pair(t.particle_friction)]
-        if t.rolling_friction is not None:
-            pairs.append(rolling_friction.lammps_pair(t.rolling_friction))
+        pairs = _pair_parts(t)
         pc = ("\n".join(c for c, _ in pairs) + "\n" + " &\n                ".join(
             p for _, p in pairs)) if s.ntypes == 1 else field.pair_coeff(t, s, pairs[1:])
         same = (pc == pair_coeff and s.types == sp.types and s.type_materials == sp.type_materials
@@ -383,9 +400,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
     data_text = "\n".join(data) + "\n"
 
     # ---- physics from the terms ------------------------------------------------------
-    pairs = [hertz.lammps_pair(terms.hertz), particle_friction.lammps_pair(terms.particle_friction)]
-    if terms.rolling_friction is not None:
-        pairs.append(rolling_friction.lammps_pair(terms.rolling_friction))
+    pairs = _pair_parts(terms)
     if sp.ntypes == 1:
         pair_comment = [c for c, _ in pairs]
         parts = [p for _, p in pairs]
@@ -466,6 +481,8 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
         mass_note=("scene.mass" if not terms.chain.heterogeneous else "the striker's mass"
                    if members is None else "chain 0's striker's mass"),
         mass_expected=f"{mass_expected:.17g}", pair_coeff=pair_coeff, groove_fix=groove_fix,
+        contact_note=("Hertz (zero viscoelastic damping)" if terms.contact_damping is None
+                      else f"Hertz with contact damping ({terms.contact_damping.model})"),
         end_fixes=field.end_fixes(terms, sp, B, _id_ranges),
         integrator=integrator, timestep=_r(dt), nsteps=nsteps, t_run=_r(t_run_us),
         t_run_note=t_note, every=every, sample_us=f"{every * dt:.15g}",

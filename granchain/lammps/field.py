@@ -47,6 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from granchain.effects import contact_damping
 from granchain.lammps.units import lmp_float as _r, to_micro
 from granchain.materials import effective_modulus
 
@@ -137,12 +138,20 @@ def pair_coeff(terms, sp: Spheres, parts: list[tuple[str, str]]) -> str:
     rolling), as for the one-material line; the tangential part of an unlike pair with
     Mindlin friction is replaced by its explicit stiffness."""
     pf = terms.particle_friction
+    cd = terms.contact_damping
     mindlin = pf is not None and pf.model == "mindlin"
-    lines = ["# pair_coeff I J per pair of atom types (materials below): hertz/material E eta_n0 "
-             "nu with",
-             "# eta_n0 = 0 (no damping; 'damping viscoelastic' is then exactly zero). I = J: the "
-             "type's",
-             "# own E and nu (LAMMPS: E* = E/(2(1-nu^2))). I != J: E = 2 E*_IJ, nu = 0, with",
+    if cd is None:
+        lines = ["# pair_coeff I J per pair of atom types (materials below): hertz/material E "
+                 "eta_n0 nu with",
+                 "# eta_n0 = 0 (no damping; 'damping viscoelastic' is then exactly zero). I = J: "
+                 "the type's"]
+    else:
+        lines = ["# pair_coeff I J per pair of atom types (materials below): hertz/material E "
+                 "<damp> nu with",
+                 "# the contact damping below on every pair (its coefficient holds no material: "
+                 "m_eff and R*",
+                 "# come from the atoms, E*_IJ only enters F_el). I = J: the type's"]
+    lines += ["# own E and nu (LAMMPS: E* = E/(2(1-nu^2))). I != J: E = 2 E*_IJ, nu = 0, with",
              "# 1/E*_IJ = (1-nu_I^2)/E_I + (1-nu_J^2)/E_J, which LAMMPS's one-material formula "
              "turns",
              "# back into E*_IJ (docs/lammps_laws.md section 12)."]
@@ -154,22 +163,24 @@ def pair_coeff(terms, sp: Spheres, parts: list[tuple[str, str]]) -> str:
                   "# from the mixed E*_IJ)."]
     for t, m in enumerate(sp.type_materials, start=1):
         lines.append(f"# type {t}: {m.name} (E {_r(m.E)} Pa, nu {_r(m.nu)})")
+    if cd is not None:
+        lines.append(contact_damping.lammps_comment(cd))
     lines += [c for c, _ in parts]
     mats = sp.type_materials
     for i in range(1, sp.ntypes + 1):
         for j in range(i, sp.ntypes + 1):
             a, b = mats[i - 1], mats[j - 1]
+            # the pair's normal law and damping: contact_damping.lammps_normal (undamped:
+            # hertz/material E 0.0 nu damping viscoelastic)
             if i == j:
-                normal = f"hertz/material {_r(to_micro(a.E, 'pressure'))} 0.0 {_r(a.nu)}"
+                normal = contact_damping.lammps_normal(cd, a.E, a.nu)
             else:
-                normal = (f"hertz/material {_r(to_micro(2.0 * effective_modulus(a, b), 'pressure'))}"
-                          " 0.0 0.0")
+                normal = contact_damping.lammps_normal(cd, 2.0 * effective_modulus(a, b), 0.0)
             rest = [p for _, p in parts]
             if mindlin and i != j:
                 rest[0] = (f"tangential mindlin {_r(to_micro(8.0 * shear_mix(a, b), 'pressure'))} "
                            f"0.0 {_r(pf.mu)}")
-            lines.append(f"pair_coeff      {i} {j} " + " &\n                ".join(
-                [f"{normal} damping viscoelastic"] + rest))
+            lines.append(f"pair_coeff      {i} {j} " + " &\n                ".join([normal] + rest))
     return "\n".join(lines)
 
 
@@ -199,10 +210,15 @@ def end_fixes(terms, sp: Spheres, n_chains: int, id_ranges) -> str:
             "2 E*_w, nu = 0,",
             f"# 1/E*_w = (1-nu_n^2)/E_n + (1-nu_w^2)/E_w, E*_w = {_r(Ew)} Pa. No tangential "
             "force at the wall.",
-            "# 'contacts': per-atom wall force (f_wall[2] = its x component on the sphere).",
+            "# 'contacts': per-atom wall force (f_wall[2] = its x component on the sphere)."]
+        if terms.contact_damping is not None:
+            out += ["# contact damping at the wall: the pairs' law and coefficient, m_eff = m_n "
+                    "(fix wall/gran: the", "# sphere's rmass) and R* = R_n; f_wall[2] is the "
+                    "whole force, F_el + eta w."]
+        out += [
             f"group           lasts id {id_ranges([b * n + n for b in range(n_chains)])}",
-            f"fix             {WALL_FIX} lasts wall/gran granular hertz/material "
-            f"{_r(to_micro(2.0 * Ew, 'pressure'))} 0.0 0.0 damping viscoelastic &",
+            f"fix             {WALL_FIX} lasts wall/gran granular "
+            f"{contact_damping.lammps_normal(terms.contact_damping, 2.0 * Ew, 0.0)} &",
             "                tangential linear_history 0.0 0.0 0.0 "
             f"xplane NULL {_r(WALL_X)} contacts"]
     if sp.load > 0:

@@ -20,6 +20,9 @@ MICRO_EXPONENT = {
     "damping": 9,         # kg/s (N s/m) -> 1e-9 kg/s = pg/us
     "pressure": -3,       # Pa -> 1e3 Pa                (E = 200e9 -> 2e8)
     "density": -3,        # kg/m^3 -> 1e3 kg/m^3         (7800 -> 7.8)
+    # 1/(m s) -> 1/(um us): pair granular's viscoelastic eta_n0, whose damping force
+    # eta_n0 m_eff a v (a the contact radius) is a force: 1/(m s) kg m m/s = N
+    "inverse_length_time": -12,
 }
 
 
