@@ -49,9 +49,12 @@ def test_rows_of_a_hertz_chain():
 def test_contact_friction_rows_are_marked_not_independent():
     cmp = C.compare(packed(effects="[hertz, rotation, particle_friction]"))
     df = cmp.rows
-    assert "work_particle_friction" not in df.quantity.tolist()
-    row = df[df.quantity == "work_particle_friction+work_rolling_friction"].iloc[0]
+    # the residual group is the scene's effects.residual_work: contact friction alone here;
+    # the works of effects that are off (rolling friction) are checked rows, 0 on both sides
+    row = df[df.quantity == "work_particle_friction"].iloc[0]
     assert row.ok is None and "not independent" in row.why
+    roll = df[df.quantity == "work_rolling_friction"].iloc[0]
+    assert roll.ok is True and roll.reference == roll.lammps == 0.0
     bal = df[df.quantity == "balance_error"].iloc[0]
     assert bal.ok is None and bal.lammps < 1e-12
     assert cmp.ok and cmp.meta["balance"] == "residual"

@@ -15,6 +15,7 @@ import pytest
 
 from granchain.cli import main as cli_main
 from granchain.compare import compare
+from granchain.effects import residual_work
 from granchain.engines import lammps as L
 from granchain.engines import reference
 from granchain.errors import GranchainError
@@ -66,7 +67,7 @@ def test_cross_validation_lammps_equals_reference_verlet(name, tmp_path):
     bal = rows[rows.quantity == "balance_error"]
     if residual:
         assert bal.ok.isna().all() and bal.why.str.contains("not independent").all()
-        assert (rows.quantity == "work_particle_friction+work_rolling_friction").any()
+        assert (rows.quantity == "+".join(residual_work(scene.effects))).any()
     else:
         assert bal.ok.all() and bal["diff"].max() < 1e-9
     # and sample by sample

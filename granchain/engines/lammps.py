@@ -42,10 +42,12 @@ sample:
   read from ``ledger.bin`` (binary path) or ``ledger.txt`` (``read_ledger``, text dump
   path), the same doubles; ``energy.txt`` holds the same sums over all
   chains, from LAMMPS' global computes and the fix's global vector;
-* the tangential (particle-particle) and rolling contact friction have no per-atom work
-  output in LAMMPS: their sum is reported as the residual of the energy balance in
-  ``work_particle_friction`` and ``work_rolling_friction`` is 0. Such a ledger balances
-  by construction: ``meta["balance"] = "residual"`` (``"independent"`` otherwise).
+* the tangential (particle-particle) and rolling contact friction and the contact damping
+  have no per-atom work output in LAMMPS (``effects.residual_work``): their sum is
+  reported as the residual of the energy balance in the first of their columns (registry
+  order: ``work_particle_friction``, ``work_rolling_friction``, ``work_contact_damping``),
+  the others 0. Such a ledger balances by construction: ``meta["balance"] = "residual"``
+  (``"independent"`` otherwise).
 
 End wall: ``Trajectory.wall_force`` is the force fix wall/gran applied to the last
 sphere at each sample (its per-atom ``contacts`` output, summed per chain into the
@@ -83,9 +85,9 @@ METHOD = "lammps-verlet"
 DUMP_READ = ("x", "vx")   # the dump columns read as MDAnalysis additional (float64) columns
 # output path -> (trajectory file, reader)
 READERS = {"binary": ("traj.bin", "read_binary"), "dump": ("traj.dump", "read_dump")}
-(E_KT, E_KR, E_H, E_WG, E_WD, E_WT, E_WL) = (ENERGY_COLUMNS.index(c) for c in (
+(E_KT, E_KR, E_H, E_WG, E_WD, E_WL) = (ENERGY_COLUMNS.index(c) for c in (
     "kinetic_translational", "kinetic_rotational", "hertz_potential", "work_groove_friction",
-    "work_air_drag", "work_particle_friction", "work_load"))
+    "work_air_drag", "work_load"))
 # SI factors of 'units micro' values (docs/lammps_laws.md section 1)
 UM = 1e-6          # um -> m
 ENERGY = 1e-15     # 1e-15 J -> J
@@ -649,10 +651,14 @@ def _fill_ledger(E, WF, pl: "deckmod.DeckPlan", ledger) -> None:
 
 
 def _fill_residual(scene: Scene, E) -> None:
-    """The contact frictions' work as the balance residual (when LAMMPS outputs none)."""
-    if residual_balance(scene):
+    """The works LAMMPS outputs none of (``effects.residual_work``: the contact frictions,
+    contact damping) as the residual of the energy balance, in the first of their columns
+    (registry order; the others stay 0)."""
+    cols = residual_work(scene.effects)
+    if cols:
         mech = E[:, :, E_KT] + E[:, :, E_KR] + E[:, :, E_H]
-        E[:, :, E_WT] = mech - mech[0] - E[:, :, E_WG] - E[:, :, E_WD] - E[:, :, E_WL]
+        E[:, :, ENERGY_COLUMNS.index(cols[0])] = (mech - mech[0] - E[:, :, E_WG] - E[:, :, E_WD]
+                                                  - E[:, :, E_WL])
 
 
 def read_ledger(path: Path, pl: "deckmod.DeckPlan", step) -> np.ndarray:
