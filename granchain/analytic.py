@@ -43,7 +43,8 @@ def bead_constants(material: Material, radius: float) -> tuple[float, float]:
     """(K, m) of identical beads: K = (4/3) E* sqrt(R/2) (N/m^1.5) of f = K delta^(3/2),
     E* = E/(2(1 - nu^2)), and the bead mass m = (4/3) pi R^3 rho (kg)."""
     e_star = material.E / (2.0 * (1.0 - material.nu ** 2))
-    return 4.0 / 3.0 * e_star * np.sqrt(radius / 2.0), material.rho * 4.0 / 3.0 * np.pi * radius ** 3
+    mass = material.rho * 4.0 / 3.0 * np.pi * radius ** 3
+    return 4.0 / 3.0 * e_star * np.sqrt(radius / 2.0), mass
 
 
 def precompressed_sound_speed(material: Material, radius: float, force):

@@ -8,8 +8,10 @@ Every table the workflow writes goes through this module, so its layout is defin
 - ``study_table(rows, n)``: the rows as a DataFrame with exactly the columns
   :func:`columns` lists, in that order (units in the column names).
 - ``summary_table(df)``: per (material, engine, v_striker_m_s, gap_mean_nm,
-  extra_length_um) group: n, arrived_fraction and mean, p5, p50, p95 of the main
-  observables over the realisations that saw the wave arrive.
+  extra_length_um) group (and scene, for a table of walled scenes: scenes may differ only
+  in their dead load): n, arrived_fraction and mean, p5, p50, p95 of the main observables
+  over the realisations that saw the wave arrive (and of the wall's force peak and static
+  force, the dead load).
 - ``write_csv(df, path)``: floats with full round-trip precision ("%.17g"), NaN as "NaN",
   written to a temporary file and renamed, so a killed job never leaves a truncated table
   that looks complete.
@@ -58,6 +60,11 @@ SUMMARY_OBSERVABLES = ("v_g_m_s", "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio",
 # ... and for a table of measured scenes (granchain.measurement)
 SUMMARY_MEASURED = ("v_max_1_measured_m_s", "v_max_2_measured_m_s", "v_max_ratio_measured",
                     "v_g_measured_m_s", "v_g_front_measured_m_s")
+# ... and for a table of walled scenes: grouped by scene too (scenes that differ only in
+# their dead load F0; the static wall force, which is F0, is equal only to rounding between
+# members of different radii), with the wall's force peak and static force as observables
+WALL_GROUP = "scene_hash"
+SUMMARY_WALLED = ("wall_force_max_N", "wall_force_static_N")
 PERCENTILES = (5, 50, 95)
 TIMING_COLUMNS = ("study", "engine", "batch", "scene_hash", "members", "steps", "wall_s",
                   "wall_per_member_s")
@@ -151,38 +158,46 @@ def _mean(values: np.ndarray) -> float:
     return float(values.mean()) if values.size else math.nan
 
 
-def _summary_observables(measured: bool) -> tuple[str, ...]:
-    return SUMMARY_OBSERVABLES + (SUMMARY_MEASURED if measured else ())
+def _summary_observables(measured: bool, walled: bool = False) -> tuple[str, ...]:
+    return (SUMMARY_OBSERVABLES + (SUMMARY_MEASURED if measured else ())
+            + (SUMMARY_WALLED if walled else ()))
 
 
-def summary_columns(measured: bool = False) -> list[str]:
-    cols = ["study", *GROUP_COLUMNS, "n", "arrived_fraction"]
-    for obs in _summary_observables(measured):
+def _groups(walled: bool) -> list[str]:
+    return list(GROUP_COLUMNS) + ([WALL_GROUP] if walled else [])
+
+
+def summary_columns(measured: bool = False, walled: bool = False) -> list[str]:
+    cols = ["study", *_groups(walled), "n", "arrived_fraction"]
+    for obs in _summary_observables(measured, walled):
         cols += [f"{obs}_mean"] + [f"{obs}_p{q}" for q in PERCENTILES]
     return cols
 
 
 def summary_table(df: pd.DataFrame) -> pd.DataFrame:
-    """Percentile bands over realisations per (material, engine, v_s, gap, extra length).
+    """Percentile bands over realisations per (material, engine, v_s, gap, extra length;
+    for a table of walled scenes also the scene, as scenes may differ in their dead load F0
+    alone).
 
     Statistics of an observable use the realisations where it is finite (a wave that did
     not arrive has no v_g); ``arrived_fraction`` says how many those are.
     """
     rows = []
     measured = MEASURED_COLUMNS[0] in df.columns
-    groups = df.groupby(list(GROUP_COLUMNS), dropna=False, sort=False)
+    walled = WALL_COLUMNS[0] in df.columns
+    keys = _groups(walled)
+    groups = df.groupby(keys, dropna=False, sort=False)
     for key, g in groups:
-        row = {"study": g["study"].iloc[0], **dict(zip(GROUP_COLUMNS, key)),
+        row = {"study": g["study"].iloc[0], **dict(zip(keys, key)),
                "n": int(len(g)), "arrived_fraction": float(g["wave_arrived"].mean())}
-        for obs in _summary_observables(measured):
+        for obs in _summary_observables(measured, walled):
             vals = g[obs].to_numpy(dtype=float)
             row[f"{obs}_mean"] = _mean(vals)
             for q in PERCENTILES:
                 row[f"{obs}_p{q}"] = _pct(vals, q)
         rows.append(row)
-    out = pd.DataFrame(rows, columns=summary_columns(measured))
-    return out.sort_values(list(GROUP_COLUMNS), kind="stable", na_position="first") \
-        .reset_index(drop=True)
+    out = pd.DataFrame(rows, columns=summary_columns(measured, walled))
+    return out.sort_values(keys, kind="stable", na_position="first").reset_index(drop=True)
 
 
 def timing_table(rows: list[dict]) -> pd.DataFrame:

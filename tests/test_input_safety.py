@@ -794,10 +794,12 @@ def test_workflow_presets_pass_the_default_limits():
     from granchain import workflow as W
     for name in ("tiny", "default", "full"):
         _, preset = W.load_config(REPO / "config" / "config.yaml", name)
-        for study in W.STUDIES:
+        for study in W.preset_studies(preset):
             for ss in W.study_scenes(preset, study):
                 schedule.check_cost(ss.scene)
                 schedule.check_cost(W.packed_scene(ss))
+        for ss in W.check_chain_scenes(preset):
+            schedule.check_cost(ss.scene)
 
 
 # ---------------------------------------------------------------------------------------

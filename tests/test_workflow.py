@@ -114,7 +114,8 @@ def test_every_member_is_in_exactly_one_batch(preset):
     _, P = gw.load_config(CONFIG, preset)
     plan = _plan(preset)
     k = P["batch"]["members_per_job"]
-    for study in gw.STUDIES:
+    assert plan.studies[:len(gw.STUDIES)] == list(gw.STUDIES)
+    for study in plan.studies:
         scenes = gw.study_scenes(P, study)
         # the plan the Snakefile builds once holds the same scenes and batches
         assert plan.scene_hashes(study) == [ss.scene.hash for ss in scenes]
@@ -145,6 +146,70 @@ def test_default_preset_is_meaningful():
     assert s["extra_length"]["realisations"] >= 20
     assert min(s["extra_length"]["extra_length_um"]) == 4 and max(s["extra_length"]["extra_length_um"]) == 8
     assert "lammps" in s["lammps_check"]["engines"]
+    # the field's studies: loads from weak (f_r >> 1) to strong preloads on a long chain,
+    # probes 10 spheres or more from the wall; the wall study over the packed sweep's speeds
+    pre = s["precompression"]
+    assert min(f for f in pre["force_N"] if f > 0) <= 1e-3 and max(pre["force_N"]) >= 0.1
+    assert 0 in pre["force_N"] and pre["n"] >= 40 and pre["n"] - pre["probes"][1] >= 10
+    assert min(pre["v_striker"]) <= 0.01 and max(pre["v_striker"]) >= 1.0
+    assert s["wall"]["v_striker"] == s["packed_sweep"]["v_striker"]
+
+
+@pytest.mark.parametrize("preset", ["tiny", "default"])
+def test_lammps_check_compares_the_field_chains(preset):
+    """lammps_check's field chains (compared only): a dimer (two radii and materials
+    alternating), a chain on a wall (packed and gapped) and a preloaded chain on a wall,
+    each at every striker speed of the study, one scene per speed and gap; not in the
+    study's batches."""
+    plan = _plan(preset)
+    spec = plan.preset["studies"]["lammps_check"]
+    by = {}
+    for ss in plan.chains:
+        by.setdefault(ss.chain, []).append(ss)
+        assert ss.engines == ("reference", "lammps") and ss.study == "lammps_check"
+        assert len(ss.scene.striker_velocities) == 1 and not ss.eq54
+    assert set(by) >= {"dimer", "wall", "preloaded"}
+    dimer = by["dimer"][0].scene
+    assert dimer.radii[:3] == (150e-6, 189e-6, 150e-6) and dimer.wall is None
+    assert [m.name for m in dimer.materials[:3]] == ["ss440c", "brass", "ss440c"]
+    assert {ss.scene.wall.name for ss in by["wall"]} == {"ss316"}
+    assert {ss.gap_mean_nm for ss in by["wall"]} == {0.0, 20.0}
+    pre = by["preloaded"][0].scene
+    assert pre.wall is not None and pre.precompression == 0.01
+    assert pre.materials[0].name == "tungsten_carbide"
+    for name, scenes in by.items():
+        speeds = sorted(ss.scene.striker_velocities[0] for ss in scenes
+                        if ss.gap_mean_nm == 0)
+        assert speeds == sorted(spec["v_striker"]), name
+    hashes = {ss.scene.hash for ss in plan.chains}
+    assert len(hashes) == len(plan.chains)
+    assert not hashes & {ss.scene.hash for ss in plan.scenes["lammps_check"]}
+    d = gw.describe(plan, "lammps_check")
+    assert d["chains"] == "dimer, wall, preloaded"
+
+
+def test_field_studies_build_the_chains_they_name():
+    """precompression: one scene per load F0, every speed, on the study's wall, its n and
+    probes; wall: the chapter's chain on a wall; both packed, no Eq. 5.4 bound."""
+    plan = _plan("default")
+    spec = plan.preset["studies"]["precompression"]
+    scenes = plan.scenes["precompression"]
+    assert [ss.scene.precompression for ss in scenes] == spec["force_N"]
+    for ss in scenes:
+        sc = ss.scene
+        assert sc.n == spec["n"] and list(sc.probes) == spec["probes"] and not ss.eq54
+        assert sc.wall.name == spec["wall"] and sc.gap_distribution == "none"
+        assert list(sc.striker_velocities) == spec["v_striker"] and sc.method == "adaptive"
+    w, = plan.scenes["wall"]
+    assert w.scene.n == plan.preset["base"]["n"] and w.scene.wall.name == "ss440c"
+    assert w.scene.effects == frozenset(plan.preset["base"]["effects"])
+    assert [b.name for b in plan.batches["wall"]] == ["reference_000"]
+    # a member re-runs alone by its load
+    F0 = spec["force_N"][1]
+    row = gw.rerun_member(plan.preset, "precompression", material="ss440c", v_striker=1.0,
+                          realisation=0, precompression_N=F0)
+    assert row["wall_force_static_N"] == pytest.approx(F0, rel=1e-12)
+    assert math.isnan(row["v_g_bound_eq54_m_s"]) and row["wave_arrived"]
 
 
 def _config_with(extra_yaml: str = "", preset: str = "tiny") -> dict:
@@ -199,6 +264,32 @@ def test_preset_and_material_names_cannot_leave_results():
     ("presets: {tiny: {studies: {gap_sweep: {engine: lamps}}}}",
      ("presets.tiny.studies.gap_sweep.engine", "'lamps' is not one of", "reference")),
     ("engine: lamps", ("'engine'", "'lamps' is not one of", "--config engine=")),
+    # the field's studies and lammps_check's field chains
+    ("presets: {tiny: {studies: {wall: {method: event}}}}",
+     ("presets.tiny.studies.wall", "event does not handle an end wall")),
+    ("presets: {tiny: {studies: {precompression: {force_N: [-0.1]}}}}",
+     ("presets.tiny.studies.precompression.force_N.0", "less than the minimum of 0")),
+    ("presets: {tiny: {studies: {precompression: {wall: steel}}}}",
+     ("presets.tiny.studies.precompression", "walls.end", "'steel'")),
+    ("presets: {tiny: {studies: {precompression: {probes: [10, 50]}}}}",
+     ("presets.tiny.studies.precompression", "probes")),
+    ("presets: {tiny: {studies: {wall: {walls: ss440c}}}}",
+     ("presets.tiny.studies.wall", "'walls' was unexpected")),
+    ("presets: {tiny: {studies: {lammps_check: {chains: [{name: a}, {name: a}]}}}}",
+     ("presets.tiny.studies.lammps_check.chains", "chain name 'a' is given twice")),
+    ("presets: {tiny: {studies: {lammps_check: {chains: [{name: a, radius: -1.0}]}}}}",
+     ("presets.tiny.studies.lammps_check.chains.0.radius",)),
+    ("presets: {tiny: {studies: {lammps_check: {chains: [{name: a, materials: "
+     "[ss440c, ss316, brass, ss440c, ss316, brass, ss440c, ss316, brass, ss440c, ss316, "
+     "brass, ss440c, ss316, brass, ss440c]}]}}}}",
+     ("presets.tiny.studies.lammps_check.chains.0.materials", "16 values for a chain of 15")),
+    ("presets: {tiny: {studies: {lammps_check: {chains: [{name: a, wall: rigid, "
+     "precompression_N: 0.1, gap_mean_nm: [20]}]}}}}",
+     ("presets.tiny.studies.lammps_check.chains.0", "precompression.force", "gaps")),
+    ("presets: {tiny: {studies: {lammps_check: {chains: [{name: a, precompression_N: 0.1}]}}}}",
+     ("presets.tiny.studies.lammps_check.chains.0", "needs an end wall")),
+    ("presets: {tiny: {studies: {lammps_check: {chains: [{name: a, materials: [ss44c]}]}}}}",
+     ("presets.tiny.studies.lammps_check.chains.0", "unknown material 'ss44c'")),
 ])
 def test_bad_preset_value_is_rejected(bad, needles):
     _rejected(_config_with(bad), *needles)
@@ -268,8 +359,8 @@ def test_dry_run(tmp_path, preset):
     proc = snakemake(_workdir(tmp_path), "-n", "--quiet", "rules", "--config", f"preset={preset}",
                      timeout=300)
     text = proc.stdout + proc.stderr
-    plan = _plan(preset).batches
-    runs = sum(1 for s in gw.STUDIES if s != "packed_trace" for b in plan[s]
+    plan = _plan(preset)
+    runs = sum(1 for s in plan.studies if s != "packed_trace" for b in plan.batches[s]
                if b.engine == "reference")
     assert f"run_batch {runs}" in " ".join(text.split()), text
     assert not (tmp_path / "results").exists()
@@ -291,11 +382,13 @@ def test_dry_run_with_lammps_engine(tmp_path):
     proc = snakemake(_workdir(tmp_path), "-n", "--quiet", "rules", "--config", "preset=tiny",
                      "engine=lammps", timeout=300)
     text = " ".join((proc.stdout + proc.stderr).split())
-    plan = gw.Plan.build({**gw.read_config(CONFIG, "tiny"), "engine": "lammps"}).batches
-    lammps = sum(1 for s in gw.STUDIES if s != "packed_trace" for b in plan[s]
+    full = gw.Plan.build({**gw.read_config(CONFIG, "tiny"), "engine": "lammps"})
+    plan = full.batches
+    lammps = sum(1 for s in full.studies if s != "packed_trace" for b in plan[s]
                  if b.engine == "lammps")
-    refs = sum(1 for s in gw.STUDIES if s != "packed_trace" for b in plan[s]
+    refs = sum(1 for s in full.studies if s != "packed_trace" for b in plan[s]
                if b.engine == "reference")
+    assert [b.engine for s in gw.FIELD_STUDIES for b in plan[s]] == ["lammps"] * 2
     assert lammps > len(plan["lammps_check"]), plan
     assert f"run_lammps_batch {lammps}" in text and f"run_batch {refs}" in text, text
 
@@ -462,6 +555,47 @@ def test_tiny_vibrometer_study(tiny_run):
             assert 0 < r["chapter_value"] < 1 and abs(r["project_value"]) < 0.05, r
 
 
+def test_tiny_field_studies(tiny_run):
+    """precompression and wall: tables with the wall's columns (F0 = the static wall force),
+    no Eq. 5.4 bound, summaries per load, figures, thesis rows; lammps_check's field chains
+    (dimer, wall, preloaded) in the engine comparison, the wall's rows checked and met."""
+    P = tiny_preset()
+    root = tiny_run / "results" / "tiny"
+    for study in gw.FIELD_STUDIES:
+        df = _tables(tiny_run, study)
+        scenes = gw.study_scenes(P, study)
+        n = scenes[0].scene.n
+        assert list(df.columns) == tables.columns(n, walled=True)
+        assert len(df) == sum(ss.members for ss in scenes) and df["wave_arrived"].all()
+        assert df["v_g_bound_eq54_m_s"].isna().all() and (df["wall_force_max_N"] > 0).all()
+        summ = tables.read_csv(root / "tables" / f"{study}_summary.csv")
+        assert list(summ.columns) == tables.summary_columns(walled=True)
+        assert summ["n"].sum() == len(df)
+        prov = json.loads((root / "tables" / f"{study}.provenance.json").read_text())
+        assert "not computed" in prov["eq54_bound"] and len(prov["walls"]) == len(scenes)
+        for ext in ("png", "pdf"):
+            assert (root / "figures" / f"{study}.{ext}").stat().st_size > 0
+    pre = _tables(tiny_run, "precompression")
+    loads = sorted(set(pre["wall_force_static_N"].round(12)))
+    assert loads == sorted(P["studies"]["precompression"]["force_N"])
+    # one member per (load, speed): the summary, grouped by scene too, has a row for each
+    assert len(tables.read_csv(root / "tables" / "precompression_summary.csv")) == len(pre)
+    th = pd.read_csv(root / "tables" / "thesis_comparison.csv").set_index("id")
+    for id_ in ("pre_vg_front_over_theory", "pre_vg_over_theory", "pre_vg_over_c0_weak",
+                "wall_force_exponent"):
+        assert math.isfinite(th.loc[id_, "project_value"]), id_
+    assert 1.2 < th.loc["wall_force_exponent", "project_value"] < 1.21
+    cmp = tables.read_csv(root / "tables" / "lammps_vs_reference.csv")
+    assert set(cmp["chain"]) == {"chapter", "dimer", "wall", "preloaded"}
+    checked = cmp[cmp["ok"].notna()]
+    assert checked["ok"].astype(str).eq("True").all()
+    walls = cmp[cmp["quantity"].isin(["wall_force_max", "t_wall_peak", "wall_force_static"])]
+    assert set(walls["chain"]) == {"wall", "preloaded"}
+    assert walls["ok"].astype(str).eq("True").all() and (walls["diff"] < 1e-8).all()
+    prov = json.loads((root / "tables" / "lammps_vs_reference.provenance.json").read_text())
+    assert {c["chain"] for c in prov["comparisons"]} == {"chapter", "dimer", "wall", "preloaded"}
+
+
 def test_tiny_lammps_agrees_with_reference(tiny_run):
     df = _tables(tiny_run, "lammps_check")
     key = ["scene_hash", "v_striker_m_s", "realisation"]
@@ -499,6 +633,20 @@ def test_member_rerun_alone_reproduces_its_row(tiny_run):
         a = tables.csv_text(tables.study_table([row], P["base"]["n"]))
         b = tables.csv_text(tables.study_table([new], P["base"]["n"]))
         assert a == b, (study, a, b)
+
+
+def test_field_member_rerun_alone_reproduces_its_row(tiny_run):
+    P = tiny_preset()
+    df = _tables(tiny_run, "precompression")
+    row = df[df["wall_force_static_N"] > 0].iloc[-1].to_dict()
+    F0, = [f for f in P["studies"]["precompression"]["force_N"]
+           if f == pytest.approx(row["wall_force_static_N"], rel=1e-12)]
+    new = gw.rerun_member(P, "precompression", material=row["material"],
+                          v_striker=row["v_striker_m_s"], realisation=0, precompression_N=F0)
+    n = P["studies"]["precompression"]["n"]
+    a = tables.csv_text(tables.study_table([row], n))
+    b = tables.csv_text(tables.study_table([new], n))
+    assert a == b
 
 
 def test_tiny_rerun_does_nothing(tiny_run):
@@ -585,8 +733,10 @@ def tiny_lammps_run(tmp_path_factory):
     snakemake(wd, "--cores", "2", "--config", "preset=tiny", "engine=lammps", timeout=900)
     print(f"tiny preset, engine=lammps: {time.monotonic() - t0:.1f} s")
     vv = _workdir(tmp_path_factory.mktemp("tiny_verlet"))
-    (vv / "verlet.yaml").write_text("presets: {tiny: {base: {method: verlet}}}\n")
-    targets = [f"results/tiny/tables/{s}.csv" for s in gw.ENSEMBLE_STUDIES]
+    (vv / "verlet.yaml").write_text("presets: {tiny: {base: {method: verlet}, studies: "
+                                    "{precompression: {method: verlet}, wall: {method: "
+                                    "verlet}}}}\n")
+    targets = [f"results/tiny/tables/{s}.csv" for s in gw.ENSEMBLE_STUDIES + gw.FIELD_STUDIES]
     t0 = time.monotonic()
     snakemake(vv, "--cores", "2", *targets, "--configfile", "verlet.yaml",
               "--config", "preset=tiny", timeout=900)
@@ -602,24 +752,34 @@ def test_tiny_on_lammps_agrees_with_reference_verlet(tiny_lammps_run):
     lmp_wd, ref_wd = tiny_lammps_run
     root = lmp_wd / "results" / "tiny"
     P = gw.load_config(CONFIG, "tiny", engine="lammps")[1]
-    for study in gw.ENSEMBLE_STUDIES:
+    for study in gw.ENSEMBLE_STUDIES + gw.FIELD_STUDIES:
         lmp, ref = _tables(lmp_wd, study), _tables(ref_wd, study)
-        assert list(lmp.columns) == list(ref.columns) == tables.columns(P["base"]["n"])
+        scene = gw.study_scenes(P, study)[0].scene
+        assert list(lmp.columns) == list(ref.columns) == \
+            tables.columns(scene.n, walled=scene.wall is not None)
         assert len(lmp) == len(ref) == sum(ss.members for ss in gw.study_scenes(P, study))
         assert (lmp["engine"] == "lammps").all() and (lmp["method"] == "lammps-verlet").all()
         assert (ref["engine"] == "reference").all() and (ref["method"] == "verlet").all()
         prov = json.loads((root / "tables" / f"{study}.provenance.json").read_text())
         assert prov["engines"] == ["lammps"] and prov["methods"] == ["lammps-verlet"]
-        assert "LAMMPS engine" in prov["eq54_bound"] and prov["lammps_version"]
-        # members matched by what they are: NaN extra lengths (gap studies) made comparable
-        lmp = lmp.fillna({"extra_length_um": -1.0}).set_index(MEMBER_KEY).sort_index()
-        ref = ref.fillna({"extra_length_um": -1.0}).set_index(MEMBER_KEY).sort_index()
+        assert prov["lammps_version"] and ("LAMMPS engine" in prov["eq54_bound"]
+                                           or study in gw.FIELD_STUDIES)
+        # members matched by what they are: NaN extra lengths (gap studies) made comparable;
+        # the field's members also by their load (the static wall force, to rounding)
+        key = MEMBER_KEY + (["load"] if study in gw.FIELD_STUDIES else [])
+        if study in gw.FIELD_STUDIES:
+            lmp["load"] = lmp["wall_force_static_N"].round(9)
+            ref["load"] = ref["wall_force_static_N"].round(9)
+        lmp = lmp.fillna({"extra_length_um": -1.0}).set_index(key).sort_index()
+        ref = ref.fillna({"extra_length_um": -1.0}).set_index(key).sort_index()
         assert lmp.index.equals(ref.index) and lmp.index.is_unique, study
         for col in ("status", "wave_arrived", "steps", "gap_mean_probes_nm", "seed",
                     "dt_s", "gap_distribution"):
             assert (lmp[col] == ref[col]).all(), (study, col)
         v = [c for c in lmp.columns if c.startswith("vmax_p")] + \
-            ["v_max_1_m_s", "v_max_2_m_s", "v_g_m_s", "v_g_front_m_s", "v_g_bound_eq54_m_s"]
+            ["v_max_1_m_s", "v_max_2_m_s", "v_g_m_s", "v_g_front_m_s"] + \
+            (["v_g_bound_eq54_m_s"] if study not in gw.FIELD_STUDIES else
+             ["wall_force_max_N", "t_wall_peak_s"])
         rel_v = ((lmp[v] - ref[v]).abs() / ref[v].abs()).max().max()
         rel_t = ((lmp["dt_peak_s"] - ref["dt_peak_s"]).abs() / ref["dt_peak_s"]).max()
         # the works LAMMPS outputs itself; particle (+ rolling) friction and the balance

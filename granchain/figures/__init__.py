@@ -14,10 +14,14 @@ granchain.analysis.
 - :func:`fig5_3c`  v_g vs striker velocity for mean gaps 10..190 nm, bands and Eq. 5.4 (gap_sweep);
 - :func:`fig5_4b`  v_g vs the mean gap inferred from the extra chain length (extra_length);
 - :func:`fig5_2a`  true and recorded probe velocities, packed chain (vibrometer trace);
-- :func:`vibrometer`  recorded/true v_max,1, v_max,2 and dt bias vs bandwidth (vibrometer).
+- :func:`vibrometer`  recorded/true v_max,1, v_max,2 and dt bias vs bandwidth (vibrometer);
+- :func:`precompression`  v_g vs v_s under dead loads F0, with c0 and Nesterenko's
+  precompressed solitary wave (precompression; beyond the chapter);
+- :func:`wall`  the wall's force peak vs v_s, with the Hertz v_s^(6/5) (wall; beyond the chapter).
 
 Modules: ``style`` (fixed rcParams, colours, deterministic saving), ``fig5_1`` (packed
-chain), ``fig5_2`` (the vibrometer), ``fig5_3`` (random gaps), ``fig5_4`` (loose chains). Output is deterministic: a
+chain), ``fig5_2`` (the vibrometer), ``fig5_3`` (random gaps), ``fig5_4`` (loose chains), ``field``
+(the field's chains: precompression, wall). Output is deterministic: a
 rerun on the same tables gives byte-identical PNG and PDF files.
 
 Command line (what the workflow's figure rules call)::
@@ -38,6 +42,7 @@ from .fig5_1 import fig5_1a, fig5_1b, fig5_1c
 from .fig5_2 import fig5_2a, vibrometer
 from .fig5_3 import fig5_3b, fig5_3c
 from .fig5_4 import fig5_4b
+from .field import precompression, wall
 
 # name -> (drawing function, the tables it reads, in argument order)
 FIGURES = {
@@ -49,6 +54,8 @@ FIGURES = {
     "fig5_4b": (fig5_4b, ["extra_length", "packed_sweep"]),
     "fig5_2a": (fig5_2a, ["vibrometer_trace"]),
     "vibrometer": (vibrometer, ["vibrometer"]),
+    "precompression": (precompression, ["precompression"]),
+    "wall": (wall, ["wall"]),
 }
 # readers of the inputs that are not result tables
 READERS = {"trace": read_trace, "vibrometer_trace": read_vibrometer_trace}
@@ -68,7 +75,7 @@ def render(name: str, paths: dict, out, radius: float | None = None) -> list[Pat
             raise GranchainError(f"{name}: needs {flag} (the {study} "
                                  f"{'npz' if study in READERS else 'table'})")
         args.append(READERS.get(study, read_table)(p))
-    if name in ("fig5_3c", "fig5_4b"):
+    if name in ("fig5_3c", "fig5_4b", "precompression"):
         return func(*args, out, radius=radius)
     return func(*args, out)
 
@@ -80,14 +87,16 @@ def main(argv=None) -> int:
                                  description="Draw one of the chapter's figures from the "
                                              "workflow's tables (PNG and PDF).")
     ap.add_argument("name", help=", ".join(FIGURES))
-    for study in ("packed_sweep", "gap_profile", "gap_sweep", "extra_length", "vibrometer"):
+    for study in ("packed_sweep", "gap_profile", "gap_sweep", "extra_length", "vibrometer",
+                  "precompression", "wall"):
         ap.add_argument("--" + study.replace("_", "-"), dest=study,
                         help=f"results/<preset>/tables/{study}.csv")
     ap.add_argument("--trace", help="results/<preset>/traces/packed_trace_<material>.npz")
     ap.add_argument("--vibrometer-trace", dest="vibrometer_trace",
                     help="results/<preset>/traces/vibrometer_<material>.npz")
-    ap.add_argument("--radius", type=float, help="sphere radius in m for Eq. 5.4 (default "
-                    "the chapter's 150e-6; the tables do not carry it)")
+    ap.add_argument("--radius", type=float, help="sphere radius in m for Eq. 5.4 and the "
+                    "precompressed chain's c0 (default the chapter's 150e-6; the tables do "
+                    "not carry it)")
     ap.add_argument("--out", required=True, help="output path (.png/.pdf or no extension)")
     a = ap.parse_args(argv)
     paths = {k: v for k, v in vars(a).items() if k not in ("name", "out", "radius") and v}

@@ -5,7 +5,8 @@ only this package, through the names re-exported here (``from granchain import w
 as gw``). One job per module; each imports only those above it:
 
 - ``config``      schema validation, preset selection (and its engine), :class:`ConfigError`
-- ``studies``     a study -> its :class:`StudyScene` list; packed and trace scenes
+- ``studies``     a study -> its :class:`StudyScene` list; packed and trace scenes; the
+                  field's studies and lammps_check's field chains
 - ``batches``     cost estimates, :class:`Batch`, cutting a study into jobs, runtimes
 - ``plan``        :class:`Plan`: a preset's scenes and batches, built once (the check)
 - ``captions``    study sizes for the report's captions
@@ -21,15 +22,17 @@ from .batches import (JOB_OVERHEAD_S, STEP_SECONDS, Batch, batches, estimated_st
                       find_batch, members_per_job, realisation_cost, runtime_minutes)
 from .captions import FIGURES, caption_sizes, describe, vibrometer_sizes
 from .comparison import COMPARISON_META, engine_comparison, write_engine_comparison
-from .config import (ENGINES, ENSEMBLE_STUDIES, SCHEMA, ConfigError, config_error_message,
+from .config import (ENGINES, ENSEMBLE_STUDIES, FIELD_STUDIES, SCHEMA, ConfigError,
+                     config_error_message,
                      read_config, select_preset, study_engine, validate_config, with_engine)
 from .gather import gather, study_provenance
 from .plan import Plan, load_config
 from .rerun import rerun_member
 from .run import (engine_options, log_to, member_rows, packed_reference, run_batch,
                   run_members, run_traces, set_threads, write_batch)
-from .studies import (ENGINE_ORDER, STUDIES, VIBROMETER, StudyScene, packed_scene,
-                      study_scenes, trace_scene, vibrometer_scenes, vibrometer_settings)
+from .studies import (ENGINE_ORDER, STUDIES, VIBROMETER, StudyScene, check_chain_scenes,
+                      field_scenes, packed_scene, preset_studies, study_scenes, trace_scene,
+                      vibrometer_scenes, vibrometer_settings)
 from .vibrometer import VIB_COLUMNS, run_vibrometer, write_vibrometer
 
 __all__ = [
@@ -37,14 +40,15 @@ __all__ = [
     "members_per_job", "realisation_cost", "runtime_minutes",
     "FIGURES", "caption_sizes", "describe", "vibrometer_sizes",
     "COMPARISON_META", "engine_comparison", "write_engine_comparison",
-    "ENGINES", "ENSEMBLE_STUDIES", "SCHEMA", "ConfigError", "config_error_message",
+    "ENGINES", "ENSEMBLE_STUDIES", "FIELD_STUDIES", "SCHEMA", "ConfigError", "config_error_message",
     "read_config", "select_preset", "study_engine", "validate_config", "with_engine",
     "gather", "study_provenance",
     "Plan", "load_config",
     "rerun_member",
     "engine_options", "log_to", "member_rows", "packed_reference", "run_batch", "run_members",
     "run_traces", "set_threads", "write_batch",
-    "ENGINE_ORDER", "STUDIES", "StudyScene", "packed_scene", "study_scenes", "trace_scene",
+    "ENGINE_ORDER", "STUDIES", "StudyScene", "check_chain_scenes", "field_scenes",
+    "packed_scene", "preset_studies", "study_scenes", "trace_scene",
     "VIBROMETER", "vibrometer_scenes", "vibrometer_settings",
     "VIB_COLUMNS", "run_vibrometer", "write_vibrometer",
 ]

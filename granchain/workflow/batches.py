@@ -41,7 +41,9 @@ def estimated_steps(scene: Scene, v: float, gap_mean: float) -> float:
         return 1.0
     if scene.method == "event":
         return EVENT_STEPS_PER_CHAIN * EVENT_STEP_WEIGHT
-    p = scene.probes[-1]
+    # a chain on an end wall runs until the wave has come back from it: the whole chain
+    # and a few spheres back (a preload only speeds the wave up)
+    p = scene.n + 4 if scene.wall is not None else scene.probes[-1]
     travel = (p + 2) * 2.0 * scene.radius / float(analytic.nesterenko_speed(scene.material, 0.64 * v))
     flight = (p - 1) * gap_mean / (0.7 * v)
     return (travel + flight) / scene.dt

@@ -9,12 +9,15 @@ import math
 
 from ..errors import GranchainError
 from ..scene import DEFAULTS
+from .config import FIELD_STUDIES
 from .plan import Plan
 from .studies import ENGINE_ORDER
 
 FIGURES = {"packed_sweep": "chapter Fig. 5.1b, 5.1c", "packed_trace": "chapter Fig. 5.1a",
            "gap_profile": "chapter Fig. 5.3b", "gap_sweep": "chapter Fig. 5.3c",
-           "extra_length": "chapter Fig. 5.4b", "lammps_check": "LAMMPS cross-validation"}
+           "extra_length": "chapter Fig. 5.4b", "lammps_check": "LAMMPS cross-validation",
+           "precompression": "beyond the chapter: a precompressed chain",
+           "wall": "beyond the chapter: the chain on a wall"}
 # The probes the figures label and measure: the chapter's (the scene default).
 PROBES = tuple(DEFAULTS["probes"])
 
@@ -35,10 +38,16 @@ def describe(plan: Plan, study: str) -> dict:
             plan.preset["base"]["gap_distribution"]
         gap_text = f"{dist} gaps of mean {', '.join(f'{g:g}' for g in gaps)} nm"
     engines = [e for e in ENGINE_ORDER if any(e in ss.engines for ss in scenes)]
+    if study in FIELD_STUDIES:
+        gap_text = "packed, on " + ", ".join(dict.fromkeys(
+            f"a {ss.scene.wall.name} wall" + (f" under F0 = {ss.scene.precompression:g} N"
+                                              if ss.scene.precompression else "")
+            for ss in scenes))
     return {"preset": plan.name, "figure": FIGURES[study], "scenes": len(scenes),
             "materials": ", ".join(dict.fromkeys(ss.material for ss in scenes)),
             "v_striker": ", ".join(f"{v:g}" for v in speeds),
             "gaps": gap_text if study != "lammps_check" else ", ".join(f"{g:g}" for g in gaps),
+            "chains": ", ".join(dict.fromkeys(ss.chain for ss in plan.chains)) or "none",
             "members": sum(ss.members * len(ss.engines) for ss in scenes),
             "jobs": len(plan.batches[study]), "engines": engines,
             "method": ", ".join(dict.fromkeys(ss.scene.method for ss in scenes)),
@@ -50,6 +59,8 @@ def _method(plan: Plan, study: str) -> str:
     LAMMPS for a study on the LAMMPS engine."""
     if any("lammps" in ss.engines for ss in plan.scenes[study]) and study != "lammps_check":
         return "verlet (LAMMPS)"
+    if study in FIELD_STUDIES:
+        return str(plan.preset["studies"][study].get("method", plan.preset["base"]["method"]))
     return str(plan.preset["base"]["method"])
 
 
@@ -62,10 +73,16 @@ def caption_sizes(plan: Plan, study: str) -> dict:
         raise GranchainError(f"base.probes {base['probes']}: the figures label and measure "
                              f"the chapter's probes {PROBES[0]} and {PROBES[1]}; remove "
                              "base.probes from the preset")
-    out = {"preset": plan.name, "n": str(base["n"]), "radius_um": f"{base['radius'] * 1e6:g}",
+    out = {"preset": plan.name, "n": str(plan.scenes[study][0].scene.n),
+           "radius_um": f"{base['radius'] * 1e6:g}",
            "method": _method(plan, study), "dt_s": f"{base['dt']:g}",
            "materials": ", ".join(sorted(set(plan.materials(study))))}
-    for key in ("v_striker", "gap_mean_nm", "extra_length_um", "realisations"):
+    if study in FIELD_STUDIES:
+        s0 = plan.scenes[study][0].scene
+        out["probes"] = f"{s0.probes[0]} and {s0.probes[1]}"
+        out["wall"] = spec["wall"]
+        out["tolerance"] = f"{s0.tolerance:g}" if s0.tolerance else ""
+    for key in ("v_striker", "gap_mean_nm", "extra_length_um", "realisations", "force_N"):
         if key in spec:
             v = spec[key]
             out[key] = ", ".join(f"{x:g}" for x in v) if isinstance(v, (list, tuple)) \

@@ -6,7 +6,9 @@ integrator shared by every study), ``studies``, ``batch`` and optionally ``cost`
 
 Each ensemble study runs on one engine, its ``engine`` key (reference unless set); a
 top-level ``engine`` (``--config engine=lammps``) sets it for every ensemble study of the
-preset. ``lammps_check`` runs the engines its ``engines`` list names and ignores both.
+preset, and for the field's studies (``FIELD_STUDIES``: precompression, wall) when the
+preset has them. ``lammps_check`` runs the engines its ``engines`` list names and ignores
+both.
 """
 from __future__ import annotations
 
@@ -19,6 +21,9 @@ SCHEMA = Path(__file__).resolve().parents[2] / "workflow" / "schemas" / "config.
 ENGINES = ("reference", "lammps")
 # Studies whose rows one engine makes (the study's ``engine`` key or the top-level override).
 ENSEMBLE_STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length")
+# Optional studies of the field's chains (an end wall, a dead load), beyond the chapter;
+# each also runs on one engine (its ``engine`` key or the top-level override).
+FIELD_STUDIES = ("precompression", "wall")
 
 
 class ConfigError(GranchainError):
@@ -81,7 +86,7 @@ def with_engine(preset: dict, engine: str | None = None) -> dict:
                           f"use --config engine=NAME with one of: {', '.join(ENGINES)}")
     out = copy.deepcopy(preset)
     for study, spec in (out.get("studies") or {}).items():
-        if study not in ENSEMBLE_STUDIES or not isinstance(spec, dict):
+        if study not in ENSEMBLE_STUDIES + FIELD_STUDIES or not isinstance(spec, dict):
             continue
         if engine is not None:
             spec["engine"] = engine

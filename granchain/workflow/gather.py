@@ -42,6 +42,18 @@ def _packed_engines(scenes: list[StudyScene]) -> str:
 def study_provenance(preset_name: str, preset: dict, study: str, scenes: list[StudyScene],
                      df: pd.DataFrame) -> dict:
     """What a study's provenance JSON records besides the environment."""
+    eq54 = ("v_g_bound_eq54_m_s: (2R + gbar)/v = 2R/v_g_packed + gbar/v_s with gbar the "
+            "row's mean gap between the probes and v_g_packed the arrival-time group "
+            f"velocity of the packed chain ({_packed_engines(scenes)}, same scene)"
+            if any(ss.eq54 for ss in scenes) else
+            "v_g_bound_eq54_m_s: NaN, not computed (packed chains on an end wall: the "
+            "bound is about gaps)")
+    walled = {}
+    if any(ss.scene.wall is not None for ss in scenes):
+        walled["walls"] = {ss.scene.name: {"wall": ss.scene.wall.name,
+                                           "precompression_N": ss.scene.precompression,
+                                           "n": ss.scene.n, "probes": list(ss.scene.probes)}
+                           for ss in scenes}
     return {
         "preset": preset_name,
         "study": study,
@@ -54,10 +66,8 @@ def study_provenance(preset_name: str, preset: dict, study: str, scenes: list[St
         "methods": sorted(set(df["method"])),
         "dt_s": sorted({float(x) for x in df["dt_s"]}),
         "rows": int(len(df)),
-        "eq54_bound": "v_g_bound_eq54_m_s: (2R + gbar)/v = 2R/v_g_packed + gbar/v_s with gbar "
-                      "the row's mean gap between the probes and v_g_packed the arrival-time "
-                      f"group velocity of the packed chain ({_packed_engines(scenes)}, "
-                      "same scene)",
+        "eq54_bound": eq54,
+        **walled,
     }
 
 
@@ -73,7 +83,8 @@ def gather(preset_name: str, preset: dict, study: str, batch_csvs, timing_csvs,
     if len(df) != expected:
         raise GranchainError(f"study '{study}' has {len(df)} rows, the configuration "
                              f"{expected}; delete its work folder and re-run")
-    df = df[tables.columns(scenes[0].scene.n)]
+    df = df[tables.columns(scenes[0].scene.n,
+                           walled=any(ss.scene.wall is not None for ss in scenes))]
     timing = pd.concat([tables.read_csv(p) for p in timing_csvs], ignore_index=True) \
         if timing_csvs else tables.timing_table([])
     tables.write_csv(timing, out_timing)

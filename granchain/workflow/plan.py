@@ -12,27 +12,35 @@ from dataclasses import dataclass
 from ..errors import GranchainError
 from .batches import Batch, batches, check_jobs, check_study
 from .config import ConfigError, read_config, select_preset
-from .studies import (ENGINE_ORDER, STUDIES, StudyScene, study_scenes, vibrometer_scenes,
-                      vibrometer_settings)
+from .studies import (ENGINE_ORDER, StudyScene, check_chain_scenes, preset_studies,
+                      study_scenes, vibrometer_scenes, vibrometer_settings)
 
 
 @dataclass(frozen=True, eq=False)
 class Plan:
     """A preset (``name``, validated ``preset`` mapping) with the study scenes and job
-    batches of every study, in table order; ``vibrometer``: the scenes of the optional
-    vibrometer study (empty without it; one job, :mod:`.vibrometer`)."""
+    batches of every study (``studies``: the chapter's and the field's the preset has), in
+    table order; ``vibrometer``: the scenes of the optional vibrometer study (empty
+    without it; one job, :mod:`.vibrometer`); ``chains``: lammps_check's field chains,
+    which only the engine comparison runs (:func:`.studies.check_chain_scenes`)."""
     name: str
     preset: dict
     scenes: dict[str, list[StudyScene]]
     batches: dict[str, list[Batch]]
     vibrometer: tuple[StudyScene, ...] = ()
+    chains: tuple[StudyScene, ...] = ()
+
+    @property
+    def studies(self) -> list[str]:
+        """The preset's ensemble studies, in order (each has a table)."""
+        return list(self.scenes)
 
     @classmethod
     def build(cls, config: dict) -> Plan:
         """The plan of the preset ``config['preset']`` of a validated configuration."""
         name, preset = select_preset(config)
         scenes, jobs = {}, {}
-        for study in STUDIES:
+        for study in preset_studies(preset):
             try:
                 scenes[study] = study_scenes(preset, study)
                 check_study(preset, name, study, scenes[study])
@@ -45,10 +53,11 @@ class Plan:
             vib = tuple(vibrometer_scenes(preset))
             for ss in vib:
                 vibrometer_settings(preset, ss)         # every instrument setting is valid
+            chains = tuple(check_chain_scenes(preset))
         except ConfigError as exc:
             raise ConfigError(str(exc).replace("at 'studies.", f"at 'presets.{name}.studies.",
                                                1)) from None
-        return cls(name, preset, scenes, jobs, vib)
+        return cls(name, preset, scenes, jobs, vib, chains)
 
     def batch(self, study: str, name: str) -> Batch:
         """The batch called ``name`` (e.g. reference_000) of a study."""

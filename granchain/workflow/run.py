@@ -122,9 +122,12 @@ def member_rows(ss: StudyScene, runs: list[ChainResult], threads: int | None = N
                 ) -> pd.DataFrame:
     """Table rows of a study scene's runs, with the Eq. 5.4 bound from its packed chain
     (run here, on the scene's ``packed_engine``, for the speeds these runs have: a few
-    cheap chains)."""
+    cheap chains); NaN for a scene without the bound (``StudyScene.eq54``: the field's
+    packed chains on a wall)."""
     df = tables.study_table([tables.member_row(ss.meta, r, ss.scene.n) for r in runs],
                             ss.scene.n)
+    if not ss.eq54:
+        return df
     speeds = sorted({float(r.v_striker) for r in runs})
     return tables.add_eq54_bound(df, packed_reference([ss], velocities=speeds, threads=threads),
                                  ss.scene.radius)

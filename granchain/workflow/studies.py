@@ -18,6 +18,15 @@ Studies (chapter figure in brackets):
                 and dt over bandwidths and filters (optional; its own table, not an
                 ensemble study: ``vibrometer_scenes``, ``vibrometer_settings``)
 
+The field's chains (optional studies, ``FIELD_STUDIES``; beyond the chapter):
+- precompression  a packed chain on an end wall under dead loads F0 (``force_N``), every
+                  striker speed: v_g against c0 and Nesterenko's precompressed solitary wave
+- wall            the chapter's chain ending on a wall: the wall's force peak against v_s
+
+``lammps_check`` may also name field chains (``chains``: a dimer, a chain on a wall, a
+preloaded chain...), which the LAMMPS-vs-reference comparison runs beside its own scenes
+(:func:`check_chain_scenes`; they are not part of its batch table).
+
 Every other study runs on one engine (``engine`` key, :func:`.config.study_engine`).
 LAMMPS integrates with velocity Verlet, so the scenes of a LAMMPS study say so: their
 integrator method is verlet (at the study's dt), and their hashes name what ran.
@@ -32,7 +41,7 @@ from .. import analytic
 from ..errors import GranchainError
 from ..costmodel import resolve_auto
 from ..scene import RANDOM_GAPS, TOLERANCE_METHODS, Scene, apply_overrides, scene_from_dict
-from .config import ConfigError, study_engine
+from .config import FIELD_STUDIES, ConfigError, study_engine
 
 STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length",
            "lammps_check")
@@ -52,6 +61,14 @@ class StudyScene:
     engines: tuple[str, ...]
     scene: Scene
     raw: dict
+    chain: str = ""             # lammps_check: the name of a field chain ("": its own)
+
+    @property
+    def eq54(self) -> bool:
+        """Does the table row get the Eq. 5.4 bound (a packed reference run)? Not for the
+        field's studies, whose chains are packed (a wall, a preload: the bound is about
+        gaps), nor for lammps_check's field chains."""
+        return self.study not in FIELD_STUDIES and not self.chain
 
     @property
     def packed_engine(self) -> str:
@@ -123,10 +140,19 @@ def _build(raw: dict, where: str) -> Scene:
             from None
 
 
+def preset_studies(preset: dict) -> list[str]:
+    """The ensemble studies of a preset, in order: every one of ``STUDIES``, then the
+    field's studies (``FIELD_STUDIES``) the preset has."""
+    return list(STUDIES) + [s for s in FIELD_STUDIES if (preset.get("studies") or {}).get(s)]
+
+
 def study_scenes(preset: dict, study: str) -> list[StudyScene]:
     """The scenes of one study of a preset, in table order."""
+    if study in FIELD_STUDIES:
+        return field_scenes(preset, study)
     if study not in STUDIES:
-        raise ConfigError(f"unknown study '{study}'; use one of {', '.join(STUDIES)}")
+        raise ConfigError(f"unknown study '{study}'; use one of "
+                          f"{', '.join(STUDIES + FIELD_STUDIES)}")
     spec = preset["studies"][study]
     where = f"studies.{study}"
     dist = preset["base"]["gap_distribution"]
@@ -166,6 +192,100 @@ def study_scenes(preset: dict, study: str) -> list[StudyScene]:
                 gaps = {"distribution": "from_length", "extra_length": float(L) * 1e-6}
                 add(material, v, gaps, spec["realisations"], float(L) * 1e3 / (n - 1), L,
                     f"extra{_fmt_num(L)}um", engines)
+    return out
+
+
+def _fmt_force(F0: float) -> str:
+    return f"{F0:g}".replace("+", "").replace("-", "m")
+
+
+def field_scenes(preset: dict, study: str) -> list[StudyScene]:
+    """The scenes of a field study (none if the preset lacks it), one per material (and
+    per dead load F0 of ``precompression``), every striker speed, packed, ending on the
+    study's ``wall``; ``n`` and ``probes`` replace the base chain's when given.
+
+    precompression: ``force_N`` lists the loads (0: the unloaded chain on the wall, the
+    Nesterenko limit). wall: the chapter's chain on the wall."""
+    spec = (preset.get("studies") or {}).get(study)
+    if not spec:
+        return []
+    where = f"studies.{study}"
+    engines = (study_engine(spec),)
+    forces = [float(f) for f in _as_list(spec["force_N"])] if study == "precompression" \
+        else [0.0]
+    out: list[StudyScene] = []
+    for material in _study_materials(preset, spec):
+        for F0 in forces:
+            name = f"{study}-{material}-wall-{spec['wall']}" if study == "wall" else \
+                f"{study}-{material}-F{_fmt_force(F0)}N"
+            raw = _raw_scene(preset, spec, name, material, _as_list(spec["v_striker"]),
+                             {"distribution": "none"}, 1, engines[0])
+            if "n" in spec:
+                raw["chain"]["n"] = int(spec["n"])
+            if "probes" in spec:
+                raw["probes"] = list(spec["probes"])
+            raw["walls"] = {"end": spec["wall"]}
+            if F0 > 0:
+                raw["precompression"] = {"force": F0}
+            out.append(StudyScene(study, len(out), material, 0.0, math.nan, engines,
+                                  _build(raw, where), raw))
+    return out
+
+
+def _pattern(values, n: int, where: str) -> list:
+    """A list repeated along a chain of n spheres from the striker (a dimer's two radii
+    -> n alternating radii)."""
+    values = _as_list(values)
+    if len(values) > n:
+        raise ConfigError(f"invalid configuration at '{where}': {len(values)} values for a "
+                          f"chain of {n} spheres; give at most {n} (they repeat along the chain)")
+    return [values[i % len(values)] for i in range(n)]
+
+
+def check_chain_scenes(preset: dict) -> list[StudyScene]:
+    """lammps_check's field chains (its ``chains`` list; none without it): for each chain,
+    material and mean gap (the chain's ``gap_mean_nm``, default packed), one scene per
+    striker speed, as lammps_check's own scenes, with the chain's radii and materials
+    (repeated along the chain from the striker), striker, end wall and dead load."""
+    spec = preset["studies"]["lammps_check"]
+    chains = spec.get("chains") or []
+    where = "studies.lammps_check.chains"
+    names = [c["name"] for c in chains]
+    for name in names:
+        if names.count(name) > 1:
+            raise ConfigError(f"invalid configuration at '{where}': chain name '{name}' is "
+                              "given twice; give each chain its own name")
+    engines = tuple(e for e in ENGINE_ORDER if e in spec["engines"])
+    dist = preset["base"]["gap_distribution"]
+    n = int(preset["base"]["n"])
+    out: list[StudyScene] = []
+    for k, ch in enumerate(chains):
+        at = f"{where}.{k}"
+        for material in _study_materials(preset, spec):
+            for g in _as_list(ch.get("gap_mean_nm", [0])):
+                gaps = {"distribution": "none"} if g == 0 else \
+                    {"distribution": dist, "mean": float(g) * 1e-9}
+                reals = 1 if g == 0 else spec["realisations"]
+                for vi in _as_list(spec["v_striker"]):
+                    name = (f"lammps_check-{material}-{ch['name']}-gap{_fmt_num(g)}nm-"
+                            f"v{_fmt_num(vi)}")
+                    raw = _raw_scene(preset, spec, name, material, [vi], gaps, reals)
+                    if "radius" in ch:
+                        raw["chain"]["radius"] = _pattern(ch["radius"], n, f"{at}.radius")
+                    if "materials" in ch:
+                        raw["chain"]["materials"] = _pattern(ch["materials"], n,
+                                                             f"{at}.materials")
+                    for key in ("material", "radius"):
+                        if f"striker_{key}" in ch:
+                            raw["striker"][key] = ch[f"striker_{key}"]
+                    if "wall" in ch:
+                        raw["walls"] = {"end": ch["wall"]}
+                    if "precompression_N" in ch:
+                        raw["precompression"] = {"force": float(ch["precompression_N"])}
+                    raw = apply_overrides(raw, list(ch.get("overrides", [])))
+                    out.append(StudyScene("lammps_check", len(out), material, float(g),
+                                          math.nan, engines, _build(raw, at), raw,
+                                          ch["name"]))
     return out
 
 

@@ -16,8 +16,8 @@ except WorkflowError as exc:
 try:
     PLAN = gw.Plan.build(config)
     # Sizes for the report's captions: tables (describe) and figures (caption_sizes).
-    DESCRIBE = {study: gw.describe(PLAN, study) for study in gw.STUDIES}
-    SIZES = {study: gw.caption_sizes(PLAN, study) for study in gw.STUDIES}
+    DESCRIBE = {study: gw.describe(PLAN, study) for study in PLAN.studies}
+    SIZES = {study: gw.caption_sizes(PLAN, study) for study in PLAN.studies}
 except GranchainError as exc:
     raise WorkflowError(str(exc)) from None
 PRESET, P = PLAN.name, PLAN.preset
@@ -25,8 +25,10 @@ PRESET, P = PLAN.name, PLAN.preset
 # Everything of a preset lives under results/<preset>/.
 RESULTS = f"results/{PRESET}"
 FIG_DIR = f"{RESULTS}/figures"
-STUDIES = gw.STUDIES
-FIGURES = ["fig5_1b", "fig5_1c", "fig5_3b", "fig5_3c", "fig5_4b"]   # fig5_1a: one per material
+STUDIES = PLAN.studies      # the chapter's, then the field's the preset has
+# the field's studies (precompression, wall) the preset has: each has a figure of its name
+FIELD = [s for s in gw.FIELD_STUDIES if s in STUDIES]
+FIGURES = ["fig5_1b", "fig5_1c", "fig5_3b", "fig5_3c", "fig5_4b"] + FIELD   # fig5_1a: one per material
 BATCH_THREADS = int(P["batch"]["threads"])
 BATCH_MEM_MB = int(P["batch"]["mem_mb"])
 

@@ -185,6 +185,42 @@ rule fig5_4b:
         "../scripts/figure.py"
 
 
+# The field's studies (beyond the chapter), when the preset has them: one figure each,
+# named as the study, from its table (granchain/figures/field.py).
+for _study in FIELD:
+
+    rule:
+        name:
+            f"{_study}_figure"
+        input:
+            **{_study: table_path(_study)},
+            code=FIG_CODE,
+        output:
+            png=report(
+                f"{FIG_DIR}/{_study}.png",
+                caption=f"../report/{_study}.rst",
+                category="Figures",
+                subcategory="beyond the chapter",
+                labels={"figure": _study, "material": "all"},
+            ),
+            pdf=f"{FIG_DIR}/{_study}.pdf",
+        params:
+            figure=_study,
+            radius=P["base"]["radius"],
+            sizes=SIZES[_study],
+        log:
+            f"{RESULTS}/logs/figures/{_study}.log",
+        threads: 1
+        resources:
+            mem_mb=1000,
+            runtime=10,
+        localrule: True
+        conda:
+            "../envs/granchain.yaml"
+        script:
+            "../scripts/figure.py"
+
+
 rule thesis_comparison:
     input:
         packed_sweep=table_path("packed_sweep"),
@@ -194,6 +230,8 @@ rule thesis_comparison:
         extra_length=table_path("extra_length"),
         trace=trace_path("ss440c") if "ss440c" in trace_materials() else [],
         vibrometer=f"{RESULTS}/tables/vibrometer.csv" if PLAN.vibrometer else [],
+        precompression=table_path("precompression") if "precompression" in FIELD else [],
+        wall=table_path("wall") if "wall" in FIELD else [],
         code=THESIS_CODE,
     output:
         csv=report(

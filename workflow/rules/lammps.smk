@@ -4,8 +4,9 @@
 # batches go through run_batch, ensembles.smk) and every ensemble study whose engine is
 # lammps (the study's `engine` key, or `--config engine=lammps` for all of them).
 # gather_study (tables.smk) puts a study's rows into tables/<study>.csv. compare_engines
-# runs granchain.compare on every lammps_check scene: tables/lammps_vs_reference.csv
-# (differences and tolerances).
+# runs granchain.compare on every lammps_check scene and on its field chains (`chains`: a
+# dimer, a wall, a preload; compared only): tables/lammps_vs_reference.csv (differences
+# and tolerances).
 
 
 rule run_lammps_batch:
@@ -13,7 +14,7 @@ rule run_lammps_batch:
         table=f"{RESULTS}/work/{{study}}/lammps_{{index}}.csv",
         timing=f"{RESULTS}/work/{{study}}/lammps_{{index}}.timing.csv",
     wildcard_constraints:
-        study="packed_sweep|gap_profile|gap_sweep|extra_length|lammps_check",
+        study="packed_sweep|gap_profile|gap_sweep|extra_length|lammps_check|precompression|wall",
     params:
         batch=lambda w: batch_of(w.study, "lammps", w.index).key(),
         study=lambda w: w.study,
@@ -41,7 +42,7 @@ rule compare_engines:
         ),
         provenance=f"{RESULTS}/tables/lammps_vs_reference.provenance.json",
     params:
-        scenes=PLAN.scene_hashes("lammps_check"),
+        scenes=PLAN.scene_hashes("lammps_check") + [ss.scene.hash for ss in PLAN.chains],
         describe=DESCRIBE["lammps_check"],
     log:
         f"{RESULTS}/logs/lammps_check/compare.log",
@@ -49,7 +50,13 @@ rule compare_engines:
     resources:
         mem_mb=BATCH_MEM_MB,
         runtime=gw.runtime_minutes(
-            sum(b.est_seconds for b in PLAN.batches["lammps_check"]), BATCH_THREADS
+            sum(b.est_seconds for b in PLAN.batches["lammps_check"])
+            + sum(
+                (gw.realisation_cost(ss, "reference") + gw.realisation_cost(ss, "lammps"))
+                * ss.scene.realisations
+                for ss in PLAN.chains
+            ),
+            BATCH_THREADS,
         ),
     conda:
         "../envs/granchain.yaml"
