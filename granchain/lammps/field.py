@@ -116,7 +116,16 @@ def positions(sp: Spheres, gaps) -> np.ndarray:
     Free end: x_1 = 0, x_{i+1} = x_i + (R_i + R_{i+1}) + g_i, left to right (for equal
     spheres exactly the chapter chain's x_i + 2R + g_i). End wall: right to left from
     the wall plane x = 0, x_n = -(R_n - w_0), x_i = x_{i+1} - ((R_i + R_{i+1} - s_i) + g_i),
-    with s_i the static overlap of contact i and w_0 the wall's."""
+    with s_i the static overlap of contact i and w_0 the wall's.
+
+    A contact meant to touch at zero overlap (g_i = s_i = 0: the striker's, and every one
+    of a packed chain without preload) is never written overlapping: right to left,
+    x_i is lowered by ulps until x_{i+1} - x_i >= R_i + R_{i+1} as LAMMPS computes them
+    (pair granular touches when r < R_i + R_j), so at most a gap of an ulp (~1e-13 um)
+    is left. Left to right the striker's contact is exact (x_1 = 0). An overlap of an ulp
+    would do nothing elastic (K delta^1.5) but, with contact damping, a closing contact's
+    dashpot scales as delta^(1/4): the striker's spurious ~1e-13 um overlap kicked it at
+    setup by ~7e-9 m/s (docs/lammps_laws.md section 13)."""
     R = sp.radii
     g = [to_micro(float(v), "length") for v in np.asarray(gaps, dtype=float)]
     n = len(R)
@@ -127,7 +136,11 @@ def positions(sp: Spheres, gaps) -> np.ndarray:
         return np.array(x)
     x = [WALL_X - (R[-1] - sp.wall_overlap)]
     for i in range(n - 2, -1, -1):
-        x.append(x[-1] - ((R[i] + R[i + 1] - sp.static_overlap[i]) + g[i]))
+        xi = x[-1] - ((R[i] + R[i + 1] - sp.static_overlap[i]) + g[i])
+        if g[i] == 0.0 and sp.static_overlap[i] == 0.0:
+            while x[-1] - xi < R[i] + R[i + 1]:
+                xi = math.nextafter(xi, -math.inf)
+        x.append(xi)
     return np.array(x[::-1])
 
 
