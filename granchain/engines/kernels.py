@@ -728,7 +728,7 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
             for i in range(n):
                 Vout[b, 0, i] = y[ov + i]
             if Vout.shape[2] > n:
-                Vout[b, 0, n] = _wall_force(y, g, n, LO[L_X])
+                Vout[b, 0, n] = _wall_force(y, g, n, LO, P, FL)
             energies(y, g, P, FL, LO, ebuf)
             Eout[b, 0, :] = ebuf
             counts[b] = 1
@@ -780,7 +780,7 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
             for i in range(n):
                 Vout[b, c, i] = y[ov + i]
             if Vout.shape[2] > n:
-                Vout[b, c, n] = _wall_force(y, g, n, LO[L_X])
+                Vout[b, c, n] = _wall_force(y, g, n, LO, P, FL)
             energies(y, g, P, FL, LO, ebuf)
             Eout[b, c, :] = ebuf
             counts[b] = c + 1
@@ -807,15 +807,29 @@ def _left(v_last, overlap_last, x_last, vthr, wall):
 
 
 @njit(cache=True, inline="always")
-def _wall_force(y, g, n, ox):
-    """Force (N) of the end wall on one chain (state y, per-chain array g)."""
-    return _hertz_force(g[G_K * n + n - 1], y[ox + n - 1] - g[n - 1])
+def _wall_force_of(K, d, w, meff, rs, P, FL):
+    """Force (N) of the end wall at overlap d and closing speed w: Hertz, and with contact
+    damping the net force as ``forces_block`` applies it."""
+    fel = _hertz_force(K, d)
+    if FL[F_DAMP] == 0 or d <= 0.0:
+        return fel
+    F = fel + _damping_force(fel, d, w, meff, rs, FL[F_DMODEL], P[P_DMP])
+    return 0.0 if (FL[F_DLIM] != 0 and F < 0.0) else F
 
 
 @njit(cache=True, inline="always")
-def _wall_force_l(y, g, n, ox, l):
+def _wall_force(y, g, n, LO, P, FL):
+    """Force (N) of the end wall on one chain (state y, per-chain array g)."""
+    return _wall_force_of(g[G_K * n + n - 1], y[LO[L_X] + n - 1] - g[n - 1],
+                          y[LO[L_V] + n - 1], g[G_ME * n + n - 1], g[G_RS * n + n - 1], P, FL)
+
+
+@njit(cache=True, inline="always")
+def _wall_force_l(y, g, n, LO, P, FL, l):
     """Force (N) of the end wall on lane l of a block."""
-    return _hertz_force(g[G_K * n + n - 1, l], y[ox + n - 1, l] - g[n - 1, l])
+    return _wall_force_of(g[G_K * n + n - 1, l], y[LO[L_X] + n - 1, l] - g[n - 1, l],
+                          y[LO[L_V] + n - 1, l], g[G_ME * n + n - 1, l],
+                          g[G_RS * n + n - 1, l], P, FL)
 
 
 @njit(cache=True, inline="always")
@@ -883,7 +897,7 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                 for i in range(n):
                     Vout[b, 0, i] = y[ov + i, l]
                 if Vout.shape[2] > n:
-                    Vout[b, 0, n] = _wall_force_l(y, g, n, ox, l)
+                    Vout[b, 0, n] = _wall_force_l(y, g, n, LO, P, FL, l)
                 for e in range(E_LEN):
                     Eout[b, 0, e] = ebuf[e, l]
                 counts[b] = 1
@@ -918,7 +932,7 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                 for i in range(n):
                     Vout[b, c, i] = y[ov + i, l]
                 if Vout.shape[2] > n:
-                    Vout[b, c, n] = _wall_force_l(y, g, n, ox, l)
+                    Vout[b, c, n] = _wall_force_l(y, g, n, LO, P, FL, l)
                 for e in range(E_LEN):
                     Eout[b, c, e] = ebuf[e, l]
                 counts[b] = c + 1
