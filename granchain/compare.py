@@ -58,9 +58,6 @@ WHY_WALL = ("same wall law (LAMMPS fix wall/gran, docs/lammps_laws.md 12) and Ve
             "only (measured <= 5e-10); 1e-6 still resolves the 2e-4 of mixing the wall's E "
             "and nu apart")
 WHY_WALL_T = "same integrator and sample grid: the wall's peak time differs by rounding only"
-WHY_WALL_DAMPED = ("not compared: with contact damping the reference engine's wall force is "
-                   "the elastic part K_w delta^1.5 alone (engines/kernels.py _wall_force), "
-                   "LAMMPS's the whole force fix wall/gran applies, F_el + eta w")
 WHY_WALL_STATIC = ("the preload F0 both engines start from (rounding only, measured 2e-14); "
                    "relative to the larger of it and the dynamic peak, as an unloaded wall's is 0")
 
@@ -172,26 +169,22 @@ def _row(q, a, b, diff, measure, tol, why):
             "tolerance": tol, "ok": ok, "why": why}
 
 
-def wall_rows(sr, sl, *, damped: bool = False) -> list[dict]:
+def wall_rows(sr, sl) -> list[dict]:
     """Rows of the end wall's observables of one member (two ChainResults): the dynamic
     peak force and its time (NaN on both sides, when neither run measured the peak,
     compares equal; on one side only it fails), and the static force, relative to the
-    larger of itself and the reference's dynamic peak (an unloaded wall's is 0).
-    ``damped`` (contact damping on): the dynamic peak and its time are shown, not
-    checked (:data:`WHY_WALL_DAMPED`); the static force still is (at rest the dashpot
-    does nothing)."""
+    larger of itself and the reference's dynamic peak (an unloaded wall's is 0). With
+    contact damping both engines record the net force F_el + eta w at each sample's
+    state."""
     if not (sr.walled and sl.walled):
         return [_row("wall_force_max", sr.wall_force_max, sl.wall_force_max, math.inf, "rel",
                      W_TOL, "one engine has no end wall")]
     fa, fb = sr.wall_force_max, sl.wall_force_max
     ta, tb = sr.wall_force_static, sl.wall_force_static
     scale = fa if math.isfinite(fa) else 0.0
-    tol_f, tol_t = (None, None) if damped else (W_TOL, T_TOL)
-    return [_row("wall_force_max", fa, fb, _rel(fa, fb, 0.0), "rel", tol_f,
-                 WHY_WALL_DAMPED if damped else WHY_WALL),
+    return [_row("wall_force_max", fa, fb, _rel(fa, fb, 0.0), "rel", W_TOL, WHY_WALL),
             _row("t_wall_peak", sr.t_wall_peak, sl.t_wall_peak,
-                 _rel(sr.t_wall_peak, sl.t_wall_peak, 0.0), "rel", tol_t,
-                 WHY_WALL_DAMPED if damped else WHY_WALL_T),
+                 _rel(sr.t_wall_peak, sl.t_wall_peak, 0.0), "rel", T_TOL, WHY_WALL_T),
             _row("wall_force_static", ta, tb, _rel(ta, tb, max(scale, 1e-300)), "rel",
                  W_TOL, WHY_WALL_STATIC)]
 
@@ -219,7 +212,7 @@ def member_rows(scene: Scene, ref, lmp, *, trajectory: bool = False) -> list[dic
     for q, a, b in (("v_g", sr.v_g, sl.v_g), ("v_g_front", sr.v_g_front, sl.v_g_front)):
         out.append(_row(q, a, b, _rel(a, b, 0.0), "rel", V_TOL, WHY_V))
     if sr.walled or sl.walled:
-        out += wall_rows(sr, sl, damped=scene.has("contact_damping"))
+        out += wall_rows(sr, sl)
     er, el = sr.energy, sl.energy
     e0 = er.initial if er.initial > 0 else 1.0
     residual = lmp.meta.get("balance") == "residual"

@@ -52,7 +52,10 @@ sample:
 End wall: ``Trajectory.wall_force`` is the force fix wall/gran applied to the last
 sphere at each sample (its per-atom ``contacts`` output, summed per chain into the
 ledger; N, > 0 in compression), ``wall_static`` its static part K_w w_0^(3/2) as the
-reference engine states it. Spheres of different radii: ``Trajectory.radii``.
+reference engine states it. With contact damping it is the force at the sample's state,
+F_el + eta w of the dumped x and vx (``_damped_wall_force``), as the reference engine
+records it: fix wall/gran's output is the force of the step, taken with the half-step
+velocity. Spheres of different radii: ``Trajectory.radii``.
 
 With t_end auto the deck stops the batch when every chain has passed (fix halt) and each
 chain's record is cut where the reference engine would have stopped that chain (same
@@ -73,7 +76,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..effects import physics_terms, residual_work
+from ..effects import contact_damping, physics_terms, residual_work
 from ..errors import GranchainError
 from ..guards import require_resolved
 from ..lammps import deck as deckmod
@@ -112,6 +115,10 @@ class Geometry:
     x2_0: np.ndarray              # (B,) um: particle 2's initial x in each chain
     x_last0: float | np.ndarray   # um: the last sphere's initial x (the same in every
     #                               chain of a deck with an end wall; (B,) under a spread)
+    # contact damping at the end wall (None: undamped or no wall): (model code of
+    # contact_damping, its constant, limit_damping, m_eff = m_n kg, R* = R_n m), the last
+    # two (B,) under a spread; the wall force is then F_el + eta w at each sample's state
+    wall_damping: tuple | None = None
 
 
 def chain_terms(scene: Scene, pl: "deckmod.DeckPlan") -> list:
@@ -136,7 +143,9 @@ def geometry(scene: Scene, pl: "deckmod.DeckPlan", members=None) -> Geometry:
     masses = np.asarray(ch.masses, dtype=float) if ch.heterogeneous else terms.m
     return Geometry(rsum=R[:-1] + R[1:], K=np.asarray(ch.K, dtype=float), masses=masses,
                     R_last=float(R[-1]), K_wall=ch.K_wall, load=float(ch.load), x2_0=x2,
-                    x_last0=float(x0[0][-1]) if ch.wall and x0 else math.nan)
+                    x_last0=float(x0[0][-1]) if ch.wall and x0 else math.nan,
+                    wall_damping=_wall_damping(terms, float(ch.masses[-1]),
+                                               float(ch.radii[-1])))
 
 
 def _member_geometry(scene: Scene, pl: "deckmod.DeckPlan", members) -> Geometry:
@@ -156,7 +165,42 @@ def _member_geometry(scene: Scene, pl: "deckmod.DeckPlan", members) -> Geometry:
                     if walled else None,
                     load=float(ch0.load),
                     x2_0=np.array([x[1] for x in x0]) if loaded else np.zeros(pl.n_chains),
-                    x_last0=np.array([x[-1] for x in x0]) if walled else math.nan)
+                    x_last0=np.array([x[-1] for x in x0]) if walled else math.nan,
+                    wall_damping=_wall_damping(
+                        members[0], np.array([t.chain.masses[-1] for t in members]),
+                        np.array([t.chain.radii[-1] for t in members])))
+
+
+def _wall_damping(terms, m_last, R_last) -> tuple | None:
+    """:attr:`Geometry.wall_damping` of a chain with these terms (m_last kg, R_last m: the
+    last sphere's, or each chain's)."""
+    cd = terms.contact_damping
+    if cd is None or terms.chain.K_wall is None:
+        return None
+    params, flags = contact_damping.kernel(cd)
+    return (flags["F_DMODEL"], params["P_DMP"], cd.limit_damping, m_last, R_last)
+
+
+def _damped_wall_force(x_last, v_last, geo: Geometry) -> np.ndarray:
+    """The end wall's force (N, > 0 in compression) with contact damping at the samples'
+    state: F_el + eta w of the overlap of the dumped x and the last sphere's dumped vx (its
+    closing speed), held >= 0 under limit_damping, 0 off the wall. That is the force at
+    the sample, as the reference engine records it; fix wall/gran's own output is the
+    force of the step that ends there, which LAMMPS evaluates with the half-step velocity
+    (it differs by eta (v_k - v_k-1/2): 6e-5 to 1.5e-4 of the peak at 1 ns)."""
+    model, damp, limit, meff, Rs = geo.wall_damping
+    d = np.maximum((x_last + geo.R_last - deckmod.field.WALL_X) * UM, 0.0)
+    fel = geo.K_wall * d * np.sqrt(d)
+    touching = d > 0.0
+    if model == contact_damping.VISCOELASTIC:
+        eta = damp * meff * np.sqrt(Rs * d)
+    else:
+        q = np.where(touching, meff * fel / np.where(touching, d, 1.0), 0.0)
+        eta = damp * np.sqrt(np.maximum(q, 0.0))
+    F = fel + eta * v_last
+    if limit:
+        F = np.maximum(F, 0.0)
+    return np.where(touching, F, 0.0)
 
 
 def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: bool = False,
@@ -313,10 +357,12 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     E = _new_energies(*EH.shape)
     _fill_mechanical(E, KE, EH, WL)
     walled = deckmod.WALL_FORCE_COLUMN in pl.ledger_columns
-    WF = np.empty(EH.shape) if walled else None
+    damped = parts[0][8] is not None      # the wall force from x and v (contact damping)
+    WF = (np.concatenate([p[8] for p in parts]) if damped else np.empty(EH.shape)) \
+        if walled else None
     XL = np.concatenate([p[7] for p in parts]) if walled else None
     if ledger is not None:
-        _fill_ledger(E, WF, pl, ledger)
+        _fill_ledger(E, None if damped else WF, pl, ledger)
     _fill_residual(scene, E)
     return {"step": step, "v": V, "energy": E, "last_overlap": last_overlap, "wall_force": WF,
             "last_disp": XL}
@@ -357,6 +403,8 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
         if walled:
             out["XL"][lo:hi] = (x[..., -1] - geo.x_last0) * UM
         v = block["vx"].reshape(-1, B, n)
+        if walled and geo.wall_damping is not None:
+            out["WF"][lo:hi] = _damped_wall_force(x[..., -1], v[..., -1], geo)
         _fill_mechanical(out["E"][lo:hi], _kinetic(v, geo), EH, WL)
         out["V"][:, lo:hi] = v.transpose(1, 0, 2)
 
@@ -371,13 +419,14 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
         lpath = path.with_name(deckmod.LEDGER_BINARY_NAME)
         lwhat = f"LAMMPS ledger {lpath}"
         lcols = deckmod.ledger_binary_columns(pl)
+        damped = geo.wall_damping is not None     # the wall force is from x and v, above
 
         def ledger(lo, block, frames):
             hi = lo + len(block[lcols[0]])
             if hi > S:
                 raise GranchainError(f"{lwhat} does not match the trajectory: more than {S} "
                                      f"samples; {path.name} has {S}")
-            _fill_ledger(E[lo:hi], None if WF is None else WF[lo:hi], pl,
+            _fill_ledger(E[lo:hi], None if WF is None or damped else WF[lo:hi], pl,
                          np.stack([block[c] for c in lcols], axis=2))
 
         lstep, _ = read_binary_dump(lpath, lcols, B, pl.nsamples, lwhat, consume=ledger)
@@ -642,10 +691,13 @@ def _fill_mechanical(E, KE, EH, WL) -> None:
 
 def _fill_ledger(E, WF, pl: "deckmod.DeckPlan", ledger) -> None:
     """The per-chain LAMMPS ledger (samples, B, k) into E's columns (1e-15 J) and the end
-    wall's force on the last sphere into WF (samples, B) in N, as a compression (> 0)."""
+    wall's force on the last sphere into WF (samples, B) in N, as a compression (> 0);
+    WF None: not wanted (with contact damping it comes from the samples' state,
+    :func:`_damped_wall_force`)."""
     for j, name in enumerate(pl.ledger_columns):
         if name == deckmod.WALL_FORCE_COLUMN:
-            WF[:] = -ledger[:, :, j] * FORCE
+            if WF is not None:
+                WF[:] = -ledger[:, :, j] * FORCE
         else:
             E[:, :, ENERGY_COLUMNS.index(name)] = ledger[:, :, j] * ENERGY
 
@@ -710,7 +762,8 @@ def _halted(log: Path) -> bool:
 def _read_part(job: dict, part: int, nparts: int):
     """Frames [part*S/nparts, (part+1)*S/nparts) of a dump: (S, step, V, E_hertz,
     overlap of the last contact in m, kinetic energy, work of the dead load (None
-    without), displacement of the last sphere in m (NaN without an end wall)), per chain."""
+    without), displacement of the last sphere in m (NaN without an end wall), the damped
+    wall force in N (None without contact damping at a wall)), per chain."""
     import MDAnalysis as mda
 
     path, B, n, geo = job["path"], job["B"], job["n"], job["geometry"]
@@ -732,6 +785,7 @@ def _read_part(job: dict, part: int, nparts: int):
             KE = np.empty((hi - lo, B))
             WL = np.zeros((hi - lo, B))
             XL = np.empty((hi - lo, B))
+            WD = np.empty((hi - lo, B)) if geo.wall_damping is not None else None
             for s, ts in enumerate(traj[lo:hi]):
                 data = ts.data
                 step[s] = data["step"]
@@ -743,6 +797,8 @@ def _read_part(job: dict, part: int, nparts: int):
                 x = data["x"].reshape(B, n)
                 EH[s], OL[s], wl = _hertz(x, geo)
                 XL[s] = (x[:, -1] - geo.x_last0) * UM
+                if WD is not None:
+                    WD[s] = _damped_wall_force(x[:, -1], v[:, -1], geo)
                 if wl is not None:
                     WL[s] = wl
     except GranchainError:
@@ -750,7 +806,7 @@ def _read_part(job: dict, part: int, nparts: int):
     except (ValueError, IndexError, EOFError, OSError, KeyError, TypeError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise GranchainError(f"LAMMPS dump {path} is truncated or unreadable: {msg}") from None
-    return S, step, V, EH, OL, KE, WL if geo.load > 0 else None, XL
+    return S, step, V, EH, OL, KE, WL if geo.load > 0 else None, XL, WD
 
 
 def _trajectories(scene, pl, data, wall_each, meta_common):
@@ -776,7 +832,8 @@ def _trajectories(scene, pl, data, wall_each, meta_common):
             extra["radii"] = np.asarray(ch.radii if pl.radii is None else pl.radii[b],
                                         dtype=float)
         if ch.K_wall is not None:
-            # the wall force LAMMPS applied (fix wall/gran 'contacts'), and its static
+            # the wall force LAMMPS applied (fix wall/gran 'contacts'; with contact damping
+            # F_el + eta w at the sample's x and v, _damped_wall_force), and its static
             # part K_w w_0^1.5 as the reference engine states it (the chain's own K_w and
             # w_0 under a radius spread)
             extra["wall_force"] = WF[:keep, b].copy()
