@@ -32,6 +32,18 @@ tests/test_field_chains.py (rtol 1e-12): energy 3e-12 of the striker's (free gap
 chain) and <= 7e-13 (walled and loaded), momentum 2e-15; one sphere on a wall and two
 spheres against the closed forms: peak force 1.2e-12, contact time 2e-13, final
 velocities 1.7e-12; the chapter chain: 1.7e-12 from ``hertz_chain_peaks``.
+
+``hertz_chain_general(..., damping=...)`` adds the contact damping of the physics notes
+("Contact dissipation", LAMMPS pair granular on hertz/material): F = F_el + eta w at
+every contact and the end wall, coeff_restitution (e), tsuji (e) or viscoelastic
+(eta_n0), optionally limit_damping; the work of the damping forces is integrated with
+the motion. Undamped calls are unchanged (bit-identical results). Its own errors, from
+tests/test_damped_chains.py: two-sphere e (coeff_restitution) within 1.9e-12 over
+0.01-1 m/s, equal spheres and a tungsten carbide striker; a sphere on a wall rebounds
+at -e v within 4e-13; weak viscoelastic loss against its first-order closed form
+5.2e-8 (3.9e-7 unlike spheres); energy lost = work of the damping forces to <= 6.4e-12
+of the striker's energy (1.1e-10 with limit_damping on a gapped chain, 2.2e-11 at rtol
+1e-13).
 """
 from __future__ import annotations
 
@@ -296,6 +308,18 @@ class _Contacts:
         F[1:] += d
         return F[: self.n]
 
+    def rate(self, v):
+        """Overlap rate w = delta' of each contact (> 0 closing); v: the n velocities."""
+        ve = np.append(v, 0.0) if self.wall else v
+        return ve[:-1] - ve[1:]
+
+    def net_of(self, f):
+        """Net force on each sphere from the contact forces ``f`` (one per contact)."""
+        F = np.zeros(self.n + int(self.wall))
+        F[:-1] -= f
+        F[1:] += f
+        return F[: self.n]
+
 
 @dataclass(frozen=True)
 class GeneralChain:
@@ -311,7 +335,15 @@ class GeneralChain:
     through zero in contact with the wall (``wall_peak_final`` False: the force was still
     rising at t_end, the values are those at t_end and the time is NaN); ``t_wall_open``:
     the times the wall contact opened. ``sol``: solve_ivp's result in scaled units (state:
-    n displacements from the static state, then n velocities).
+    n displacements from the static state, then n velocities; damped: then the work W
+    of the damping forces).
+
+    Damped chains (``damping``: (model, e or eta_n0, limit_damping), None undamped): the
+    wall force is the whole force F_el + eta w the wall exerts, and its peak is where
+    dF/dt falls through zero in contact; ``wall_elastic_dynamic`` and
+    ``t_wall_elastic_peak`` are the peak of its elastic part K_w delta^(3/2) alone (where
+    the last sphere's velocity falls through zero), which undamped is the same peak.
+    ``damp``: c(e) of the model (coeff_restitution, tsuji) or eta_n0 (viscoelastic).
     """
     n: int
     v_s: float
@@ -337,6 +369,11 @@ class GeneralChain:
     t_end: float
     sol: object
     contacts: _Contacts
+    damping: tuple | None = None
+    damp: float = 0.0
+    wall_elastic_dynamic: float = math.nan
+    t_wall_elastic_peak: float = math.nan
+    forces: object = None   # damped: scaled state -> (F - F_static, F - F_el, w, unclamped F)
 
     @property
     def v0(self) -> float:
@@ -362,23 +399,43 @@ class GeneralChain:
         return (c.ds[:, None] + c.x(u)) * self.delta0
 
     def wall_force(self, t) -> np.ndarray:
-        """Wall force [N] at times ``t``, static preload included."""
+        """Wall force [N] at times ``t``, static preload included (damped: F_el + eta w)."""
         if not self.has_wall:
             raise ValueError("no wall")
+        if self.damping is not None:
+            y = self._y(np.atleast_1d(np.asarray(t, dtype=float)))
+            f = np.array([self.forces(y[:, j])[0][-1] for j in range(y.shape[1])])
+            return self.preload + f * self.force0
         u = self._y(np.atleast_1d(np.asarray(t, dtype=float)))[: self.n]
         return self.preload + self.contacts.df(u)[-1] * self.force0
+
+    def damping_force(self, t) -> np.ndarray:
+        """F - F_el [N] of every contact (n - 1, then the wall's) at times ``t``, shape
+        (contacts, len(t)); zeros for an undamped chain."""
+        y = self._y(np.atleast_1d(np.asarray(t, dtype=float)))
+        if self.damping is None:
+            return np.zeros((len(self.contacts.kap), y.shape[1]))
+        return np.array([self.forces(y[:, j])[1] for j in range(y.shape[1])]).T * self.force0
+
+    def work_damping(self, t) -> np.ndarray:
+        """Work [J] the damping forces did on the spheres from 0 to ``t``, the integral of
+        -(F - F_el) w summed over the contacts (<= 0), integrated with the motion."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if self.damping is None:
+            return np.zeros(len(t))
+        return self._y(t)[2 * self.n] * self.force0 * self.delta0
 
     def energy(self, t) -> np.ndarray:
         """Kinetic + Hertz potential (the wall's included) - F0 x_2, minus its static
         value [J], at times ``t``: constant (1/2 m_1 v_s^2) along an exact solution."""
         y = self._y(np.atleast_1d(np.asarray(t, dtype=float)))
-        kin = 0.5 * (self.mass[:, None] * (y[self.n:] * self.v0) ** 2).sum(axis=0)
+        kin = 0.5 * (self.mass[:, None] * (y[self.n:2 * self.n] * self.v0) ** 2).sum(axis=0)
         return kin + self.contacts.phi(y[: self.n]).sum(axis=0) * self.force0 * self.delta0
 
     def momentum(self, t) -> np.ndarray:
         """Total momentum [kg m/s] at times ``t``."""
         y = self._y(np.atleast_1d(np.asarray(t, dtype=float)))
-        return (self.mass[:, None] * y[self.n:] * self.v0).sum(axis=0)
+        return (self.mass[:, None] * y[self.n:2 * self.n] * self.v0).sum(axis=0)
 
     def crossing(self, particle: int, level: float) -> float:
         """First time [s] the velocity of ``particle`` (1-based) reaches ``level`` [m/s],
@@ -406,7 +463,9 @@ def _is_material(x) -> bool:
 
 def hertz_chain_general(radius, material, v_s: float, t_end: float, *, n: int | None = None,
                         gaps=None, wall=None, preload: float = 0.0,
-                        rtol: float = RTOL) -> GeneralChain:
+                        rtol: float = RTOL, damping: str | None = None,
+                        e: float | None = None, eta_n0: float | None = None,
+                        limit_damping: bool = False) -> GeneralChain:
     """A chain of n Hertz spheres from t = 0 to ``t_end`` [s]: particle 1 (the striker)
     moving at ``v_s`` [m/s] toward the others, at rest.
 
@@ -416,8 +475,27 @@ def hertz_chain_general(radius, material, v_s: float, t_end: float, *, n: int | 
     end), ``"rigid"``, or (E, nu[, rho]) of a flat wall touching the last sphere at t = 0.
     ``preload``: dead load F0 [N] on particle 2 toward the wall (needs the wall and no
     gaps). ``rtol``: DOP853's relative tolerance (absolute: 1e-4 rtol, scaled units).
+
+    ``damping``: None (elastic contacts), ``"coeff_restitution"`` or ``"tsuji"`` (give
+    ``e``, 0 < e <= 1) or ``"viscoelastic"`` (give ``eta_n0`` [1/(m s)]): every contact and
+    the wall then carries F = F_el + eta w (see "Contact damping" below);
+    ``limit_damping``: F held at >= 0.
     Solves are cached: tests that ask for the same chain share one solve.
     """
+    if damping is None:
+        if e is not None or eta_n0 is not None or limit_damping:
+            raise ValueError("e, eta_n0 and limit_damping need a damping model")
+        dmp = None
+    elif damping in ("coeff_restitution", "tsuji"):
+        if e is None or not 0.0 < e <= 1.0 or eta_n0 is not None:
+            raise ValueError(f"{damping} needs e in (0, 1] and no eta_n0")
+        dmp = (damping, float(e), bool(limit_damping))
+    elif damping == "viscoelastic":
+        if eta_n0 is None or not eta_n0 >= 0.0 or e is not None:
+            raise ValueError("viscoelastic needs eta_n0 >= 0 and no e")
+        dmp = (damping, float(eta_n0), bool(limit_damping))
+    else:
+        raise ValueError(f"unknown damping model {damping!r}")
     if n is None:
         for x in (radius, material):
             if not (isinstance(x, (int, float)) or _is_material(x)):
@@ -442,8 +520,11 @@ def hertz_chain_general(radius, material, v_s: float, t_end: float, *, n: int | 
     else:
         w = (float(wall[0]), float(wall[1]))
     g = None if gaps is None else tuple(float(x) for x in gaps)
+    if dmp is None:
+        return _solve_general(radii, mats, float(v_s), float(t_end), g, w, float(preload),
+                              float(rtol))
     return _solve_general(radii, mats, float(v_s), float(t_end), g, w, float(preload),
-                          float(rtol))
+                          float(rtol), dmp)
 
 
 # Hysteresis of the contact-switch events, in scaled overlap (delta0 = 1): a contact counts
@@ -452,7 +533,7 @@ def hertz_chain_general(radius, material, v_s: float, t_end: float, *, n: int | 
 SWITCH_EPS = 1e-13
 
 
-def _integrate_by_contact(rhs, C, n, fixed, y0, T, rtol):
+def _integrate_by_contact(rhs, C, n, fixed, y0, T, rtol, extra_switches=None):
     """solve_ivp(DOP853) from 0 to T, restarted wherever a contact closes or opens.
 
     f = k delta^(3/2) is not smooth at delta = 0 (f'' ~ delta^(-1/2) is unbounded), and an
@@ -464,7 +545,9 @@ def _integrate_by_contact(rhs, C, n, fixed, y0, T, rtol):
     (no stage past it), and the next segment starts there. ``fixed``: the other
     (non-terminal) events. Returns a namespace like solve_ivp's result: t, y, t_events,
     y_events (over all segments, per ``fixed`` event), sol (dense output over [0, T]),
-    segments (their count)."""
+    segments (their count). ``extra_switches``: None, or a function of the state at a
+    segment's start giving more terminal events that end a segment (limit_damping's
+    clamp). The state may carry more than the 2 n positions and velocities."""
     nc = len(C.kap)
     free = [c for c in range(nc) if not C.ds[c] > 0.0]     # preloaded contacts stay closed
     ts, ys, interps = [np.array([0.0])], [y0[:, None]], []     # step points, dense output
@@ -476,7 +559,7 @@ def _integrate_by_contact(rhs, C, n, fixed, y0, T, rtol):
         knots = sol.sol.ts
         m = len(knots) - 1 if upto is None else int(np.searchsorted(knots, upto, "right")) - 1
         ts.append(knots[1:m + 1])
-        ys.append(sol.sol(knots[1:m + 1]) if m else np.zeros((2 * n, 0)))
+        ys.append(sol.sol(knots[1:m + 1]) if m else np.zeros((len(y0), 0)))
         interps.extend(sol.sol.interpolants[:m])
         for k in range(len(fixed)):
             sel = [j for j, t in enumerate(sol.t_events[k]) if upto is None or t <= upto]
@@ -497,8 +580,9 @@ def _integrate_by_contact(rhs, C, n, fixed, y0, T, rtol):
             ev.direction = -s
             return ev
 
+        extra = [] if extra_switches is None else extra_switches(y_cur)
         sol = solve_ivp(rhs, (t_cur, T), y_cur, method="DOP853", rtol=rtol, atol=1e-4 * rtol,
-                        dense_output=True, events=fixed + [switch(c) for c in free])
+                        dense_output=True, events=fixed + [switch(c) for c in free] + extra)
         if sol.status == -1:
             raise RuntimeError(f"solve_ivp failed: {sol.message}")
         segments += 1
@@ -523,12 +607,48 @@ def _integrate_by_contact(rhs, C, n, fixed, y0, T, rtol):
     return SimpleNamespace(
         t=np.concatenate(ts), y=np.concatenate(ys, axis=1),
         t_events=[np.array(x) for x in t_ev],
-        y_events=[np.array(x).reshape(-1, 2 * n) for x in y_ev],
+        y_events=[np.array(x).reshape(-1, len(y0)) for x in y_ev],
         sol=OdeSolution(np.concatenate(ts), interps), segments=segments)
 
 
+# ---------------------------------------------------------------------------------------
+# Contact damping (physics notes, "Contact dissipation": LAMMPS pair granular's damping on
+# hertz/material contacts). At a contact of overlap delta > 0 closing at the overlap
+# rate w = delta' (m/s), the normal force is
+#   F = F_el + eta w,    F_el = k delta^(3/2),
+# with eta (kg/s) of the model:
+#   coeff_restitution: eta = c(e) sqrt(m_eff F_el / delta),
+#                      c(e) = -sqrt(3/2) 2 sqrt(5/6) ln e / sqrt(pi^2 + ln^2 e);
+#   tsuji:             the same form, c(e) of Marshall (2009) Eq. 53 times sqrt(2)
+#                      (LAMMPS's gran_sub_mod_damping.cpp);
+#   viscoelastic:      eta = eta_n0 m_eff sqrt(R* delta)   (eta_n0 in 1/(m s));
+# m_eff = m_i m_j / (m_i + m_j), R* as for F_el; at the end wall m_eff = m_n, R* = R_n.
+# The net force may turn attractive near the end of a contact; limit_damping holds it
+# at F >= 0. The work the damping does on the spheres is the integral of -(F - F_el) w
+# over time, summed over the contacts; it is integrated with the motion as one more
+# state variable (damped chains only), so energy(t) - energy(0) = work_damping(t) along
+# an exact solution.
+#
+# In the scaled units eta w / (k0 delta0^(3/2)) = c sqrt(mu_eff F / d) w for the sqrt
+# forms (F, d, w scaled, mu_eff = m_eff / m0; the units cancel exactly), and
+# A d^(1/2) w with A = eta_n0 m_eff sqrt(R* delta0) v0 / (k0 delta0^(3/2)) for the
+# viscoelastic one. With limit_damping the force is not smooth where F_el + eta w
+# crosses zero: the integration restarts there too (terminal events, SWITCH_EPS).
+# ---------------------------------------------------------------------------------------
+def restitution_c(e: float) -> float:
+    """c(e) of coeff_restitution on Hertz contacts (0 at e = 1)."""
+    lg = math.log(e)
+    return -math.sqrt(1.5) * 2.0 * math.sqrt(5.0 / 6.0) * lg / math.sqrt(math.pi ** 2 + lg ** 2)
+
+
+def tsuji_c(e: float) -> float:
+    """c(e) of tsuji: Marshall (2009) Eq. 53, a polynomial in e, times sqrt(2)."""
+    coef = (1.2728, -4.2783, 11.087, -22.348, 27.467, -18.022, 4.8218)
+    return math.sqrt(2.0) * sum(a * e ** j for j, a in enumerate(coef))
+
+
 @functools.lru_cache(maxsize=32)
-def _solve_general(radii, mats, v_s, t_end, gaps, wall, F0, rtol):
+def _solve_general(radii, mats, v_s, t_end, gaps, wall, F0, rtol, damping=None):
     n = len(radii)
     has_wall = wall is not None
     if n < 1 or (n < 2 and not has_wall):
@@ -570,9 +690,93 @@ def _solve_general(radii, mats, v_s, t_end, gaps, wall, F0, rtol):
                   es=kap * dss ** 2.5)
     mu = m / m0
     loaded = F0 > 0
+    damped = damping is not None
 
     def rhs(_t, y):
         return np.concatenate([y[n:], C.net(y[:n]) / mu])
+
+    forces = None
+    if damped:
+        model, coef, limit = damping
+        # per contact (the wall's last): m_eff and R*
+        m_eff = np.array([m[i] * m[i + 1] / (m[i] + m[i + 1]) for i in range(n - 1)]
+                         + ([m[-1]] if has_wall else []))
+        r_eff = np.array([R[i] * R[i + 1] / (R[i] + R[i + 1]) for i in range(n - 1)]
+                         + ([R[-1]] if has_wall else []))
+        mu_eff = m_eff / m0
+        if model == "viscoelastic":
+            damp = coef
+            A = coef * m_eff * np.sqrt(r_eff * delta0) * v0 / force0
+        else:
+            damp = restitution_c(coef) if model == "coeff_restitution" else tsuji_c(coef)
+
+        zero = np.zeros(len(C.kap))
+        visco = model == "viscoelastic"
+
+        def forces(y):
+            """Per contact, scaled: (F - F_static, F - F_el, w, F_el + eta w unclamped)."""
+            u, v = y[:n], y[n:2 * n]
+            x = C.x(u)
+            if loaded:
+                df = C.df(u)
+                d = C.ds + x
+            else:                                              # df = F_el = k d^(3/2)
+                d = x
+                xp = np.maximum(x, 0.0)
+                df = C.kap * xp * np.sqrt(xp)
+            on = d > 0.0
+            dp = np.maximum(d, 0.0)
+            w = C.rate(v)
+            if visco:
+                eta = A * np.sqrt(dp)                          # eta_n0 m_eff sqrt(R* delta)
+            else:
+                fel = df if not loaded else C.kap * dp * np.sqrt(dp)
+                q = np.divide(fel, d, out=zero.copy(), where=on)
+                eta = damp * np.sqrt(mu_eff * q)               # c sqrt(m_eff F_el / delta)
+            dmp = eta * w                                      # 0 where open (eta = 0)
+            free_total = C.fs + df + dmp if loaded else df + dmp
+            total = df + dmp
+            if limit:
+                total = np.maximum(total, -C.fs)               # F = F_s + total >= 0
+            return total, total - df, w, free_total
+
+        ev_memo = {"t": None, "y": None, "f": None}
+
+        def ev_forces(t, y):
+            """forces(y) once per state for all the events."""
+            if ev_memo["t"] != t or ev_memo["y"] is not y:
+                ev_memo.update(t=t, y=y, f=forces(y))
+            return ev_memo["f"]
+
+        def rhs(_t, y):                                          # noqa: F811
+            total, fd, w, _ = forces(y)
+            return np.concatenate([y[n:2 * n], C.net_of(total) / mu, [-(fd * w).sum()]])
+
+        def clamp_switches(y):
+            """limit_damping: a terminal event per closed contact where F_el + eta w
+            crosses zero (past it by SWITCH_EPS, like the contact switches)."""
+            if not limit:
+                return []
+            _, _, _, ft = forces(y)
+            d = C.ds + C.x(y[:n])
+            out = []
+            for c in np.flatnonzero(d > 0.0):
+                side = 1.0 if ft[c] > 0.0 else -1.0
+
+                def ev(t, yy, c=c, side=side):
+                    return ev_forces(t, yy)[3][c] + side * SWITCH_EPS
+                ev.terminal = True
+                ev.direction = -side
+                out.append(ev)
+            return out
+
+        def accel(y):
+            return C.net_of(forces(y)[0]) / mu
+    else:
+        clamp_switches = None
+
+        def accel(y):
+            return C.net(y[:n]) / mu
 
     memo = {"t": None, "y": None, "g": None}
 
@@ -589,7 +793,8 @@ def _solve_general(radii, mats, v_s, t_end, gaps, wall, F0, rtol):
             touching = touching[:n]
             if loaded:
                 touching[1] = True
-            memo.update(t=t, y=y, g=np.where(touching, C.net(u) / mu, -1.0))
+            a = accel(y) if damped else C.net(u) / mu
+            memo.update(t=t, y=y, g=np.where(touching, a, -1.0))
         return memo["g"]
 
     def peak_event(i):
@@ -606,13 +811,34 @@ def _solve_general(radii, mats, v_s, t_end, gaps, wall, F0, rtol):
         return C.ds[-1] + y[n - 1]
     wall_open.direction = -1.0
 
+    def wall_total_peak(t, y):
+        """Damped: dF/dt of the wall's whole force F = F_el + eta w while it is in contact
+        and pushing (1 elsewhere). F_el = k d^(3/2), eta w = B d^p w (p = 1/4, B =
+        c sqrt(mu_eff k), for the sqrt forms; p = 1/2, B = A viscoelastic), so
+        dF/dt = (3/2) k d^(1/2) w + B (p d^(p-1) w^2 + d^p w'), w = v_n, w' = a_n."""
+        d = C.ds[-1] + y[n - 1]
+        total, _, w, ft = ev_forces(t, y)
+        if not d > 0.0 or (limit and not ft[-1] > 0.0):
+            return 1.0
+        kap = C.kap[-1]
+        a = C.net_of(total)[n - 1] / mu[n - 1]
+        if model == "viscoelastic":
+            B, p = A[-1], 0.5
+        else:
+            B, p = damp * math.sqrt(mu_eff[-1] * kap), 0.25
+        w = w[-1]
+        return 1.5 * kap * math.sqrt(d) * w + B * (p * d ** (p - 1.0) * w * w + d ** p * a)
+    wall_total_peak.direction = -1.0
+
     fixed = [peak_event(i) for i in range(n)]
     if has_wall:
         fixed += [wall_peak, wall_open]
-    y0 = np.zeros(2 * n)
+        if damped:
+            fixed += [wall_total_peak]
+    y0 = np.zeros(2 * n + int(damped))
     y0[n] = v_s / v0
-    sol = _integrate_by_contact(rhs, C, n, fixed, y0, t_end / t0, rtol)
-    a_end = C.net(sol.y[:n, -1]) / mu
+    sol = _integrate_by_contact(rhs, C, n, fixed, y0, t_end / t0, rtol, clamp_switches)
+    a_end = accel(sol.y[:, -1]) if damped else C.net(sol.y[:n, -1]) / mu
     vmax, tpk = np.full(n, math.nan), np.full(n, math.nan)
     for i in range(n):
         cands = [(y[n + i], t) for t, y in zip(sol.t_events[i], sol.y_events[i])]
@@ -637,11 +863,28 @@ def _solve_general(radii, mats, v_s, t_end, gaps, wall, F0, rtol):
             cands.append((0.0, 0.0))
         fdyn, twp = max(cands, key=lambda c: c[0])
         t_open = np.asarray(sol.t_events[n + 1]) * t0
+        el_dyn, t_el = fdyn, twp
+        if damped:             # the whole force's peak: where dF/dt falls through zero
+            def whole(y):
+                return float(forces(y)[0][-1]) * force0
+            cands = [(whole(y), t * t0) for t, y in zip(sol.t_events[n + 2], sol.y_events[n + 2])]
+            f_end = whole(sol.y[:, -1])
+            final = not (wall_total_peak(0.0, sol.y[:, -1]) > 0.0 and C.ds[-1] + sol.y[n - 1, -1] > 0.0
+                         and (not cands or f_end > max(c[0] for c in cands)))
+            if not final:
+                cands.append((f_end, math.nan))
+            if not cands:
+                cands.append((0.0, 0.0))
+            fdyn, twp = max(cands, key=lambda c: c[0])
     else:
         fdyn, twp, final, t_open = math.nan, math.nan, False, np.zeros(0)
+        el_dyn, t_el = math.nan, math.nan
     return GeneralChain(n=n, v_s=v_s, preload=F0, has_wall=has_wall, delta0=delta0, t0=t0,
                         force0=force0, mass=m, k=k, k_wall=kw, delta_static=ds,
                         delta_static_wall=dsw, gaps=g, v_max=vmax, t_peak=tpk,
                         wall_force_max=F0 + fdyn, wall_force_static=F0,
                         wall_force_dynamic=fdyn, t_wall_peak=twp, wall_peak_final=final,
-                        t_wall_open=t_open, t_end=t_end, sol=sol, contacts=C)
+                        t_wall_open=t_open, t_end=t_end, sol=sol, contacts=C,
+                        damping=damping, damp=damp if damped else 0.0,
+                        wall_elastic_dynamic=el_dyn, t_wall_elastic_peak=t_el,
+                        forces=forces)
