@@ -108,6 +108,23 @@ def test_bad_damping_is_refused_in_one_line(damping, field, words):
     assert "\n" not in str(info.value)
 
 
+def test_a_damped_chain_on_a_wall_ends_at_its_tighter_cap_with_final_peaks():
+    """A damped chain against a rigid wall whose last sphere does not come back behind its
+    start runs to its (tighter) time cap, flagged timeout, with every peak and the wall's
+    peak final."""
+    from granchain import schedule
+    from granchain.simulate import run_scene
+    sc = scene_from_dict({"name": "w", "walls": {"end": "rigid"},
+                          "effects": ["hertz", "contact_damping"], "damping": {"e": 0.5}})
+    r = run_scene(sc)[0]
+    cap = schedule.auto_t_max(sc, np.zeros(14), 0.1)
+    undamped = schedule.auto_t_max(scene_from_dict({"name": "u", "walls": {"end": "rigid"}}),
+                                   np.zeros(14), 0.1)
+    assert cap < undamped / 5
+    assert r.wall_peak_final and not r.not_final and r.t_end <= cap * (1 + 1e-9)
+    assert r.status in ("passed", "timeout")
+
+
 def test_damping_keys_without_the_effect_are_refused():
     with pytest.raises(SceneError, match="contact_damping is off"):
         scene_from_dict({"name": "bad", "damping": {"e": 0.9}})
@@ -147,8 +164,8 @@ def test_the_wall_force_record_is_the_net_damped_force():
     momentum change (a 3-sphere chain struck onto a rigid wall, e = 0.6, RK4 at 0.1 ns
     sampled every step); and e = 1 gives the Hertz record exactly."""
     from granchain.simulate import run_scene
-    plain = run_scene(scene_from_dict({"name": "w", "walls": {"end": "rigid"}}))[0]
-    one = run_scene(scene_from_dict({"name": "w", "walls": {"end": "rigid"},
+    plain = run_scene(scene_from_dict({"name": "w", "walls": {"end": "rigid"}, "t_end": 2e-5}))[0]
+    one = run_scene(scene_from_dict({"name": "w", "walls": {"end": "rigid"}, "t_end": 2e-5,
                                      "effects": ["hertz", "contact_damping"],
                                      "damping": {"e": 1.0}}))[0]
     assert one.wall_force_max == plain.wall_force_max
