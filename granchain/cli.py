@@ -307,8 +307,77 @@ def check_grid(base, args) -> None:
               max_total_steps=args.max_total_steps, max_memory_gb=args.max_memory_gb)
 
 
+def _print_joint_inference(res, out=None) -> None:
+    out = out or sys.stdout
+    nm = lambda x: _fmt(None if x is None else x * 1e9, " nm")    # noqa: E731
+    lo, hi = res.ci95_m
+    elo, ehi = res.restitution_ci95
+    print(f"inferred from {res.timing_column} and the peaks at both probes ({res.rows} row(s) "
+          f"on {res.chains} chain(s)):", file=out)
+    print(f"  mean gap {nm(res.gap_mean_m)}, 95% interval [{nm(lo)}, {nm(hi)}]", file=out)
+    print(f"  coefficient of restitution e {_fmt(res.restitution)}, 95% interval "
+          f"[{_fmt(elo)}, {_fmt(ehi)}]", file=out)
+    print(f"  posterior correlation of mean gap and e: {_fmt(res.posterior_correlation, digits=2)}",
+          file=out)
+    g0, g1, G = res.gap_grid_m
+    e0, e1, E = res.restitution_grid
+    print(f"gap law: {res.gap_law}; damping {res.damping_model}; {res.n_simulated} simulated "
+          f"chains ({res.n_simulated_now} run now, the rest cached): mean gaps "
+          f"{nm(g0)}-{nm(g1)} ({G} points, {res.gap_spacing} spacing) x e {_fmt(e0)}-{_fmt(e1)} "
+          f"({E} points) x {len(res.speeds_m_s)} striker speed(s) x {res.realisations} "
+          "realisations", file=out)
+    print(f"posterior predictive check: {res.predictive_outside} of {res.predictive_values} "
+          "measured values outside their 95% predictive range", file=out)
+    print(f"Eq. 5.4 reading (chapter; packed chain at the inferred e): least-squares "
+          f"{nm(res.eq54_gap_m)}, upper-bound reading {nm(res.eq54_gap_bound_m)}", file=out)
+    for f in res.flags:
+        print(f"warning: {f}: " + {
+            "posterior_at_grid_end": "the posterior still has weight at the largest simulated "
+                                     "mean gap; its median and upper bound not measured (n/a): "
+                                     "raise --gap-max-nm",
+            "restitution_at_grid_end": "the posterior still has weight at the smallest "
+                                       "simulated e; its median and lower bound not measured "
+                                       "(n/a): lower --e-min",
+            "no_simulated_match": "no simulated (mean gap, e) reproduces the data"}[f],
+            file=out)
+
+
+def check_joint_grid(base, args) -> None:
+    """Refuse a joint inference whose grid (mean gaps x restitutions x striker speeds x
+    realisations) is beyond the whole-run limits, as :func:`check_grid`."""
+    from .inference import check_joint_options, gap_nodes, joint_scene
+    check_joint_options(args.gap_max_nm * 1e-9, args.gap_points, args.e_min, args.e_points,
+                        args.realisations)
+    if min(base.striker_velocities) <= 0:
+        return
+    G, E, R = args.gap_points, args.e_points, args.realisations
+    speeds = sorted({float(v) for v in base.striker_velocities})
+    base = base.derive(striker={"velocity": speeds})
+    gmax = args.gap_max_nm * 1e-9
+    ends = [run_estimate(resolve_auto(joint_scene(base, g, args.e_min, R)))
+            for g in (0.0, gmax)]
+    # steps grow linearly with the mean gap: the nodes' mean gap is gmax mean((k/(G-1))^2)
+    f = float((gap_nodes(1.0, G)).mean())
+    est = {k: G * E * (ends[0][k] + f * (ends[1][k] - ends[0][k]))
+           for k in ("members", "steps", "seconds")}
+    est["worst_chain_steps"] = ends[1]["worst_chain_steps"]
+    est["result_bytes"] = 2 * ends[1]["result_bytes"] + 32.0 * G * E * len(speeds) * R
+    est["record_bytes"] = 2 * ends[1]["record_bytes"]
+    est["bytes"] = est["result_bytes"] + est["record_bytes"]
+    size = (f"{G * E * len(speeds) * R} chains: {G} mean gaps (--gap-points) x {E} "
+            f"restitutions (--e-points) x {len(speeds)} striker speed"
+            f"{'s' if len(speeds) != 1 else ''} (striker.velocity of --scene) x {R} "
+            f"realisations (--realisations) of {base.n} spheres (chain.n)")
+    check_run("the inference grid", est, size=size,
+              fix="lower --realisations, --gap-points, --e-points or the base scene's "
+                  "striker speeds", max_total_steps=args.max_total_steps,
+              max_memory_gb=args.max_memory_gb)
+
+
 def cmd_infer(args) -> int:
-    from .inference import infer, read_measurements
+    from .errors import SceneError
+    from .inference import check_restitution_base, infer, parse_fit, read_measurements
+    fit = parse_fit(args.fit)
     if args.plot:
         check_output_path(args.plot, args.force, "--plot")
         if Path(args.plot).suffix.lower() not in (".png", ".pdf", ".svg"):
@@ -316,8 +385,15 @@ def cmd_infer(args) -> int:
                                  "with .png, .pdf or .svg")
     if args.out:
         check_output_path(args.out, args.force, "--out")
-    meas = read_measurements(args.measurements)
+    joint = "restitution" in fit
+    meas = read_measurements(args.measurements, peaks=joint)
     base = resolve_auto(load_scene(args.scene, args.set))
+    if joint:
+        try:
+            check_restitution_base(base)
+        except SceneError as exc:
+            raise GranchainError(f"{args.scene}: {exc} (--fit names restitution)") from None
+        return _infer_joint(args, meas, base)
     check_grid(base, args)
     res = infer(base, meas, gap_max=args.gap_max_nm * 1e-9, gap_points=args.gap_points,
                 realisations=args.realisations, cache_dir=None if args.no_cache else args.cache_dir,
@@ -332,6 +408,26 @@ def cmd_infer(args) -> int:
     if args.plot:
         from .figures.inference import plot_inference
         plot_inference(res, meas, base, args.plot, force=args.force)
+    return 0
+
+
+def _infer_joint(args, meas, base) -> int:
+    from .inference import infer_joint
+    check_joint_grid(base, args)
+    res = infer_joint(base, meas, gap_max=args.gap_max_nm * 1e-9, gap_points=args.gap_points,
+                      e_min=args.e_min, e_points=args.e_points, realisations=args.realisations,
+                      cache_dir=None if args.no_cache else args.cache_dir,
+                      source=f"{args.measurements}, ", prior=args.prior)
+    doc = dict(res.to_json(), measurements=str(args.measurements))
+    if args.json and not args.out:
+        print(json.dumps(_jsonable(doc)))
+    elif not args.json:
+        _print_joint_inference(res)
+    if args.out:
+        atomic_write_text(args.out, json.dumps(_jsonable(doc), indent=1) + "\n", args.force, "--out")
+    if args.plot:
+        from .figures.inference import plot_joint_inference
+        plot_joint_inference(res, meas, base, args.plot, force=args.force)
     return 0
 
 
@@ -375,6 +471,7 @@ def _cost_args(sp) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .inference import E_MIN, E_POINTS
     p = _Parser(prog="granchain", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
@@ -435,9 +532,15 @@ def build_parser() -> argparse.ArgumentParser:
                                         "(numba's JIT cache and the ahead-of-time module)")
     sp.set_defaults(func=cmd_warm_up)
 
-    sp = sub.add_parser("infer", help="infer the mean gap of a chain from measured wave timing")
+    sp = sub.add_parser("infer", help="infer the mean gap of a chain (and its coefficient of "
+                                      "restitution) from measured wave timing (and peaks)")
     sp.add_argument("measurements", help="CSV: v_striker_m_s, dt_peak_s or dt_front_s, "
-                                         "optional dt_err_s, chain_id (SI units)")
+                                         "optional dt_err_s, chain_id, vmax_1_m_s, vmax_2_m_s, "
+                                         "vmax_err_m_s (SI units)")
+    sp.add_argument("--fit", default="gap_mean", metavar="NAMES",
+                    help="what to infer: gap_mean (default; from the timing) or "
+                         "gap_mean,restitution (the mean gap and contact_damping's e, from "
+                         "the timing and both probes' peaks)")
     sp.add_argument("--scene", required=True, help="base scene YAML: material, chain, effects, "
                     "integrator, gap law (gaps.distribution), simulated speeds (striker.velocity)")
     sp.add_argument("--set", action="append", default=[], metavar="KEY.SUB=VALUE",
@@ -445,7 +548,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--json", action="store_true", help="print one JSON object")
     sp.add_argument("--out", help="also write the JSON result to this new file")
     sp.add_argument("--plot", metavar="FILE", help="draw v_g vs v_s (data, inferred band, "
-                    "Eq. 5.4) into this new file (.png or .pdf)")
+                    "Eq. 5.4) into this new file (.png or .pdf); with restitution fitted: "
+                    "the joint posterior, its marginals and the data against the fitted model")
     sp.add_argument("--force", action="store_true", help="allow --out and --plot to be replaced")
     sp.add_argument("--gap-max-nm", type=_limit, default=500.0, metavar="NM",
                     help="largest simulated mean gap in nm (default 500)")
@@ -453,6 +557,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="simulated mean gaps from 0 to --gap-max-nm (default 21)")
     sp.add_argument("--realisations", type=int, default=64, metavar="R",
                     help="gap realisations per mean gap and speed (default 64)")
+    sp.add_argument("--e-min", type=float, default=E_MIN, metavar="E",
+                    help=f"--fit ...,restitution: smallest simulated e (default {E_MIN:g}; "
+                         "the largest is 1)")
+    sp.add_argument("--e-points", type=int, default=E_POINTS, metavar="N",
+                    help=f"--fit ...,restitution: simulated e from --e-min to 1 (default "
+                         f"{E_POINTS})")
     sp.add_argument("--prior", choices=["scale", "uniform"], default="scale",
                     help="prior of the mean gap: scale (1/(g + 2 nm), default) or uniform")
     sp.add_argument("--cache-dir", default=_default_cache(), metavar="DIR",

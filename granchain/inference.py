@@ -1,4 +1,6 @@
-"""The mean gap of a chain inferred from measured wave timing (``granchain infer``).
+"""The mean gap of a chain inferred from measured wave timing (``granchain infer``), and with
+``--fit gap_mean,restitution`` its coefficient of restitution too, from the timing and the
+peaks at both probes (section "Joint fit" below).
 
 Input: a CSV of measurements (SI units) -- ``v_striker_m_s``, one timing column
 (``dt_peak_s``: peak-to-peak delay between the two probes, or ``dt_front_s``: half-peak
@@ -75,8 +77,67 @@ of gbar_i). Eq. 5.4 assumes the particles fly across a gap at v_s, the fastest a
 particle moves, so it overestimates the gap a given delay needs (the calibration measures
 by how much).
 
-Which simulated timing a CSV column is compared with is decided in one place,
-:func:`timing`.
+Joint fit (``--fit gap_mean,restitution``). Input: the same CSV plus ``vmax_1_m_s`` and
+``vmax_2_m_s`` (measured peaks at the two probes, m/s, on every row) and optional
+``vmax_err_m_s`` (their one-sigma Gaussian error, m/s); a base scene with the
+``contact_damping`` effect, model ``coeff_restitution`` (its e is a placeholder: the
+inference sets it). The gap-only fit (``--fit gap_mean``, the default) reads the timing
+alone, as before, and prints the same bytes; peak columns in its file are checked, not
+used. A peak above what the base scene's striker can give (its kinetic energy bounds
+every particle's: v_p <= v_s sqrt(m_1/m_p), v_s for an equal-mass striker) by more than
+PEAK_SIGMAS of its stated error is refused (a unit or column mix-up, not noise).
+
+- Grid: mean gaps ``gap_max (k/(G-1))^2`` x restitutions ``linspace(e_min, 1, E)``
+  (default 0.7-1, 7 points) x the base scene's speeds x R realisations, each node one
+  derived scene run through ``simulate.run_scene`` with the base scene's integrator (the
+  event method, or what ``auto`` chooses per node), cached per node as the gap-only grid.
+  Common random numbers: realisation r has the same normalised gap pattern at every node,
+  so each realisation's timing and peaks are smooth in (g, e, v) and are interpolated:
+  linear in g, log-linear in e (log of each observable linear in e), in v as the gap-only
+  fit for the timing and as v_max / v_s linear in log v for the peaks. The quadratic
+  spacing in g is there because the peaks change from a packed chain's (v_max,1 = 0.70 v_s
+  at e = 0.9) to a gapped one's (0.95 v_s) within 10-30 nm, the scale of the contact
+  overlap: with 25 nm spacing the interpolation error of v_max,1 at 5-15 nm gaps was
+  10-18 % (95th percentile over realisations, 0.01-1 m/s), above its 4 % spread over
+  realisations; with quadratic spacing (12 nodes to 200 nm) 1.4 % at 15 nm and 0.05 % at
+  200 nm. Log-linear in e,
+  because v_max,2 of a gapped chain goes as ~((1 + e)/2)^(contacts passed): against a
+  0.025-spaced reference over e = 0.8-1, linear interpolation on 0.05 spacing erred 1.3 %
+  (v_max,2) and 0.6 % (timing) at the 95th percentile, log-linear 0.33 % and 0.27 %, cubic
+  0.28 % and 0.13 %; what log-linear leaves is near the integrator's own scatter on these
+  observables (v_max,1: 0.02 % whatever the scheme). The interpolation errors are measured
+  on the grid itself (:func:`joint_interp_errors`, per mean-gap node since they change by
+  two orders of magnitude over g, and along e and v) and enter the likelihood as model
+  error, as in the gap-only fit.
+- Likelihood of a group (a chain_id, else one row): the R realisations' interpolated
+  (timing, v_max,1, v_max,2) at each of its m rows form an R x 3m sample; the Gaussian
+  kernel density over it (Silverman's factor^2 x the sample covariance + the rows' stated
+  variances + model error; each row's values standardised by its observed timing and its
+  striker speed) is the average over realisations of the joint density of the group's
+  values -- today's multivariate kernel, with the peaks beside the timing, so one
+  realisation's correlated timing and peaks at several speeds count once.
+- Posterior: the gap-only prior on g (``PRIOR``) and a uniform prior on e in [e_min, 1],
+  on 241 x 161 points (g quadratic, e uniform); when the points within exp(-20) of the peak
+  span less than half the range, the posterior is evaluated again on 241 x 161 points over
+  that box (a narrow posterior gets the same resolution as a wide one). Report: each
+  parameter's marginal median and central 95 % interval, the posterior correlation of (g,
+  e), and a posterior predictive check (how many measured values lie outside the 95 %
+  range of 400 posterior draws x R realisations with the stated noise added). Weight at the
+  largest mean gap flags ``posterior_at_grid_end`` (median and upper bound of g NaN), at
+  e_min ``restitution_at_grid_end`` (median and lower bound of e NaN); e = 1 is the
+  physical end of the range, not a grid end.
+
+Why a 2D grid (measured): the grid of the shipped example (21 mean gaps x 7 e x 3 speeds x
+64 realisations = 28,224 chains) ran in 90 s on the shared 2-core machine (auto: RK4 or
+the event method per node), once per base scene, and an inference from it takes 1-3 s;
+its interpolation errors (above: <= 0.3 % in e, <= 1.4 % in g) are well inside the kernel
+(timing spread 4-15 % and v_max,2 3-7 % over realisations at a fixed (g, e)). An emulator
+(e.g. a Gaussian process for the realisations' mean and covariance) would replace their
+spread -- skewed, and correlated across a chain's rows -- by a parametric form that needs
+its own validation on the same simulations, to save a cost paid once per base scene.
+
+Which simulated timing and peaks a CSV column is compared with is decided in one place
+each, :func:`timing` and :func:`peak`.
 """
 from __future__ import annotations
 
@@ -96,7 +157,10 @@ from .gaps import Member
 from .scene import Scene
 
 TIMING_COLUMNS = ("dt_peak_s", "dt_front_s")
-COLUMNS = ("v_striker_m_s", *TIMING_COLUMNS, "dt_err_s", "chain_id")
+PEAK_COLUMNS = ("vmax_1_m_s", "vmax_2_m_s")     # measured peaks at the two probes (m/s)
+COLUMNS = ("v_striker_m_s", *TIMING_COLUMNS, "dt_err_s", "chain_id", *PEAK_COLUMNS,
+           "vmax_err_m_s")
+FITS = ("gap_mean", "restitution")      # what --fit may name
 GAP_LAWS = ("uniform", "exponential")     # laws whose realisations scale with their mean
 CACHE_FORMAT = 1                          # bump when the cached arrays change meaning
 FINE_POINTS = 801                         # posterior evaluation points over [0, gap_max]
@@ -104,6 +168,9 @@ EDGE_WEIGHT = 1e-2        # posterior density at gap_max, relative to its peak, 
 PRIOR = "scale"
 PRIOR_G0 = 2e-9
 SPEED_RTOL = 1e-9         # a row's speed may exceed the simulated range by this (rounding)
+PEAK_RTOL = 1e-3          # a peak may exceed what the striker can give by this (rounding,
+                          # the drag's small propulsive work, a preload's)
+PEAK_SIGMAS = 5.0         # ... and by this many of its stated errors (noise)
 
 
 # ---------------------------------------------------------------------------------------
@@ -122,9 +189,24 @@ class Measurements:
     column: str
     lines: tuple[int, ...]
     chain_ids: tuple
+    # measured peaks at the two probes (m/s; NaN in an empty cell, None without the
+    # column) and their one-sigma error (m/s, 0 where none is given)
+    vmax_1: np.ndarray | None = None
+    vmax_2: np.ndarray | None = None
+    vmax_err: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.v.size)
+
+    @property
+    def has_peaks(self) -> bool:
+        """Are both probes' peaks given on every row?"""
+        return (self.vmax_1 is not None and self.vmax_2 is not None
+                and bool(np.all(np.isfinite(self.vmax_1)) and np.all(np.isfinite(self.vmax_2))))
+
+    @property
+    def peak_err(self) -> np.ndarray:
+        return np.zeros(len(self)) if self.vmax_err is None else self.vmax_err
 
     @property
     def groups(self) -> list[np.ndarray]:
@@ -169,16 +251,18 @@ def _read_text(path, name: str) -> str:
                    f"at character {col})", "save the file as UTF-8 CSV") from None
 
 
-def read_measurements(path) -> Measurements:
+def read_measurements(path, peaks: bool = False) -> Measurements:
     """Read and check a measurement CSV (module doc). Lines starting with '#' are comments.
-    Every problem is one GranchainError naming the file and the column or row."""
+    ``peaks``: the fit needs the measured peaks (``vmax_1_m_s``, ``vmax_2_m_s``) on every
+    row. Every problem is one GranchainError naming the file and the column or row."""
     name = str(path)
     text = _read_text(path, name)
     lines = [(k + 1, ln) for k, ln in enumerate(text.splitlines())
              if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise _bad(name, "the file is empty", "give a header line (v_striker_m_s, dt_peak_s or "
-                   "dt_front_s, optional dt_err_s, chain_id) and at least one row")
+                   "dt_front_s, optional dt_err_s, chain_id, vmax_1_m_s, vmax_2_m_s, "
+                   "vmax_err_m_s) and at least one row")
     try:
         rows = list(csv.reader(io.StringIO("\n".join(ln for _, ln in lines)), strict=True))
     except csv.Error as exc:
@@ -205,9 +289,19 @@ def read_measurements(path) -> Measurements:
         raise _bad(f"{name}, column 'dt_front_s'", "given together with dt_peak_s",
                    "give one timing column per file")
     col = timing_cols[0]
+    if peaks:
+        for c in PEAK_COLUMNS:
+            if c not in header:
+                raise _bad(f"{name}, column {c!r}", "missing; fitting the restitution needs "
+                           "the measured peak at each probe",
+                           "add vmax_1_m_s and vmax_2_m_s (peak velocities at the two "
+                           "probes, m/s), or fit gap_mean alone")
     if len(rows) < 2:
         raise _bad(name, "no data rows under the header", "add at least one measurement")
     v, t, err, ids, where_lines = [], [], [], [], []
+    peak_cols = [c for c in PEAK_COLUMNS if c in header]
+    pk = {c: [] for c in peak_cols}
+    pk_err = []
     for (line, _), row in zip(lines[1:], rows[1:]):
         k = len(v) + 1
         if len(row) != len(header):
@@ -230,6 +324,26 @@ def read_measurements(path) -> Measurements:
             if e < 0:
                 raise _bad(f"{here}, column 'dt_err_s'", f"{e:g} s is negative",
                            "give the one-sigma timing error in seconds (>= 0)")
+        for c in peak_cols:
+            if cell[c] == "":
+                if peaks:
+                    raise _bad(f"{here}, column {c!r}", "empty; fitting the restitution needs "
+                               "the measured peak on every row",
+                               "give the peak velocity at the probe in m/s, or drop the row")
+                pk[c].append(math.nan)
+                continue
+            x = _number(cell[c], f"{here}, column {c!r}")
+            if x <= 0:
+                raise _bad(f"{here}, column {c!r}", f"{x:g} m/s is not > 0",
+                           "give the peak velocity at the probe in m/s (> 0)")
+            pk[c].append(x)
+        pe = 0.0
+        if "vmax_err_m_s" in cell and cell["vmax_err_m_s"] != "":
+            pe = _number(cell["vmax_err_m_s"], f"{here}, column 'vmax_err_m_s'")
+            if pe < 0:
+                raise _bad(f"{here}, column 'vmax_err_m_s'", f"{pe:g} m/s is negative",
+                           "give the one-sigma error of the peaks in m/s (>= 0)")
+        pk_err.append(pe)
         cid = cell.get("chain_id", "") or None
         v.append(vs), t.append(dt), err.append(e), ids.append(cid), where_lines.append(line)
     group, seen = [], {}
@@ -242,8 +356,30 @@ def read_measurements(path) -> Measurements:
                 seen[cid] = len(seen)
             group.append(seen[cid])
     # renumber groups in order of first appearance
+    peak = {c: np.array(pk[c]) if c in pk else None for c in PEAK_COLUMNS}
     return Measurements(np.array(v), np.array(t), np.array(err), np.array(group, dtype=int),
-                        col, tuple(where_lines), tuple(ids))
+                        col, tuple(where_lines), tuple(ids), peak["vmax_1_m_s"],
+                        peak["vmax_2_m_s"], np.array(pk_err) if peak_cols else None)
+
+
+def parse_fit(text: str) -> tuple[str, ...]:
+    """The parameters ``--fit`` names, in FITS order: ``gap_mean`` (the default) or
+    ``gap_mean,restitution``; every other value is one GranchainError."""
+    names = [w.strip() for w in str(text).split(",")]
+    for w in names:
+        if w not in FITS:
+            close = difflib.get_close_matches(w, FITS, n=1)
+            raise GranchainError(f"--fit: unknown parameter {w!r}; " + (
+                f"did you mean {close[0]!r}?" if close else
+                "fit gap_mean, or gap_mean,restitution"))
+    for j, w in enumerate(names):
+        if w in names[:j]:
+            raise GranchainError(f"--fit: {w!r} is named twice; name each parameter once")
+    if "gap_mean" not in names:
+        raise GranchainError("--fit: the restitution is fitted together with the mean gap "
+                             "(both set the timing and the peaks); give --fit "
+                             "gap_mean,restitution")
+    return tuple(f for f in FITS if f in names)
 
 
 # ---------------------------------------------------------------------------------------
@@ -419,6 +555,40 @@ def check_speeds(meas: Measurements, grid: Grid, source: str = "") -> None:
                        "bracket every row")
 
 
+def peak_bounds(base: Scene) -> tuple[float, float]:
+    """The largest peak, as a multiple of the striker speed, that the striker of the base
+    scene can give each probe: its kinetic energy is all the energy the chain gets, so
+    1/2 m_p v_p^2 <= 1/2 m_1 v_s^2, v_p <= v_s sqrt(m_1 / m_p) (1 for a striker of the
+    probe's mass)."""
+    m = base.masses
+    return tuple(math.sqrt(m[0] / m[p - 1]) for p in base.probes[:2])
+
+
+def check_peaks(meas: Measurements, base: Scene, source: str = "") -> None:
+    """Every given peak must be one the base scene's striker can cause: at most
+    ``peak_bounds`` x v_s, plus PEAK_SIGMAS of its stated error (a peak measured just above
+    an attainable value is noise, one far above it is not from this chain: a unit or a
+    column mix-up)."""
+    if meas.vmax_1 is None and meas.vmax_2 is None:
+        return
+    bounds = peak_bounds(base)
+    for col, vals, bound, p in zip(PEAK_COLUMNS, (meas.vmax_1, meas.vmax_2), bounds,
+                                   base.probes[:2]):
+        if vals is None:
+            continue
+        for k, (x, vs, e, line) in enumerate(zip(vals, meas.v, meas.peak_err, meas.lines)):
+            top = bound * vs
+            if math.isfinite(x) and x > top * (1 + PEAK_RTOL) + PEAK_SIGMAS * e:
+                who = ("a striker of its mass" if bound == 1.0 else
+                       f"the base scene's striker (at most {bound:.4g} v_s)")
+                raise _bad(f"{source}row {k + 1} (line {line}), column {col!r}",
+                           f"{x:g} m/s is above what {who} can give particle {p} at "
+                           f"v_s = {vs:g} m/s ({top:g} m/s"
+                           + (f" + {PEAK_SIGMAS:g} x vmax_err_m_s" if e > 0 else "") + ")",
+                           "give the peak in m/s at the row's striker speed (not in units of "
+                           "v_s or mm/s)")
+
+
 def log_likelihood(grid: Grid, meas: Measurements, fine: np.ndarray,
                    model_rel: float = 0.0) -> np.ndarray:
     """log L(g) at every mean gap of ``fine`` (module doc), shape (F,)."""
@@ -520,9 +690,14 @@ def posterior_summary(fine: np.ndarray, logpost: np.ndarray):
 def eq54_gaps(grid: Grid, meas: Measurements, probes) -> tuple[float, float, np.ndarray]:
     """(least-squares fit, bound reading, per-row values) of the mean gap from Eq. 5.4
     (module doc), with the packed chain's timing from the grid's g = 0 point."""
+    return _eq54(grid.timings[meas.column][0], grid.speeds, meas, probes)
+
+
+def _eq54(T0: np.ndarray, speeds: np.ndarray, meas: Measurements, probes):
+    """Eq. 5.4 readings with the packed chain's timings ``T0`` (S, R) at ``speeds``."""
     span = probes[1] - probes[0]
-    T0 = grid.timings[meas.column][0]                                     # (S, R) packed
-    dt0 = np.array([float(np.nanmedian(_interp_speed(T0, grid.speeds, float(v))))
+    grid_speeds = speeds
+    dt0 = np.array([float(np.nanmedian(_interp_speed(T0, grid_speeds, float(v))))
                     for v in meas.v])
     y = meas.t - dt0
     x = span / meas.v
@@ -537,6 +712,7 @@ def infer(base: Scene, meas: Measurements, *, gap_max: float = 250e-9, gap_point
     """Infer the mean gap (module doc) from ``meas`` with the base scene's model; a given
     ``grid`` is used as is (it must come from ``simulate_grid`` on this base scene)."""
     check_base(base)
+    check_peaks(meas, base, source)
     if grid is None:
         grid = simulate_grid(base, gap_max, gap_points, realisations, cache_dir)
     check_speeds(meas, grid, source)
@@ -556,6 +732,608 @@ def infer(base: Scene, meas: Measurements, *, gap_max: float = 250e-9, gap_point
         rows=len(meas), chains=len(meas.groups), scene=base.name,
         scene_hashes=grid.hashes, flags=tuple(flags), posterior_g_m=fine, posterior_pdf=pdf,
         grid=grid)
+
+
+# ---------------------------------------------------------------------------------------
+# the joint fit: mean gap and coefficient of restitution (--fit gap_mean,restitution)
+# ---------------------------------------------------------------------------------------
+JOINT_OBS = ("dt_peak_s", "dt_front_s", "v_max_1", "v_max_2")
+JOINT_CACHE_FORMAT = 1
+E_MIN, E_POINTS = 0.7, 7          # restitution nodes linspace(E_MIN, 1, E_POINTS): spacing 0.05
+FINE_G, FINE_E = 241, 161         # posterior evaluation points (mean gap, restitution)
+ZOOM_DROP = 20.0                  # the second pass covers log posterior >= peak - this
+CHUNK_BYTES = 64e6                # working memory of one block of the joint likelihood
+PREDICTIVE_DRAWS = 400            # posterior draws of the predictive check and the figure
+PREDICTIVE_SEED = 20250
+
+
+def peak(result, probe: int) -> float:
+    """The simulated peak (m/s) that a measured ``vmax_1_m_s`` (probe 0) or ``vmax_2_m_s``
+    (probe 1) is compared with: the chain's true peak, as :func:`timing` takes the true
+    timing."""
+    return result.v_max_1 if probe == 0 else result.v_max_2
+
+
+def check_restitution_base(base: Scene) -> None:
+    """A base scene whose coefficient of restitution the inference can set: the
+    contact_damping effect with model coeff_restitution."""
+    from .errors import SceneError
+    fix = ("add contact_damping to effects with damping: {model: coeff_restitution, "
+           "e: 0.95} (any e; the inference sets it)")
+    if "contact_damping" not in base.effects:
+        raise SceneError("effects", "has no contact_damping, so the model has no "
+                         "restitution to fit", fix)
+    model = base.setting("contact_damping").model
+    if model != "coeff_restitution":
+        raise SceneError("damping.model", f"is {model}; the inference fits the coefficient "
+                         "of restitution e of model coeff_restitution",
+                         "write damping: {model: coeff_restitution, e: 0.95} (any e; the "
+                         "inference sets it)")
+
+
+def gap_nodes(gap_max: float, points: int) -> np.ndarray:
+    """Mean gaps of the joint grid: gap_max (k/(points-1))^2, dense where the peaks change
+    fastest (the packed-to-gapped change at gaps of the order of the contact overlap,
+    ~10-30 nm; module doc)."""
+    return gap_max * np.linspace(0.0, 1.0, points) ** 2
+
+
+def restitution_nodes(e_min: float, points: int) -> np.ndarray:
+    return np.linspace(e_min, 1.0, points)
+
+
+def joint_scene(base: Scene, gap_mean: float, e: float, realisations: int) -> Scene:
+    """The scene of one node of the joint grid: the base scene at mean gap ``gap_mean``
+    (m) and coefficient of restitution ``e``, ``realisations`` gap realisations."""
+    return base.derive({"gaps": {"mean": float(gap_mean)}, "damping": {"e": float(e)},
+                        "ensemble": {"realisations": int(realisations)}})
+
+
+@dataclass(frozen=True)
+class JointGrid:
+    """Simulated observables ``values[name]`` (``JOINT_OBS``: the two timings in s, the
+    probes' peaks in m/s) of shape (G, E, S, R), NaN where not measured, at mean gaps
+    ``gaps`` (G), restitutions ``restitutions`` (E, ascending, the last 1), striker speeds
+    ``speeds`` (S) and R realisations (the same gap patterns at every node)."""
+    gaps: np.ndarray
+    restitutions: np.ndarray
+    speeds: np.ndarray
+    values: dict
+    hashes: tuple[str, ...]
+    simulated: int
+    wall_s: float = 0.0
+
+    @property
+    def realisations(self) -> int:
+        return int(next(iter(self.values.values())).shape[3])
+
+    @property
+    def n_chains(self) -> int:
+        return int(self.gaps.size * self.restitutions.size * self.speeds.size
+                   * self.realisations)
+
+
+def _joint_cache_file(cache_dir: Path, scene: Scene) -> Path:
+    from .fileio import source_hash
+    return Path(cache_dir) / (f"joint-{scene.hash}-{source_hash()[:12]}-"
+                              f"v{JOINT_CACHE_FORMAT}.npz")
+
+
+def check_joint_options(gap_max: float, gap_points: int, e_min: float, e_points: int,
+                        realisations: int) -> None:
+    if gap_points < 3:
+        raise GranchainError(f"--gap-points: {gap_points} is too few; give >= 3")
+    if not gap_max > 0:
+        raise GranchainError(f"--gap-max-nm: {gap_max * 1e9:g} must be > 0")
+    if realisations < 2:
+        raise GranchainError(f"--realisations: {realisations} is too few; give >= 2")
+    if not (0.0 < e_min < 1.0):
+        raise GranchainError(f"--e-min: {e_min:g} is not between 0 and 1; give the smallest "
+                             "coefficient of restitution to simulate, e.g. 0.8")
+    if e_points < 2:
+        raise GranchainError(f"--e-points: {e_points} is too few; give >= 2")
+
+
+def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: float,
+                        e_points: int, realisations: int, cache_dir=None,
+                        engine: str = "reference") -> JointGrid:
+    """Simulate (or read from ``cache_dir``) the joint grid: mean gaps
+    ``gap_nodes(gap_max, gap_points)`` x restitutions ``restitution_nodes(e_min,
+    e_points)`` x the base scene's speeds x ``realisations`` (module doc)."""
+    import time
+    from .costmodel import resolve_auto
+    from .simulate import run_scene
+    check_base(base)
+    check_restitution_base(base)
+    check_joint_options(gap_max, gap_points, e_min, e_points, realisations)
+    speeds = np.array(sorted(set(float(v) for v in base.striker_velocities)))
+    if speeds[0] <= 0:
+        raise GranchainError("scene field 'striker.velocity': a speed of 0 has no wave; give "
+                             "speeds > 0")
+    base = base.derive(striker={"velocity": [float(v) for v in speeds]})
+    gaps, es = gap_nodes(gap_max, gap_points), restitution_nodes(e_min, e_points)
+    shape = (gaps.size, es.size, speeds.size, realisations)
+    out = {c: np.full(shape, np.nan) for c in JOINT_OBS}
+    hashes, simulated = [], 0
+    t0 = time.perf_counter()
+    for k, g in enumerate(gaps):
+        for j, e in enumerate(es):
+            scene = resolve_auto(joint_scene(base, g, e, realisations))
+            hashes.append(scene.hash)
+            path = _joint_cache_file(cache_dir, scene) if cache_dir is not None else None
+            if path is not None and path.exists():
+                with np.load(path) as z:
+                    for c in JOINT_OBS:
+                        out[c][k, j] = z[c]
+                continue
+            res = run_scene(scene, engine=engine)
+            simulated += len(res)
+            for r in res:
+                s = int(np.searchsorted(speeds, r.v_striker))
+                for c in TIMING_COLUMNS:
+                    out[c][k, j, s, r.realisation] = timing(r, c)
+                out["v_max_1"][k, j, s, r.realisation] = peak(r, 0)
+                out["v_max_2"][k, j, s, r.realisation] = peak(r, 1)
+            if path is not None:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                buf = io.BytesIO()
+                np.savez(buf, **{c: out[c][k, j] for c in JOINT_OBS})
+                atomic_write_bytes(path, buf.getvalue(), force=True, field="--cache-dir")
+    return JointGrid(gaps, es, speeds, out, tuple(hashes), simulated,
+                     time.perf_counter() - t0)
+
+
+def simulate_joint_rows(base: Scene, gap_mean: float, e: float | None, speeds, realisations,
+                        column: str, engine: str = "reference") -> np.ndarray:
+    """(rows, 3) simulated (timing in s, vmax_1, vmax_2 in m/s) of chains of the base scene
+    at mean gap ``gap_mean`` (m) and restitution ``e`` (None: the base scene's damping as
+    it is, e.g. another law), one per (speed, realisation) pair: synthetic measurements
+    (give the base scene another ``gaps.seed`` for chains the grid never saw)."""
+    from .costmodel import resolve_auto
+    from .observables import summarize
+    from .simulate import trajectories
+    speeds = [float(v) for v in speeds]
+    change = {"gaps": {"mean": float(gap_mean)}, "striker": {"velocity": sorted(set(speeds))}}
+    if e is not None:
+        change["damping"] = {"e": float(e)}
+    scene = resolve_auto(base.derive(change))
+    mem = [Member(i, v, int(r)) for i, (v, r) in enumerate(zip(speeds, realisations))]
+    out = np.empty((len(mem), 3))
+    for m, traj in trajectories(scene, mem, engine):
+        res = summarize(traj, scene.probes)
+        out[m.index] = (timing(res, column), peak(res, 0), peak(res, 1))
+    return out
+
+
+def collision_restitution(base: Scene, v: float, damping: dict) -> float:
+    """The coefficient of restitution of one head-on collision of the base scene's striker
+    with particle 2 at closing speed v (m/s), Hertz contact with ``damping`` (a scene
+    ``damping`` section) and nothing else: (v_2' - v_1') / v."""
+    from .simulate import trajectories
+    sc = base.derive({"chain": {"n": 3}, "probes": [2, 3], "t_end": 40 * base.contact_time(v),
+                      "effects": ["hertz", "contact_damping"], "damping": damping,
+                      "gaps": {"distribution": "list", "values": [0.0, 1e-3]},
+                      "striker": {"velocity": float(v)},
+                      "integrator": {"method": "adaptive", "tolerance": 1e-9}})
+    _, traj = next(trajectories(sc, [Member(0, float(v), 0)]))
+    return float((traj.v[-1, 1] - traj.v[-1, 0]) / v)
+
+
+def matching_eta(base: Scene, e: float, v: float, tol: float = 1e-5) -> float:
+    """The viscoelastic eta_n0 (1/(m s)) whose head-on collision at closing speed v gives
+    the coefficient of restitution e (secant on 1 - e, which is nearly proportional to
+    eta for weak damping); at other speeds its e differs (1 - e ~ v^(1/5))."""
+    if e >= 1.0:
+        return 0.0
+    loss = lambda eta: 1.0 - collision_restitution(   # noqa: E731
+        base, v, {"model": "viscoelastic", "eta": eta, "e": None})
+    a = 1e12 * (1.0 - e)          # 1 - e ~ 1e-12 eta for 150 um steel at 0.05 m/s
+    la = loss(a)
+    b = a * (1.0 - e) / la
+    lb = loss(b)
+    for _ in range(30):
+        if abs(lb - (1.0 - e)) < tol:
+            return b
+        a, la, b = b, lb, b + (1.0 - e - lb) * (b - a) / (lb - la)
+        lb = loss(b)
+    raise GranchainError(f"no viscoelastic eta found for e = {e:g} at {v:g} m/s")
+
+# --- interpolation of the joint grid -------------------------------------------------
+def _speed_weight(speeds: np.ndarray, v: float) -> tuple[int, float]:
+    """(j, w): v between speeds j and j + 1, weight w of j + 1, linear in log v."""
+    if speeds.size == 1:
+        return 0, 0.0
+    j = int(np.clip(np.searchsorted(speeds, v, side="right") - 1, 0, speeds.size - 2))
+    w = (math.log(v) - math.log(speeds[j])) / (math.log(speeds[j + 1]) - math.log(speeds[j]))
+    return j, min(max(w, 0.0), 1.0)
+
+
+def _at_speed(grid: JointGrid, column: str, v: float) -> np.ndarray:
+    """(G, E, R, 3) simulated (timing s, vmax_1, vmax_2 m/s) at striker speed v: the
+    timing linear in (log v, log t) as in the gap-only fit, the peaks as v_max / v_s
+    linear in log v (a packed chain's v_max / v_s does not depend on v_s)."""
+    j, w = _speed_weight(grid.speeds, v)
+    k = min(j + 1, grid.speeds.size - 1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        T = grid.values[column]
+        t = np.exp((1 - w) * np.log(T[:, :, j]) + w * np.log(T[:, :, k]))
+        pk = [v * ((1 - w) * grid.values[c][:, :, j] / grid.speeds[j]
+                   + w * grid.values[c][:, :, k] / grid.speeds[k])
+              for c in ("v_max_1", "v_max_2")]
+    out = np.stack([t, *pk], axis=-1)
+    return np.where(out > 0, out, np.nan)
+
+
+def _weights(nodes: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    j = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2)
+    w = (x - nodes[j]) / (nodes[j + 1] - nodes[j])
+    return j, np.clip(w, 0.0, 1.0)
+
+
+def _interp_e(A: np.ndarray, es: np.ndarray, e: np.ndarray, axis: int = 1) -> np.ndarray:
+    """A (..., E, ...) -> (..., len(e), ...) along ``axis``: log A linear in e."""
+    j, w = _weights(es, np.asarray(e, float))
+    shape = [1] * A.ndim
+    shape[axis] = w.size
+    w = w.reshape(shape)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        L = np.log(A)
+        return np.exp((1 - w) * np.take(L, j, axis=axis) + w * np.take(L, j + 1, axis=axis))
+
+
+def _interp_g(A: np.ndarray, gaps: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """A (G, ...) -> (len(g), ...), linear in the mean gap."""
+    j, w = _weights(gaps, np.asarray(g, float))
+    w = w.reshape((-1,) + (1,) * (A.ndim - 1))
+    return (1 - w) * A[j] + w * A[j + 1]
+
+
+def joint_values(grid: JointGrid, column: str, v: float, g, e) -> np.ndarray:
+    """(len(g), R, 3) simulated (timing, vmax_1, vmax_2) at speed v and the pairs
+    (g[i], e[i])."""
+    A = _at_speed(grid, column, v)                                    # (G, E, R, 3)
+    g, e = np.atleast_1d(np.asarray(g, float)), np.atleast_1d(np.asarray(e, float))
+    jg, wg = _weights(grid.gaps, g)
+    je, we = _weights(grid.restitutions, e)
+    out = 0.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        L = np.log(A)
+        for dj, ww in ((0, 1 - wg), (1, wg)):
+            row = L[jg + dj]                                              # (n, E, R, 3)
+            n = np.arange(g.size)
+            Le = (1 - we)[:, None, None] * row[n, je] + we[:, None, None] * row[n, je + 1]
+            out = out + ww[:, None, None] * np.exp(Le)
+    return out
+
+
+def joint_interp_errors(grid: JointGrid, column: str) -> dict:
+    """Relative interpolation error of each observable (the timing ``column``, v_max_1,
+    v_max_2), measured on the grid as in the gap-only fit (each interior node against the
+    interpolation of its two neighbours, 95th percentile / 4): ``g`` per mean-gap node (G;
+    an end node takes its neighbour's; the error changes by orders of magnitude over the
+    gaps, so it is interpolated between the nodes), ``e`` and ``speed`` one value each."""
+    names = (column, "v_max_1", "v_max_2")
+    out = {}
+    for name in names:
+        A = grid.values[name]                                            # (G, E, S, R)
+        if name != column:
+            A = A / grid.speeds[None, None, :, None]
+        g = grid.gaps
+        w = ((g[1:-1] - g[:-2]) / (g[2:] - g[:-2]))[:, None, None, None]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            node = np.abs(A[1:-1] - ((1 - w) * A[:-2] + w * A[2:])) / A[1:-1]
+        per = np.array([_p95(x) for x in node]) / 4.0                     # (G - 2,)
+        g_err = np.concatenate([[per[0]], per, [per[-1]]])                # every node
+        e_err = s_err = 0.0
+        if grid.restitutions.size >= 3:
+            es = grid.restitutions
+            w = ((es[1:-1] - es[:-2]) / (es[2:] - es[:-2]))[None, :, None, None]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                mid = np.exp((1 - w) * np.log(A[:, :-2]) + w * np.log(A[:, 2:]))
+                e_err = _p95(np.abs(A[:, 1:-1] - mid) / A[:, 1:-1]) / 4.0
+        if grid.speeds.size >= 3:
+            lv = np.log(grid.speeds)
+            w = ((lv[1:-1] - lv[:-2]) / (lv[2:] - lv[:-2]))[None, None, :, None]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                if name == column:
+                    mid = np.exp((1 - w) * np.log(A[:, :, :-2]) + w * np.log(A[:, :, 2:]))
+                else:
+                    mid = (1 - w) * A[:, :, :-2] + w * A[:, :, 2:]
+                s_err = _p95(np.abs(A[:, :, 1:-1] - mid) / A[:, :, 1:-1]) / 4.0
+        out[name] = {"g": g_err, "e": e_err, "speed": s_err}
+    return out
+
+
+def _p95(x: np.ndarray) -> float:
+    x = np.asarray(x, float).ravel()
+    x = x[np.isfinite(x)]
+    return float(np.percentile(x, 95)) if x.size else 0.0
+
+
+def _model_rel(errs: dict, column: str, fine_g: np.ndarray, gaps: np.ndarray) -> np.ndarray:
+    """(F_g, 3) relative model error of (timing, vmax_1, vmax_2) at each fine mean gap."""
+    cols = []
+    for name in (column, "v_max_1", "v_max_2"):
+        d = errs[name]
+        cols.append(np.sqrt(np.interp(fine_g, gaps, d["g"]) ** 2 + d["e"] ** 2
+                            + d["speed"] ** 2))
+    return np.stack(cols, axis=-1)
+
+
+# --- likelihood and posterior --------------------------------------------------------
+def joint_check_speeds(meas: Measurements, grid: JointGrid, source: str = "") -> None:
+    check_speeds(meas, Grid(grid.gaps, grid.speeds, {}, (), 0), source)
+
+
+def fine_axes(grid: JointGrid) -> tuple[np.ndarray, np.ndarray]:
+    """The posterior's evaluation points: mean gaps (quadratic spacing, as the nodes) and
+    restitutions (uniform) over the grid's range."""
+    return (float(grid.gaps[-1]) * np.linspace(0.0, 1.0, FINE_G) ** 2,
+            np.linspace(float(grid.restitutions[0]), float(grid.restitutions[-1]), FINE_E))
+
+
+def joint_log_likelihood(grid: JointGrid, meas: Measurements, fine_g: np.ndarray,
+                         fine_e: np.ndarray, errs: dict | None = None) -> np.ndarray:
+    """log L(g, e), shape (F_g, F_e): per group (a chain), the kernel density over the R
+    realisations of the group's 3m observables (each row's timing and two peaks),
+    standardised by the row's observed timing and striker speed (module doc)."""
+    if errs is None:
+        errs = joint_interp_errors(grid, meas.column)
+    rel = _model_rel(errs, meas.column, fine_g, grid.gaps)             # (F_g, 3)
+    R = grid.realisations
+    total = np.zeros((fine_g.size, fine_e.size))
+    perr = meas.peak_err
+    for idx in meas.groups:
+        m = idx.size
+        d = 3 * m
+        scale = np.concatenate([[meas.t[i], meas.v[i], meas.v[i]] for i in idx])   # (d,)
+        y = np.concatenate([[meas.t[i], meas.vmax_1[i], meas.vmax_2[i]] for i in idx]) / scale
+        var_meas = (np.concatenate([[meas.err[i], perr[i], perr[i]] for i in idx]) / scale) ** 2
+        var_model = (np.tile(rel, (1, m)) * y[None, :]) ** 2                 # (F_g, d)
+        var_floor = (1e-9 * y) ** 2
+        nodes = np.concatenate([_at_speed(grid, meas.column, float(meas.v[i])) for i in idx],
+                               axis=-1) / scale                            # (G, E, R, d)
+        Ne = _interp_e(nodes, grid.restitutions, fine_e, axis=1)          # (G, F_e, R, d)
+        factor2 = ((R * (d + 2)) / 4.0) ** (-2.0 / (d + 4))               # Silverman^2
+        rows = max(1, int(CHUNK_BYTES // (fine_e.size * R * d * 8 * 6)))
+        for a in range(0, fine_g.size, rows):
+            b = min(a + rows, fine_g.size)
+            X = _interp_g(Ne, grid.gaps, fine_g[a:b])                      # (c, F_e, R, d)
+            X = X.reshape(-1, R, d)
+            ok = np.all(np.isfinite(X), axis=-1)                           # (P, R)
+            n_ok = ok.sum(axis=1)
+            Xz = np.where(ok[..., None], X, 0.0)
+            mean = Xz.sum(axis=1) / np.maximum(n_ok, 1)[:, None]
+            D = np.where(ok[..., None], X - mean[:, None, :], 0.0)
+            cov = np.einsum("pri,prj->pij", D, D) / np.maximum(n_ok - 1, 1)[:, None, None]
+            var = var_meas + var_floor + np.repeat(var_model[a:b], fine_e.size, axis=0)
+            C = factor2 * cov
+            C[:, np.arange(d), np.arange(d)] += var
+            L = np.linalg.cholesky(C)
+            resid = np.where(ok[..., None], y[None, None, :] - X, 0.0)      # (P, R, d)
+            Z = np.linalg.solve(L, np.swapaxes(resid, 1, 2))                # (P, d, R)
+            logdet = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
+            lp = -0.5 * (Z * Z).sum(axis=1) - 0.5 * logdet[:, None] - 0.5 * d * math.log(2 * math.pi)
+            lp = np.where(ok, lp, -np.inf)
+            top = lp.max(axis=1)
+            with np.errstate(invalid="ignore"):
+                ll = top + np.log(np.exp(lp - top[:, None]).sum(axis=1)) - math.log(R)
+            ll = np.where(n_ok >= 2, ll, -np.inf)
+            total[a:b] += ll.reshape(b - a, fine_e.size)
+    return total
+
+
+def zoom_box(fine_g, fine_e, logpost, drop: float = ZOOM_DROP, shrink: float = 0.5):
+    """((g0, g1), (e0, e1)): the box of the points whose log posterior is within ``drop``
+    of its peak, one point wider on each side, when it spans less than ``shrink`` of the
+    range in either parameter (the posterior is then evaluated again on it, for the
+    resolution of a narrow posterior); None otherwise."""
+    ok = np.isfinite(logpost)
+    if not np.any(ok):
+        return None
+    keep = ok & (logpost >= np.max(logpost[ok]) - drop)
+    gi, ej = np.flatnonzero(keep.any(axis=1)), np.flatnonzero(keep.any(axis=0))
+    a, b = max(gi[0] - 1, 0), min(gi[-1] + 1, fine_g.size - 1)
+    c, d = max(ej[0] - 1, 0), min(ej[-1] + 1, fine_e.size - 1)
+    span_g = (fine_g[b] - fine_g[a]) / (fine_g[-1] - fine_g[0])
+    span_e = (fine_e[d] - fine_e[c]) / (fine_e[-1] - fine_e[0])
+    if min(span_g, span_e) >= shrink:
+        return None
+    return (float(fine_g[a]), float(fine_g[b])), (float(fine_e[c]), float(fine_e[d]))
+
+
+def _trapz_weights(x: np.ndarray) -> np.ndarray:
+    w = np.zeros_like(x)
+    dx = np.diff(x)
+    w[:-1] += 0.5 * dx
+    w[1:] += 0.5 * dx
+    return w
+
+
+def _summary(x: np.ndarray, pdf: np.ndarray, low_flag: str | None, high_flag: str | None):
+    """(median, lo, hi, flags) of a 1D density on the points x; an end of the grid where
+    the density is above EDGE_WEIGHT x its peak sets the end's quantile and the median to
+    NaN with its flag."""
+    cdf = np.concatenate([[0.0], np.cumsum(0.5 * (pdf[1:] + pdf[:-1]) * np.diff(x))])
+    cdf = cdf / cdf[-1]
+    med, lo, hi = (float(np.interp(q, cdf, x)) for q in (0.5, 0.025, 0.975))
+    flags = []
+    top = float(np.max(pdf))
+    if low_flag and pdf[0] > EDGE_WEIGHT * top:
+        flags.append(low_flag)
+        med, lo = math.nan, math.nan
+    if high_flag and pdf[-1] > EDGE_WEIGHT * top:
+        flags.append(high_flag)
+        med, hi = math.nan, math.nan
+    return med, lo, hi, flags
+
+
+@dataclass(frozen=True)
+class JointInference:
+    """Result of :func:`infer_joint` (SI units; NaN where not measured, with ``flags``)."""
+    fit: tuple[str, ...]
+    gap_mean_m: float
+    ci95_m: tuple[float, float]
+    restitution: float
+    restitution_ci95: tuple[float, float]
+    posterior_correlation: float
+    eq54_gap_m: float
+    eq54_gap_bound_m: float
+    eq54_gap_rows_m: tuple[float, ...]
+    predictive_outside: int
+    predictive_values: int
+    predictive_rows: tuple
+    n_simulated: int
+    n_simulated_now: int
+    gap_law: str
+    damping_model: str
+    timing_column: str
+    method: str
+    realisations: int
+    gap_grid_m: tuple[float, float, int]
+    gap_spacing: str
+    restitution_grid: tuple[float, float, int]
+    speeds_m_s: tuple[float, ...]
+    interp_rel_error: dict
+    rows: int
+    chains: int
+    scene: str
+    scene_hashes: tuple[str, ...]
+    flags: tuple[str, ...]
+    posterior_g_m: np.ndarray = dataclasses.field(repr=False, compare=False)
+    posterior_e: np.ndarray = dataclasses.field(repr=False, compare=False)
+    posterior_pdf: np.ndarray = dataclasses.field(repr=False, compare=False)   # (F_g, F_e)
+    marginal_g: np.ndarray = dataclasses.field(repr=False, compare=False)
+    marginal_e: np.ndarray = dataclasses.field(repr=False, compare=False)
+    draws: np.ndarray = dataclasses.field(repr=False, compare=False)           # (D, 2)
+    grid: JointGrid | None = dataclasses.field(default=None, repr=False, compare=False)
+
+    HIDDEN = ("posterior_g_m", "posterior_e", "posterior_pdf", "marginal_g", "marginal_e",
+              "draws", "grid")
+
+    def to_json(self) -> dict:
+        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+             if f.name not in self.HIDDEN}
+        for k, v in d.items():
+            if isinstance(v, tuple):
+                d[k] = list(v)
+        return d
+
+
+def posterior_draws(fine_g, fine_e, pdf, draws: int = PREDICTIVE_DRAWS,
+                    seed: int = PREDICTIVE_SEED) -> np.ndarray:
+    """(draws, 2) (g, e) drawn from the posterior on the fine points (cell masses
+    pdf x trapezoid weights), with a fixed seed: the same result gives the same draws."""
+    mass = pdf * _trapz_weights(fine_g)[:, None] * _trapz_weights(fine_e)[None, :]
+    p = mass.ravel() / mass.sum()
+    k = np.random.default_rng(seed).choice(p.size, size=draws, p=p)
+    return np.stack([fine_g[k // fine_e.size], fine_e[k % fine_e.size]], axis=1)
+
+
+def predictive(grid: JointGrid, meas: Measurements, draws: np.ndarray,
+               seed: int = PREDICTIVE_SEED):
+    """Posterior predictive of every row: (per row [(2.5, 50, 97.5) % of timing, vmax_1,
+    vmax_2] with the stated measurement noise added, number of measured values outside
+    their 95 % range, number of values). Rows of one chain share a realisation, but each
+    value is checked on its own."""
+    rng = np.random.default_rng([seed, 1])
+    rows, outside = [], 0
+    perr = meas.peak_err
+    for i in range(len(meas)):
+        X = joint_values(grid, meas.column, float(meas.v[i]), draws[:, 0], draws[:, 1])
+        X = X.reshape(-1, 3)
+        X = X[np.all(np.isfinite(X), axis=1)]
+        sd = np.array([meas.err[i], perr[i], perr[i]])
+        X = X + sd * rng.standard_normal(X.shape)
+        q = np.percentile(X, [2.5, 50, 97.5], axis=0) if X.size else np.full((3, 3), np.nan)
+        y = (meas.t[i], meas.vmax_1[i], meas.vmax_2[i])
+        outside += int(sum(not (q[0, c] <= y[c] <= q[2, c]) for c in range(3)))
+        rows.append({"v_striker_m_s": float(meas.v[i]),
+                     meas.column: [float(x) for x in q[:, 0]],
+                     "vmax_1_m_s": [float(x) for x in q[:, 1]],
+                     "vmax_2_m_s": [float(x) for x in q[:, 2]]})
+    return tuple(rows), outside, 3 * len(meas)
+
+
+def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = 500e-9,
+                gap_points: int = 21, e_min: float = E_MIN, e_points: int = E_POINTS,
+                realisations: int = 64, cache_dir=None, grid: JointGrid | None = None,
+                source: str = "", prior: str = PRIOR) -> JointInference:
+    """Infer the mean gap and the coefficient of restitution together (module doc) from
+    ``meas`` (timings and both probes' peaks on every row) with the base scene's model; a
+    given ``grid`` is used as is (from ``simulate_joint_grid`` on this base scene)."""
+    check_base(base)
+    check_restitution_base(base)
+    if not meas.has_peaks:
+        raise GranchainError(f"{source}columns 'vmax_1_m_s', 'vmax_2_m_s': fitting the "
+                             "restitution needs the measured peaks on every row; give them")
+    check_peaks(meas, base, source)
+    if grid is None:
+        grid = simulate_joint_grid(base, gap_max, gap_points, e_min, e_points, realisations,
+                                   cache_dir)
+    joint_check_speeds(meas, grid, source)
+    fg, fe = fine_axes(grid)
+    errs = joint_interp_errors(grid, meas.column)
+    logpost = joint_log_likelihood(grid, meas, fg, fe, errs) + log_prior(fg, prior)[:, None]
+    ends = (True, True)
+    box = zoom_box(fg, fe, logpost)
+    if box is not None:           # the posterior again, on a grid over its own mass
+        (g0, g1), (e0, e1) = box
+        ends = (g1 >= fg[-1], e0 <= fe[0])
+        fg, fe = np.linspace(g0, g1, FINE_G), np.linspace(e0, e1, FINE_E)
+        logpost = joint_log_likelihood(grid, meas, fg, fe, errs) + log_prior(fg, prior)[:, None]
+    flags = []
+    if not np.any(np.isfinite(logpost)):
+        nan = math.nan
+        pdf = np.zeros_like(logpost)
+        mg, me = np.zeros_like(fg), np.zeros_like(fe)
+        gq = eq = (nan, nan, nan)
+        corr, draws = nan, np.zeros((0, 2))
+        flags.append("no_simulated_match")
+    else:
+        p = np.exp(logpost - np.max(logpost[np.isfinite(logpost)]))
+        p[~np.isfinite(p)] = 0.0
+        wg, we = _trapz_weights(fg), _trapz_weights(fe)
+        pdf = p / float((p * wg[:, None] * we[None, :]).sum())
+        mg, me = (pdf * we[None, :]).sum(axis=1), (pdf * wg[:, None]).sum(axis=0)
+        *gq, fl_g = _summary(fg, mg, None, "posterior_at_grid_end" if ends[0] else None)
+        *eq, fl_e = _summary(fe, me, "restitution_at_grid_end" if ends[1] else None, None)
+        flags += fl_g + fl_e
+        mass = pdf * wg[:, None] * we[None, :]
+        G, E = np.meshgrid(fg, fe, indexing="ij")
+        mu_g, mu_e = (mass * G).sum(), (mass * E).sum()
+        cov = (mass * (G - mu_g) * (E - mu_e)).sum()
+        sd = math.sqrt((mass * (G - mu_g) ** 2).sum() * (mass * (E - mu_e) ** 2).sum())
+        corr = float(cov / sd) if sd > 0 else math.nan
+        draws = posterior_draws(fg, fe, pdf)
+    if draws.size:
+        pred_rows, outside, checked = predictive(grid, meas, draws)
+    else:
+        pred_rows, outside, checked = (), 0, 3 * len(meas)
+    e_eq = eq[0] if math.isfinite(eq[0]) else float(grid.restitutions[-1])
+    T0 = _interp_e(grid.values[meas.column][0], grid.restitutions, [e_eq], axis=0)[0]
+    fit54, bound54, rows54 = _eq54(T0, grid.speeds, meas, base.probes)
+    return JointInference(
+        fit=("gap_mean", "restitution"), gap_mean_m=gq[0], ci95_m=(gq[1], gq[2]),
+        restitution=eq[0], restitution_ci95=(eq[1], eq[2]), posterior_correlation=corr,
+        eq54_gap_m=fit54, eq54_gap_bound_m=bound54,
+        eq54_gap_rows_m=tuple(float(r) for r in rows54), predictive_outside=outside,
+        predictive_values=checked, predictive_rows=pred_rows,
+        n_simulated=grid.n_chains, n_simulated_now=grid.simulated, gap_law=_law(base), damping_model="coeff_restitution",
+        timing_column=meas.column,
+        method="2D grid posterior (mean gap x restitution), simulated-ensemble kernel "
+               "likelihood of timing and both peaks",
+        realisations=grid.realisations,
+        gap_grid_m=(float(grid.gaps[0]), float(grid.gaps[-1]), int(grid.gaps.size)),
+        gap_spacing="quadratic",
+        restitution_grid=(float(grid.restitutions[0]), float(grid.restitutions[-1]),
+                          int(grid.restitutions.size)),
+        speeds_m_s=tuple(float(v) for v in grid.speeds),
+        interp_rel_error={k: {"g_max": float(np.max(v["g"])), "e": float(v["e"]),
+                              "speed": float(v["speed"])} for k, v in errs.items()},
+        rows=len(meas), chains=len(meas.groups), scene=base.name,
+        scene_hashes=grid.hashes, flags=tuple(flags), posterior_g_m=fg, posterior_e=fe,
+        posterior_pdf=pdf, marginal_g=mg, marginal_e=me, draws=draws, grid=grid)
 
 
 def _law(base: Scene) -> str:

@@ -736,6 +736,127 @@ def test_infer_reads_a_measurement_file_with_a_byte_order_mark(tmp_path):
     assert read_measurements(p).column == "dt_peak_s"
 
 
+# --fit gap_mean,restitution: the peaks, the fit names, the base scene's damping
+JOINT_BASE = ("name: g\ngaps: {distribution: uniform, mean: 2.0e-8}\n"
+              "striker: {velocity: [0.05, 0.1]}\n"
+              "effects: [hertz, contact_damping]\n"
+              "damping: {model: coeff_restitution, e: 0.95}\n")
+JOINT = ["--fit", "gap_mean,restitution"]
+PEAKS_HEAD = "v_striker_m_s,dt_front_s,vmax_1_m_s,vmax_2_m_s,vmax_err_m_s\n"
+
+
+@pytest.mark.parametrize("text, fit, needles", [
+    # a peak no striker of the base scene (equal masses: at most v_s) can cause
+    (PEAKS_HEAD + "0.07,1.0e-5,0.065,0.05,0.002\n0.06,1.1e-5,0.061,0.6,0.002\n", JOINT,
+     ["row 2 (line 3)", "column 'vmax_2_m_s'", "0.6 m/s is above", "particle 13",
+      "v_s = 0.06 m/s", "not in units of v_s or mm/s"]),
+    # in units of v_s, with no stated error
+    ("v_striker_m_s,dt_front_s,vmax_1_m_s,vmax_2_m_s\n0.07,1.0e-5,0.9,0.7\n", JOINT,
+     ["row 1 (line 2)", "column 'vmax_1_m_s'", "a striker of its mass", "particle 2"]),
+    # the gap-only fit checks given peaks too
+    (PEAKS_HEAD + "0.07,1.0e-5,65,50,2\n", [], ["row 1", "column 'vmax_1_m_s'", "above"]),
+    # a missing peak column, an empty or bad cell, a negative error
+    ("v_striker_m_s,dt_front_s\n0.07,1.0e-5\n", JOINT,
+     ["column 'vmax_1_m_s'", "missing", "restitution", "or fit gap_mean alone"]),
+    ("v_striker_m_s,dt_front_s,vmax_1_m_s\n0.07,1.0e-5,0.06\n", JOINT,
+     ["column 'vmax_2_m_s'", "missing"]),
+    (PEAKS_HEAD + "0.07,1.0e-5,0.065,0.05,0.002\n0.06,1.1e-5,,0.05,0.002\n", JOINT,
+     ["row 2 (line 3)", "column 'vmax_1_m_s'", "empty"]),
+    (PEAKS_HEAD + "0.07,1.0e-5,0.065,fast,0.002\n", JOINT,
+     ["row 1", "column 'vmax_2_m_s'", "not a number"]),
+    (PEAKS_HEAD + "0.07,1.0e-5,0.065,-0.05,0.002\n", JOINT,
+     ["row 1", "column 'vmax_2_m_s'", "not > 0"]),
+    (PEAKS_HEAD + "0.07,1.0e-5,0.065,0.05,-0.002\n", JOINT,
+     ["row 1", "column 'vmax_err_m_s'", "negative"]),
+    ("v_striker_m_s,dt_front_s,vmax_1\n0.07,1.0e-5,0.06\n", JOINT,
+     ["column 'vmax_1'", "did you mean 'vmax_1_m_s'"]),
+    # the fit names
+    (PEAKS_HEAD + "0.07,1.0e-5,0.065,0.05,0.002\n", ["--fit", "gap_mean,restitutoin"],
+     ["--fit", "unknown parameter 'restitutoin'", "did you mean 'restitution'"]),
+    (PEAKS_HEAD + "0.07,1.0e-5,0.065,0.05,0.002\n", ["--fit", "gap_mean,radius"],
+     ["--fit", "unknown parameter 'radius'", "gap_mean,restitution"]),
+    (PEAKS_HEAD + "0.07,1.0e-5,0.065,0.05,0.002\n", ["--fit", "restitution"],
+     ["--fit", "together with the mean gap", "gap_mean,restitution"]),
+    (PEAKS_HEAD + "0.07,1.0e-5,0.065,0.05,0.002\n", ["--fit", "gap_mean,gap_mean"],
+     ["--fit", "named twice"]),
+    (PEAKS_HEAD + "0.07,1.0e-5,0.065,0.05,0.002\n", ["--fit", ""],
+     ["--fit", "unknown parameter ''"]),
+    # the grid's options
+    (PEAKS_HEAD + "0.07,1.0e-5,0.065,0.05,0.002\n", JOINT + ["--e-min", "1.2"],
+     ["--e-min", "between 0 and 1"]),
+    (PEAKS_HEAD + "0.07,1.0e-5,0.065,0.05,0.002\n", JOINT + ["--e-points", "1"],
+     ["--e-points", "too few"]),
+])
+def test_infer_joint_bad_input_is_one_line(tmp_path, capsys, no_compute, text, fit, needles):
+    """Each names the file (and its row and column) or the option, and the fix; nothing
+    runs."""
+    csv_path = tmp_path / "meas.csv"
+    csv_path.write_text(text)
+    base = write(tmp_path, JOINT_BASE, "base.yaml")
+    err = refused(capsys, ["infer", str(csv_path), "--scene", base, "--no-cache", *fit],
+                  needles[0])
+    for n in needles:
+        assert n in err, (n, err)
+    if "row" in needles[0] or "column" in needles[0]:
+        assert str(csv_path) in err
+    assert no_compute == []
+
+
+def test_peaks_within_their_stated_error_of_the_bound_are_accepted(tmp_path, capsys,
+                                                                    no_compute):
+    """A peak measured just above v_s, within 5 of its stated errors, is noise and is read;
+    a heavier striker can give particle 2 more than v_s (energy: v_s sqrt(m_1/m_2))."""
+    from granchain import inference as I
+    csv_path = tmp_path / "m.csv"
+    csv_path.write_text(PEAKS_HEAD + "0.07,1.0e-5,0.075,0.05,0.002\n")
+    base = load_scene(write(tmp_path, JOINT_BASE, "base.yaml"))
+    meas = I.read_measurements(csv_path, peaks=True)
+    I.check_peaks(meas, base)                                  # 0.075 <= 0.07 + 5 x 0.002
+    heavy = base.derive(striker={"radius": 189e-6})
+    assert I.peak_bounds(heavy)[0] == pytest.approx((189 / 150) ** 1.5)
+    csv_path.write_text(PEAKS_HEAD + "0.07,1.0e-5,0.095,0.05,0\n")
+    meas = I.read_measurements(csv_path, peaks=True)
+    I.check_peaks(meas, heavy)                                 # 0.095 < 0.07 x 1.414
+    with pytest.raises(GranchainError, match="column 'vmax_1_m_s'.*above"):
+        I.check_peaks(meas, base)
+
+
+@pytest.mark.parametrize("scene, needles", [
+    (INFER_BASE, ["base.yaml", "scene field 'effects'", "no contact_damping",
+                  "model: coeff_restitution", "--fit names restitution"]),
+    (INFER_BASE + "effects: [hertz, contact_damping]\n"
+                  "damping: {model: viscoelastic, eta: 1.0e+5}\n",
+     ["base.yaml", "scene field 'damping.model'", "is viscoelastic", "coeff_restitution"]),
+])
+def test_infer_joint_needs_restitution_in_the_base_scene(tmp_path, capsys, no_compute, scene,
+                                                          needles):
+    csv_path = tmp_path / "m.csv"
+    csv_path.write_text(PEAKS_HEAD + "0.07,1.0e-5,0.065,0.05,0.002\n")
+    base = write(tmp_path, scene, "base.yaml")
+    err = refused(capsys, ["infer", str(csv_path), "--scene", base, *JOINT], needles[0])
+    for n in needles:
+        assert n in err, (n, err)
+    assert no_compute == []
+
+
+def test_infer_joint_grid_beyond_the_limits_is_refused(tmp_path, capsys, no_compute):
+    """The joint grid (mean gaps x restitutions x speeds x realisations) is estimated as a
+    whole before any chain runs."""
+    csv_path = tmp_path / "m.csv"
+    csv_path.write_text(PEAKS_HEAD + "0.07,1.0e-5,0.065,0.05,0.002\n")
+    base = write(tmp_path, JOINT_BASE, "base.yaml")
+    err = refused(capsys, ["infer", str(csv_path), "--scene", base, *JOINT, "--no-cache",
+                           "--e-points", "100000"], "--max-memory-gb")
+    for w in ("--e-points", "--gap-points", "--realisations", "100000 restitutions"):
+        assert w in err, (w, err)
+    refused(capsys, ["infer", str(csv_path), "--scene", base, *JOINT, "--no-cache",
+                     "--max-total-steps", "1e6"], "--max-total-steps")
+    assert no_compute == []
+    with pytest.raises(ComputedBeforeRefusing):
+        main(["infer", str(csv_path), "--scene", base, *JOINT, "--no-cache",
+              "--gap-points", "3", "--e-points", "2", "--realisations", "2"])
+
+
 def _preset_config(name="tiny", **batch):
     from granchain.workflow.config import read_config
     config = read_config(REPO / "config" / "config.yaml", name)

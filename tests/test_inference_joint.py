@@ -1,0 +1,294 @@
+"""granchain infer --fit: the gap-only fit unchanged to the byte, and the joint fit of the
+mean gap and the coefficient of restitution (contact_damping coeff_restitution) from the
+timing and both probes' peaks: the command, its output and figure, the shipped example,
+and its calibration on synthetic experiments.
+
+Grids: a coarse joint grid (``small_joint``: 440C, 6 mean gaps to 200 nm x e 0.8, 0.9, 1
+x 2 speeds x 12 realisations = 432 chains, a few seconds) for the quick tier; the
+calibration grids (``calibration_grids``: both materials, 13 mean gaps to 300 nm x 7 e
+from 0.7 to 1 x 3 speeds x 64 realisations = 17,472 chains each) for the slow tier.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import shutil
+import sys
+
+import numpy as np
+import pytest
+
+from granchain import inference as I
+from granchain.cli import main
+from granchain.scene import load_scene, scene_from_dict
+
+from conftest import REPO
+
+GOLDEN = REPO / "tests" / "data" / "infer_gap_only"
+
+
+# ---------------------------------------------------------------------------------------
+# --fit gap_mean: today's output, to the byte
+# ---------------------------------------------------------------------------------------
+def synthetic_grid(base, gap_max, gap_points, realisations, cache_dir=None,
+                   engine="reference"):
+    """A deterministic stand-in for ``simulate_grid`` (no engine): the golden outputs in
+    tests/data/infer_gap_only were written by ``granchain infer`` at commit 0c292fe (before
+    --fit existed) on this grid, so they test the inference and the command, not the
+    engines."""
+    rng = np.random.default_rng(20250)
+    gaps = np.linspace(0.0, gap_max, gap_points)
+    speeds = np.array(sorted(set(float(v) for v in base.striker_velocities)))
+    R = realisations
+    z = rng.standard_normal(R)
+    u = rng.uniform(0.8, 1.2, R)
+    w = rng.uniform(0.9, 1.1, (speeds.size, R))
+    t0 = 2.2e-5 * (speeds / 0.05) ** -0.2
+    T = (t0[None, :, None] * (1 + 0.02 * z)[None, None, :]
+         + 11 * gaps[:, None, None] * u[None, None, :] * w[None] / speeds[None, :, None] * 0.6)
+    timings = {"dt_peak_s": T, "dt_front_s": 0.97 * T}
+    hashes = tuple(f"{k:016x}" for k in range(gaps.size))
+    return I.Grid(gaps, speeds, timings, hashes, gaps.size * speeds.size * R)
+
+
+def run_cli(argv) -> tuple[int, str]:
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = main(argv)
+    return code, out.getvalue()
+
+
+GOLDEN_ARGS = ["--no-cache", "--gap-points", "6", "--gap-max-nm", "250", "--realisations", "8"]
+
+
+@pytest.mark.parametrize("name, extra", [("text", []), ("json", ["--json"]),
+                                         ("uniform", ["--json", "--prior", "uniform"])])
+@pytest.mark.parametrize("fit", [[], ["--fit", "gap_mean"], ["--fit", " gap_mean "]])
+def test_gap_only_output_is_todays_to_the_byte(tmp_path, monkeypatch, name, extra, fit):
+    """The default fit and an explicit --fit gap_mean print what granchain infer printed
+    before --fit existed (golden files from commit 0c292fe), text and JSON."""
+    for f in ("base.yaml", "m.csv"):
+        shutil.copy(GOLDEN / f, tmp_path / f)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(I, "simulate_grid", synthetic_grid)
+    code, out = run_cli(["infer", "m.csv", "--scene", "base.yaml", *GOLDEN_ARGS, *extra, *fit])
+    assert code == 0
+    assert out == (GOLDEN / f"{name}.out").read_text()
+
+
+def test_gap_only_fit_ignores_the_peak_columns(tmp_path, monkeypatch):
+    """Peaks in the file do not change the gap-only fit (it reads the timing, as before)."""
+    shutil.copy(GOLDEN / "base.yaml", tmp_path / "base.yaml")
+    rows = (GOLDEN / "m.csv").read_text().splitlines()
+    peaks = ["vmax_1_m_s,vmax_2_m_s,vmax_err_m_s", "0.034,0.026,0.002", "0.049,0.037,0.002",
+             "0.078,0.061,0.002", "0.092,0.072,0.002"]
+    (tmp_path / "m.csv").write_text("\n".join(f"{a},{b}" for a, b in zip(rows, peaks)) + "\n")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(I, "simulate_grid", synthetic_grid)
+    code, out = run_cli(["infer", "m.csv", "--scene", "base.yaml", *GOLDEN_ARGS, "--json"])
+    assert code == 0
+    assert out == (GOLDEN / "json.out").read_text()
+
+
+SCENE = """name: small
+material: ss440c
+striker: {velocity: [0.04, 0.08]}
+gaps: {distribution: uniform, mean: 20.0e-9}
+effects: [hertz, groove_friction, air_drag, rotation, particle_friction, contact_damping]
+damping: {model: coeff_restitution, e: 0.95}
+integrator: {method: auto, tolerance: 1.0e-3}
+"""
+
+
+def test_gap_only_fit_is_the_same_with_and_without_fit_on_a_simulated_grid(tmp_path):
+    """On a simulated grid (a base scene with contact_damping: the gap-only fit keeps its
+    e), the default and --fit gap_mean print and draw the same bytes."""
+    scene = tmp_path / "s.yaml"
+    scene.write_text(SCENE)
+    base = load_scene(scene)
+    t = I.simulate_rows(base.derive(gaps={"seed": 5}), 30e-9, [0.05, 0.07], [0, 1],
+                        "dt_front_s")
+    csv_path = tmp_path / "m.csv"
+    csv_path.write_text("v_striker_m_s,dt_front_s,dt_err_s\n"
+                        f"0.05,{float(t[0])!r},2e-7\n0.07,{float(t[1])!r},2e-7\n")
+    args = ["infer", str(csv_path), "--scene", str(scene), "--gap-points", "4",
+            "--gap-max-nm", "90", "--realisations", "4", "--cache-dir", str(tmp_path / "c")]
+    assert run_cli(args)[0] == 0             # fills the cache: both runs below read it
+    outs = []
+    for k, fit in enumerate(([], ["--fit", "gap_mean"])):
+        png = tmp_path / f"f{k}.png"
+        code, text = run_cli(args + fit + ["--plot", str(png)])
+        assert code == 0
+        code, doc = run_cli(args + fit + ["--json"])
+        assert code == 0
+        outs.append((text, doc, png.read_bytes()))
+    assert outs[0] == outs[1]
+
+
+# ---------------------------------------------------------------------------------------
+# the joint fit on a coarse grid
+# ---------------------------------------------------------------------------------------
+SMALL = dict(gap_max=200e-9, gap_points=6, e_min=0.8, e_points=3, realisations=12)
+TRUTH_SEED = 9001
+
+
+@pytest.fixture(scope="module")
+def small_joint(tmp_path_factory):
+    """A coarse 440C joint grid (432 chains) and its base scene."""
+    base = scene_from_dict(__import__("yaml").safe_load(SCENE))
+    grid = I.simulate_joint_grid(base, SMALL["gap_max"], SMALL["gap_points"],
+                                 SMALL["e_min"], SMALL["e_points"], SMALL["realisations"],
+                                 tmp_path_factory.mktemp("joint-cache"))
+    return base, grid
+
+
+def joint_measurements(base, g, e, v, reals, series, err=0.3e-6, level=0.02, seed=0,
+                       column="dt_front_s"):
+    """Synthetic rows at (g, e) on realisations the grid never saw, with noise as stated."""
+    v = np.asarray(v, float)
+    X = I.simulate_joint_rows(base.derive(gaps={"seed": TRUTH_SEED}), g, e, v, reals, column)
+    rows = v.size
+    perr = level * v
+    sd = np.stack([np.full(rows, err), perr, perr], axis=1)
+    Y = X + sd * np.random.default_rng(seed).standard_normal(X.shape)
+    return I.Measurements(v, Y[:, 0], np.full(rows, err),
+                          np.zeros(rows, int) if series else np.arange(rows), column,
+                          tuple(range(2, rows + 2)), ("A",) * rows if series
+                          else (None,) * rows, Y[:, 1], Y[:, 2], perr)
+
+
+def test_joint_fit_reads_both_parameters(small_joint):
+    """Four independent chains at 60 nm and e = 0.9 (440C, 0.3 us and 2 % peak noise) on
+    the coarse grid: both read near the truth (measured: 78 nm [64, 102], e 0.894 [0.884,
+    0.907]: these four realisations are slower than most at 60 nm; coverage is measured
+    by the calibration below, not by one experiment)."""
+    base, grid = small_joint
+    meas = joint_measurements(base, 60e-9, 0.9, [0.045, 0.055, 0.065, 0.075], [0, 1, 2, 3],
+                              series=False)
+    res = I.infer_joint(base, meas, grid=grid)
+    assert not res.flags
+    assert abs(res.gap_mean_m / 60e-9 - 1) < 0.35
+    assert res.ci95_m[0] < res.gap_mean_m < res.ci95_m[1]
+    assert res.restitution_ci95[0] <= 0.9 <= res.restitution_ci95[1]
+    assert res.restitution_ci95[1] - res.restitution_ci95[0] < 0.05
+    assert -1 < res.posterior_correlation < 1
+    assert res.predictive_values == 12 and res.predictive_outside <= 3
+    doc = res.to_json()
+    for key in ("gap_mean_m", "ci95_m", "restitution", "restitution_ci95",
+                "posterior_correlation", "predictive_rows", "fit"):
+        assert key in doc
+    assert doc["fit"] == ["gap_mean", "restitution"]
+    json.dumps(doc)
+
+
+def test_a_joint_series_is_not_treated_as_independent_rows(small_joint):
+    """Rows of one chain share a realisation (timing and peaks): read as independent
+    chains, the same values would claim a narrower interval than they carry."""
+    base, grid = small_joint
+    meas = joint_measurements(base, 80e-9, 0.95, [0.042, 0.05, 0.06, 0.075], [7] * 4,
+                              series=True)
+    chain = I.infer_joint(base, meas, grid=grid)
+    apart = I.infer_joint(base, I.Measurements(
+        meas.v, meas.t, meas.err, np.arange(4), meas.column, meas.lines, (None,) * 4,
+        meas.vmax_1, meas.vmax_2, meas.vmax_err), grid=grid)
+    w = lambda r: r.ci95_m[1] - r.ci95_m[0]        # noqa: E731
+    assert w(apart) < 0.8 * w(chain)
+
+
+def test_restitution_below_the_grid_is_flagged_not_reported(small_joint):
+    """Chains at e = 0.7, below the grid's smallest e (0.8): the posterior piles up at
+    the grid's end, and its median and lower bound are not reported."""
+    base, grid = small_joint
+    meas = joint_measurements(base, 60e-9, 0.7, [0.045, 0.06, 0.075], [0, 1, 2],
+                              series=False)
+    res = I.infer_joint(base, meas, grid=grid)
+    assert "restitution_at_grid_end" in res.flags
+    assert np.isnan(res.restitution) and np.isnan(res.restitution_ci95[0])
+    assert res.restitution_ci95[1] < 0.85
+
+
+def test_joint_interpolation_errors_are_measured_on_the_grid(small_joint):
+    """Each observable's interpolation error is measured per mean-gap node and along e
+    and the speed (here 2 speeds: none measured); the peaks change fastest near g = 0."""
+    _, grid = small_joint
+    errs = I.joint_interp_errors(grid, "dt_front_s")
+    assert set(errs) == {"dt_front_s", "v_max_1", "v_max_2"}
+    for d in errs.values():
+        assert d["g"].shape == grid.gaps.shape and np.all(d["g"] >= 0)
+        assert d["e"] > 0 and d["speed"] == 0.0
+    v1 = errs["v_max_1"]["g"]
+    assert v1[1] > v1[-2]
+
+
+def test_the_joint_grid_is_cached_by_scene_hash(tmp_path):
+    base = scene_from_dict(__import__("yaml").safe_load(SCENE)).derive(
+        striker={"velocity": [0.05]})
+    a = I.simulate_joint_grid(base, 40e-9, 3, 0.9, 2, 2, tmp_path)
+    files = sorted(p.name for p in tmp_path.iterdir())
+    assert a.simulated == 12 and len(files) == 6
+    assert all(h in " ".join(files) for h in a.hashes)
+    b = I.simulate_joint_grid(base, 40e-9, 3, 0.9, 2, 2, tmp_path)
+    assert b.simulated == 0
+    for c in I.JOINT_OBS:
+        np.testing.assert_array_equal(a.values[c], b.values[c])
+
+
+def test_viscoelastic_eta_matches_a_restitution_at_one_speed():
+    """matching_eta: the viscoelastic law's eta with the given e at the given speed;
+    above that speed it loses more (1 - e ~ v^(1/5))."""
+    base = scene_from_dict(__import__("yaml").safe_load(SCENE))
+    eta = I.matching_eta(base, 0.9, 0.05)
+    visco = {"model": "viscoelastic", "eta": eta, "e": None}
+    assert I.collision_restitution(base, 0.05, visco) == pytest.approx(0.9, abs=2e-5)
+    assert I.collision_restitution(base, 0.5, visco) < 0.9 - 0.02
+    assert I.collision_restitution(base, 0.05, {"model": "coeff_restitution", "e": 0.9}) \
+        == pytest.approx(0.9, abs=1e-6)
+
+
+# ---------------------------------------------------------------------------------------
+# the command
+# ---------------------------------------------------------------------------------------
+def joint_csv(tmp_path, base, g=30e-9, e=0.93, speeds=(0.045, 0.055), reals=(0, 0),
+              chain="a", err=0.001):
+    X = I.simulate_joint_rows(base.derive(gaps={"seed": 5}), g, e, speeds, reals, "dt_peak_s")
+    path = tmp_path / "m.csv"
+    lines = ["v_striker_m_s,dt_peak_s,chain_id,vmax_1_m_s,vmax_2_m_s,vmax_err_m_s"]
+    lines += [f"{v},{float(x[0])!r},{chain},{float(x[1])!r},{float(x[2])!r},{err}"
+              for v, x in zip(speeds, X)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_infer_joint_command_json_text_and_plot(tmp_path, capsys):
+    """The command on a small grid: JSON keys, the text report, the figure, the cache."""
+    scene = tmp_path / "s.yaml"
+    scene.write_text(SCENE.replace("[0.04, 0.08]", "[0.04, 0.06]"))
+    csv_path = joint_csv(tmp_path, load_scene(scene))
+    argv = ["infer", str(csv_path), "--scene", str(scene), "--fit", "gap_mean,restitution",
+            "--gap-points", "5", "--gap-max-nm", "80", "--e-points", "3", "--e-min", "0.8",
+            "--realisations", "8", "--cache-dir", str(tmp_path / "c")]
+    assert main(argv + ["--json", "--plot", str(tmp_path / "f.png")]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    for key in ("gap_mean_m", "ci95_m", "restitution", "restitution_ci95",
+                "posterior_correlation", "n_simulated", "gap_law", "timing_column",
+                "predictive_outside", "restitution_grid", "flags"):
+        assert key in doc
+    assert doc["n_simulated"] == 5 * 3 * 2 * 8 and doc["n_simulated_now"] == 240
+    assert doc["chains"] == 1 and doc["timing_column"] == "dt_peak_s"
+    assert doc["ci95_m"][0] < doc["gap_mean_m"] < doc["ci95_m"][1]
+    assert doc["restitution_ci95"][0] < doc["restitution"] < doc["restitution_ci95"][1]
+    assert (tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG"
+    assert main(argv + ["--json"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert again["n_simulated_now"] == 0
+    assert {k: v for k, v in again.items() if k != "n_simulated_now"} == \
+        {k: v for k, v in doc.items() if k != "n_simulated_now"}
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    for words in ("mean gap", "coefficient of restitution e", "95% interval",
+                  "posterior correlation", "posterior predictive check", "Eq. 5.4"):
+        assert words in text
+    assert main(argv + ["--plot", str(tmp_path / "f.svg"), "--out", str(tmp_path / "r.json")]) == 0
+    assert json.loads((tmp_path / "r.json").read_text())["restitution"] == doc["restitution"]
+    assert (tmp_path / "f.svg").read_text().lstrip().startswith("<?xml")
