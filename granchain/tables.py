@@ -9,9 +9,10 @@ Every table the workflow writes goes through this module, so its layout is defin
   :func:`columns` lists, in that order (units in the column names).
 - ``summary_table(df)``: per (material, engine, v_striker_m_s, gap_mean_nm,
   extra_length_um) group (and scene, for a table of walled scenes: scenes may differ only
-  in their dead load): n, arrived_fraction and mean, p5, p50, p95 of the main observables
-  over the realisations that saw the wave arrive (and of the wall's force peak and static
-  force, the dead load).
+  in their dead load; and the setting columns of a question study's table: its radius
+  spread or its contact damping): n, arrived_fraction and mean, p5, p50, p95 of the main
+  observables over the realisations that saw the wave arrive (and of the wall's force peak
+  and static force, the dead load).
 - ``write_csv(df, path)``: floats with full round-trip precision ("%.17g"), NaN as "NaN",
   written to a temporary file and renamed, so a killed job never leaves a truncated table
   that looks complete.
@@ -65,26 +66,47 @@ SUMMARY_MEASURED = ("v_max_1_measured_m_s", "v_max_2_measured_m_s", "v_max_ratio
 # members of different radii), with the wall's force peak and static force as observables
 WALL_GROUP = "scene_hash"
 SUMMARY_WALLED = ("wall_force_max_N", "wall_force_static_N")
+# ... and for the tables of the chapter's questions (granchain.workflow QUESTION_STUDIES): the
+# scene setting the study varies, from the study (not the run), after the wall's columns:
+# the radius spread's distribution and sd in m ("none" and 0 for the study's chains without
+# one), and the contact damping's model and coefficient of restitution e. A summary groups
+# by them too.
+SPREAD_COLUMNS = ("radius_spread_distribution", "radius_sd_m")
+DAMPING_COLUMNS = ("damping_model", "restitution_e")
+SETTING_COLUMNS = SPREAD_COLUMNS + DAMPING_COLUMNS
 PERCENTILES = (5, 50, 95)
 TIMING_COLUMNS = ("study", "engine", "batch", "scene_hash", "members", "steps", "wall_s",
                   "wall_per_member_s")
 
 
-def columns(n: int, measured: bool = False, walled: bool = False) -> list[str]:
+def columns(n: int, measured: bool = False, walled: bool = False,
+            settings=()) -> list[str]:
     """The table's columns: ``BASE_COLUMNS``, for a table of measured scenes the
     vibrometer's ``MEASURED_COLUMNS`` (``granchain.measurement``), for scenes with an end
-    wall its ``WALL_COLUMNS``, then one v_max per particle."""
+    wall its ``WALL_COLUMNS``, the ``settings`` columns a question study's table has (of
+    ``SETTING_COLUMNS``, in that order), then one v_max per particle."""
+    unknown = set(settings) - set(SETTING_COLUMNS)
+    if unknown:
+        raise ValueError(f"unknown setting columns {sorted(unknown)}")
     return (list(BASE_COLUMNS) + (list(MEASURED_COLUMNS) if measured else [])
-            + (list(WALL_COLUMNS) if walled else []) + vmax_columns(n))
+            + (list(WALL_COLUMNS) if walled else [])
+            + [c for c in SETTING_COLUMNS if c in settings] + vmax_columns(n))
+
+
+def setting_columns(keys) -> tuple[str, ...]:
+    """The ``SETTING_COLUMNS`` among ``keys`` (a row's, a meta mapping's or a table's
+    columns), in table order."""
+    keys = set(keys)
+    return tuple(c for c in SETTING_COLUMNS if c in keys)
 
 
 def member_row(meta: dict, run: ChainResult, n: int) -> dict:
     """One table row, its keys in ``columns(n)`` order.
 
     meta: study, material, gap_distribution, gap_mean_nm, extra_length_um, seed, scene_hash
-    (from the study's scene); run: one result of ``simulate.run_scene``, whose
-    ``to_row()`` gives the run's columns. The Eq. 5.4 bound is filled in later
-    (``add_eq54_bound``).
+    (from the study's scene), and the ``SETTING_COLUMNS`` of a question study's scene; run:
+    one result of ``simulate.run_scene``, whose ``to_row()`` gives the run's columns. The
+    Eq. 5.4 bound is filled in later (``add_eq54_bound``).
     """
     if run.n != n:
         raise ValueError(f"run has {run.n} particles, the table {n}")
@@ -99,7 +121,9 @@ def member_row(meta: dict, run: ChainResult, n: int) -> dict:
         "scene_hash": meta["scene_hash"],
         "v_g_bound_eq54_m_s": math.nan,
     })
-    cols = columns(n, run.measured, run.walled)
+    settings = setting_columns(meta)
+    row.update({c: meta[c] for c in settings})
+    cols = columns(n, run.measured, run.walled, settings)
     if set(row) != set(cols):
         raise ValueError(f"row columns differ from the table's: missing "
                          f"{sorted(set(cols) - set(row))}, extra {sorted(set(row) - set(cols))}")
@@ -111,9 +135,12 @@ def study_table(rows: list[dict], n: int) -> pd.DataFrame:
     stable dtypes; measured: the rows carry the vibrometer's columns (all or none)."""
     measured = {MEASURED_COLUMNS[0] in r for r in rows}
     walled = {WALL_COLUMNS[0] in r for r in rows}
-    if len(measured) > 1 or len(walled) > 1:
-        raise ValueError("a table mixes measured and unmeasured rows, or walled and free-end ones")
-    cols = columns(n, measured == {True}, walled == {True})
+    settings = {setting_columns(r) for r in rows}
+    if len(measured) > 1 or len(walled) > 1 or len(settings) > 1:
+        raise ValueError("a table mixes measured and unmeasured rows, walled and free-end "
+                         "ones, or rows with different setting columns")
+    cols = columns(n, measured == {True}, walled == {True},
+                   next(iter(settings)) if settings else ())
     df = pd.DataFrame(rows, columns=cols)
     for c in ("realisation", "seed", "steps", "force_evaluations"):
         df[c] = df[c].astype("int64")
@@ -163,12 +190,13 @@ def _summary_observables(measured: bool, walled: bool = False) -> tuple[str, ...
             + (SUMMARY_WALLED if walled else ()))
 
 
-def _groups(walled: bool) -> list[str]:
-    return list(GROUP_COLUMNS) + ([WALL_GROUP] if walled else [])
+def _groups(walled: bool, settings=()) -> list[str]:
+    return (list(GROUP_COLUMNS) + ([WALL_GROUP] if walled else [])
+            + [c for c in SETTING_COLUMNS if c in settings])
 
 
-def summary_columns(measured: bool = False, walled: bool = False) -> list[str]:
-    cols = ["study", *_groups(walled), "n", "arrived_fraction"]
+def summary_columns(measured: bool = False, walled: bool = False, settings=()) -> list[str]:
+    cols = ["study", *_groups(walled, settings), "n", "arrived_fraction"]
     for obs in _summary_observables(measured, walled):
         cols += [f"{obs}_mean"] + [f"{obs}_p{q}" for q in PERCENTILES]
     return cols
@@ -177,7 +205,8 @@ def summary_columns(measured: bool = False, walled: bool = False) -> list[str]:
 def summary_table(df: pd.DataFrame) -> pd.DataFrame:
     """Percentile bands over realisations per (material, engine, v_s, gap, extra length;
     for a table of walled scenes also the scene, as scenes may differ in their dead load F0
-    alone).
+    alone; for a question study's table also its setting columns: the radius spread, the
+    contact damping).
 
     Statistics of an observable use the realisations where it is finite (a wave that did
     not arrive has no v_g); ``arrived_fraction`` says how many those are.
@@ -185,7 +214,8 @@ def summary_table(df: pd.DataFrame) -> pd.DataFrame:
     rows = []
     measured = MEASURED_COLUMNS[0] in df.columns
     walled = WALL_COLUMNS[0] in df.columns
-    keys = _groups(walled)
+    settings = setting_columns(df.columns)
+    keys = _groups(walled, settings)
     groups = df.groupby(keys, dropna=False, sort=False)
     for key, g in groups:
         row = {"study": g["study"].iloc[0], **dict(zip(keys, key)),
@@ -196,7 +226,7 @@ def summary_table(df: pd.DataFrame) -> pd.DataFrame:
             for q in PERCENTILES:
                 row[f"{obs}_p{q}"] = _pct(vals, q)
         rows.append(row)
-    out = pd.DataFrame(rows, columns=summary_columns(measured, walled))
+    out = pd.DataFrame(rows, columns=summary_columns(measured, walled, settings))
     return out.sort_values(keys, kind="stable", na_position="first").reset_index(drop=True)
 
 
