@@ -153,6 +153,18 @@ def test_default_preset_is_meaningful():
     assert 0 in pre["force_N"] and pre["n"] >= 40 and pre["n"] - pre["probes"][1] >= 10
     assert min(pre["v_striker"]) <= 0.01 and max(pre["v_striker"]) >= 1.0
     assert s["wall"]["v_striker"] == s["packed_sweep"]["v_striker"]
+    # the chapter's questions: Fig. 5.3b's chain (440C, 0.1 m/s) with tolerances of 0.1 to
+    # 2 um beside its 20 nm gaps, a few tens of chains each; restitution from 0.8 to 1,
+    # both materials packed and at the chapter's fitted gaps
+    rs = s["radius_spread"]
+    assert rs["material"] == s["gap_profile"]["material"] == "ss440c"
+    assert rs["v_striker"] == s["gap_profile"]["v_striker"] == 0.1
+    assert min(rs["sd_um"]) <= 0.1 and max(rs["sd_um"]) >= 2.0 and len(rs["sd_um"]) >= 5
+    assert rs["gap_mean_nm"] == [20] and rs["realisations"] >= 20
+    di = s["dissipation"]
+    assert min(di["e"]) <= 0.8 and max(di["e"]) == 1.0 and len(di["e"]) >= 8
+    assert di["gap_mean_nm"] == {"ss316": [0, 190], "ss440c": [0, 47]}
+    assert di["realisations"] >= 10 and di["v_striker"] == 0.1
 
 
 @pytest.mark.parametrize("preset", ["tiny", "default"])
@@ -290,6 +302,19 @@ def test_preset_and_material_names_cannot_leave_results():
      ("presets.tiny.studies.lammps_check.chains.0", "needs an end wall")),
     ("presets: {tiny: {studies: {lammps_check: {chains: [{name: a, materials: [ss44c]}]}}}}",
      ("presets.tiny.studies.lammps_check.chains.0", "unknown material 'ss44c'")),
+    # the chapter's questions
+    ("presets: {tiny: {studies: {radius_spread: {sd_um: [-0.5]}}}}",
+     ("presets.tiny.studies.radius_spread.sd_um.0", "less than or equal to the minimum of 0")),
+    ("presets: {tiny: {studies: {radius_spread: {distribution: lognormal}}}}",
+     ("presets.tiny.studies.radius_spread.distribution", "'lognormal' is not one of")),
+    ("presets: {tiny: {studies: {radius_spread: {sd_um: [50.0]}}}}",
+     ("presets.tiny.studies.radius_spread", "chain.radius_spread.sd", "non-positive")),
+    ("presets: {tiny: {studies: {dissipation: {e: [1.2]}}}}",
+     ("presets.tiny.studies.dissipation.e.0", "greater than the maximum of 1")),
+    ("presets: {tiny: {studies: {dissipation: {model: viscoelastic}}}}",
+     ("presets.tiny.studies.dissipation.model", "'viscoelastic' is not one of")),
+    ("presets: {tiny: {studies: {dissipation: {gap_mean_nm: {brass: [0]}}}}}",
+     ("presets.tiny.studies.dissipation.gap_mean_nm", "material 'brass' is not one of")),
 ])
 def test_bad_preset_value_is_rejected(bad, needles):
     _rejected(_config_with(bad), *needles)
@@ -389,6 +414,7 @@ def test_dry_run_with_lammps_engine(tmp_path):
     refs = sum(1 for s in full.studies if s != "packed_trace" for b in plan[s]
                if b.engine == "reference")
     assert [b.engine for s in gw.FIELD_STUDIES for b in plan[s]] == ["lammps"] * 2
+    assert {b.engine for s in gw.QUESTION_STUDIES for b in plan[s]} == {"lammps"}
     assert lammps > len(plan["lammps_check"]), plan
     assert f"run_lammps_batch {lammps}" in text and f"run_batch {refs}" in text, text
 

@@ -6,7 +6,7 @@ as gw``). One job per module; each imports only those above it:
 
 - ``config``      schema validation, preset selection (and its engine), :class:`ConfigError`
 - ``studies``     a study -> its :class:`StudyScene` list; packed and trace scenes; the
-                  field's studies and lammps_check's field chains
+                  field's studies, the chapter's questions and lammps_check's field chains
 - ``batches``     cost estimates, :class:`Batch`, cutting a study into jobs, runtimes
 - ``plan``        :class:`Plan`: a preset's scenes and batches, built once (the check)
 - ``captions``    study sizes for the report's captions
@@ -22,7 +22,8 @@ from .batches import (JOB_OVERHEAD_S, STEP_SECONDS, Batch, batches, estimated_st
                       find_batch, members_per_job, realisation_cost, runtime_minutes)
 from .captions import FIGURES, caption_sizes, describe, vibrometer_sizes
 from .comparison import COMPARISON_META, engine_comparison, write_engine_comparison
-from .config import (ENGINES, ENSEMBLE_STUDIES, FIELD_STUDIES, SCHEMA, ConfigError,
+from .config import (ENGINES, ENSEMBLE_STUDIES, FIELD_STUDIES, OPTIONAL_STUDIES,
+                     QUESTION_STUDIES, SCHEMA, ConfigError,
                      config_error_message,
                      read_config, select_preset, study_engine, validate_config, with_engine)
 from .gather import gather, study_provenance
@@ -31,8 +32,8 @@ from .rerun import rerun_member
 from .run import (engine_options, log_to, member_rows, packed_reference, run_batch,
                   run_members, run_traces, set_threads, write_batch)
 from .studies import (ENGINE_ORDER, STUDIES, VIBROMETER, StudyScene, check_chain_scenes,
-                      field_scenes, packed_scene, preset_studies, study_scenes, trace_scene,
-                      vibrometer_scenes, vibrometer_settings)
+                      field_scenes, packed_scene, preset_studies, question_scenes,
+                      study_scenes, trace_scene, vibrometer_scenes, vibrometer_settings)
 from .vibrometer import VIB_COLUMNS, run_vibrometer, write_vibrometer
 
 __all__ = [
@@ -40,7 +41,8 @@ __all__ = [
     "members_per_job", "realisation_cost", "runtime_minutes",
     "FIGURES", "caption_sizes", "describe", "vibrometer_sizes",
     "COMPARISON_META", "engine_comparison", "write_engine_comparison",
-    "ENGINES", "ENSEMBLE_STUDIES", "FIELD_STUDIES", "SCHEMA", "ConfigError", "config_error_message",
+    "ENGINES", "ENSEMBLE_STUDIES", "FIELD_STUDIES", "OPTIONAL_STUDIES", "QUESTION_STUDIES",
+    "SCHEMA", "ConfigError", "config_error_message",
     "read_config", "select_preset", "study_engine", "validate_config", "with_engine",
     "gather", "study_provenance",
     "Plan", "load_config",
@@ -48,7 +50,7 @@ __all__ = [
     "engine_options", "log_to", "member_rows", "packed_reference", "run_batch", "run_members",
     "run_traces", "set_threads", "write_batch",
     "ENGINE_ORDER", "STUDIES", "StudyScene", "check_chain_scenes", "field_scenes",
-    "packed_scene", "preset_studies", "study_scenes", "trace_scene",
+    "packed_scene", "preset_studies", "question_scenes", "study_scenes", "trace_scene",
     "VIBROMETER", "vibrometer_scenes", "vibrometer_settings",
     "VIB_COLUMNS", "run_vibrometer", "write_vibrometer",
 ]

@@ -9,7 +9,7 @@ import math
 
 from ..errors import GranchainError
 from ..scene import DEFAULTS
-from .config import FIELD_STUDIES
+from .config import FIELD_STUDIES, OPTIONAL_STUDIES, QUESTION_STUDIES
 from .plan import Plan
 from .studies import ENGINE_ORDER
 
@@ -17,7 +17,9 @@ FIGURES = {"packed_sweep": "chapter Fig. 5.1b, 5.1c", "packed_trace": "chapter F
            "gap_profile": "chapter Fig. 5.3b", "gap_sweep": "chapter Fig. 5.3c",
            "extra_length": "chapter Fig. 5.4b", "lammps_check": "LAMMPS cross-validation",
            "precompression": "beyond the chapter: a precompressed chain",
-           "wall": "beyond the chapter: the chain on a wall"}
+           "wall": "beyond the chapter: the chain on a wall",
+           "radius_spread": "beyond the chapter: sphere-size tolerance against Fig. 5.3b",
+           "dissipation": "beyond the chapter: contact dissipation against Fig. 5.2"}
 # The probes the figures label and measure: the chapter's (the scene default).
 PROBES = tuple(DEFAULTS["probes"])
 
@@ -43,6 +45,8 @@ def describe(plan: Plan, study: str) -> dict:
             f"a {ss.scene.wall.name} wall" + (f" under F0 = {ss.scene.precompression:g} N"
                                               if ss.scene.precompression else "")
             for ss in scenes))
+    elif study in QUESTION_STUDIES:
+        gap_text = _question_text(scenes, plan.preset["base"]["gap_distribution"])
     return {"preset": plan.name, "figure": FIGURES[study], "scenes": len(scenes),
             "materials": ", ".join(dict.fromkeys(ss.material for ss in scenes)),
             "v_striker": ", ".join(f"{v:g}" for v in speeds),
@@ -54,12 +58,33 @@ def describe(plan: Plan, study: str) -> dict:
             "dt_s": f"{s0.dt:g}", "seed": s0.gap_seed, "probes": list(s0.probes[:2])}
 
 
+def _question_text(scenes, dist: str) -> str:
+    """What a question study's scenes are, for the table caption: the radius spreads (or
+    the coefficients of restitution) and the gaps of each material."""
+    parts = []
+    for mat in dict.fromkeys(ss.material for ss in scenes):
+        mine = [ss for ss in scenes if ss.material == mat]
+        gaps = list(dict.fromkeys(ss.gap_mean_nm for ss in mine))
+        gtxt = ", ".join("packed" if g == 0 else f"{dist} gaps of mean {g:g} nm" for g in gaps)
+        st = [dict(ss.setting) for ss in mine]
+        if "radius_sd_m" in st[0]:
+            sds = [x["radius_sd_m"] for x in st if x["radius_sd_m"] > 0]
+            dists = ", ".join(dict.fromkeys(x["radius_spread_distribution"] for x in st
+                                            if x["radius_sd_m"] > 0))
+            parts.append(f"{mat}: {gtxt}; packed with {dists} radius spreads of sd "
+                         + ", ".join(f"{x * 1e6:g}" for x in sds) + " um")
+        else:
+            es = ", ".join(f"{e:g}" for e in dict.fromkeys(x["restitution_e"] for x in st))
+            parts.append(f"{mat}: {gtxt}, each at e = {es} ({st[0]['damping_model']})")
+    return "; ".join(parts)
+
+
 def _method(plan: Plan, study: str) -> str:
     """The integrator a figure caption names: the preset's method, or velocity Verlet in
     LAMMPS for a study on the LAMMPS engine."""
     if any("lammps" in ss.engines for ss in plan.scenes[study]) and study != "lammps_check":
         return "verlet (LAMMPS)"
-    if study in FIELD_STUDIES:
+    if study in OPTIONAL_STUDIES:
         return str(plan.preset["studies"][study].get("method", plan.preset["base"]["method"]))
     return str(plan.preset["base"]["method"])
 
@@ -77,13 +102,29 @@ def caption_sizes(plan: Plan, study: str) -> dict:
            "radius_um": f"{base['radius'] * 1e6:g}",
            "method": _method(plan, study), "dt_s": f"{base['dt']:g}",
            "materials": ", ".join(sorted(set(plan.materials(study))))}
-    if study in FIELD_STUDIES:
+    if study in OPTIONAL_STUDIES:
         s0 = plan.scenes[study][0].scene
         out["probes"] = f"{s0.probes[0]} and {s0.probes[1]}"
-        out["wall"] = spec["wall"]
         out["tolerance"] = f"{s0.tolerance:g}" if s0.tolerance else ""
-    for key in ("v_striker", "gap_mean_nm", "extra_length_um", "realisations", "force_N"):
-        if key in spec:
+    if study in FIELD_STUDIES:
+        out["wall"] = spec["wall"]
+    if study in QUESTION_STUDIES:
+        out["effects"] = ", ".join(sorted(plan.scenes[study][-1].scene.effects))
+        out["gaps"] = _question_text(plan.scenes[study],
+                                     plan.preset["base"]["gap_distribution"])
+        if study == "radius_spread":
+            out["distribution"] = spec.get("distribution", "normal")
+            out["seed"] = str(spec.get("seed", base["seed"]))
+            out["gap_seed"] = str(base["seed"])
+        else:
+            out["model"] = spec.get("model", "coeff_restitution")
+            gm = spec["gap_mean_nm"]
+            out["gap_mean_nm"] = "; ".join(
+                f"{m}: " + ", ".join(f"{g:g}" for g in (v if isinstance(v, list) else [v]))
+                for m, v in gm.items()) if isinstance(gm, dict) else None
+    for key in ("v_striker", "gap_mean_nm", "extra_length_um", "realisations", "force_N",
+                "sd_um", "e"):
+        if key in spec and out.get(key) is None:
             v = spec[key]
             out[key] = ", ".join(f"{x:g}" for x in v) if isinstance(v, (list, tuple)) \
                 else f"{v:g}"

@@ -6,8 +6,9 @@ integrator shared by every study), ``studies``, ``batch`` and optionally ``cost`
 
 Each ensemble study runs on one engine, its ``engine`` key (reference unless set); a
 top-level ``engine`` (``--config engine=lammps``) sets it for every ensemble study of the
-preset, and for the field's studies (``FIELD_STUDIES``: precompression, wall) when the
-preset has them. ``lammps_check`` runs the engines its ``engines`` list names and ignores
+preset, and for the field's studies (``FIELD_STUDIES``: precompression, wall) and the
+chapter's questions (``QUESTION_STUDIES``: radius_spread, dissipation) when the preset has
+them. ``lammps_check`` runs the engines its ``engines`` list names and ignores
 both.
 """
 from __future__ import annotations
@@ -24,6 +25,12 @@ ENSEMBLE_STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", 
 # Optional studies of the field's chains (an end wall, a dead load), beyond the chapter;
 # each also runs on one engine (its ``engine`` key or the top-level override).
 FIELD_STUDIES = ("precompression", "wall")
+# Optional studies that put a question of the chapter to its own chain (beyond Eq. 5.1): a
+# sphere-size tolerance (radius_spread) and contact dissipation (dissipation); each runs on
+# one engine too.
+QUESTION_STUDIES = ("radius_spread", "dissipation")
+# every optional ensemble study, in table order
+OPTIONAL_STUDIES = FIELD_STUDIES + QUESTION_STUDIES
 
 
 class ConfigError(GranchainError):
@@ -86,7 +93,7 @@ def with_engine(preset: dict, engine: str | None = None) -> dict:
                           f"use --config engine=NAME with one of: {', '.join(ENGINES)}")
     out = copy.deepcopy(preset)
     for study, spec in (out.get("studies") or {}).items():
-        if study not in ENSEMBLE_STUDIES + FIELD_STUDIES or not isinstance(spec, dict):
+        if study not in ENSEMBLE_STUDIES + OPTIONAL_STUDIES or not isinstance(spec, dict):
             continue
         if engine is not None:
             spec["engine"] = engine

@@ -9,6 +9,7 @@ import pandas as pd
 
 from .. import tables
 from ..errors import GranchainError
+from .config import FIELD_STUDIES
 from .studies import ENGINE_ORDER, StudyScene, study_scenes
 
 
@@ -46,14 +47,19 @@ def study_provenance(preset_name: str, preset: dict, study: str, scenes: list[St
             "row's mean gap between the probes and v_g_packed the arrival-time group "
             f"velocity of the packed chain ({_packed_engines(scenes)}, same scene)"
             if any(ss.eq54 for ss in scenes) else
-            "v_g_bound_eq54_m_s: NaN, not computed (packed chains on an end wall: the "
-            "bound is about gaps)")
+            "v_g_bound_eq54_m_s: NaN, not computed (" + (
+                "packed chains on an end wall: the bound is about gaps" if study in FIELD_STUDIES
+                else "spheres of unequal radii or damped contacts: the bound is about elastic "
+                "chains of equal spheres") + ")")
     walled = {}
     if any(ss.scene.wall is not None for ss in scenes):
         walled["walls"] = {ss.scene.name: {"wall": ss.scene.wall.name,
                                            "precompression_N": ss.scene.precompression,
                                            "n": ss.scene.n, "probes": list(ss.scene.probes)}
                            for ss in scenes}
+    settings = {}
+    if any(ss.setting for ss in scenes):
+        settings["settings"] = {ss.scene.name: dict(ss.setting) for ss in scenes}
     return {
         "preset": preset_name,
         "study": study,
@@ -68,6 +74,7 @@ def study_provenance(preset_name: str, preset: dict, study: str, scenes: list[St
         "rows": int(len(df)),
         "eq54_bound": eq54,
         **walled,
+        **settings,
     }
 
 
@@ -84,7 +91,8 @@ def gather(preset_name: str, preset: dict, study: str, batch_csvs, timing_csvs,
         raise GranchainError(f"study '{study}' has {len(df)} rows, the configuration "
                              f"{expected}; delete its work folder and re-run")
     df = df[tables.columns(scenes[0].scene.n,
-                           walled=any(ss.scene.wall is not None for ss in scenes))]
+                           walled=any(ss.scene.wall is not None for ss in scenes),
+                           settings=tables.setting_columns(scenes[0].meta))]
     timing = pd.concat([tables.read_csv(p) for p in timing_csvs], ignore_index=True) \
         if timing_csvs else tables.timing_table([])
     tables.write_csv(timing, out_timing)

@@ -12,19 +12,26 @@ from .studies import study_scenes
 def rerun_member(preset: dict, study: str, *, material: str, v_striker: float, realisation: int,
                  engine: str | None = None, gap_mean_nm: float | None = None,
                  extra_length_um: float | None = None,
-                 precompression_N: float | None = None) -> dict:
+                 precompression_N: float | None = None, radius_sd_m: float | None = None,
+                 restitution_e: float | None = None) -> dict:
     """Re-run one member of a study alone and return its table row (with the Eq. 5.4
     bound); ``engine``: the study's engine if None (the first of lammps_check's);
-    ``precompression_N``: the dead load F0 (N) of a precompression scene."""
+    ``precompression_N``: the dead load F0 (N) of a precompression scene; ``radius_sd_m``,
+    ``restitution_e``: the setting of a radius_spread or dissipation scene (its row's
+    columns)."""
+    def setting(ss, key, value):
+        return value is None or dict(ss.setting).get(key) == value
     cands = [ss for ss in study_scenes(preset, study) if ss.material == material
              and v_striker in ss.scene.striker_velocities
              and (gap_mean_nm is None or ss.gap_mean_nm == gap_mean_nm)
              and (extra_length_um is None or ss.extra_length_um == extra_length_um)
-             and (precompression_N is None or ss.scene.precompression == precompression_N)]
+             and (precompression_N is None or ss.scene.precompression == precompression_N)
+             and setting(ss, "radius_sd_m", radius_sd_m)
+             and setting(ss, "restitution_e", restitution_e)]
     if len(cands) != 1:
         raise GranchainError(f"{len(cands)} scenes of study '{study}' match; give its "
-                             "material, v_striker and gap_mean_nm, extra_length_um or "
-                             "precompression_N")
+                             "material, v_striker and gap_mean_nm, extra_length_um, "
+                             "precompression_N, radius_sd_m or restitution_e")
     ss = cands[0]
     alone = ss.scene.derive(**{"striker.velocity": float(v_striker)})
     engine = engine or ss.engines[0]

@@ -23,6 +23,14 @@ The field's chains (optional studies, ``FIELD_STUDIES``; beyond the chapter):
                   striker speed: v_g against c0 and Nesterenko's precompressed solitary wave
 - wall            the chapter's chain ending on a wall: the wall's force peak against v_s
 
+The chapter's questions (optional studies, ``QUESTION_STUDIES``; beyond Eq. 5.1):
+- radius_spread   sphere-size tolerance: the packed chain with each member's radii drawn
+                  about the nominal ones (``chain.radius_spread``, one scene per sd), beside
+                  the packed chain and the same chain with random gaps (``gap_mean_nm``)
+- dissipation     contact damping (effect ``contact_damping``, ``damping: {model, e}``): one
+                  scene per coefficient of restitution e, packed and with the mean gaps
+                  each material is given
+
 ``lammps_check`` may also name field chains (``chains``: a dimer, a chain on a wall, a
 preloaded chain...), which the LAMMPS-vs-reference comparison runs beside its own scenes
 (:func:`check_chain_scenes`; they are not part of its batch table).
@@ -41,7 +49,8 @@ from .. import analytic
 from ..errors import GranchainError
 from ..costmodel import resolve_auto
 from ..scene import RANDOM_GAPS, TOLERANCE_METHODS, Scene, apply_overrides, scene_from_dict
-from .config import FIELD_STUDIES, ConfigError, study_engine
+from .config import FIELD_STUDIES, OPTIONAL_STUDIES, QUESTION_STUDIES, ConfigError, \
+    study_engine
 
 STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length",
            "lammps_check")
@@ -62,13 +71,17 @@ class StudyScene:
     scene: Scene
     raw: dict
     chain: str = ""             # lammps_check: the name of a field chain ("": its own)
+    # a question study's setting columns and their values (tables.SETTING_COLUMNS): the
+    # radius spread, the contact damping
+    setting: tuple[tuple[str, object], ...] = ()
 
     @property
     def eq54(self) -> bool:
         """Does the table row get the Eq. 5.4 bound (a packed reference run)? Not for the
         field's studies, whose chains are packed (a wall, a preload: the bound is about
-        gaps), nor for lammps_check's field chains."""
-        return self.study not in FIELD_STUDIES and not self.chain
+        gaps), nor for the chapter's questions (a radius spread, contact damping: the bound
+        is about elastic chains of equal spheres), nor for lammps_check's field chains."""
+        return self.study not in OPTIONAL_STUDIES and not self.chain
 
     @property
     def packed_engine(self) -> str:
@@ -83,7 +96,16 @@ class StudyScene:
         return {"study": self.study, "material": self.material,
                 "gap_distribution": self.scene.gap_distribution,
                 "gap_mean_nm": self.gap_mean_nm, "extra_length_um": self.extra_length_um,
-                "seed": self.scene.gap_seed, "scene_hash": self.scene.hash}
+                "seed": self.seed, "scene_hash": self.scene.hash, **dict(self.setting)}
+
+    @property
+    def seed(self) -> int:
+        """The seed of the row's random draws: the gaps' (``gaps.seed``), or a packed
+        chain's radius spread's (``chain.radius_spread.seed``)."""
+        sp = self.scene.radius_spread
+        if sp is not None and self.scene.gap_distribution == "none":
+            return int(sp.seed)
+        return int(self.scene.gap_seed)
 
     @property
     def members(self) -> int:
@@ -142,17 +164,21 @@ def _build(raw: dict, where: str) -> Scene:
 
 def preset_studies(preset: dict) -> list[str]:
     """The ensemble studies of a preset, in order: every one of ``STUDIES``, then the
-    field's studies (``FIELD_STUDIES``) the preset has."""
-    return list(STUDIES) + [s for s in FIELD_STUDIES if (preset.get("studies") or {}).get(s)]
+    optional ones (``OPTIONAL_STUDIES``: the field's studies, the chapter's questions) the
+    preset has."""
+    return list(STUDIES) + [s for s in OPTIONAL_STUDIES
+                            if (preset.get("studies") or {}).get(s)]
 
 
 def study_scenes(preset: dict, study: str) -> list[StudyScene]:
     """The scenes of one study of a preset, in table order."""
     if study in FIELD_STUDIES:
         return field_scenes(preset, study)
+    if study in QUESTION_STUDIES:
+        return question_scenes(preset, study)
     if study not in STUDIES:
         raise ConfigError(f"unknown study '{study}'; use one of "
-                          f"{', '.join(STUDIES + FIELD_STUDIES)}")
+                          f"{', '.join(STUDIES + OPTIONAL_STUDIES)}")
     spec = preset["studies"][study]
     where = f"studies.{study}"
     dist = preset["base"]["gap_distribution"]
@@ -229,6 +255,95 @@ def field_scenes(preset: dict, study: str) -> list[StudyScene]:
                 raw["precompression"] = {"force": F0}
             out.append(StudyScene(study, len(out), material, 0.0, math.nan, engines,
                                   _build(raw, where), raw))
+    return out
+
+
+def _gaps(preset: dict, g: float) -> dict:
+    """The gaps section of a mean gap g in nm (0: packed), the preset's gap law."""
+    return {"distribution": "none"} if g == 0 else \
+        {"distribution": preset["base"]["gap_distribution"], "mean": float(g) * 1e-9}
+
+
+def _material_gaps(spec: dict, materials: list[str], where: str) -> dict[str, list[float]]:
+    """Each material's mean gaps (nm; 0: packed) of the dissipation study: ``gap_mean_nm`` a
+    list for every material, or a mapping material -> list (every study material needs
+    one, and none other is allowed)."""
+    gm = spec["gap_mean_nm"]
+    if not isinstance(gm, dict):
+        return {m: [float(g) for g in _as_list(gm)] for m in materials}
+    missing = [m for m in materials if m not in gm]
+    extra = [m for m in gm if m not in materials]
+    if missing or extra:
+        what = (f"no mean gaps for material '{missing[0]}'" if missing else
+                f"material '{extra[0]}' is not one of the study's ({', '.join(materials)})")
+        raise ConfigError(f"invalid configuration at '{where}.gap_mean_nm': {what}; give one "
+                          "list of mean gaps (nm, 0: packed) per material of the study")
+    return {m: [float(g) for g in _as_list(gm[m])] for m in materials}
+
+
+def question_scenes(preset: dict, study: str) -> list[StudyScene]:
+    """The scenes of a question study (none if the preset lacks it), per material, at the
+    study's one striker speed; each row carries the study's setting columns.
+
+    radius_spread: the packed chain (one chain, no spread), then one packed scene per sd in
+    ``sd_um`` whose members draw their radii about the nominal ones
+    (``chain.radius_spread``: the study's ``distribution``, seed ``seed`` or the base seed;
+    every sd draws the same normalised deviations, scaled), then the same chain with random
+    gaps of each mean in ``gap_mean_nm`` and no spread; ``realisations`` each.
+    dissipation: per mean gap of the material (0: packed, one chain; else
+    ``realisations``), one scene per coefficient of restitution in ``e``: the base effects
+    plus ``contact_damping`` with ``damping: {model, e}``."""
+    spec = (preset.get("studies") or {}).get(study)
+    if not spec:
+        return []
+    where = f"studies.{study}"
+    engine = study_engine(spec)
+    v = _as_list(spec["v_striker"])
+    reals = int(spec["realisations"])
+    materials = _study_materials(preset, spec)
+    out: list[StudyScene] = []
+
+    def add(material, suffix, gaps, realisations, gap_nm, setting, edit):
+        raw = _raw_scene(preset, spec, f"{study}-{material}-{suffix}", material, v,
+                         gaps, realisations, engine)
+        edit(raw)
+        out.append(StudyScene(study, len(out), material, float(gap_nm), math.nan, (engine,),
+                              _build(raw, where), raw, setting=tuple(setting)))
+
+    if study == "radius_spread":
+        dist = spec.get("distribution", "normal")
+        seed = int(spec.get("seed", preset["base"]["seed"]))
+        none = (("radius_spread_distribution", "none"), ("radius_sd_m", 0.0))
+        for material in materials:
+            add(material, "packed", {"distribution": "none"}, 1, 0.0, none, lambda raw: None)
+            for sd in _as_list(spec["sd_um"]):
+                sd_m = float(sd) * 1e-6
+
+                def spread(raw, sd_m=sd_m):
+                    raw["chain"]["radius_spread"] = {"distribution": dist, "sd": sd_m,
+                                                     "seed": seed}
+                add(material, f"sd{_fmt_num(sd)}um", {"distribution": "none"}, reals, 0.0,
+                    (("radius_spread_distribution", dist), ("radius_sd_m", sd_m)), spread)
+            for g in _as_list(spec.get("gap_mean_nm", [])):
+                add(material, f"gap{_fmt_num(g)}nm", _gaps(preset, g), reals, g, none,
+                    lambda raw: None)
+        return out
+
+    model = spec.get("model", "coeff_restitution")
+
+    def damped(e):
+        def edit(raw):
+            if "contact_damping" not in raw["effects"]:
+                raw["effects"].append("contact_damping")
+            raw["damping"] = {"model": model, "e": float(e)}
+        return edit
+
+    for material, gaps in _material_gaps(spec, materials, where).items():
+        for g in gaps:
+            for e in _as_list(spec["e"]):
+                add(material, f"gap{_fmt_num(g)}nm-e{_fmt_num(e)}", _gaps(preset, g),
+                    1 if g == 0 else reals, g,
+                    (("damping_model", model), ("restitution_e", float(e))), damped(e))
     return out
 
 
