@@ -110,10 +110,11 @@ def write_tables(root, sizes=TINY, materials=MATERIALS):
     for mat, tr in traces.items():
         gtables.write_npz(rdir / f"vibrometer_{mat}.npz", **tr)
     # the field's studies of the tiny preset (a precompressed chain, the chain on a wall),
-    # with a third load and speed for the precompression figure's curves
+    # with a third load and speed for the precompression figure's curves, and the
+    # chapter's questions (a radius spread, contact damping) as tiny has them
     preset["studies"]["precompression"]["force_N"] = [0, 0.01, 0.1]
     preset["studies"]["precompression"]["v_striker"] = [0.02, 0.1, 0.5]
-    for study in gw.FIELD_STUDIES:
+    for study in gw.OPTIONAL_STUDIES:
         rows = [gtables.member_row(ss.meta, r, ss.scene.n)
                 for ss in gw.study_scenes(preset, study) for r in run_scene(ss.scene)]
         n = gw.study_scenes(preset, study)[0].scene.n
@@ -135,7 +136,7 @@ def _paths(tdir, rdir):
     p["trace"] = rdir / "packed_trace_ss440c.npz"
     p["vibrometer"] = tdir / "vibrometer.csv"
     p["vibrometer_trace"] = rdir / "vibrometer_ss440c.npz"
-    for study in ("precompression", "wall"):
+    for study in ("precompression", "wall", "radius_spread", "dissipation"):
         p[study] = tdir / f"{study}.csv"
     return p
 
@@ -405,11 +406,108 @@ def _check_wall(fig, tdir, rdir):
     assert f"exponent {b:.4f}" in ax.get_title()
 
 
+def _osc(d):
+    """Fig. 5.3b's measure per row: (max - min)/mean of v_max,i / v_s, particles 2..13."""
+    p = d[VMAX_COLS[1:13]].to_numpy() / d["v_striker_m_s"].to_numpy()[:, None]
+    return (p.max(axis=1) - p.min(axis=1)) / p.mean(axis=1)
+
+
+def _first_up(x, y, target):
+    """The first x where the polyline y(x) reaches target (linear between points)."""
+    for k in range(len(x)):
+        if y[k] >= target:
+            return x[0] if k == 0 else \
+                x[k - 1] + (target - y[k - 1]) * (x[k] - x[k - 1]) / (y[k] - y[k - 1])
+    return math.nan
+
+
+def _spread_answer(tdir):
+    """From radius_spread.csv: (sds in um, median measure per sd, packed chain's measure,
+    gapped chains' median, 5th and 95th percentiles, sd at which the median reaches the
+    gapped chains' median, NaN if never; the packed chain at sd = 0)."""
+    rs = pd.read_csv(tdir / "radius_spread.csv")
+    rs["osc"] = _osc(rs)
+    med = rs[rs["radius_sd_m"] > 0].groupby("radius_sd_m")["osc"].median()
+    packed = float(rs[(rs["radius_sd_m"] == 0) & (rs["gap_mean_nm"] == 0)]["osc"].iloc[0])
+    g = rs[rs["gap_mean_nm"] > 0]["osc"]
+    x = np.concatenate([[0.0], med.index.to_numpy() * 1e6])
+    y = np.concatenate([[packed], med.to_numpy()])
+    return (med.index.to_numpy() * 1e6, med.to_numpy(), packed, float(g.median()),
+            float(g.quantile(0.05)), float(g.quantile(0.95)), _first_up(x, y, g.median()))
+
+
+def _check_radius_spread(fig, tdir, rdir):
+    rs = pd.read_csv(tdir / "radius_spread.csv")
+    ax, axp = fig.axes[:2]
+    sd, med, packed, gmed, g5, g95, hit = _spread_answer(tdir)
+    _assert_drawn(ax, sd, med, "median oscillation measure vs sd")
+    xr = [sd.min(), sd.max()]
+    _assert_drawn(ax, xr, [packed, packed], "the packed chain's measure")
+    _assert_drawn(ax, xr, [gmed, gmed], "the gapped chains' median measure")
+    _assert_drawn(ax, xr, [0.2, 0.2], "the chapter's ~20%")
+    title = ax.get_title()
+    if math.isnan(hit):
+        assert "never reaches" in title and f"{100 * gmed:.1f}%" in title, title
+    else:
+        assert f"sd = {hit:.3g} um" in title, title
+    idx = np.arange(1, N_CHAIN + 1)
+    for key, d in rs.groupby(["radius_sd_m", "gap_mean_nm"]):
+        prof = d[VMAX_COLS].to_numpy() / d["v_striker_m_s"].to_numpy()[:, None]
+        _assert_drawn(axp, idx, np.median(prof, axis=0), f"{key}: median v_max,i / v_s")
+
+
+def _dissipation_values(tdir):
+    """From dissipation.csv, per (material, gap): e ascending and the medians of v_max,1/v_s,
+    v_max,2/v_s, v_max,2/v_max,1 (recomputed from the peaks) and of arrived v_g; and the
+    largest e where the median ratio is 0.80 (linear between e), with v1, v2 there."""
+    di = pd.read_csv(tdir / "dissipation.csv")
+    di["v1"] = di["v_max_1_m_s"] / di["v_striker_m_s"]
+    di["v2"] = di["v_max_2_m_s"] / di["v_striker_m_s"]
+    di["ratio"] = di["v_max_2_m_s"] / di["v_max_1_m_s"]
+    out = {}
+    for (mat, gap), d in di.groupby(["material", "gap_mean_nm"]):
+        med = d.groupby("restitution_e")[["v1", "v2", "ratio"]].median()
+        vg = _arrived(d).groupby("restitution_e")["v_g_m_s"].median()
+        e, r = med.index.to_numpy(), med["ratio"].to_numpy() - 0.80
+        es = math.nan
+        for k in range(len(e) - 1, 0, -1):          # from the weakest damping down
+            if r[k] == 0 or r[k - 1] * r[k] < 0:
+                es = e[k] if r[k] == 0 else e[k - 1] - r[k - 1] * (e[k] - e[k - 1]) / (r[k] - r[k - 1])
+                break
+        at = {q: float(np.interp(es, e, med[q])) for q in ("v1", "v2")}
+        out[(mat, gap)] = {"e": e, "med": med, "vg": vg, "e_ratio": es, **at}
+    return out
+
+
+def _check_dissipation(fig, tdir, rdir):
+    vals = _dissipation_values(tdir)
+    panels = {"v1": _panel(fig, "v_max,1 / v_s"), "v2": _panel(fig, "v_max,2 / v_s"),
+              "ratio": _panel(fig, "v_max,2 / v_max,1"), "vg": _panel(fig, "v_g")}
+    for q, (val, half) in (("v1", (0.57, 0.09)), ("v2", (0.46, 0.07)), ("ratio", (0.80, 0.08))):
+        _assert_drawn(panels[q], [0, 1], [val, val], f"measured {q}")
+        spans = [p for p in panels[q].patches       # axhspan: x in axes, y in data units
+                 if np.allclose([p.get_bbox().y0, p.get_bbox().y1], [val - half, val + half],
+                                rtol=1e-12)]
+        assert spans, f"no measured band {val} +/- {half} on the {q} panel"
+    for (mat, gap), v in vals.items():
+        for q in ("v1", "v2", "ratio"):
+            _assert_drawn(panels[q], v["e"], v["med"][q], f"{mat} {gap} nm: median {q} vs e")
+        _assert_drawn(panels["vg"], v["vg"].index, v["vg"].to_numpy(), f"{mat} {gap} nm: v_g")
+        assert math.isfinite(v["e_ratio"]), (mat, gap)
+        for q in ("v1", "v2"):
+            _assert_drawn(panels[q], [v["e_ratio"]], [v[q]], f"{mat} {gap} nm: {q} at e*",
+                          rtol=1e-9)
+        _assert_drawn(panels["ratio"], [v["e_ratio"]], [0.80], f"{mat} {gap}: e*", rtol=1e-9)
+        _assert_drawn(panels["v1"], [v["e_ratio"]] * 2, [0, 1], f"{mat} {gap}: e* line",
+                      rtol=1e-9)
+
+
 FIGURE_DATA = {"fig5_1a": _check_fig5_1a, "fig5_1b": _check_fig5_1b,
                "fig5_1c": _check_fig5_1c, "fig5_3b": _check_fig5_3b,
                "fig5_3c": _check_fig5_3c, "fig5_4b": _check_fig5_4b,
                "fig5_2a": _check_fig5_2a, "vibrometer": _check_vibrometer,
-               "precompression": _check_precompression, "wall": _check_wall}
+               "precompression": _check_precompression, "wall": _check_wall,
+               "radius_spread": _check_radius_spread, "dissipation": _check_dissipation}
 
 
 def test_every_figure_has_its_data_check():

@@ -17,11 +17,16 @@ granchain.analysis.
 - :func:`vibrometer`  recorded/true v_max,1, v_max,2 and dt bias vs bandwidth (vibrometer);
 - :func:`precompression`  v_g vs v_s under dead loads F0, with c0 and Nesterenko's
   precompressed solitary wave (precompression; beyond the chapter);
-- :func:`wall`  the wall's force peak vs v_s, with the Hertz v_s^(6/5) (wall; beyond the chapter).
+- :func:`wall`  the wall's force peak vs v_s, with the Hertz v_s^(6/5) (wall; beyond the chapter);
+- :func:`radius_spread`  Fig. 5.3b's oscillation measure against the radius sd, beside 20 nm
+  gaps (radius_spread; beyond the chapter);
+- :func:`dissipation`  v_max,1, v_max,2, their ratio and v_g against the coefficient of
+  restitution, with the chapter's measured bands (dissipation; beyond the chapter).
 
 Modules: ``style`` (fixed rcParams, colours, deterministic saving), ``fig5_1`` (packed
 chain), ``fig5_2`` (the vibrometer), ``fig5_3`` (random gaps), ``fig5_4`` (loose chains), ``field``
-(the field's chains: precompression, wall). Output is deterministic: a
+(the field's chains: precompression, wall), ``questions`` (the chapter's questions:
+radius_spread, dissipation). Output is deterministic: a
 rerun on the same tables gives byte-identical PNG and PDF files.
 
 Command line (what the workflow's figure rules call)::
@@ -43,6 +48,7 @@ from .fig5_2 import fig5_2a, vibrometer
 from .fig5_3 import fig5_3b, fig5_3c
 from .fig5_4 import fig5_4b
 from .field import precompression, wall
+from .questions import dissipation, radius_spread
 
 # name -> (drawing function, the tables it reads, in argument order)
 FIGURES = {
@@ -56,6 +62,8 @@ FIGURES = {
     "vibrometer": (vibrometer, ["vibrometer"]),
     "precompression": (precompression, ["precompression"]),
     "wall": (wall, ["wall"]),
+    "radius_spread": (radius_spread, ["radius_spread"]),
+    "dissipation": (dissipation, ["dissipation"]),
 }
 # readers of the inputs that are not result tables
 READERS = {"trace": read_trace, "vibrometer_trace": read_vibrometer_trace}
@@ -88,7 +96,7 @@ def main(argv=None) -> int:
                                              "workflow's tables (PNG and PDF).")
     ap.add_argument("name", help=", ".join(FIGURES))
     for study in ("packed_sweep", "gap_profile", "gap_sweep", "extra_length", "vibrometer",
-                  "precompression", "wall"):
+                  "precompression", "wall", "radius_spread", "dissipation"):
         ap.add_argument("--" + study.replace("_", "-"), dest=study,
                         help=f"results/<preset>/tables/{study}.csv")
     ap.add_argument("--trace", help="results/<preset>/traces/packed_trace_<material>.npz")

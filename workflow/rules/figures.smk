@@ -185,9 +185,10 @@ rule fig5_4b:
         "../scripts/figure.py"
 
 
-# The field's studies (beyond the chapter), when the preset has them: one figure each,
-# named as the study, from its table (granchain/figures/field.py).
-for _study in FIELD:
+# The optional studies (beyond the chapter), when the preset has them: one figure each,
+# named as the study, from its table (granchain/figures/field.py: the field's chains,
+# granchain/figures/questions.py: the chapter's questions).
+for _study in OPTIONAL:
 
     rule:
         name:
@@ -230,8 +231,8 @@ rule thesis_comparison:
         extra_length=table_path("extra_length"),
         trace=trace_path("ss440c") if "ss440c" in trace_materials() else [],
         vibrometer=f"{RESULTS}/tables/vibrometer.csv" if PLAN.vibrometer else [],
-        precompression=table_path("precompression") if "precompression" in FIELD else [],
-        wall=table_path("wall") if "wall" in FIELD else [],
+        precompression=table_path("precompression") if "precompression" in OPTIONAL else [],
+        wall=table_path("wall") if "wall" in OPTIONAL else [],
         code=THESIS_CODE,
     output:
         csv=report(

@@ -1,0 +1,205 @@
+"""The chapter's questions, beyond Eq. 5.1: can a sphere-size tolerance alone make Fig.
+5.3b's oscillation (radius_spread study), and which contact dissipation gives the measured
+peaks of Fig. 5.2 (dissipation study)?
+
+Draws into ``{out}.png`` and ``{out}.pdf`` from tables/radius_spread.csv and
+tables/dissipation.csv; the numbers come from granchain.analysis (``spread_oscillation``,
+``first_reaching``, ``dissipation_curves``, ``dissipation_match``, ``MEASURED_PEAKS``).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.ticker import FuncFormatter
+
+from ..analysis import (MEASURED_PEAKS, PROBES, dissipation_curves, dissipation_match,
+                        first_reaching, label, n_particles, peak_profile, reference_engine,
+                        spread_oscillation)
+from .style import color, colormap, drawn, figure, material_style, save
+
+CHAPTER_OSCILLATION = 0.20      # Fig. 5.3b: "peak velocity oscillates by ~20%"
+
+
+def _pct(x: float) -> str:
+    return "nan" if not np.isfinite(x) else f"{100 * x:.1f}%"
+
+
+@drawn
+def radius_spread(df: pd.DataFrame, out) -> list[Path]:
+    """Left: the chapter's Fig. 5.3b measure, (max - min)/mean of v_max,i / v_s over
+    particles 2..13, against the radius sd (log scale): median over each sd's chains
+    (line) and their 5-95% band; the packed chain's value (dashed), the chains with random
+    gaps (median, dash-dotted, and 5-95% band) and the chapter's ~20% (dotted). The title
+    says at which sd the median reaches the gapped chains' median, or that it does not in
+    the study's range. Right: the median v_max,i / v_s along the chain per sd, the packed
+    chain and the gapped chains."""
+    osc = spread_oscillation(df)
+    d = reference_engine(df)
+    fig, (ax, axp) = figure(ncols=2, size=(11.0, 4.4))
+    mats = list(dict.fromkeys(osc["material"]))
+    answers = []
+    for mat in mats:
+        o = osc[osc["material"] == mat]
+        packed, spread, gaps = (o[o["kind"] == k] for k in ("packed", "spread", "gaps"))
+        x = spread["radius_sd_m"].to_numpy(dtype=float) * 1e6
+        if x.size:
+            ax.fill_between(x, spread["osc_p5"], spread["osc_p95"], color=color(mat),
+                            alpha=0.25, lw=0, label="5-95% of chains")
+            ax.plot(x, spread["osc_median"].to_numpy(dtype=float), "o-", color=color(mat),
+                    label=f"{label(mat)}, radius spread: median over "
+                          f"{int(spread['n'].max())} chains")
+        xr = [x.min(), x.max()] if x.size else [0.1, 1.0]
+        pv = float(packed["osc_median"].iloc[0]) if len(packed) else np.nan
+        if len(packed):
+            ax.plot(xr, [pv, pv], "--", color="k", lw=1.0,
+                    label=f"packed chain, equal spheres: {_pct(pv)}")
+        for _, g in gaps.iterrows():
+            ax.fill_between(xr, [g["osc_p5"]] * 2, [g["osc_p95"]] * 2, color="#e377c2",
+                            alpha=0.25, lw=0)
+            ax.plot(xr, [g["osc_median"]] * 2, "-.", color="#8c1d6b",
+                    label=f"{g['gap_mean_nm']:g} nm gaps, equal spheres: median "
+                          f"{_pct(g['osc_median'])} (5-95%: {_pct(g['osc_p5'])}-"
+                          f"{_pct(g['osc_p95'])}, {int(g['n'])} chains)")
+            # the sd at which the spread's median reaches the gapped chains' (sd 0: packed)
+            sx = np.concatenate([[0.0], x]) if len(packed) else x
+            sy = np.concatenate([[pv], spread["osc_median"].to_numpy(dtype=float)]) \
+                if len(packed) else spread["osc_median"].to_numpy(dtype=float)
+            sd_hit = first_reaching(sx, sy, float(g["osc_median"]))
+            answers.append(
+                f"{label(mat)}: the median reaches the {g['gap_mean_nm']:g} nm gaps' "
+                f"{_pct(g['osc_median'])} at sd = {sd_hit:.3g} um" if np.isfinite(sd_hit) else
+                f"{label(mat)}: the median never reaches the {g['gap_mean_nm']:g} nm gaps' "
+                f"{_pct(g['osc_median'])} for sd <= {x.max():g} um (largest "
+                f"{_pct(sy[-1])})")
+        ax.plot(xr, [CHAPTER_OSCILLATION] * 2, ":", color="0.3", lw=1.2,
+                label="chapter: ~20% with 20 nm gaps (Fig. 5.3b)")
+    ax.set_xscale("log")
+    ax.set_xlabel("standard deviation of the radii, sd (um), log scale")
+    ax.set_ylabel(f"(max - min)/mean of v_max,i, i = {PROBES[0]}..{PROBES[1]}")
+    ax.set_ylim(0.0, max(0.3, 1.25 * float(np.nanmax(osc["osc_p95"]))))
+    ax.set_title("Sphere-size tolerance alone: spread of v_max along the chain\n"
+                 + "; ".join(answers), fontsize=7.5)
+    ax.legend(loc="upper left", fontsize=6.5)
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    # right: the median peak profiles (5-95% bands: the gaps and the largest sd)
+    n = n_particles(d)
+    idx = np.arange(1, n + 1)
+    sds = sorted({float(s) for s in d["radius_sd_m"] if s > 0})
+    cmap = colormap("viridis")
+    col = {s: cmap(0.9 * k / max(len(sds) - 1, 1)) for k, s in enumerate(sds)}
+    for mat in mats:
+        dm = d[d["material"] == mat]
+        for key, g in dm.groupby(["radius_sd_m", "gap_mean_nm"], sort=True):
+            prof = peak_profile(g, "radius_spread", last=n)
+            med = np.median(prof, axis=0)
+            lo, hi = np.percentile(prof, [5, 95], axis=0)
+            sd, gap = float(key[0]), float(key[1])
+            if gap > 0:
+                axp.fill_between(idx, lo, hi, color="#e377c2", alpha=0.25, lw=0)
+                axp.plot(idx, med, "o-", color="#8c1d6b", ms=3,
+                         label=f"{gap:g} nm gaps (median, 5-95%)")
+            elif sd > 0:
+                if sd == sds[-1]:
+                    axp.fill_between(idx, lo, hi, color=col[sd], alpha=0.25, lw=0)
+                axp.plot(idx, med, "-", color=col[sd], lw=1.0,
+                         label=f"sd = {sd * 1e6:g} um (median" +
+                               (", 5-95%)" if sd == sds[-1] else ")"))
+            else:
+                axp.plot(idx, med, "s-", color="k", mfc="none", ms=4, label="packed chain")
+    axp.set_xlabel(f"particle index (1 = striker, {n} = the free end)")
+    axp.set_ylabel("peak velocity v_max,i / v_s")
+    axp.set_xticks(idx)
+    axp.set_ylim(0.35, 1.05)
+    vss = ", ".join(f"{v:g}" for v in sorted(set(d["v_striker_m_s"].astype(float))))
+    axp.set_title(f"{'/'.join(label(m) for m in mats)} chain, v_s = {vss} m/s: peak profiles",
+                  fontsize=8.5)
+    axp.legend(loc="lower center", fontsize=6.5, ncol=3)
+    fig.suptitle("Can a sphere-size tolerance alone make the chapter's ~20% oscillation "
+                 "(Fig. 5.3b)? (beyond the chapter)", fontsize=9)
+    fig.tight_layout()
+    return save(fig, out)
+
+
+# the panels of the dissipation figure: (curve quantity, y label, measured band key)
+DISSIPATION_PANELS = (("v1", "v_max,1 / v_s (particle 2)", "v1"),
+                      ("v2", "v_max,2 / v_s (particle 13)", "v2"),
+                      ("ratio", "v_max,2 / v_max,1", "ratio"),
+                      ("vg", "v_g (m/s), peak times", None))
+
+
+@drawn
+def dissipation(df: pd.DataFrame, out) -> list[Path]:
+    """v_max,1 / v_s, v_max,2 / v_s, v_max,2 / v_max,1 and v_g against the coefficient of
+    restitution e, one curve per material and mean gap (median over its chains; 5-95%
+    band for the gapped ones), with the chapter's measured bands (grey: value and its 95%
+    interval, Fig. 5.2b, 5.2c). Dotted verticals: for each curve, the largest e at which
+    its median v_max,2/v_max,1 is the measured 0.80, marked on every panel at the curve's
+    value there."""
+    c = dissipation_curves(df)
+    m = dissipation_match(df)
+    fig, axes = figure(ncols=2, nrows=2, size=(10.0, 7.6), sharex=True)
+    axes = axes.ravel()
+    groups = list(c.groupby(["material", "gap_mean_nm", "v_striker_m_s"], sort=False))
+    several_v = c["v_striker_m_s"].nunique() > 1
+    order = list(dict.fromkeys(c["material"]))
+    for ax, (q, ylab, band_key) in zip(axes, DISSIPATION_PANELS):
+        if band_key is not None:
+            val, half = MEASURED_PEAKS[band_key]
+            ax.axhspan(val - half, val + half, color="0.75", alpha=0.45, lw=0)
+            ax.axhline(val, color="0.35", lw=1.0,
+                       label=f"measured (chapter, 95%): {val:g} +/- {half:g}")
+            left = q == "ratio"          # where the panel's curves leave room
+            ax.text(0.02 if left else 0.98, val - half, f" measured: {val:g} +/- {half:g} ",
+                    fontsize=7, color="0.25", ha="left" if left else "right", va="bottom",
+                    transform=ax.get_yaxis_transform())
+        for (mat, gap, vs), g in groups:
+            e = g["restitution_e"].to_numpy(dtype=float)
+            what = f"{label(mat)}, " + ("packed" if gap == 0 else f"{gap:g} nm gaps") + \
+                (f", v_s = {vs:g} m/s" if several_v else "")
+            if gap > 0:
+                ax.fill_between(e, g[f"{q}_p5"], g[f"{q}_p95"], color=color(mat), alpha=0.18,
+                                lw=0)
+                ax.plot(e, g[f"{q}_median"].to_numpy(dtype=float), "s--", color=color(mat),
+                        ms=3.5, mfc="none", label=what)
+            else:
+                # packed chains of different materials coincide (Hertz scaling): the first
+                # drawn large and hollow, the next small and filled on top
+                ax.plot(e, g[f"{q}_median"].to_numpy(dtype=float), "o-", color=color(mat),
+                        label=what, **material_style(mat, order.index(mat)))
+            r = m[(m["material"] == mat) & (m["gap_mean_nm"] == gap)
+                  & (m["v_striker_m_s"] == vs)].iloc[0]
+            if np.isfinite(r["e_ratio"]):
+                ax.axvline(r["e_ratio"], color=color(mat), ls=":", lw=0.9)
+                # the curve's value there: the ratio is 0.80 by construction
+                y = MEASURED_PEAKS["ratio"][0] if q == "ratio" else r[q]
+                ax.plot([r["e_ratio"]], [y], "*", color=color(mat), ms=9, mec="k", mew=0.5)
+        ax.set_ylabel(ylab)
+        ax.set_title(ylab + " against e", fontsize=8.5)
+    for ax in axes[2:]:
+        ax.set_xlabel("coefficient of restitution e (contact_damping, "
+                      f"{df['damping_model'].iloc[0]})")
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+    handles, _ = axes[3].get_legend_handles_labels()
+    handles += [Patch(color="0.75", alpha=0.6, label="measured, chapter: value and 95% "
+                      "interval"),
+                Line2D([], [], color="0.3", ls=":", marker="*", ms=8, mec="k", mew=0.5,
+                       label="e where the median v_max,2/v_max,1 = 0.80")]
+    axes[3].legend(handles=handles, loc="center", bbox_to_anchor=(0.5, 0.7), fontsize=6.5,
+                   ncol=2)
+    lines = []
+    for _, r in m.iterrows():
+        gap = "packed" if r["gap_mean_nm"] == 0 else f"{r['gap_mean_nm']:g} nm"
+        lines.append(
+            f"{label(r['material'])} {gap}: ratio 0.80 at e = {r['e_ratio']:.3f}, there "
+            f"v_max,1 = {r['v1']:.3f} v_s, v_max,2 = {r['v2']:.3f} v_s (measured 0.57, 0.46: "
+            f"x {r['striker_v1']:.3f}, x {r['striker_v2']:.3f})"
+            if np.isfinite(r["e_ratio"]) else
+            f"{label(r['material'])} {gap}: the ratio never reaches 0.80 "
+            f"(e = {r['e_max']:g}: {r['ratio_at_e_max']:.3f})")
+    fig.suptitle("Contact dissipation against the chapter's measured peaks (beyond the "
+                 "chapter)\n" + "\n".join(lines), fontsize=7.5)
+    fig.tight_layout()
+    return save(fig, out)
