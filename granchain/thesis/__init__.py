@@ -43,21 +43,22 @@ REPORTED = ["vmax_slope", "vmax1_over_vs", "vmax2_over_vs", "vmax_ratio", "vg_ne
 NEEDS_EXPERIMENT = ["fitted_gap_316", "fitted_gap_440c"]
 
 STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length",
-           "vibrometer", "precompression", "wall")
+           "vibrometer", "precompression", "wall", "radius_spread", "dissipation")
 
 
 def comparison(packed_sweep: pd.DataFrame, packed_trace: pd.DataFrame | None = None,
                gap_profile: pd.DataFrame | None = None, gap_sweep: pd.DataFrame | None = None,
                extra_length: pd.DataFrame | None = None, trace: dict | None = None,
                radius: float | None = None, vibrometer: pd.DataFrame | None = None,
-               precompression: pd.DataFrame | None = None, wall: pd.DataFrame | None = None
-               ) -> pd.DataFrame:
+               precompression: pd.DataFrame | None = None, wall: pd.DataFrame | None = None,
+               radius_spread: pd.DataFrame | None = None,
+               dissipation: pd.DataFrame | None = None) -> pd.DataFrame:
     """The comparison table (one row per chapter number, columns ``COLUMNS``);
     ``radius`` (m) of the spheres (the tables do not carry it; default 150 um). Only
     packed_sweep is required; rows whose table is not given hold NaN (the
     pulse_width row needs the trace and is left out without it; the vibrometer rows
     need the vibrometer study's table, the field rows the precompression and wall
-    studies' tables)."""
+    studies' tables, the question rows the radius_spread and dissipation studies')."""
     pk = R.packed_chain(packed_sweep, radius)
     rows = (R.packed_chain_rows(pk)
             + R.group_velocity_rows(pk)
@@ -66,7 +67,9 @@ def comparison(packed_sweep: pd.DataFrame, packed_trace: pd.DataFrame | None = N
             + R.bound_rows(pk, gap_sweep, extra_length)
             + R.energy_rows(pk, packed_trace, trace)
             + R.instrument_rows(pk, vibrometer)
-            + R.field_rows(pk, precompression, wall))
+            + R.field_rows(pk, precompression, wall)
+            + R.tolerance_rows(pk, radius_spread)
+            + R.dissipation_rows(pk, dissipation))
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
@@ -89,7 +92,10 @@ def markdown(df: pd.DataFrame, title: str = "Thesis comparison") -> str:
              "project's values computed from the workflow's tables; ratio = project/chapter. "
              "`experiment` rows compare the chapter's measurements with this model; "
              "`theory (beyond the chapter)` rows compare the field's chains (a precompressed "
-             "chain, a chain on a wall) with the theory they test.", "",
+             "chain, a chain on a wall) with the theory they test; `simulation (beyond the "
+             "chapter)` and `experiment (beyond the chapter)` rows put the chapter's questions "
+             "to its own chain (a sphere-size tolerance, contact damping) and compare the "
+             "answers with its simulated and measured numbers.", "",
              "| quantity | kind | chapter | this project | ratio | evidence | reason |",
              "|---|---|---|---|---|---|---|"]
     for r in df.itertuples():

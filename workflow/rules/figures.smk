@@ -233,6 +233,8 @@ rule thesis_comparison:
         vibrometer=f"{RESULTS}/tables/vibrometer.csv" if PLAN.vibrometer else [],
         precompression=table_path("precompression") if "precompression" in OPTIONAL else [],
         wall=table_path("wall") if "wall" in OPTIONAL else [],
+        radius_spread=table_path("radius_spread") if "radius_spread" in OPTIONAL else [],
+        dissipation=table_path("dissipation") if "dissipation" in OPTIONAL else [],
         code=THESIS_CODE,
     output:
         csv=report(
