@@ -19,7 +19,9 @@ A scene with an end wall (``walls.end``) adds the wall's observables
 and the time of that peak ``t_wall_peak`` (both NaN, and equal, when neither engine saw
 the peak end), and its static force ``wall_force_static`` (the preload F0, 0 without
 one). Measured: <= 5e-10 relative on the peak and its time over the dimer, walled-gapped
-and preloaded chains of tests/test_lammps_field_chains.py, the static force to 2e-14.
+and preloaded chains of tests/test_lammps_field_chains.py, <= 1.5e-9 on the peak (5.3e-10
+on its time) over the default preset's field chains at 0.01-1 m/s (lammps_check.chains),
+the static force to 2e-14.
 """
 from __future__ import annotations
 
@@ -55,7 +57,7 @@ WHY_RESIDUAL = ("not independent: LAMMPS has no per-atom output of these works (
 WHY_BALANCE_RESIDUAL = "not independent: the LAMMPS ledger balances by construction (residual)"
 WHY_BALANCE = "both balances carry the same Verlet error"
 WHY_WALL = ("same wall law (LAMMPS fix wall/gran, docs/lammps_laws.md 12) and Verlet: rounding "
-            "only (measured <= 5e-10); 1e-6 still resolves the 2e-4 of mixing the wall's E "
+            "only (measured <= 1.5e-9); 1e-6 still resolves the 2e-4 of mixing the wall's E "
             "and nu apart")
 WHY_WALL_T = "same integrator and sample grid: the wall's peak time differs by rounding only"
 WHY_WALL_STATIC = ("the preload F0 both engines start from (rounding only, measured 2e-14); "
