@@ -622,6 +622,58 @@ def test_tiny_field_studies(tiny_run):
     assert {c["chain"] for c in prov["comparisons"]} == {"chapter", "dimer", "wall", "preloaded"}
 
 
+def test_tiny_question_studies(tiny_run):
+    """radius_spread and dissipation: tables with their setting columns (a radius spread's
+    distribution and sd, the damping's model and e) from the study, no Eq. 5.4 bound,
+    summaries per setting, provenance with each scene's setting, figures and the thesis
+    rows; a member of each re-runs alone to its row, byte for byte."""
+    P = tiny_preset()
+    root = tiny_run / "results" / "tiny"
+    settings = {"radius_spread": tables.SPREAD_COLUMNS, "dissipation": tables.DAMPING_COLUMNS}
+    for study in gw.QUESTION_STUDIES:
+        df = _tables(tiny_run, study)
+        scenes = gw.study_scenes(P, study)
+        assert list(df.columns) == tables.columns(P["base"]["n"], settings=settings[study])
+        assert len(df) == sum(ss.members for ss in scenes) and df["wave_arrived"].all()
+        assert (df["status"] == "passed").all() and df["v_g_bound_eq54_m_s"].isna().all()
+        by_hash = {ss.scene.hash: dict(ss.setting) for ss in scenes}
+        for col in settings[study]:
+            assert (df[col] == df["scene_hash"].map(lambda h: by_hash[h][col])).all(), col
+        summ = tables.read_csv(root / "tables" / f"{study}_summary.csv")
+        assert list(summ.columns) == tables.summary_columns(settings=settings[study])
+        assert summ["n"].sum() == len(df) and len(summ) == len(scenes)
+        prov = json.loads((root / "tables" / f"{study}.provenance.json").read_text())
+        assert "not computed" in prov["eq54_bound"] and len(prov["settings"]) == len(scenes)
+        for ext in ("png", "pdf"):
+            assert (root / "figures" / f"{study}.{ext}").stat().st_size > 0
+    rs = _tables(tiny_run, "radius_spread")
+    spread = rs[rs["radius_sd_m"] > 0]
+    assert (spread["radius_spread_distribution"] == P["studies"]["radius_spread"].get(
+        "distribution", "normal")).all() and (spread["seed"] == P["base"]["seed"]).all()
+    assert sorted(set(spread["radius_sd_m"])) == pytest.approx(
+        [x * 1e-6 for x in P["studies"]["radius_spread"]["sd_um"]], rel=1e-15)
+    di = _tables(tiny_run, "dissipation")
+    assert sorted(set(di["restitution_e"])) == sorted(P["studies"]["dissipation"]["e"])
+    # damping takes energy, and more of it at lower e; none at e = 1
+    packed = di[di["gap_mean_nm"] == 0].sort_values("restitution_e")
+    for _, g in packed.groupby("material"):
+        w = g["work_damping_J"].to_numpy()
+        assert w[-1] == 0 and (w[:-1] < 0).all() and (np.diff(w) > 0).all(), w
+    th = pd.read_csv(root / "tables" / "thesis_comparison.csv").set_index("id")
+    for id_ in ("spread_oscillation", "diss_e_ratio_packed", "diss_e_ratio_gapped",
+                "diss_vmax1_at_e", "diss_vmax2_at_e", "diss_striker_factor"):
+        assert math.isfinite(th.loc[id_, "project_value"]), id_
+    # one member of each, alone
+    for study, row, key in (("radius_spread", spread.iloc[-1], "radius_sd_m"),
+                            ("dissipation", di[di["gap_mean_nm"] > 0].iloc[-1], "restitution_e")):
+        new = gw.rerun_member(P, study, material=row["material"],
+                              v_striker=row["v_striker_m_s"], realisation=int(row["realisation"]),
+                              gap_mean_nm=row["gap_mean_nm"], **{key: row[key]})
+        a = tables.csv_text(tables.study_table([row.to_dict()], P["base"]["n"]))
+        b = tables.csv_text(tables.study_table([new], P["base"]["n"]))
+        assert a == b, study
+
+
 def test_tiny_lammps_agrees_with_reference(tiny_run):
     df = _tables(tiny_run, "lammps_check")
     key = ["scene_hash", "v_striker_m_s", "realisation"]
@@ -731,7 +783,7 @@ def test_killed_run_resumes_to_the_same_tables(tiny_run, tmp_path):
         assert len(df) == want, (p, len(df), want)
     for p in done_tables:
         df = tables.read_csv(p)
-        if p.stem in gw.STUDIES:
+        if p.stem in gw.preset_studies(P):
             assert len(df) == sum(ss.members * len(ss.engines)
                                   for ss in gw.study_scenes(P, p.stem)), p
     # SIGKILL left snakemake's lock behind (a SIGTERM would have removed it): unlock first
@@ -762,7 +814,8 @@ def tiny_lammps_run(tmp_path_factory):
     (vv / "verlet.yaml").write_text("presets: {tiny: {base: {method: verlet}, studies: "
                                     "{precompression: {method: verlet}, wall: {method: "
                                     "verlet}}}}\n")
-    targets = [f"results/tiny/tables/{s}.csv" for s in gw.ENSEMBLE_STUDIES + gw.FIELD_STUDIES]
+    targets = [f"results/tiny/tables/{s}.csv"
+               for s in gw.ENSEMBLE_STUDIES + gw.OPTIONAL_STUDIES]
     t0 = time.monotonic()
     snakemake(vv, "--cores", "2", *targets, "--configfile", "verlet.yaml",
               "--config", "preset=tiny", timeout=900)
@@ -778,21 +831,25 @@ def test_tiny_on_lammps_agrees_with_reference_verlet(tiny_lammps_run):
     lmp_wd, ref_wd = tiny_lammps_run
     root = lmp_wd / "results" / "tiny"
     P = gw.load_config(CONFIG, "tiny", engine="lammps")[1]
-    for study in gw.ENSEMBLE_STUDIES + gw.FIELD_STUDIES:
+    for study in gw.ENSEMBLE_STUDIES + gw.OPTIONAL_STUDIES:
         lmp, ref = _tables(lmp_wd, study), _tables(ref_wd, study)
-        scene = gw.study_scenes(P, study)[0].scene
+        ss0 = gw.study_scenes(P, study)[0]
+        scene = ss0.scene
         assert list(lmp.columns) == list(ref.columns) == \
-            tables.columns(scene.n, walled=scene.wall is not None)
+            tables.columns(scene.n, walled=scene.wall is not None,
+                           settings=tables.setting_columns(ss0.meta))
         assert len(lmp) == len(ref) == sum(ss.members for ss in gw.study_scenes(P, study))
         assert (lmp["engine"] == "lammps").all() and (lmp["method"] == "lammps-verlet").all()
         assert (ref["engine"] == "reference").all() and (ref["method"] == "verlet").all()
         prov = json.loads((root / "tables" / f"{study}.provenance.json").read_text())
         assert prov["engines"] == ["lammps"] and prov["methods"] == ["lammps-verlet"]
         assert prov["lammps_version"] and ("LAMMPS engine" in prov["eq54_bound"]
-                                           or study in gw.FIELD_STUDIES)
+                                           or study in gw.OPTIONAL_STUDIES)
         # members matched by what they are: NaN extra lengths (gap studies) made comparable;
-        # the field's members also by their load (the static wall force, to rounding)
-        key = MEMBER_KEY + (["load"] if study in gw.FIELD_STUDIES else [])
+        # the field's members also by their load (the static wall force, to rounding), the
+        # question studies' by their setting (radius sd, e)
+        key = MEMBER_KEY + (["load"] if study in gw.FIELD_STUDIES else []) + \
+            list(tables.setting_columns(lmp.columns))
         if study in gw.FIELD_STUDIES:
             lmp["load"] = lmp["wall_force_static_N"].round(9)
             ref["load"] = ref["wall_force_static_N"].round(9)
@@ -804,8 +861,8 @@ def test_tiny_on_lammps_agrees_with_reference_verlet(tiny_lammps_run):
             assert (lmp[col] == ref[col]).all(), (study, col)
         v = [c for c in lmp.columns if c.startswith("vmax_p")] + \
             ["v_max_1_m_s", "v_max_2_m_s", "v_g_m_s", "v_g_front_m_s"] + \
-            (["v_g_bound_eq54_m_s"] if study not in gw.FIELD_STUDIES else
-             ["wall_force_max_N", "t_wall_peak_s"])
+            (["v_g_bound_eq54_m_s"] if study not in gw.OPTIONAL_STUDIES else
+             ["wall_force_max_N", "t_wall_peak_s"] if study in gw.FIELD_STUDIES else [])
         rel_v = ((lmp[v] - ref[v]).abs() / ref[v].abs()).max().max()
         rel_t = ((lmp["dt_peak_s"] - ref["dt_peak_s"]).abs() / ref["dt_peak_s"]).max()
         # the works LAMMPS outputs itself; particle (+ rolling) friction and the balance
