@@ -345,6 +345,7 @@ def _print_joint_inference(res, out=None) -> None:
 def check_joint_grid(base, args) -> None:
     """Refuse a joint inference whose grid (mean gaps x restitutions x striker speeds x
     realisations) is beyond the whole-run limits, as :func:`check_grid`."""
+    from .errors import SceneError
     from .inference import check_joint_options, gap_nodes, joint_scene
     check_joint_options(args.gap_max_nm * 1e-9, args.gap_points, args.e_min, args.e_points,
                         args.realisations)
@@ -354,8 +355,13 @@ def check_joint_grid(base, args) -> None:
     speeds = sorted({float(v) for v in base.striker_velocities})
     base = base.derive(striker={"velocity": speeds})
     gmax = args.gap_max_nm * 1e-9
-    ends = [run_estimate(resolve_auto(joint_scene(base, g, args.e_min, R)))
-            for g in (0.0, gmax)]
+    try:
+        ends = [run_estimate(resolve_auto(joint_scene(base, g, args.e_min, R)))
+                for g in (0.0, gmax)]
+    except SceneError as exc:
+        raise GranchainError(f"--e-min {args.e_min:g}: the base scene at this e is refused "
+                             f"({exc}); raise --e-min, or give the base scene an integrator "
+                             "that resolves the damping (method event or adaptive)") from None
     # steps grow linearly with the mean gap: the nodes' mean gap is gmax mean((k/(G-1))^2)
     f = float((gap_nodes(1.0, G)).mean())
     est = {k: G * E * (ends[0][k] + f * (ends[1][k] - ends[0][k]))

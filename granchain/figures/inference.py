@@ -187,7 +187,7 @@ def plot_joint_inference(res, meas, base, path, force: bool = False) -> Path:
         ax.errorbar(meas.v, data[k], yerr=errs[k], fmt="o", color="k", ms=4,
                     label="measurements")
         ax.set_xscale("log")
-        plain_log(ax, "x")
+        plain_log(ax, "x", subs=(1.0, 2.0, 5.0))
         ax.set_xlabel("striker velocity v_s (m/s)")
         ax.set_ylabel(labels[k])
     a_t.legend(loc="upper right")
