@@ -404,17 +404,7 @@ def cmd_infer(args) -> int:
     res = infer(base, meas, gap_max=args.gap_max_nm * 1e-9, gap_points=args.gap_points,
                 realisations=args.realisations, cache_dir=None if args.no_cache else args.cache_dir,
                 source=f"{args.measurements}, ", prior=args.prior)
-    doc = dict(res.to_json(), measurements=str(args.measurements))
-    if args.json and not args.out:
-        print(json.dumps(_jsonable(doc)))
-    elif not args.json:
-        _print_inference(res)
-    if args.out:
-        atomic_write_text(args.out, json.dumps(_jsonable(doc), indent=1) + "\n", args.force, "--out")
-    if args.plot:
-        from .figures.inference import plot_inference
-        plot_inference(res, meas, base, args.plot, force=args.force)
-    return 0
+    return _report_inference(args, res, meas, base, _print_inference, "plot_inference")
 
 
 def _infer_joint(args, meas, base) -> int:
@@ -424,16 +414,24 @@ def _infer_joint(args, meas, base) -> int:
                       e_min=args.e_min, e_points=args.e_points, realisations=args.realisations,
                       cache_dir=None if args.no_cache else args.cache_dir,
                       source=f"{args.measurements}, ", prior=args.prior)
+    return _report_inference(args, res, meas, base, _print_joint_inference,
+                             "plot_joint_inference")
+
+
+def _report_inference(args, res, meas, base, print_human, plot: str) -> int:
+    """An inference's output: its JSON document (stdout with --json, the file --out) or
+    the human summary, and with --plot the figure of ``figures.inference.<plot>``
+    (matplotlib is loaded only then)."""
     doc = dict(res.to_json(), measurements=str(args.measurements))
     if args.json and not args.out:
         print(json.dumps(_jsonable(doc)))
     elif not args.json:
-        _print_joint_inference(res)
+        print_human(res)
     if args.out:
         atomic_write_text(args.out, json.dumps(_jsonable(doc), indent=1) + "\n", args.force, "--out")
     if args.plot:
-        from .figures.inference import plot_joint_inference
-        plot_joint_inference(res, meas, base, args.plot, force=args.force)
+        from .figures import inference as figs
+        getattr(figs, plot)(res, meas, base, args.plot, force=args.force)
     return 0
 
 
