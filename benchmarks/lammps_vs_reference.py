@@ -118,7 +118,7 @@ def main(argv=None):
     import MDAnalysis  # noqa: F401  (imported before timing, as the compile above)
 
     t0 = time.perf_counter()
-    ref = list(reference.run(scene, gaps, vs, method="verlet", progress=False))
+    ref = list(reference.run(scene, gaps, vs, method="verlet", progress=False, trace=True))
     t_ref = time.perf_counter() - t0
     print(f"reference engine, batched (numba): {t_ref:.2f} s", flush=True)
 

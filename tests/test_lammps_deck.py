@@ -230,7 +230,7 @@ def test_hertz_run_matches_reference_verlet(tmp_path):
     d = read_dump(tmp_path / "traj.dump")
     last = max(d)
     traj = next(reference.run(scene, np.zeros((1, scene.n - 1)), np.array([0.1]),
-                              method="verlet"))
+                              method="verlet", trace=True))
     assert traj.t[-1] == pytest.approx(last * 1e-9, rel=1e-12)
     v_lmp = d[last]["vx"][1]
     v_ref = traj.v[-1, 1]
@@ -259,7 +259,7 @@ def test_gapped_ensemble_with_effects_matches_reference_verlet(tmp_path):
     v = np.array([d[s]["vx"] for s in sorted(d)])
     n = scene.n
     for b, traj in enumerate(reference.run(scene, gaps, np.array([m.v_striker for m in mem]),
-                                           method="verlet")):
+                                           method="verlet", trace=True)):
         np.testing.assert_allclose(v[:, b * n:(b + 1) * n], traj.v, rtol=0, atol=1e-8)
 
 

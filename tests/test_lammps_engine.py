@@ -72,7 +72,7 @@ def test_cross_validation_lammps_equals_reference_verlet(name, tmp_path):
         assert bal.ok.all() and bal["diff"].max() < 1e-9
     # and sample by sample
     gaps, vs = _members(cmp.scene)
-    for r, lt in zip(reference.run(cmp.scene, gaps, vs, method="verlet"),
+    for r, lt in zip(reference.run(cmp.scene, gaps, vs, method="verlet", trace=True),
                      L.run(cmp.scene, gaps, vs)):
         assert lt.meta["method"] == "lammps-verlet" and lt.status == r.status == "passed"
         np.testing.assert_allclose(lt.t, r.t, rtol=1e-12, atol=0)
@@ -399,3 +399,54 @@ def test_human_summary_says_the_balance_is_a_residual(repo, capsys):
     assert cli_main(["run", y, "--engine", "lammps", "--set", "effects=[hertz, air_drag]",
                      "--set", "groove=null", "--set", "contact=null"]) == 0
     assert "residual" not in capsys.readouterr().out
+
+
+def test_lammps_check_sizes_its_step_by_steps_per_contact():
+    """lammps_check with steps_per_contact N: each scene (own and field chains, one
+    striker speed each) steps at t_c(v_s) / N on its sample grid, so the slowest striker
+    takes the largest step; the reference side runs the scene's dt (compare). dt and
+    steps_per_contact together, or N below the accuracy study's 20, are one-line errors."""
+    import copy
+    from pathlib import Path
+
+    from snakemake.common.configfile import load_configfile
+
+    from granchain.costmodel import fixed_step
+    from granchain.workflow.config import ConfigError, select_preset, validate_config
+    from granchain.workflow.studies import check_chain_scenes, study_scenes
+
+    raw = load_configfile(str(Path(__file__).resolve().parents[1] / "config/config.yaml"))
+    raw["preset"] = "default"
+
+    def preset(**lc):
+        cfg = copy.deepcopy(raw)
+        spec = cfg["presets"]["default"]["studies"]["lammps_check"]
+        spec.pop("steps_per_contact", None)
+        spec.update(lc)
+        return select_preset(validate_config(cfg))[1]
+
+    p = preset(steps_per_contact=320)
+    scenes = study_scenes(p, "lammps_check") + check_chain_scenes(p)
+    assert scenes
+    by_speed = {}
+    for ss in scenes:
+        sc = ss.scene
+        (v,) = sc.striker_velocities
+        assert sc.dt == fixed_step(sc, 320) and sc.dt > 1e-9
+        assert sc.contact_time(v) / sc.dt >= 320
+        if not ss.chain:
+            by_speed.setdefault(float(v), set()).add(sc.dt)
+    speeds = sorted(by_speed)
+    assert all(len(by_speed[v]) == 1 for v in speeds)
+    assert [by_speed[v].pop() for v in speeds] == sorted(
+        (fixed_step(ss.scene, 320) for ss in scenes if not ss.chain
+         and ss.gap_mean_nm == 0), reverse=True)
+    plain = preset()                                 # no key: the base dt
+    assert {ss.scene.dt for ss in study_scenes(plain, "lammps_check")} == {1e-9}
+    with pytest.raises(ConfigError) as exc:
+        study_scenes(preset(steps_per_contact=320, dt=1e-9), "lammps_check")
+    assert "\n" not in str(exc.value) and "steps_per_contact" in str(exc.value)
+    with pytest.raises(ConfigError) as exc:
+        preset(steps_per_contact=10)
+    msg = str(exc.value)
+    assert "\n" not in msg and "lammps_check.steps_per_contact" in msg and "20" in msg

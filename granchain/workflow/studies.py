@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 from .. import analytic
 from ..errors import GranchainError
-from ..costmodel import resolve_auto
+from ..costmodel import fixed_step, resolve_auto
 from ..scene import RANDOM_GAPS, TOLERANCE_METHODS, Scene, apply_overrides, scene_from_dict
 from .config import FIELD_STUDIES, OPTIONAL_STUDIES, QUESTION_STUDIES, ConfigError, \
     study_engine
@@ -162,6 +162,21 @@ def _build(raw: dict, where: str) -> Scene:
             from None
 
 
+def _check_scene(raw: dict, spec: dict, where: str) -> Scene:
+    """A lammps_check scene: with ``steps_per_contact`` N its step is the Hertz contact
+    time at its striker speed over N, on its sample grid (``costmodel.fixed_step``, as the
+    accuracy study sets Verlet's step), so a slower striker takes a larger step; else the
+    study's (or base) dt. Both engines run that step (``granchain.compare``)."""
+    n = spec.get("steps_per_contact")
+    if n is None:
+        return _build(raw, where)
+    if "dt" in spec:
+        raise ConfigError("invalid configuration at 'studies.lammps_check': both dt and "
+                          "steps_per_contact are given; give one of them")
+    raw["integrator"]["dt"] = fixed_step(_build(raw, where), int(n))
+    return _build(raw, where)
+
+
 def preset_studies(preset: dict) -> list[str]:
     """The ensemble studies of a preset, in order: every one of ``STUDIES``, then the
     optional ones (``OPTIONAL_STUDIES``: the field's studies, the chapter's questions) the
@@ -188,8 +203,9 @@ def study_scenes(preset: dict, study: str) -> list[StudyScene]:
         name = f"{study}-{material}" + (f"-{suffix}" if suffix else "")
         raw = _raw_scene(preset, spec, name, material, velocities, gaps, realisations,
                          engines[0] if len(engines) == 1 else "reference")
+        scene = _check_scene(raw, spec, where) if study == "lammps_check" else _build(raw, where)
         out.append(StudyScene(study, len(out), material, float(gap_nm), float(extra_um),
-                              tuple(engines), _build(raw, where), raw))
+                              tuple(engines), scene, raw))
 
     engines = (study_engine(spec),)
     if study == "lammps_check":
@@ -399,8 +415,8 @@ def check_chain_scenes(preset: dict) -> list[StudyScene]:
                         raw["precompression"] = {"force": float(ch["precompression_N"])}
                     raw = apply_overrides(raw, list(ch.get("overrides", [])))
                     out.append(StudyScene("lammps_check", len(out), material, float(g),
-                                          math.nan, engines, _build(raw, at), raw,
-                                          ch["name"]))
+                                          math.nan, engines, _check_scene(raw, spec, at),
+                                          raw, ch["name"]))
     return out
 
 
