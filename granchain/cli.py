@@ -147,8 +147,11 @@ def cmd_run(args) -> int:
         check_output_path(args.out, args.force, "--out")     # refuse before spending the compute
     check_cost(scene, args.max_steps, args.max_memory_gb)
     check_whole_run(scene, args, run_estimate(scene, engine=args.engine))
+    kw = _engine_kw(args)
+    if args.engine == "reference":
+        kw["trace"] = False         # observables on the fly; a measured scene still traces
     runs = run_scene(scene, engine=args.engine, max_steps=args.max_steps,
-                     max_memory_gb=args.max_memory_gb, **_engine_kw(args))
+                     max_memory_gb=args.max_memory_gb, **kw)
     if len(runs) == 1:
         doc = dict(runs[0].to_json(), scene=scene.name, scene_hash=scene.hash)
     else:

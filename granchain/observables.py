@@ -107,7 +107,11 @@ def wall_peak(traj: Trajectory) -> tuple[float, float, bool]:
     """(F_max, t_peak, final) of the end wall's dynamic force F_w(t) - F_w(0): its
     maximum, refined by the parabola through the samples around it, and whether it is
     final (``schedule.wall_passed``: the force has fallen below half its dynamic peak
-    after it). NaN values when not final."""
+    after it). NaN values when not final. Taken from the engine's on-the-fly measurement
+    when the trajectory carries one (``traj.observed.wall_peak_final`` set)."""
+    o = traj.observed
+    if o is not None and o.wall_peak_final is not None:
+        return float(o.wall_force_max), float(o.t_wall_peak), bool(o.wall_peak_final)
     F = np.asarray(traj.wall_force, dtype=float) - traj.wall_static
     j = int(np.argmax(F))
     top = float(F[j])
@@ -437,6 +441,7 @@ def summarize(traj: Trajectory, probes=(2, 13)) -> ChainResult:
         force_evaluations=int(traj.force_evaluations),
         wall_s=float(traj.wall_s),
         t_end=float(traj.t[-1]),
-        samples=int(traj.t.size),
+        samples=int(traj.t.size if traj.observed is None or traj.observed.samples is None
+                    else traj.observed.samples),
         **wall,
     )

@@ -12,13 +12,21 @@ from .effects import ENERGY_COLUMNS  # noqa: F401  (the energy-ledger columns, i
 class OnTheFly:
     """Observables an engine measured while integrating (per particle, NaN where not
     final, as ``granchain.observables.peaks``): v_max (m/s), t_peak, t_front (s),
-    plateau, final; balance_error: the largest |energy balance| / E(0) over the run."""
+    plateau, final; balance_error: the largest |energy balance| / E(0) over the run.
+    samples: the number of samples the run took on its sample grid (None: the
+    trajectory's own t). A walled chain's end-wall peak (``observables.wall_peak``):
+    wall_force_max (N), t_wall_peak (s), wall_peak_final (None: read from the
+    trajectory's wall_force)."""
     v_max: np.ndarray
     t_peak: np.ndarray
     t_front: np.ndarray
     plateau: np.ndarray
     final: np.ndarray
     balance_error: float
+    samples: int | None = None
+    wall_force_max: float = float("nan")
+    t_wall_peak: float = float("nan")
+    wall_peak_final: bool | None = None
 
 
 @dataclass
@@ -46,8 +54,9 @@ class Trajectory:
     last_overlap: float = float("nan")
     # right-hand-side (force routine) evaluations of the integration
     force_evaluations: int = 0
-    # observables measured on the fly (the event method); when set, t, v and energy may
-    # hold only the initial and final states (no trace asked for), and
+    # observables measured on the fly (the event method, the fixed-step methods without a
+    # trace); when set, t, v, energy and wall_force may hold only the initial and final
+    # states (no trace asked for), and
     # ``observables.summarize`` reads the peaks and the balance error from here
     observed: OnTheFly | None = None
     # each sphere's radius (m), particle 1 first, when they differ (None: all ``radius``)

@@ -49,25 +49,25 @@ def test_member_alone_and_in_any_lane_is_bit_identical(method, monkeypatch):
     sc = _scene(method)
     gaps, vs = _members(11, sc.n)
     monkeypatch.setattr(reference, "LANES", 4)       # 11 chains: 3 blocks, one padded
-    batch = list(reference.run(sc, gaps, vs, progress=False))
+    batch = list(reference.run(sc, gaps, vs, progress=False, trace=True))
     statuses = {t.status for t in batch}
     assert "passed" in statuses and "done" in statuses   # stopped and at-rest chains
     assert len({t.steps for t in batch}) > 3              # neighbours stop at other times
     # reversed order: every member in another lane and block
-    rev = list(reference.run(sc, gaps[::-1], vs[::-1], progress=False))[::-1]
+    rev = list(reference.run(sc, gaps[::-1], vs[::-1], progress=False, trace=True))[::-1]
     # alone: lane 0 of a block padded with chains at rest; and one chain per block
     monkeypatch.setattr(reference, "LANES", 1)
-    one = list(reference.run(sc, gaps, vs, progress=False))
+    one = list(reference.run(sc, gaps, vs, progress=False, trace=True))
     monkeypatch.setattr(reference, "LANES", 4)
     for i, t in enumerate(batch):
         assert _same(t, rev[i]), i
         assert _same(t, one[i]), i
-        alone = next(reference.run(sc, gaps[i:i + 1], vs[i:i + 1], progress=False))
+        alone = next(reference.run(sc, gaps[i:i + 1], vs[i:i + 1], progress=False, trace=True))
         assert _same(t, alone), i
     # the comparison can fail: another gap in one member changes its trajectory
     g2 = gaps.copy()
     g2[0, 5] *= 1.0 + 1e-12
-    other = next(reference.run(sc, g2[:1], vs[:1], progress=False))
+    other = next(reference.run(sc, g2[:1], vs[:1], progress=False, trace=True))
     assert not _same(batch[0], other)
 
 
@@ -118,7 +118,8 @@ def test_blocks_agree_with_the_per_chain_window(method):
     YF = np.zeros((Bp, ny))
     K.run_blocks(code, YB, np.zeros_like(YB), YF, np.zeros(Bp), NS2, STEPS2, STATUS2,
                  np.full(Bp, 1e-4), GB, P, FL, lay.LO, sc.dt, every, NT, False, V2, E2,
-                 counts2)
+                 counts2, False, every * sc.dt, 0.0,
+                 *reference._Observed(Bp, n, n, observe=False).args())
     assert np.array_equal(counts, counts2[:B]) and counts.max() == samples
     assert np.array_equal(STEPS, STEPS2[:B])
     assert np.array_equal(V1, V2[:B]) and np.array_equal(E1, E2[:B])

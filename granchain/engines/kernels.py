@@ -29,6 +29,12 @@ from .backend import use_jit_cache
 
 use_jit_cache()   # before the first @njit(cache=True): a cache keyed by every source compiled in
 
+from ..observables import PEAK_TOL, PLATEAU_SAMPLES  # noqa: E402  (the sampled peak rules)
+from ..schedule import PASS_FRACTION  # noqa: E402
+from .obscodes import (B_E0, B_MAX, I_BWD, I_FOPEN, I_FWD, I_J, I_NAN, I_OVF,  # noqa: E402
+                       I_PASS, I_RCOUNT, I_RHEAD, O_H, O_M, O_Y0, O_Y2, R_PLAT, R_TFR, R_TOP,
+                       R_TPK, R_VMAX, W_M, W_PREV, W_Y0, W_Y2, WI_J, WI_NAN, WI_PASS)
+
 from ..effects import (air_drag, contact_damping, groove_friction, hertz, particle_friction,
                        rolling_friction)
 
@@ -844,11 +850,260 @@ def _stop_lane(y, acc, l, YF, b, status, STATUS):
         acc[j, l] = 0.0
 
 
+# On-the-fly observables of the fixed-step blocks (``run_blocks`` with observe): the rules
+# of ``granchain.observables`` (``peak``, ``peak_final``, ``wall_peak``, ``energy_ledger``)
+# applied to the samples as they are taken, with the same floating-point operations, so
+# that the results equal those of the Python summariser on the sampled record. Array
+# slots: ``engines.obscodes``.
+
+
+@njit(cache=True, inline="always")
+def _pymax(a, b):
+    """Python's max(a, b) (a unless b > a)."""
+    return b if b > a else a
+
+
+@njit(cache=True, inline="always")
+def _pymin(a, b):
+    """Python's min(a, b) (a unless b < a)."""
+    return b if b < a else a
+
+
+@njit(cache=True)
+def _obs_velocity(k, y, of, oi, rk, rv):
+    """Sample k of one particle's velocity y into its running peak state (of, oi) and its
+    record samples (rk: sample index, rv: (previous sample, sample)): the samples that set a
+    new maximum, which are the only candidates for a first crossing of a level below the
+    final maximum; those below PASS_FRACTION of the running maximum are dropped (a level
+    the summariser crosses is at least half the final maximum)."""
+    if oi[I_NAN] != 0:
+        return
+    if y != y:
+        oi[I_NAN] = 1
+        return
+    cap = rk.shape[0]
+    if k == 0:
+        of[O_M] = y
+        oi[I_J] = 0
+        oi[I_BWD] = 0
+        oi[I_FWD] = 0
+        oi[I_FOPEN] = 1
+        oi[I_PASS] = 0
+        oi[I_OVF] = 0
+        rk[0] = 0
+        rv[0, 0] = y
+        rv[0, 1] = y
+        oi[I_RHEAD] = 0
+        oi[I_RCOUNT] = 1
+    elif y > of[O_M]:
+        prev = of[O_H + (k - 1) % PLATEAU_SAMPLES]
+        of[O_M] = y
+        of[O_Y0] = prev
+        oi[I_J] = k
+        thr = (1.0 - PEAK_TOL) * y
+        bwd = 0
+        for d in range(1, PLATEAU_SAMPLES + 1):
+            if k - d < 0 or not (of[O_H + (k - d) % PLATEAU_SAMPLES] >= thr):
+                break
+            bwd += 1
+        oi[I_BWD] = bwd
+        oi[I_FWD] = 0
+        oi[I_FOPEN] = 1
+        oi[I_PASS] = 0
+        head = oi[I_RHEAD]
+        count = oi[I_RCOUNT]
+        half = PASS_FRACTION * y
+        while count > 0 and rv[head, 1] < half:
+            head = (head + 1) % cap
+            count -= 1
+        if count == cap:
+            oi[I_OVF] = 1
+            head = (head + 1) % cap
+            count -= 1
+        s = (head + count) % cap
+        rk[s] = k
+        rv[s, 0] = prev
+        rv[s, 1] = y
+        oi[I_RHEAD] = head
+        oi[I_RCOUNT] = count + 1
+    else:
+        top = of[O_M]
+        if k == oi[I_J] + 1:
+            of[O_Y2] = y
+        if oi[I_FOPEN] != 0:
+            if y >= (1.0 - PEAK_TOL) * top:
+                if oi[I_FWD] < PLATEAU_SAMPLES:
+                    oi[I_FWD] += 1
+            else:
+                oi[I_FOPEN] = 0
+        if y < PASS_FRACTION * top:
+            oi[I_PASS] = 1
+    of[O_H + k % PLATEAU_SAMPLES] = y
+
+
+@njit(cache=True)
+def _obs_crossing(level, oi, rk, rv, sdt):
+    """``observables._crossing`` from the record samples: the first sample at or above
+    ``level``, linearly interpolated from the sample before it (times k * sdt)."""
+    cap = rk.shape[0]
+    head = oi[I_RHEAD]
+    for q in range(oi[I_RCOUNT]):
+        s = (head + q) % cap
+        if rv[s, 1] >= level:
+            j = rk[s]
+            if j == 0:
+                return 0.0
+            y0 = rv[s, 0]
+            y1 = rv[s, 1]
+            ta = float(j - 1) * sdt
+            tb = float(j) * sdt
+            return ta + (level - y0) / (y1 - y0) * (tb - ta)
+    return math.nan
+
+
+@njit(cache=True)
+def _obs_finish(S, of, oi, rk, rv, sdt, out):
+    """``observables.peak`` of one particle after its S samples, into out (R_*)."""
+    top = of[O_M]
+    if oi[I_NAN] != 0 or not top > 0.0:
+        out[R_VMAX] = 0.0
+        out[R_TPK] = math.nan
+        out[R_TFR] = math.nan
+        out[R_PLAT] = 0.0
+        out[R_TOP] = math.nan if oi[I_NAN] != 0 else top
+        return
+    j = oi[I_J]
+    plateau = (oi[I_BWD] + 1 + oi[I_FWD]) > PLATEAU_SAMPLES
+    if not plateau and 0 < j < S - 1:
+        y0 = of[O_Y0]
+        y1 = top
+        y2 = of[O_Y2]
+        den = y0 - 2.0 * y1 + y2
+        off = 0.5 * (y0 - y2) / den if den < 0.0 else 0.0
+        off = _pymin(_pymax(off, -0.5), 0.5)
+        vmax = y1 - 0.25 * (y0 - y2) * off
+        h = float(j + 1) * sdt - float(j) * sdt
+        tpk = float(j) * sdt + off * h
+    elif not plateau:
+        vmax = top
+        tpk = float(j) * sdt
+    else:
+        vmax = top
+        tpk = _obs_crossing((1.0 - PEAK_TOL) * top, oi, rk, rv, sdt)
+    out[R_VMAX] = vmax
+    out[R_TPK] = tpk
+    out[R_TFR] = _obs_crossing(0.5 * vmax, oi, rk, rv, sdt)
+    out[R_TOP] = top
+    out[R_PLAT] = 1.0 if plateau else 0.0
+
+
+@njit(cache=True)
+def _obs_wall(k, F, wf, wi):
+    """Sample k of the end wall's dynamic force F into its running peak state."""
+    if wi[WI_NAN] != 0:
+        return
+    if F != F:
+        wi[WI_NAN] = 1
+        return
+    if k == 0:
+        wf[W_M] = F
+        wi[WI_J] = 0
+        wi[WI_PASS] = 0
+    elif F > wf[W_M]:
+        wf[W_M] = F
+        wf[W_Y0] = wf[W_PREV]
+        wi[WI_J] = k
+        wi[WI_PASS] = 0
+    else:
+        if k == wi[WI_J] + 1:
+            wf[W_Y2] = F
+        if F < PASS_FRACTION * wf[W_M]:
+            wi[WI_PASS] = 1
+    wf[W_PREV] = F
+
+
+@njit(cache=True)
+def _obs_wall_finish(S, wf, wi, sdt, wout):
+    """``observables.wall_peak`` after S samples, into wout (F_max, t_peak, final)."""
+    top = wf[W_M]
+    if wi[WI_NAN] != 0 or not (top > 0.0 and wi[WI_PASS] != 0):
+        wout[0] = math.nan
+        wout[1] = math.nan
+        wout[2] = 0.0
+        return
+    j = wi[WI_J]
+    tpk = float(j) * sdt
+    if 0 < j < S - 1:
+        y0 = wf[W_Y0]
+        y2 = wf[W_Y2]
+        den = y0 - 2.0 * top + y2
+        off = _pymin(_pymax(0.5 * (y0 - y2) / den, -0.5), 0.5) if den < 0.0 else 0.0
+        top = top - 0.25 * (y0 - y2) * off
+        tpk += off * (float(j + 1) * sdt - float(j) * sdt)
+    wout[0] = top
+    wout[1] = tpk
+    wout[2] = 1.0
+
+
+@njit(cache=True, inline="always")
+def _obs_balance(k, ebuf, l, bal):
+    """Sample k of the energy balance of lane l: |E_mech - E_mech(0) - sum of works|, its
+    running maximum (NaN once NaN, as np.max), summed in ``observables.energy_ledger``'s
+    order."""
+    total = ebuf[0, l] + ebuf[1, l] + ebuf[2, l]
+    work = 0.0
+    for e in range(3, ebuf.shape[0]):
+        work += ebuf[e, l]
+    if k == 0:
+        bal[B_E0] = total
+    a = abs(total - bal[B_E0] - work)
+    if k == 0 or a != a:
+        bal[B_MAX] = a
+    elif a > bal[B_MAX]:
+        bal[B_MAX] = a
+
+
+@njit(cache=True)
+def _sample_lane(c, k, y, g, ebuf, l, b, n, LO, P, FL, observe, wall_static, Vout, Eout,
+                 OF, OI, RK, RV, WF, WI, BAL):
+    """Sample k of the chain in lane l (chain b): into row c of its record, or with
+    observe into its on-the-fly observables (row 0 of Vout/Eout keeps sample 0, row 1 the
+    latest sample)."""
+    ov = LO[L_V]
+    r = c if not observe else (0 if k == 0 else 1)
+    for i in range(n):
+        Vout[b, r, i] = y[ov + i, l]
+    wall = Vout.shape[2] > n
+    if wall:
+        Vout[b, r, n] = _wall_force_l(y, g, n, LO, P, FL, l)
+    for e in range(E_LEN):
+        Eout[b, r, e] = ebuf[e, l]
+    if observe:
+        for i in range(n):
+            _obs_velocity(k, y[ov + i, l], OF[b, i], OI[b, i], RK[b, i], RV[b, i])
+        if wall:
+            _obs_wall(k, Vout[b, r, n] - wall_static, WF[b], WI[b])
+        _obs_balance(k, ebuf, l, BAL[b])
+
+
+@njit(cache=True)
+def _finish_lane(b, n, NS, sdt, observe, OF, OI, RK, RV, WF, WI, OUT, WOUT, wall):
+    """On-the-fly observables of chain b once it has stopped (after NS[b] samples)."""
+    if not observe:
+        return
+    S = NS[b]
+    for i in range(n):
+        _obs_finish(S, OF[b, i], OI[b, i], RK[b, i], RV[b, i], sdt, OUT[b, i])
+    if wall:
+        _obs_wall_finish(S, WF[b], WI[b], sdt, WOUT[b])
+
+
 @njit(parallel=True, cache=True, error_model="numpy")
 def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, dt, every,
-               NT, auto_stop, Vout, Eout, counts):
+               NT, auto_stop, Vout, Eout, counts, observe, sample_dt, wall_static, OF, OI, RK,
+               RV, WF, WI, BAL, OUT, WOUT):
     """Advance every running chain of fixed-step blocks (rk4, verlet) by up to
-    Vout.shape[1] samples.
+    Vout.shape[1] samples, or with ``observe`` until every chain has stopped.
 
     Y (nblk, ny, L): the states of nblk blocks of L chains (chains innermost), ACC the
     same for the last derivative (Verlet), gaps (nblk, n-1, L). Per-chain arrays are
@@ -860,12 +1115,24 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
     NT[b] samples (S_DONE), or (auto_stop) at the first sample at which its last particle
     is faster than VTHR[b] with its last contact open (S_PASSED), or on a non-finite
     state.
+
+    Without ``observe`` the samples go to rows 0.. of Vout/Eout (counts[b] of them in
+    this call). With ``observe`` (Vout/Eout of 2 rows: sample 0, then the latest sample)
+    each sample updates the chain's on-the-fly observables (samples k * sample_dt apart;
+    the wall force less ``wall_static``), and a chain that stops gets them: per particle
+    OUT[b, i] (R_*: the ``observables.peak`` values) and OI[b, i, I_PASS] (the wave has
+    passed it), the wall's WOUT[b] (``observables.wall_peak``), BAL[b, B_E0] and
+    BAL[b, B_MAX] (the energy balance of ``observables.energy_ledger``), and
+    OI[b, i, I_OVF] set where a particle had more record samples than RK.shape[2] (its
+    crossing times are then not the summariser's). The observe arrays are not read
+    without ``observe``.
     """
     nblk, ny, L = Y.shape
-    W = Vout.shape[1]
+    W = Vout.shape[1] if not observe else 2**62
     n = int(P[P_N])
     ox = LO[L_X]
     ov = LO[L_V]
+    wall = Vout.shape[2] > n
     for blk in prange(nblk):
         base = blk * L
         y = Y[blk]
@@ -894,16 +1161,14 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                 b = base + l
                 if STATUS[b] != S_RUNNING:
                     continue
-                for i in range(n):
-                    Vout[b, 0, i] = y[ov + i, l]
-                if Vout.shape[2] > n:
-                    Vout[b, 0, n] = _wall_force_l(y, g, n, LO, P, FL, l)
-                for e in range(E_LEN):
-                    Eout[b, 0, e] = ebuf[e, l]
+                _sample_lane(0, 0, y, g, ebuf, l, b, n, LO, P, FL, observe, wall_static,
+                             Vout, Eout, OF, OI, RK, RV, WF, WI, BAL)
                 counts[b] = 1
                 NS[b] = 1
                 if NT[b] <= 1:
                     _stop_lane(y, acc, l, YF, b, S_DONE, STATUS)
+                    _finish_lane(b, n, NS, sample_dt, observe, OF, OI, RK, RV, WF, WI, OUT,
+                                 WOUT, wall)
             c = 1
         while c < W:
             running = False
@@ -912,6 +1177,8 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                 if STATUS[b] == S_RUNNING:
                     if NS[b] >= NT[b]:
                         _stop_lane(y, acc, l, YF, b, S_DONE, STATUS)
+                        _finish_lane(b, n, NS, sample_dt, observe, OF, OI, RK, RV, WF, WI,
+                                     OUT, WOUT, wall)
                     else:
                         running = True
             if not running:
@@ -929,12 +1196,8 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                     continue
                 STEPS[b] += every
                 T[b] += every * dt
-                for i in range(n):
-                    Vout[b, c, i] = y[ov + i, l]
-                if Vout.shape[2] > n:
-                    Vout[b, c, n] = _wall_force_l(y, g, n, LO, P, FL, l)
-                for e in range(E_LEN):
-                    Eout[b, c, e] = ebuf[e, l]
+                _sample_lane(c, NS[b], y, g, ebuf, l, b, n, LO, P, FL, observe, wall_static,
+                             Vout, Eout, OF, OI, RK, RV, WF, WI, BAL)
                 counts[b] = c + 1
                 NS[b] += 1
                 finite = True
@@ -943,7 +1206,11 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                         finite = False
                 if not finite:
                     _stop_lane(y, acc, l, YF, b, S_NONFINITE, STATUS)
+                    _finish_lane(b, n, NS, sample_dt, observe, OF, OI, RK, RV, WF, WI, OUT,
+                                 WOUT, wall)
                 elif auto_stop and _left(y[ov + n - 1, l], _overlap_l(y, ox, g, n - 2, l),
                                          y[ox + n - 1, l], VTHR[b], FL[F_WALL] != 0):
                     _stop_lane(y, acc, l, YF, b, S_PASSED, STATUS)
+                    _finish_lane(b, n, NS, sample_dt, observe, OF, OI, RK, RV, WF, WI, OUT,
+                                 WOUT, wall)
             c += 1

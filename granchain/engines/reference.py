@@ -24,6 +24,7 @@ from ..scene import Scene
 from ..trajectory import OnTheFly, Trajectory
 from . import backend
 from . import codes as C
+from . import obscodes as K
 
 M_EVENT = 3
 METHOD_CODES = {"rk4": C.M_RK4, "verlet": C.M_VERLET, "adaptive": C.M_DOP853,
@@ -121,15 +122,18 @@ def record_width(terms: Terms) -> int:
 
 def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | None = None,
         dt: float | None = None, tolerance: float | None = None, progress: bool | None = None,
-        trace: bool = False, pair: str | None = None, radii: np.ndarray | None = None):
+        trace: bool | None = None, pair: str | None = None,
+        radii: np.ndarray | None = None):
     """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s; radii: (B, n)
     m, each chain's own (a radius spread, ``gaps.member_radii``), or None (the scene's).
     The scene's method must not be auto (``simulate`` resolves it).
 
-    The fixed-step and adaptive methods always record the sampled trajectory. The event
-    method measures the observables on the fly and records only the initial and final
-    states, unless ``trace`` asks for the sampled trajectory (its dense output on the
-    usual sample grid). ``pair``: the event method's Runge-Kutta pair
+    The adaptive method always records the sampled trajectory. The event method measures
+    the observables on the fly and records only the initial and final states, unless
+    ``trace`` asks for the sampled trajectory (its dense output on the usual sample grid).
+    The fixed-step methods (rk4, verlet) record it unless ``trace`` is False: then they
+    too measure the observables on the fly (``Trajectory.observed``, equal to the
+    summariser's on the record) and keep only the first and last samples. ``pair``: the event method's Runge-Kutta pair
     (``events.PAIRS``; default ``events.DEFAULT_PAIR``)."""
     require_resolved(scene, "reference engine")
     terms = physics_terms(scene)
@@ -159,9 +163,10 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
             rc = None if radii is None else np.atleast_2d(radii)[chunk]
             if method == "event":
                 it = _run_chunk_events(scene, terms, gaps[chunk], vs[chunk], dt, rtol, key,
-                                       trace, pair or C.DEFAULT_PAIR, rc)
+                                       bool(trace), pair or C.DEFAULT_PAIR, rc)
             else:
-                it = _run_chunk(scene, terms, gaps[chunk], vs[chunk], method, dt, rtol, key, rc)
+                it = _run_chunk(scene, terms, gaps[chunk], vs[chunk], method, dt, rtol, key, rc,
+                                trace is not False)
             for idx, traj in zip(chunk, it):
                 out[int(idx)] = traj
             done_total += len(chunk)
@@ -200,7 +205,14 @@ def _chunks(group, scene, terms, sample_dt, method):
         yield group[i:i + size]
 
 
-def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt, radii=None):
+def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt, radii=None,
+               trace=True):
+    """The fixed-step and adaptive methods on a chunk of chains. The fixed-step methods
+    without ``trace`` measure the observables on the fly (``kernels.run_blocks`` with
+    observe: ``Trajectory.observed``, t, v and energy of the first and last samples only);
+    a chain whose record samples overflowed the kernel's ring is run again with its trace
+    (the same chain alone gives the same samples), and its observables are then the
+    summariser's on that trace."""
     kern = backend.kernels(serial=gaps.shape[0] == 1)
     layout = Layout.of(terms)
     P, FL = pack(terms)
@@ -231,9 +243,11 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
         NT = np.array([int(math.ceil(auto_t_max(scene, gaps[b], vs[b]) / sdt)) + 1
                        if vs[b] > 0 else 1 for b in range(B)], dtype=np.int64)
     scale_abs, rel = _error_scales(scene, terms, layout, max(float(vs.max()), 1e-9))
+    observe = mcode != C.M_DOP853 and not trace
     V_parts = [[] for _ in range(B)]
     E_parts = [[] for _ in range(B)]
     counts = np.zeros(B, dtype=np.int64)
+    obs = None
     t0 = time.perf_counter()
     if mcode == C.M_DOP853:
         Vbuf = np.empty((B, WINDOW, nv))
@@ -244,20 +258,42 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
                          counts)
             _collect(counts, Vbuf, Ebuf, V_parts, E_parts)
     else:
-        Y, T, STEPS, STATUS = _run_blocks(mcode, Y, G, nv, VTHR, P, FL, layout, dt, every, NT,
-                                          auto, V_parts, E_parts)
+        Y, T, STEPS, STATUS, obs = _run_blocks(
+            mcode, Y, G, nv, VTHR, P, FL, layout, dt, every, NT, auto, V_parts, E_parts,
+            observe, sdt, _wall_static(terms))
+        NS = obs.NS if observe else NS
     wall = time.perf_counter() - t0
     eff = tuple(sorted(scene.effects))
+    ox, ov = layout.LO[C.L_X], layout.LO[C.L_V]
+    ovf = obs.overflow() if observe else np.zeros(B, dtype=bool)
+    redo = {}
+    if ovf.any():
+        idx = np.flatnonzero(ovf)
+        rr = None if radii is None else radii[idx]
+        redo = dict(zip(idx.tolist(), _run_chunk(scene, terms, gaps[idx], vs[idx], method, dt,
+                                                 rtol, sample_dt, rr, trace=True)))
     for b in range(B):
-        rec = np.concatenate(V_parts[b])
-        v = rec[:, :n]
-        e = np.concatenate(E_parts[b])
-        t = np.arange(v.shape[0]) * sdt
+        if b in redo:
+            yield redo[b]
+            continue
         status = STATUS[b]
         if auto and status == C.S_DONE and vs[b] > 0:
             status = C.S_TIMEOUT      # t_end auto hit its cap before the wave left the chain
-        ox = layout.LO[C.L_X]
         last_overlap = float(Y[b, ox + n - 2] - Y[b, ox + n - 1] - gaps[b, n - 2])
+        observed = None
+        if observe:
+            S = int(NS[b])
+            rows = min(S, 2)
+            rec = obs.V[b, :rows]
+            e = obs.E[b, :rows].copy()
+            t = np.array([0, S - 1][2 - rows:]) * sdt
+            observed = obs.observed(b, vs[b], float(Y[b, ov + n - 1]), last_overlap,
+                                    terms.chain.K_wall is not None, S)
+        else:
+            rec = np.concatenate(V_parts[b])
+            e = np.concatenate(E_parts[b])
+            t = np.arange(rec.shape[0]) * sdt
+        v = rec[:, :n].copy() if observe else rec[:, :n]
         if mcode == C.M_RK4:
             nev = 4 * int(STEPS[b])
         elif mcode == C.M_VERLET:
@@ -269,7 +305,9 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
                          v_striker=float(vs[b]), effects=eff, steps=int(STEPS[b]),
                          rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
                          wall_s=wall / B, last_overlap=last_overlap, force_evaluations=nev,
-                         meta={"method": method, "dt": dt, "rtol": rtol, "sample_dt": sdt},
+                         observed=observed,
+                         meta={"method": method, "dt": dt, "rtol": rtol, "sample_dt": sdt,
+                               "trace": not observe},
                          **_chain_fields(terms, rec, None if radii is None else radii[b]))
 
 
@@ -383,21 +421,87 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
 
 
 def _collect(counts, Vbuf, Ebuf, V_parts, E_parts):
-    for b in range(len(V_parts)):
+    for b in np.flatnonzero(counts):
         c = counts[b]
-        if c:
-            V_parts[b].append(Vbuf[b, :c].copy())
-            E_parts[b].append(Ebuf[b, :c].copy())
+        V_parts[b].append(Vbuf[b, :c].copy())
+        E_parts[b].append(Ebuf[b, :c].copy())
+
+
+RECORD_RING = 512      # record samples kept per particle by the on-the-fly observables
+
+
+class _Observed:
+    """The on-the-fly observables of a chunk's fixed-step blocks (``kernels.run_blocks``
+    with observe): the kernel's arrays, per chain b (padding lanes after the chunk's)."""
+
+    def __init__(self, Bp, n, nv, observe):
+        m = Bp if observe else 1
+        k = n if observe else 1
+        ring = RECORD_RING if observe else 1
+        self.V = np.zeros((Bp, 2, nv)) if observe else None
+        self.E = np.zeros((Bp, 2, C.E_LEN)) if observe else None
+        self.OF = np.zeros((m, k, K.OBS_F))
+        self.OI = np.zeros((m, k, K.OBS_I), dtype=np.int64)
+        self.RK = np.zeros((m, k, ring), dtype=np.int64)
+        self.RV = np.zeros((m, k, ring, 2))
+        self.WF = np.zeros((m, K.OBS_WF))
+        self.WI = np.zeros((m, K.OBS_WI), dtype=np.int64)
+        self.BAL = np.zeros((m, 2))
+        self.OUT = np.zeros((m, k, K.OBS_R))
+        self.WOUT = np.zeros((m, K.OBS_WOUT))
+        self.NS = None
+
+    def args(self):
+        return (self.OF, self.OI, self.RK, self.RV, self.WF, self.WI, self.BAL, self.OUT,
+                self.WOUT)
+
+    def overflow(self) -> np.ndarray:
+        """Chains whose record ring overflowed for some particle."""
+        return np.any(self.OI[:, :, K.I_OVF] != 0, axis=1)
+
+    def observed(self, b, v_striker, v_last, last_overlap, walled, samples) -> OnTheFly:
+        """Chain b's observables, with ``observables.peak_final``'s rule for which peaks
+        are final."""
+        out = self.OUT[b]
+        top = out[:, K.R_TOP]
+        vmax, tpk, tfr = (out[:, K.R_VMAX].copy(), out[:, K.R_TPK].copy(),
+                          out[:, K.R_TFR].copy())
+        final = (top > arrival_speed(v_striker)) & (self.OI[b, :, K.I_PASS] != 0)
+        if not walled:
+            final[-1] = bool(top[-1] > arrival_speed(v_striker)
+                             and last_detached(v_last, last_overlap, v_striker))
+        for a in (vmax, tpk, tfr):
+            a[~final] = math.nan
+        e0, bmax = float(self.BAL[b, K.B_E0]), self.BAL[b, K.B_MAX]
+        wall = {}
+        if walled:
+            wall = {"wall_force_max": float(self.WOUT[b, 0]),
+                    "t_wall_peak": float(self.WOUT[b, 1]),
+                    "wall_peak_final": bool(self.WOUT[b, 2] != 0.0)}
+        return OnTheFly(v_max=vmax, t_peak=tpk, t_front=tfr,
+                        plateau=out[:, K.R_PLAT] != 0.0, final=final,
+                        balance_error=float(bmax / e0) if e0 > 0 else 0.0,
+                        samples=int(samples), **wall)
+
+
+def _wall_static(terms: Terms) -> float:
+    """Static force (N) of the end wall (its preload; 0 without a wall)."""
+    if terms.chain.K_wall is None:
+        return 0.0
+    return float(terms.chain.K_wall * terms.chain.wall_overlap ** 1.5)
 
 
 def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V_parts,
-                E_parts):
+                E_parts, observe=False, sample_dt=0.0, wall_static=0.0):
     kern = backend.kernels(serial=gaps.shape[0] == 1)
     """Fixed-step methods: the chains in blocks of LANES (consecutive chains share a block,
     the last block padded with lanes at rest that record nothing), stepped in lockstep by
-    ``kernels.run_blocks``. Returns each chain's final state, time, steps and status."""
+    ``kernels.run_blocks``. Returns each chain's final state, time, steps and status, and
+    the ``_Observed`` arrays (with ``observe``: the on-the-fly observables and NS, each
+    chain's sample count; otherwise the records go to V_parts, E_parts)."""
     B, ny = Y0.shape
     ng = gaps.shape[1]
+    n = int(P[C.P_N])
     Lb = LANES
     nblk = -(-B // Lb)
     Bp = nblk * Lb
@@ -421,14 +525,21 @@ def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V
     VT[:B] = VTHR
     NTp = np.ones(Bp, dtype=np.int64)
     NTp[:B] = NT
-    Vbuf = np.empty((Bp, BLOCK_WINDOW, nv))
-    Ebuf = np.empty((Bp, BLOCK_WINDOW, C.E_LEN))
+    obs = _Observed(Bp, n, nv, observe)
+    if observe:
+        Vbuf, Ebuf = obs.V, obs.E
+    else:
+        Vbuf = np.empty((Bp, BLOCK_WINDOW, nv))
+        Ebuf = np.empty((Bp, BLOCK_WINDOW, C.E_LEN))
     counts = np.zeros(Bp, dtype=np.int64)
     while np.any(STATUS[:B] == C.S_RUNNING):
         kern.run_blocks(mcode, YB, ACC, YF, T, NS, STEPS, STATUS, VT, GB, P, FL, layout.LO, dt,
-                     every, NTp, auto, Vbuf, Ebuf, counts)
-        _collect(counts[:B], Vbuf, Ebuf, V_parts, E_parts)
-    return YF[:B], T[:B], STEPS[:B], STATUS[:B]
+                        every, NTp, auto, Vbuf, Ebuf, counts, observe, float(sample_dt),
+                        float(wall_static), *obs.args())
+        if not observe:
+            _collect(counts[:B], Vbuf, Ebuf, V_parts, E_parts)
+    obs.NS = NS[:B]
+    return YF[:B], T[:B], STEPS[:B], STATUS[:B], obs
 
 
 def _chain_fields(terms: Terms, rec: np.ndarray, radii=None) -> dict:
