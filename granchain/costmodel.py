@@ -35,6 +35,7 @@ import numpy as np
 
 from .errors import GranchainError, SceneError
 from .scene import TOLERANCE_METHODS, Scene
+from .guards import require_resolved
 from .schedule import (RECORD_EXTRA_COLUMNS, cost_estimate, expected_duration,
                        sample_interval)
 
@@ -63,6 +64,8 @@ class CostModel:
     others float64 with NaN where missing) and its provenance."""
     columns: dict
     provenance: dict
+    # envelope() per (observable, scene class), computed once: the columns never change
+    _envelopes: dict = dataclasses.field(default_factory=dict, compare=False, repr=False)
 
     def __len__(self) -> int:
         return len(self.columns["method"])
@@ -74,6 +77,12 @@ class CostModel:
         tolerance (None for fixed steps), wall_s_per_chain (mean over the rows), err (the
         largest over the rows; NaN read as inf), envelope (the largest err of this and
         every finer setting of its method), ref_uncertainty (the largest; NaN read as 0)."""
+        key = (observable, scene_class)
+        if key not in self._envelopes:
+            self._envelopes[key] = self._envelope(observable, scene_class)
+        return [dict(r) for r in self._envelopes[key]]
+
+    def _envelope(self, observable: str, scene_class: str | None) -> list[dict]:
         c = self.columns
         err_col = "balance_error" if observable == "balance" else f"err_{observable}"
         unc_col = None if observable == "balance" else f"ref_uncertainty_{observable}"
@@ -131,6 +140,31 @@ class CostModel:
                   if self.provenance["scene_class"][k] == scene_class]
         return {m: sum(float(s["work"][m]) for s in scenes) / len(scenes)
                 for m in SCENE_METHODS}
+
+    def setting_seconds(self, method: str, scene_class: str, *,
+                        steps_per_contact: float | None = None,
+                        tolerance: float | None = None) -> float:
+        """Wall time per chain of the model's scenes of ``scene_class`` at a setting of
+        ``method``: at a measured setting its mean wall time (what :meth:`cheapest` ranks);
+        between measured settings interpolated log-log in steps per contact (rk4, verlet)
+        or in tolerance (adaptive, event); beyond the finest or coarsest step in proportion
+        to the steps; beyond the measured tolerances the nearest one's."""
+        rows = [r for r in self.envelope("v_g", scene_class) if r["method"] == method]
+        if not rows:
+            raise GranchainError(f"cost model granchain/data/cost_model.csv has no {method} "
+                                 f"rows for {scene_class} chains; re-measure it with "
+                                 "'python -m granchain.cost model'")
+        fixed = method not in TOLERANCE_METHODS
+        x = steps_per_contact if fixed else tolerance
+        key = "steps_per_contact" if fixed else "tolerance"
+        pts = sorted((math.log(float(r[key])), math.log(r["wall_s_per_chain"])) for r in rows)
+        xs, ys = [p[0] for p in pts], [p[1] for p in pts]
+        lx = math.log(float(x))
+        if fixed and lx > xs[-1]:
+            return math.exp(ys[-1] + lx - xs[-1])
+        if fixed and lx < xs[0]:
+            return math.exp(ys[0] + lx - xs[0])
+        return float(math.exp(np.interp(lx, xs, ys)))
 
     def event_max_n(self) -> int:
         """The longest chain the model measured the event method on."""
@@ -200,7 +234,20 @@ def fixed_step(scene, steps_per_contact: int) -> float:
     return sdt * math.floor(dt / sdt * (1.0 + 1e-12))
 
 
-def chain_work(scene, method: str) -> float:
+def speed_work(scene, method: str, v: float, duration: float | None = None) -> float:
+    """The share of striker speed ``v`` in :func:`chain_work` (``duration``: its
+    ``schedule.expected_duration`` if already known)."""
+    if not v > 0:
+        return 0.0
+    if method == "event":
+        return float(scene.n - 1)
+    dur = expected_duration(scene, v) if duration is None else duration
+    if method == "adaptive":
+        return dur / scene.contact_time(v)
+    return dur / scene.contact_time(max(scene.striker_velocities))
+
+
+def chain_work(scene, method: str, durations: dict | None = None) -> float:
     """Relative work of one realisation of ``scene`` (all its striker speeds) under
     ``method``: what carries the model's wall times from its measurement scenes to
     another scene. Fixed steps (t_c / N at the fastest striker) and the adaptive method
@@ -208,21 +255,62 @@ def chain_work(scene, method: str) -> float:
     (``schedule.expected_duration``: wave travel plus flight over the gaps) over the
     contact time. The event method's steps follow the contacts and skip the flight:
     within a factor of about 5 the same per contact over 20 nm to 1 um gaps and 0.01 to
-    0.1 m/s (benchmarks/gapped.py), so its work is the n - 1 contacts per speed."""
+    0.1 m/s (benchmarks/gapped.py), so its work is the n - 1 contacts per speed.
+    ``durations``: striker speed -> expected duration, if already known. The sum over
+    speeds of :func:`speed_work`."""
     vs = [float(v) for v in scene.striker_velocities if v > 0]
     if not vs:
         return 1.0
-    if method == "event":
-        return float(len(vs) * (scene.n - 1))
-    if method == "adaptive":
-        return sum(expected_duration(scene, v) / scene.contact_time(v) for v in vs)
-    return sum(expected_duration(scene, v) for v in vs) / scene.contact_time(max(vs))
+    d = durations or {}
+    return sum(speed_work(scene, method, v, d.get(v)) for v in vs)
 
 
-def work_ratio(scene, model: CostModel, scene_class: str) -> dict:
+def work_ratio(scene, model: CostModel, scene_class: str, durations: dict | None = None
+               ) -> dict:
     """Method -> the work of ``scene`` over that of the model's scenes of its class."""
     ref = model.work(scene_class)
-    return {m: chain_work(scene, m) / ref[m] for m in SCENE_METHODS}
+    return {m: chain_work(scene, m, durations) / ref[m] for m in SCENE_METHODS}
+
+
+def scene_class(scene) -> str:
+    """The cost model's class of a scene: 'packed' or 'gapped' (:func:`is_packed`)."""
+    return "packed" if is_packed(scene) else "gapped"
+
+
+# The cost model measures the reference engine only. A LAMMPS run's cost per chain and
+# integration step (s), dump writing and reading included: measured 8e-6 on a 40-chain
+# run at 0.1 m/s, 1.5e-5 for small runs, whose process start is shared by fewer chains.
+LAMMPS_STEP_SECONDS = 1.5e-5
+
+
+def member_seconds(scene, v: float, engine: str = "reference", model: CostModel | None = None,
+                   *, duration: float | None = None, steps: float | None = None) -> float:
+    """Estimated wall time (s) of one chain of a resolved scene at striker speed ``v``:
+    the one cost estimate of a member, behind auto's choice, the workflow's batches and
+    the cost guard's time. Reference engine: the cost model's wall time per chain at the
+    scene's setting (:meth:`CostModel.setting_seconds`; a fixed step dt is
+    t_c(fastest striker) / dt steps per contact) times the member's work over the
+    model's scenes' (:func:`speed_work`, the per-speed share of :func:`work_ratio`): at
+    a setting auto picked, exactly the cost auto ranked it by. LAMMPS:
+    ``LAMMPS_STEP_SECONDS`` per integration step (``steps``: the
+    ``schedule.cost_estimate`` steps). ``duration``: ``schedule.expected_duration``, if
+    already known."""
+    require_resolved(scene, "member_seconds")
+    if not v > 0:
+        return 0.0
+    if engine == "lammps":
+        if steps is None:
+            steps = cost_estimate(scene, v)["steps"]
+        return steps * LAMMPS_STEP_SECONDS
+    model = model or load_model()
+    cls = scene_class(scene)
+    m = scene.method
+    if m in TOLERANCE_METHODS:
+        wall = model.setting_seconds(m, cls, tolerance=scene.tolerance)
+    else:
+        n_tc = scene.contact_time(max(scene.striker_velocities)) / scene.dt
+        wall = model.setting_seconds(m, cls, steps_per_contact=n_tc)
+    return wall * speed_work(scene, m, v, duration) / model.work(cls)[m]
 
 
 def _round_up(x: float) -> float:
@@ -233,23 +321,29 @@ def _round_up(x: float) -> float:
     return math.ceil(round(x / 10.0**e, 9)) * 10.0**e
 
 
-def auto_setting(scene: Scene, model: CostModel | None = None) -> tuple[str, float, float | None]:
+def auto_setting(scene: Scene, model: CostModel | None = None, *,
+                 durations: dict | None = None, sample_dts: dict | None = None
+                 ) -> tuple[str, float, float | None]:
     """(method, dt, tolerance) of the cheapest setting meeting ``scene.tolerance`` on v_g
     (``AUTO_OBSERVABLE`` of the scene's class) with a margin: its measured error
     (envelope) is <= tolerance / AUTO_SAFETY. Cheapest on this scene: measured wall time
-    times :func:`work_ratio`. The event method is offered only on chains no longer than
-    the model measured it on (its step count grows faster than n).
+    times :func:`work_ratio` (the cost :func:`member_seconds` gives the scene at that
+    setting, summed over its striker speeds). The event method is offered only on chains
+    no longer than the model measured it on (its step count grows faster than n).
 
     Pure: reads only the scene and the cost model (rows of the scene's class, packed or
     gapped). dt = ``fixed_step(scene, N)``, as in the measurement, so that the samples
     fall on the reference's. With several sample intervals (a sweep of striker speeds at
     auto sampling) that cannot hold for every member, so when the target is below the
     measured misalignment floor only the tolerance methods are used. They keep the
-    scene's dt as their first step and get the model's tolerance as their rtol."""
+    scene's dt as their first step and get the model's tolerance as their rtol.
+    ``durations`` and ``sample_dts`` (striker speed -> ``schedule.expected_duration``,
+    ``schedule.sample_interval``): the run plan's, if already computed
+    (:func:`granchain.plan.plan_run`)."""
     model = model or load_model()
     tol = float(scene.tolerance)
     target = tol / AUTO_SAFETY
-    cls = "packed" if is_packed(scene) else "gapped"
+    cls = scene_class(scene)
     obs = AUTO_OBSERVABLE[cls]
     lo = _round_up(AUTO_SAFETY * model.achievable(obs, scene_class=cls))
     if tol < lo:
@@ -259,15 +353,16 @@ def auto_setting(scene: Scene, model: CostModel | None = None) -> tuple[str, flo
                          f"give a tolerance in [{lo:.2g}, 0.1], or choose method adaptive "
                          "with its own tolerance")
     vs = [v for v in scene.striker_velocities if v > 0]
+    sdt = sample_dts or {v: sample_interval(scene, v) for v in vs}
     methods = list(SCENE_METHODS)
-    if (len({sample_interval(scene, v) for v in vs}) > 1
+    if (len({sdt[v] for v in vs}) > 1
             and target < float(model.provenance["sampling_floor_v_g"][cls])):
         methods = list(TOLERANCE_METHODS)
     if scene.n > model.event_max_n() or scene.wall is not None:
         # not measured on chains this long; an end wall is not an event the method locates
         methods = [m for m in methods if m != "event"]
     pick = model.cheapest(target, obs, methods=methods, scene_class=cls,
-                          work=work_ratio(scene, model, cls))
+                          work=work_ratio(scene, model, cls, durations))
     if pick is None:
         raise SceneError("integrator.tolerance", f"{tol:g}: no setting of the cost model meets it",
                          f"give a tolerance in [{lo:.2g}, 0.1]")
@@ -278,21 +373,28 @@ def auto_setting(scene: Scene, model: CostModel | None = None) -> tuple[str, flo
     return pick["method"], fixed_step(scene, pick["steps_per_contact"]), None
 
 
-def resolve_auto(scene: Scene, model: CostModel | None = None) -> Scene:
-    """The scene that runs: ``scene`` itself unless its method is auto; else the scene
-    with the setting of :func:`auto_setting` (method, dt, tolerance in its spec, hence in
-    its hash, with the requested tolerance as ``auto_tolerance``), checked like any scene
-    with that setting (the step guard, sample_dt >= dt). A dt the scene file gave is
-    refused when auto chooses a fixed step of its own."""
-    if scene.method != "auto":
-        return scene
-    m, dt, rtol = auto_setting(scene, model)
+def apply_auto(scene: Scene, setting: tuple[str, float, float | None]) -> Scene:
+    """The scene of method auto with ``setting`` ((method, dt, tolerance) of
+    :func:`auto_setting`) in its spec, hence in its hash, and the requested tolerance as
+    ``auto_tolerance``, checked like any scene with that setting (the step guard,
+    sample_dt >= dt). A dt the scene file gave is refused when auto chooses a fixed step
+    of its own."""
+    m, dt, rtol = setting
     if "integrator.dt" in scene.given and m not in TOLERANCE_METHODS:
         raise SceneError("integrator.dt", f"has no effect: method auto chose {m} with its "
                          f"own step ({dt:.3g} s) for tolerance {scene.tolerance:g}",
                          "drop dt, or choose method rk4 or verlet to set the step")
     resolved = scene.derive({"integrator": {"method": m, "dt": dt, "tolerance": rtol}})
     return dataclasses.replace(resolved, auto_tolerance=scene.tolerance, given=scene.given)
+
+
+def resolve_auto(scene: Scene, model: CostModel | None = None) -> Scene:
+    """The scene that runs: ``scene`` itself unless its method is auto; else
+    :func:`apply_auto` of :func:`auto_setting`. (A run plans it once, with the rest of its
+    plan: :func:`granchain.plan.plan_run`.)"""
+    if scene.method != "auto":
+        return scene
+    return apply_auto(scene, auto_setting(scene, model))
 
 
 def describe_auto(scene: Scene) -> str:
@@ -312,12 +414,6 @@ def describe_auto(scene: Scene) -> str:
 # Member and its row of gaps.
 MEMBER_BYTES = 3000.0
 MEMBER_BYTES_PER_PARTICLE = 110.0
-# Rough wall time of one force evaluation per particle on one core (s), per engine, and
-# force evaluations per step, per method: only to tell the user how long a run would
-# take, never for results (reference RK4 on 15 spheres: ~1.3e-8 s per particle and
-# evaluation; LAMMPS: ~1.5e-5 s per step of a 15-sphere chain, dumps included).
-EVAL_SECONDS_PER_PARTICLE = {"reference": 2.0e-8, "lammps": 1.0e-6}
-EVALS_PER_STEP = {"rk4": 4, "verlet": 1, "adaptive": 13, "event": 13}
 DEFAULT_MAX_TOTAL_STEPS = 1e11      # whole run, raised with --max-total-steps
 # The reference engine's chunks (engines.reference: CHUNK_BYTES, CHUNK_CHAINS, and the
 # samples per kernel call WINDOW, BLOCK_WINDOW): while a chunk's records are joined their
@@ -348,7 +444,21 @@ def run_estimate(scene, realisations=None, engine: str = "reference", *,
     (``workflow.run_members`` on LAMMPS).
     members; steps (integration steps, all members); worst_chain_steps; record_bytes
     (sample records held, :func:`holds_records`); result_bytes (per-member results);
-    bytes (their sum); seconds (rough wall time on one core)."""
+    bytes (their sum); seconds (wall time on one core, :func:`member_seconds`). A run
+    plan (:meth:`granchain.plan.RunPlan.estimate`) gives the same from its own
+    estimates."""
+    per_v = [cost_estimate(scene, v) for v in scene.striker_velocities]
+    secs = [member_seconds(scene, v, engine, duration=c["duration_s"], steps=c["steps"])
+            for v, c in zip(scene.striker_velocities, per_v)]
+    return estimate_run(scene, per_v, secs, realisations, engine, trace=trace,
+                        speeds_apart=speeds_apart)
+
+
+def estimate_run(scene, per_v: list[dict], seconds: list[float], realisations=None,
+                 engine: str = "reference", *, trace: bool = False,
+                 speeds_apart: bool = False) -> dict:
+    """:func:`run_estimate` from each striker speed's ``schedule.cost_estimate``
+    (``per_v``) and :func:`member_seconds` (``seconds``) on ``engine``."""
     if realisations is None:
         reals = scene.realisations
     elif isinstance(realisations, (int, np.integer)):
@@ -356,7 +466,6 @@ def run_estimate(scene, realisations=None, engine: str = "reference", *,
     else:
         reals = len(realisations)
     reals = max(0, reals)
-    per_v = [cost_estimate(scene, v) for v in scene.striker_velocities]
     members = reals * len(per_v)
     steps = reals * sum(c["steps"] for c in per_v)
     rec = [c["record_bytes"] for c in per_v]
@@ -370,11 +479,10 @@ def run_estimate(scene, realisations=None, engine: str = "reference", *,
             per_chain += EVENT_BYTES_PER_PARTICLE * scene.n
         records += min(records, RECORD_CHUNK_BYTES) + min(members, CHUNK_CHAINS) * per_chain
     results = members * (MEMBER_BYTES + MEMBER_BYTES_PER_PARTICLE * scene.n)
-    evals = EVALS_PER_STEP.get(scene.method, 4)
     return {"members": members, "steps": steps,
             "worst_chain_steps": max((c["steps"] for c in per_v), default=0.0),
             "record_bytes": records, "result_bytes": results, "bytes": records + results,
-            "seconds": steps * evals * scene.n * EVAL_SECONDS_PER_PARTICLE[engine]}
+            "seconds": reals * sum(seconds)}
 
 
 def add_estimates(*ests: dict) -> dict:

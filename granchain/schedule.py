@@ -3,7 +3,8 @@ engines and the observables.
 
 Sampling: ``sample_interval`` (the scene's, or 400 samples per solitary-wave width).
 Cost: ``cost_estimate`` / ``check_cost``, the steps and sample record a run will need,
-refused above limits the caller can raise.
+refused above limits the caller can raise. A run computes them once, in its run plan
+(``granchain.plan.RunPlan``).
 
 A particle has *seen the wave* once its velocity exceeds ``ARRIVAL_FRACTION * v_s``.
 Its peak velocity is *final* (a measured maximum, inside the run) when:
@@ -128,12 +129,15 @@ def expected_duration(scene, v: float) -> float:
     return t
 
 
-def cost_estimate(scene, v: float) -> dict:
+def cost_estimate(scene, v: float, *, duration: float | None = None,
+                  sample_dt: float | None = None) -> dict:
     """Estimated duration (s), integration steps, samples and record bytes of one chain
-    (of a resolved scene: method auto has no step yet)."""
+    (of a resolved scene: method auto has no step yet). ``duration`` and ``sample_dt``:
+    :func:`expected_duration` and :func:`sample_interval` at v, if already known (neither
+    depends on the integrator)."""
     require_resolved(scene, "cost_estimate")
-    dur = expected_duration(scene, v)
-    sdt = sample_interval(scene, v)
+    dur = expected_duration(scene, v) if duration is None else duration
+    sdt = sample_interval(scene, v) if sample_dt is None else sample_dt
     samples = dur / sdt + 1.0 if (v > 0 or scene.t_end is not None) else 1.0
     if scene.method == "adaptive":
         steps = samples                 # at least one step per sample
@@ -146,13 +150,16 @@ def cost_estimate(scene, v: float) -> dict:
 
 
 def check_cost(scene, max_steps: float = DEFAULT_MAX_STEPS,
-               max_memory_gb: float = DEFAULT_MAX_MEMORY_GB) -> None:
-    """Refuse (one line) a scene whose chains exceed the step or memory limit."""
+               max_memory_gb: float = DEFAULT_MAX_MEMORY_GB, estimates=None) -> None:
+    """Refuse (one line) a scene whose chains exceed the step or memory limit;
+    ``estimates``: the :func:`cost_estimate` of each striker speed, if already known (a
+    run plan's)."""
     if not (max_steps > 0) or not (max_memory_gb > 0):
         raise GranchainError(f"--max-steps / --max-memory-gb: limits must be > 0 (got "
                              f"{max_steps:g}, {max_memory_gb:g}); give positive numbers")
-    worst = max((cost_estimate(scene, v) for v in scene.striker_velocities),
-                key=lambda c: (c["steps"], c["record_bytes"]))
+    if estimates is None:
+        estimates = [cost_estimate(scene, v) for v in scene.striker_velocities]
+    worst = max(estimates, key=lambda c: (c["steps"], c["record_bytes"]))
     how = ("t_end" if scene.t_end is not None else
            "t_end auto: until the wave has left particle n")
     if worst["steps"] > max_steps:

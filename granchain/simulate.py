@@ -1,7 +1,8 @@
 """Run a scene: its members (striker speed x gap realisation) through an engine.
 
 This is the one entry point the CLI and the workflow use:
-scene -> (method auto resolved) -> physics terms -> engine -> trajectories -> observables.
+scene -> run plan (method auto resolved, cost guard, warnings: ``granchain.plan``, once)
+-> physics terms -> engine -> trajectories -> observables.
 """
 from __future__ import annotations
 
@@ -10,23 +11,23 @@ import time
 
 import numpy as np
 
-from .costmodel import resolve_auto
 from .errors import GranchainError
 from .gaps import Member, member_gaps, member_radii, members
-from .guards import physics_warnings
 from .measurement import measure, needs_trace
 from .observables import ChainResult, summarize
-from .schedule import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost
+from .plan import RunPlan, plan_run
+from .schedule import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS
 from .scene import Scene
 
 ENGINES = ("reference", "lammps")
 
 
-def trajectories(scene: Scene, mem: list[Member], engine: str = "reference", **kw):
-    """Yield (member, Trajectory) in order (a scene with method auto runs resolved). The
-    reference engine records the sampled trajectory of its event method only on request
-    (``trace=True``); a measured scene requests it (``measurement.needs_trace``)."""
-    scene = resolve_auto(scene)
+def trajectories(scene: Scene | RunPlan, mem: list[Member], engine: str = "reference", **kw):
+    """Yield (member, Trajectory) in order (a scene with method auto runs resolved; a run
+    plan runs its scene). The reference engine records the sampled trajectory of its
+    event method only on request (``trace=True``); a measured scene requests it
+    (``measurement.needs_trace``)."""
+    scene = scene.scene if isinstance(scene, RunPlan) else plan_run(scene).scene
     g = member_gaps(scene, mem)
     vs = np.array([m.v_striker for m in mem])
     radii = member_radii(scene, mem)
@@ -52,29 +53,29 @@ def _float_or_none(x) -> float | None:
     return None if x is None else float(x)
 
 
-def run_scene(scene: Scene, engine: str = "reference", realisations=None, *,
+def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=None, *,
               max_steps: float = DEFAULT_MAX_STEPS, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
               **kw) -> list[ChainResult]:
     """Observables of every member of the scene, one :class:`~granchain.observables.ChainResult`
     each, with its member fields set.
 
-    A scene with method auto runs with the setting ``costmodel.resolve_auto`` gives it
-    (each result's ``method`` and ``dt``). Before integrating, refuses (GranchainError) a
-    scene whose chains need more than ``max_steps`` integration steps or
-    ``max_memory_gb`` GB of sample record each (estimates: ``schedule.check_cost``). Each
-    result carries ``warnings``: the one-line physics warnings for its striker speed (empty
-    when none), and ``batch_wall_s``, the wall time of the whole call. A scene with a
+    ``scene``: a scene or its run plan (``plan.plan_run``, built here from a scene, once).
+    A scene with method auto runs with the setting its plan chose (each result's
+    ``method`` and ``dt``). Before integrating, refuses (GranchainError) a scene whose
+    chains need more than ``max_steps`` integration steps or ``max_memory_gb`` GB of
+    sample record each (the plan's estimates, ``RunPlan.check``). Each result carries
+    ``warnings``: the plan's one-line physics warnings for its striker speed (empty when
+    none), and ``batch_wall_s``, the wall time of the whole call. A scene with a
     measurement block also gets the vibrometer's fields (``granchain.measurement``): it
     needs the probes' velocity histories (``measurement.needs_trace``)."""
-    scene = resolve_auto(scene)
-    check_cost(scene, max_steps, max_memory_gb)
+    plan = plan_run(scene)
+    plan.check(max_steps, max_memory_gb)
+    scene = plan.scene
     mem = members(scene, realisations)
     t0 = time.perf_counter()
     out = []
-    warn: dict[float, tuple[str, ...]] = {}     # per striker speed, computed once
-    for m, traj in trajectories(scene, mem, engine, **kw):
-        if m.v_striker not in warn:
-            warn[m.v_striker] = tuple(physics_warnings(scene, m.v_striker))
+    warn = {sp.v_striker: sp.warnings for sp in plan.speeds}
+    for m, traj in trajectories(plan, mem, engine, **kw):
         s = summarize(traj, scene.probes)
         extra = {}
         if needs_trace(scene):

@@ -32,6 +32,7 @@ import pytest
 
 from granchain import tables
 from granchain import workflow as gw
+from granchain.costmodel import member_seconds
 from granchain.errors import GranchainError
 from granchain.simulate import run_scene
 from independent import hertz_chain_peaks
@@ -335,15 +336,15 @@ def test_caption_sizes_and_probe_check():
 
 
 def test_engine_override_plans_every_ensemble_study_on_lammps():
-    """--config engine=lammps: every ensemble study's batches are LAMMPS batches, costed at
-    the LAMMPS step cost, their scenes verlet; lammps_check keeps both engines;
-    engine=reference is the default preset, config hash included."""
+    """--config engine=lammps: every ensemble study's batches are LAMMPS batches, costed
+    by each member's LAMMPS estimate (``costmodel.member_seconds``), their scenes verlet;
+    lammps_check keeps both engines; engine=reference is the default preset, config hash
+    included."""
     cfg = gw.read_config(CONFIG, "tiny")
     ref, lmp = gw.Plan.build(cfg), gw.Plan.build({**cfg, "engine": "lammps"})
     same = gw.Plan.build({**cfg, "engine": "reference"})
     assert tables.config_hash(same.preset) == tables.config_hash(ref.preset)
     assert tables.config_hash(lmp.preset) != tables.config_hash(ref.preset)
-    ratio = gw.STEP_SECONDS["lammps"] / gw.STEP_SECONDS["reference"]
     for study in gw.ENSEMBLE_STUDIES:
         assert ref.engines(study) == ["reference"] and lmp.engines(study) == ["lammps"]
         assert all(ss.scene.method == "verlet" and ss.packed_engine == "lammps"
@@ -353,10 +354,13 @@ def test_engine_override_plans_every_ensemble_study_on_lammps():
             continue
         assert [b.name for b in lmp.batches[study]] == \
             [b.name.replace("reference", "lammps") for b in ref.batches[study]]
-        # same members, same steps: the estimate differs by the engines' step costs only
-        est = [b.est_seconds for b in ref.batches[study]]
-        assert [b.est_seconds for b in lmp.batches[study]] == pytest.approx(
-            [e * ratio for e in est], rel=1e-12)
+        # each batch is costed by its members' own estimate on its engine
+        for plan in (ref, lmp):
+            for b in plan.batches[study]:
+                members = [(plan.scenes[study][si].scene, v) for si, reals in b.units
+                           for _ in reals for v in plan.scenes[study][si].scene.striker_velocities]
+                assert b.est_seconds == pytest.approx(
+                    sum(member_seconds(sc, v, b.engine) for sc, v in members), rel=1e-9)
     assert lmp.batches["lammps_check"] == ref.batches["lammps_check"]
     assert [ss.packed_engine for ss in lmp.scenes["lammps_check"]] == \
         ["reference"] * len(lmp.scenes["lammps_check"])

@@ -18,8 +18,8 @@ as gw``). One job per module; each imports only those above it:
 """
 from __future__ import annotations
 
-from .batches import (JOB_OVERHEAD_S, STEP_SECONDS, Batch, batches, estimated_steps,
-                      find_batch, members_per_job, realisation_cost, runtime_minutes)
+from .batches import (JOB_OVERHEAD_S, Batch, batches, find_batch, members_per_job,
+                      realisation_cost, runtime_minutes)
 from .captions import FIGURES, caption_sizes, describe, vibrometer_sizes
 from .comparison import COMPARISON_META, engine_comparison, write_engine_comparison
 from .config import (ENGINES, ENSEMBLE_STUDIES, FIELD_STUDIES, OPTIONAL_STUDIES,
@@ -37,8 +37,8 @@ from .studies import (ENGINE_ORDER, STUDIES, VIBROMETER, StudyScene, check_chain
 from .vibrometer import VIB_COLUMNS, run_vibrometer, write_vibrometer
 
 __all__ = [
-    "JOB_OVERHEAD_S", "STEP_SECONDS", "Batch", "batches", "estimated_steps", "find_batch",
-    "members_per_job", "realisation_cost", "runtime_minutes",
+    "JOB_OVERHEAD_S", "Batch", "batches", "find_batch", "members_per_job",
+    "realisation_cost", "runtime_minutes",
     "FIGURES", "caption_sizes", "describe", "vibrometer_sizes",
     "COMPARISON_META", "engine_comparison", "write_engine_comparison",
     "ENGINES", "ENSEMBLE_STUDIES", "FIELD_STUDIES", "OPTIONAL_STUDIES", "QUESTION_STUDIES",

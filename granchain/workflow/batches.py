@@ -1,70 +1,32 @@
 """Job batches: many members per job, balanced by estimated cost.
 
 The members of a study (per engine) are cut into ``ceil(members / batch.members_per_job)``
-jobs of about equal *estimated cost* (integration steps, which grow like gap / v_striker),
-in whole realisations of a scene, so a job calls :func:`granchain.simulate.run_scene` with
-``realisations=[...]`` once per scene it holds. The estimates balance jobs and set their
-runtime limits; they never enter a result.
+jobs of about equal *estimated cost*, in whole realisations of a scene, so a job calls
+:func:`granchain.simulate.run_scene` with ``realisations=[...]`` once per scene it holds.
+The cost of a realisation is its scene's run plan's (``StudyScene.plan``,
+:meth:`granchain.plan.RunPlan.member_seconds`): the one per-member estimate of
+``costmodel.member_seconds``, from the packaged cost model and ``schedule``'s expected
+duration, that auto ranks its settings by and the cost guard reports. The estimates
+balance jobs and set their runtime limits; they never enter a result.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
-from .. import analytic
-from ..costmodel import DEFAULT_MAX_TOTAL_STEPS, add_estimates, run_estimate
+from ..costmodel import DEFAULT_MAX_TOTAL_STEPS, add_estimates
 from ..errors import GranchainError
 from ..guards import check_run
-from ..scene import Scene
 from .config import ConfigError
 from .studies import ENGINE_ORDER, StudyScene, study_scenes
 
-# Rough cost of one integration step of one chain on one core (s), per engine: used only
-# to balance batches and to declare runtimes, never for results.
-STEP_SECONDS = {"reference": 2.0e-6, "lammps": 1.5e-5}   # LAMMPS: dump writing and reading dominate
 JOB_OVERHEAD_S = 5.0       # interpreter start, imports, numba cache load
 
 
-# The event method takes about this many steps per chain whatever the gaps and speed (a
-# few tens per contact and flight; measured 300-1500 on 15 spheres, benchmarks/gapped.py),
-# each of 12 force evaluations: about 3 fixed RK4 steps' worth.
-EVENT_STEPS_PER_CHAIN = 1500
-EVENT_STEP_WEIGHT = 3.0
-
-
-def estimated_steps(scene: Scene, v: float, gap_mean: float) -> float:
-    """Rough number of integration steps of one chain, in fixed-step equivalents (for
-    balancing batches only)."""
-    if v <= 0:
-        return 1.0
-    if scene.method == "event":
-        return EVENT_STEPS_PER_CHAIN * EVENT_STEP_WEIGHT
-    # a chain on an end wall runs until the wave has come back from it: the whole chain
-    # and a few spheres back (a preload only speeds the wave up)
-    p = scene.n + 4 if scene.wall is not None else scene.probes[-1]
-    travel = (p + 2) * 2.0 * scene.radius / float(analytic.nesterenko_speed(scene.material, 0.64 * v))
-    flight = (p - 1) * gap_mean / (0.7 * v)
-    return (travel + flight) / scene.dt
-
-
-def _gap_mean_m(ss: StudyScene) -> float:
-    s = ss.scene
-    if s.gap_distribution == "none":
-        return 0.0
-    if s.gap_distribution == "from_length":
-        return s.gap_extra_length / (s.n - 1)
-    if s.gap_distribution == "list":
-        return float(np.mean(s.gap_values))
-    return s.gap_mean or 0.0
-
-
 def realisation_cost(ss: StudyScene, engine: str) -> float:
-    """Estimated seconds of one realisation (all striker speeds) of a study scene."""
-    g = _gap_mean_m(ss)
-    steps = sum(estimated_steps(ss.scene, v, g) for v in ss.scene.striker_velocities)
-    return steps * STEP_SECONDS[engine]
+    """Estimated seconds of one realisation (all striker speeds) of a study scene on
+    ``engine``, from its run plan."""
+    return ss.plan.member_seconds(engine)
 
 
 @dataclass(frozen=True)
@@ -171,10 +133,10 @@ def _job_limits(preset: dict, name: str, job: str, est: dict, size: str) -> None
         raise ConfigError(f"invalid configuration at '{where.split(' ')[0]}': {rest}") from None
 
 
-def _unit_estimate(scene: Scene, realisations, engine: str) -> dict:
-    """``run_estimate`` of one scene's realisations in a job (``run.run_members``: LAMMPS
-    runs each striker speed apart)."""
-    return run_estimate(scene, realisations, engine, speeds_apart=engine == "lammps")
+def _unit_estimate(ss: StudyScene, realisations, engine: str) -> dict:
+    """The run estimate of one scene's realisations in a job, from its run plan
+    (``run.run_members``: LAMMPS runs each striker speed apart)."""
+    return ss.plan.estimate(realisations, engine, speeds_apart=engine == "lammps")
 
 
 def check_study(preset: dict, name: str, study: str, scenes: list[StudyScene]) -> None:
@@ -187,7 +149,7 @@ def check_study(preset: dict, name: str, study: str, scenes: list[StudyScene]) -
         mine = [ss for ss in scenes if eng in ss.engines]
         if not mine:
             continue
-        ests = [_unit_estimate(ss.scene, None, eng) for ss in mine]
+        ests = [_unit_estimate(ss, None, eng) for ss in mine]
         est = add_estimates(*ests)
         members = int(est["members"])
         njobs = max(1, math.ceil(members / k))
@@ -214,7 +176,7 @@ def check_jobs(preset: dict, name: str, study: str, jobs: list[Batch],
     the job writes its table, and the sample records of the largest of its scenes' runs
     (``run.run_batch`` runs its scenes one after another)."""
     for b in jobs:
-        ests = [_unit_estimate(scenes[si].scene, reals, b.engine) for si, reals in b.units]
+        ests = [_unit_estimate(scenes[si], reals, b.engine) for si, reals in b.units]
         est = add_estimates(*ests)
         est["record_bytes"] = max(e["record_bytes"] for e in ests)
         est["bytes"] = est["result_bytes"] + est["record_bytes"]

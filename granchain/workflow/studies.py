@@ -43,11 +43,12 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from .. import analytic
 from ..errors import GranchainError
-from ..costmodel import fixed_step, resolve_auto
+from ..costmodel import fixed_step
+from ..plan import RunPlan, plan_run
 from ..scene import RANDOM_GAPS, TOLERANCE_METHODS, Scene, apply_overrides, scene_from_dict
 from .config import FIELD_STUDIES, OPTIONAL_STUDIES, QUESTION_STUDIES, ConfigError, \
     study_engine
@@ -74,6 +75,13 @@ class StudyScene:
     # a question study's setting columns and their values (tables.SETTING_COLUMNS): the
     # radius spread, the contact damping
     setting: tuple[tuple[str, object], ...] = ()
+    # the scene's run plan (granchain.plan), built once with the scene
+    run_plan: RunPlan | None = field(default=None, compare=False, repr=False)
+
+    @property
+    def plan(self) -> RunPlan:
+        """The run plan of the scene: auto's choice, steps, wall time per member."""
+        return self.run_plan if self.run_plan is not None else plan_run(self.scene)
 
     @property
     def eq54(self) -> bool:
@@ -153,27 +161,35 @@ def _raw_scene(preset: dict, spec: dict, name: str, material: str, velocities, g
     return apply_overrides(raw, list(base.get("overrides", [])) + list(spec.get("overrides", [])))
 
 
-def _build(raw: dict, where: str) -> Scene:
-    """The study scene, with method auto resolved (its hash covers the setting it runs)."""
+def _build(raw: dict, where: str) -> RunPlan:
+    """The run plan of a study scene: its scene (``.scene``) has method auto resolved (its
+    hash covers the setting it runs)."""
     try:
-        return resolve_auto(scene_from_dict(raw))
+        return plan_run(scene_from_dict(raw))
     except GranchainError as exc:
         raise ConfigError(f"invalid configuration at '{where}' (scene {raw['name']}): {exc}") \
             from None
 
 
-def _check_scene(raw: dict, spec: dict, where: str) -> Scene:
+def _scene_and_raw(raw: dict, where: str) -> tuple:
+    """(scene, raw) of a StudyScene, its run plan as ``run_plan`` (:func:`_build`)."""
+    p = _build(raw, where)
+    return p.scene, raw, "", (), p
+
+
+def _check_scene(raw: dict, spec: dict, where: str) -> RunPlan:
     """A lammps_check scene: with ``steps_per_contact`` N its step is the Hertz contact
     time at its striker speed over N, on its sample grid (``costmodel.fixed_step``, as the
     accuracy study sets Verlet's step), so a slower striker takes a larger step; else the
-    study's (or base) dt. Both engines run that step (``granchain.compare``)."""
+    study's (or base) dt. Both engines run that step (``granchain.compare``). Its run
+    plan, as :func:`_build`'s."""
     n = spec.get("steps_per_contact")
     if n is None:
         return _build(raw, where)
     if "dt" in spec:
         raise ConfigError("invalid configuration at 'studies.lammps_check': both dt and "
                           "steps_per_contact are given; give one of them")
-    raw["integrator"]["dt"] = fixed_step(_build(raw, where), int(n))
+    raw["integrator"]["dt"] = fixed_step(_build(raw, where).scene, int(n))
     return _build(raw, where)
 
 
@@ -203,9 +219,9 @@ def study_scenes(preset: dict, study: str) -> list[StudyScene]:
         name = f"{study}-{material}" + (f"-{suffix}" if suffix else "")
         raw = _raw_scene(preset, spec, name, material, velocities, gaps, realisations,
                          engines[0] if len(engines) == 1 else "reference")
-        scene = _check_scene(raw, spec, where) if study == "lammps_check" else _build(raw, where)
+        p = _check_scene(raw, spec, where) if study == "lammps_check" else _build(raw, where)
         out.append(StudyScene(study, len(out), material, float(gap_nm), float(extra_um),
-                              tuple(engines), scene, raw))
+                              tuple(engines), p.scene, raw, run_plan=p))
 
     engines = (study_engine(spec),)
     if study == "lammps_check":
@@ -270,7 +286,7 @@ def field_scenes(preset: dict, study: str) -> list[StudyScene]:
             if F0 > 0:
                 raw["precompression"] = {"force": F0}
             out.append(StudyScene(study, len(out), material, 0.0, math.nan, engines,
-                                  _build(raw, where), raw))
+                                  *_scene_and_raw(raw, where)))
     return out
 
 
@@ -323,8 +339,9 @@ def question_scenes(preset: dict, study: str) -> list[StudyScene]:
         raw = _raw_scene(preset, spec, f"{study}-{material}-{suffix}", material, v,
                          gaps, realisations, engine)
         edit(raw)
+        p = _build(raw, where)
         out.append(StudyScene(study, len(out), material, float(gap_nm), math.nan, (engine,),
-                              _build(raw, where), raw, setting=tuple(setting)))
+                              p.scene, raw, setting=tuple(setting), run_plan=p))
 
     if study == "radius_spread":
         dist = spec.get("distribution", "normal")
@@ -414,9 +431,10 @@ def check_chain_scenes(preset: dict) -> list[StudyScene]:
                     if "precompression_N" in ch:
                         raw["precompression"] = {"force": float(ch["precompression_N"])}
                     raw = apply_overrides(raw, list(ch.get("overrides", [])))
+                    p = _check_scene(raw, spec, at)
                     out.append(StudyScene("lammps_check", len(out), material, float(g),
-                                          math.nan, engines, _check_scene(raw, spec, at),
-                                          raw, ch["name"]))
+                                          math.nan, engines, p.scene, raw, ch["name"],
+                                          run_plan=p))
     return out
 
 
@@ -437,7 +455,7 @@ def trace_scene(ss: StudyScene) -> Scene:
     travel = (sc.n + 1) * 2.0 * sc.radius / float(analytic.nesterenko_speed(sc.material, 0.64 * v))
     raw = copy.deepcopy(ss.raw)
     raw["t_end"] = 1.5 * travel
-    return _build(raw, "studies.packed_trace")
+    return _build(raw, "studies.packed_trace").scene
 
 
 def vibrometer_scenes(preset: dict) -> list[StudyScene]:
@@ -463,7 +481,7 @@ def vibrometer_scenes(preset: dict) -> list[StudyScene]:
                              reals)
             raw["measurement"] = dict(first)
             out.append(StudyScene(VIBROMETER, len(out), material, float(g), math.nan,
-                                  ("reference",), _build(raw, where), raw))
+                                  ("reference",), *_scene_and_raw(raw, where)))
     return out
 
 

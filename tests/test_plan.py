@@ -1,0 +1,172 @@
+"""The run plan (granchain.plan): computed once per run, and the one cost estimate that
+auto, the cost guard and the workflow's batches read."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from granchain import costmodel, schedule
+from granchain import workflow as gw
+from granchain.errors import GranchainError
+from granchain.plan import plan_run
+from granchain.scene import scene_from_dict
+
+EFFECTS = ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction"]
+
+
+def _scene(method="auto", gap_nm=20.0, v=(0.05, 0.1), **integrator):
+    gaps = ({"distribution": "uniform", "mean": gap_nm * 1e-9, "seed": 3} if gap_nm
+            else {"distribution": "none"})
+    return scene_from_dict({"material": "ss440c", "striker": {"velocity": list(v)},
+                            "gaps": gaps, "effects": EFFECTS,
+                            "integrator": {"method": method, **integrator},
+                            "ensemble": {"realisations": 2}})
+
+
+def test_plan_resolves_auto_as_resolve_auto_does():
+    """The plan's scene is the one resolve_auto gives (same setting, same hash), with
+    auto's choice described; a scene that is not auto runs as it is."""
+    for tol in (1e-3, 1e-4, 1e-5):
+        raw = _scene(tolerance=tol)
+        p = plan_run(raw)
+        assert p.scene.hash == costmodel.resolve_auto(raw).hash
+        assert p.auto == costmodel.describe_auto(p.scene) and p.auto.startswith("auto (")
+    rk4 = _scene("rk4", dt=1e-9)
+    assert plan_run(rk4).scene is rk4 and plan_run(rk4).auto == ""
+    p = plan_run(rk4)
+    assert plan_run(p) is p
+
+
+def test_plan_estimates_match_the_planning_modules():
+    """Per striker speed the plan holds schedule's sampling, duration, steps and record,
+    guards' warnings; its whole-run estimate is costmodel.run_estimate's."""
+    sc = _scene("verlet", dt=1e-9, v=(0.05, 0.1, 20.0))
+    p = plan_run(sc)
+    for sp in p.speeds:
+        c = schedule.cost_estimate(sc, sp.v_striker)
+        assert sp.sample_dt == schedule.sample_interval(sc, sp.v_striker)
+        assert sp.estimate() == pytest.approx(c, rel=1e-12)
+    assert any(p.at(20.0).warnings) and not p.at(0.1).warnings
+    for eng in ("reference", "lammps"):
+        for reals in (None, 3, [0, 4]):
+            assert p.estimate(reals, eng) == pytest.approx(
+                costmodel.run_estimate(sc, reals, eng), rel=1e-12)
+
+
+def test_member_seconds_is_the_cost_auto_ranks_by():
+    """At the setting auto picked, a member's estimated wall time summed over the
+    scene's striker speeds is the measured wall time of that setting times the scene's
+    work ratio: the cost auto minimised."""
+    model = costmodel.load_model()
+    for gap in (0.0, 20.0, 190.0):
+        for v in ((0.1,), (0.01, 0.05)):
+            raw = _scene(gap_nm=gap, v=v, tolerance=1e-4)
+            p = plan_run(raw)
+            cls = p.scene_class
+            ratio = costmodel.work_ratio(raw, model, cls)[p.method]
+            rows = [r for r in model.envelope("v_g", cls) if r["method"] == p.method]
+            if p.method in ("adaptive", "event"):
+                row = next(r for r in rows if r["tolerance"] == p.scene.tolerance)
+            else:
+                n = p.scene.contact_time(max(v)) / p.scene.dt
+                row = min(rows, key=lambda r: abs(math.log(r["steps_per_contact"] / n)))
+                if abs(math.log(row["steps_per_contact"] / n)) > 1e-6:
+                    continue                  # a snapped step between measured settings
+            assert p.member_seconds() == pytest.approx(row["wall_s_per_chain"] * ratio,
+                                                       rel=1e-9)
+
+
+def test_setting_seconds_interpolates_between_measured_settings():
+    """At a measured setting: its wall time; between two: between theirs; beyond the
+    finest fixed step: in proportion to the steps."""
+    model = costmodel.load_model()
+    rows = [r for r in model.envelope("v_g", "gapped") if r["method"] == "rk4"]
+    rows.sort(key=lambda r: r["steps_per_contact"])
+    for a, b in zip(rows, rows[1:]):
+        wa, wb = a["wall_s_per_chain"], b["wall_s_per_chain"]
+        assert model.setting_seconds("rk4", "gapped",
+                                     steps_per_contact=a["steps_per_contact"]) == pytest.approx(wa)
+        mid = model.setting_seconds("rk4", "gapped", steps_per_contact=math.sqrt(
+            a["steps_per_contact"] * b["steps_per_contact"]))
+        assert min(wa, wb) <= mid <= max(wa, wb)
+    top = rows[-1]
+    assert model.setting_seconds("rk4", "gapped", steps_per_contact=4 * top["steps_per_contact"]) \
+        == pytest.approx(4 * top["wall_s_per_chain"])
+    with pytest.raises(GranchainError, match="no lammps rows"):
+        model.setting_seconds("lammps", "gapped", steps_per_contact=100)
+
+
+def test_run_scene_plans_once(monkeypatch):
+    """run_scene of an auto scene asks the cost model for auto's setting once and
+    computes each striker speed's schedule once (the engine aside); given a plan, not
+    at all."""
+    from granchain import plan as plan_mod
+    from granchain import simulate
+    calls = {"auto": 0, "dur": 0}
+    real_auto, real_dur = costmodel.auto_setting, plan_mod.expected_duration
+
+    def auto(*a, **k):
+        calls["auto"] += 1
+        return real_auto(*a, **k)
+
+    def dur(*a, **k):
+        calls["dur"] += 1
+        return real_dur(*a, **k)
+
+    monkeypatch.setattr(costmodel, "auto_setting", auto)
+    monkeypatch.setattr(plan_mod, "expected_duration", dur)
+
+    def fake_trajectories(scene, mem, engine="reference", **kw):
+        raise RuntimeError("stop before the engine")
+
+    monkeypatch.setattr(simulate, "trajectories", fake_trajectories)
+    raw = _scene(tolerance=1e-4)
+    with pytest.raises(RuntimeError, match="stop before"):
+        simulate.run_scene(raw)
+    assert calls == {"auto": 1, "dur": len(raw.striker_velocities)}
+    p = plan_run(raw)
+    calls.update(auto=0, dur=0)
+    with pytest.raises(RuntimeError, match="stop before"):
+        simulate.run_scene(p)
+    assert calls == {"auto": 0, "dur": 0}
+
+
+def test_run_scene_cost_guard_reads_the_plan():
+    """The per-chain guard refuses from the plan's estimates, naming the limit."""
+    from granchain.simulate import run_scene
+    sc = _scene("rk4", dt=1e-9, v=(1e-4,), gap_nm=190.0)
+    steps = max(sp.steps for sp in plan_run(sc).speeds)
+    with pytest.raises(GranchainError, match="--max-steps"):
+        run_scene(sc, max_steps=steps / 2)
+
+
+def _gap_study_preset(method: dict):
+    cfg = gw.read_config("config/config.yaml", "tiny")
+    _, preset = gw.select_preset(cfg)
+    preset = {**preset, "base": {**preset["base"], **method},
+              "batch": {**preset["batch"], "members_per_job": 8}}
+    spec = {"materials": ["ss440c"], "gap_mean_nm": [10, 190], "v_striker": [0.02, 0.5],
+            "realisations": 12}
+    preset["studies"] = {**preset["studies"], "gap_sweep": spec}
+    return preset
+
+
+@pytest.mark.parametrize("method", [{"method": "rk4"}, {"method": "event", "tolerance": 1.0e-6}])
+def test_batches_are_balanced_by_the_plans_cost(method):
+    """A study whose realisations cost unlike amounts (10 and 190 nm gaps at a fixed step;
+    equal under the event method) is cut into jobs of about equal estimated cost: each
+    job's estimate is its members' run-plan cost, and no job is further from the mean
+    than one realisation's cost."""
+    preset = _gap_study_preset(method)
+    scenes = gw.study_scenes(preset, "gap_sweep")
+    jobs = gw.batches(preset, "gap_sweep", scenes=scenes)
+    assert len(jobs) == math.ceil(sum(ss.members for ss in scenes) / 8)
+    costs = {ss.index: ss.plan.member_seconds("reference") for ss in scenes}
+    if method["method"] == "rk4":
+        assert costs[1] > 3 * costs[0]         # the wide gaps' flight costs fixed steps
+    for b in jobs:
+        assert b.est_seconds == pytest.approx(
+            sum(costs[si] * len(reals) for si, reals in b.units), rel=1e-12)
+    mean = sum(b.est_seconds for b in jobs) / len(jobs)
+    assert max(abs(b.est_seconds - mean) for b in jobs) <= max(costs.values()) * (1 + 1e-9)
