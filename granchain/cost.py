@@ -18,7 +18,8 @@ from .accuracy.cli import preset_blocks
 from .accuracy.measure import (COLUMNS, DEFAULT_BASE, DEFAULT_COST, DETERMINISTIC, METHODS,
                                OBSERVABLES, TIMING_ONLY, Setting, contact_time, full_config,
                                lammps_unavailable, measure, reference_runs, sampling_floor,
-                               scene_dicts, scene_for, settings, to_frame)
+                               scene_dicts, scene_for, settings, timing_settled,
+                               timing_summary, to_frame)
 from .accuracy.report import machine, plot, provenance_fields, write_model, write_outputs
 from .costmodel import (AUTO_SAFETY, MODEL_COLUMNS, MODEL_FILE, MODEL_PROVENANCE,
                         SCENE_METHODS, auto_setting, fixed_step, is_packed, load_model,
@@ -33,7 +34,8 @@ __all__ = ["AUTO_SAFETY", "COLUMNS", "DEFAULT_BASE", "DEFAULT_COST", "DETERMINIS
            "load_model", "machine", "main", "measure", "model_from_table", "plot",
            "preset_blocks", "provenance_fields", "reference_runs", "rel_err",
            "resolve_auto", "sampling_floor", "scene_class", "scene_dicts", "scene_for",
-           "settings", "to_frame", "write_model", "write_outputs"]
+           "settings", "timing_settled", "timing_summary", "to_frame", "write_model",
+           "write_outputs"]
 
 
 def main(argv=None) -> int:

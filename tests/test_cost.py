@@ -198,13 +198,66 @@ def test_deterministic_table_and_provenance(study, tmp_path):
     assert "machine" in json.loads((a / "timing.provenance.json").read_text())
 
 
-def test_measured_errors_are_deterministic():
-    """What goes into tables/ is byte-identical between runs (timings go to timing/)."""
-    mini = {"batch": 2, "repeats": 1, "gap_mean_nm": [20], "methods": ["rk4", "adaptive"],
+def test_measured_errors_are_deterministic(tmp_path):
+    """What goes into tables/ is byte-identical between runs (timings go to timing/),
+    however many timed repeats each setting gets: errors come from the first batch.
+    Repeats stop once two wall times agree within timing_spread (at most ``repeats``);
+    timing_spread 0 times every setting ``repeats`` times. The timing provenance keeps
+    every wall time."""
+    mini = {"batch": 2, "repeats": 3, "gap_mean_nm": [20], "methods": ["rk4", "adaptive"],
             "steps_per_contact": [20, 80], "tolerances": [1e-6]}
-    a, b = (cost.to_frame(cost.measure(mini, log=lambda m: None)[0]) for _ in range(2))
+    (ra, ia), (rb, ib) = (cost.measure(dict(mini, timing_spread=sp), log=lambda m: None)
+                          for sp in (0.05, 0.0))
+    a, b = cost.to_frame(ra), cost.to_frame(rb)
     cols = list(cost.DETERMINISTIC)
     assert a[cols].to_csv() == b[cols].to_csv()
+    assert (b.repeats == 3).all() and a.repeats.between(2, 3).all()
+    for df, info, spread in ((a, ia, 0.05), (b, ib, 0.0)):
+        walls = info["timing"]["walls_s_per_chain"]
+        assert info["timing"]["timing_spread"] == spread and len(walls) == len(df)
+        for (_, row), w in zip(df.iterrows(), walls.values()):
+            assert len(w) == row.repeats and row.wall_s_per_chain == np.median(w)
+            assert cost.timing_settled(w, spread, 3)
+            assert len(w) == 3 or not cost.timing_settled(w[:-1], spread, 3)
+    cost.write_outputs(ra, ia, mini, None, timing=tmp_path / "timing.csv")
+    prov = json.loads((tmp_path / "timing.provenance.json").read_text())
+    assert prov["timing"]["walls_s_per_chain"] == ia["timing"]["walls_s_per_chain"]
+
+
+def test_timing_settles_when_two_wall_times_agree():
+    assert not cost.timing_settled([], 0.05, 3)
+    assert not cost.timing_settled([1.0], 0.05, 3)
+    assert cost.timing_settled([1.0], 0.05, 1)                  # the cap
+    assert cost.timing_settled([1.0, 1.04], 0.05, 5)
+    assert not cost.timing_settled([1.0, 1.06], 0.05, 5)
+    assert cost.timing_settled([1.0, 1.5, 1.53], 0.05, 5)       # an outlier is outvoted
+    assert not cost.timing_settled([1.0, 1.0], 0.0, 5)          # spread 0: the cap only
+    assert cost.timing_settled([1.0, 1.0, 1.0], 0.0, 3)
+
+
+def test_reference_reuses_the_runs_it_shares(monkeypatch):
+    """The reference's cross-check is the grid's RK4 at the finest N and the sampling
+    floor's reference is the reference itself: with the run memo neither runs twice, and
+    the reference's numbers are those of separate runs."""
+    import granchain.simulate as simulate
+    full, base = cost.full_config({"steps_per_contact": [20, 80]}, None)
+    raw = cost.scene_dicts(full, base)["packed"]
+    ref_sc = cost.scene_for(raw, cost.Setting("adaptive", None, full["reference_tolerance"]))
+    chk_sc = cost.scene_for(raw, cost.Setting("rk4", 80))
+    ref, chk = run_scene(ref_sc, realisations=range(1)), run_scene(chk_sc, realisations=range(1))
+    calls = []
+    real = simulate.run_scene
+    monkeypatch.setattr(simulate, "run_scene", lambda sc, **kw: calls.append(sc.hash) or real(sc, **kw))
+    _, alone = cost.reference_runs(raw, full, 1, log=lambda m: None)
+    assert len(calls) == len(set(calls)) == 3       # reference, cross-check, floor's RK4
+    assert alone["uncertainty"] == {k: cost.rel_err(chk, ref, k) for k in cost.OBSERVABLES}
+    calls.clear()
+    memo = {("reference", chk_sc.hash, 1): chk}
+    got, shared = cost.reference_runs(raw, full, 1, log=lambda m: None, memo=memo)
+    assert len(calls) == 2 and calls[0] == ref_sc.hash and chk_sc.hash not in calls
+    assert shared == alone
+    assert [(r.v_max_2, r.v_g, r.v_g_front, r.steps) for r in got] == \
+        [(r.v_max_2, r.v_g, r.v_g_front, r.steps) for r in ref]
 
 
 def test_study_settings_are_validated():

@@ -36,7 +36,9 @@ energy-ledger closure (largest over the batch; NaN for LAMMPS with particle fric
 ledger closes by construction: ``engines.lammps.residual_balance``). Reference: ``adaptive``
 at ``reference_tolerance`` (1e-13), cross-checked with RK4 at the finest N of the grid;
 their mutual difference is the reference's own uncertainty (``ref_uncertainty_*``), below
-which no error is meaningful.
+which no error is meaningful. One reference per scene serves every method; the
+cross-check is the grid's own RK4 batch at the finest N, and the sampling floor below
+reuses the reference (no run is made twice: ``measure._run``'s memo).
 
 Sampling: observables read sampled histories (auto sampling, ~t_c / 163), so a run is
 compared with a reference sampled at the same times. ``costmodel.fixed_step`` puts N steps
@@ -47,9 +49,14 @@ Fixed steps sampling off the reference's grid have an error floor on v_g whateve
 (``sampling_floor_v_g``: ~2e-7 packed, ~3e-5 with plateaus).
 
 Wall time per chain (``wall_s_per_chain``): the wall time of ``run_scene`` on a batch of B
-chains (integration and observables), over B; the median of ``repeats``; after a JIT
+chains (integration and observables), over B; the median of its timed repeats; after a JIT
 warm-up; every setting of every scene timed side by side in one run, interleaved (repeat r
-starts its round at a different setting), because the machine is shared and noisy.
+starts its round at a different setting), because the machine is shared and noisy. A
+setting is timed again until two of its wall times agree within ``timing_spread`` (5 %),
+at most ``repeats`` times (``measure.timing_settled``): on a quiet machine two repeats,
+on a noisy one up to ``repeats``. Its errors come from its first batch (the runs are
+deterministic), so repeats only add wall times; the timing provenance keeps every wall
+time, their spread and the run's phases (``measure.timing_summary``).
 ``engine_s_per_chain`` is the engine's own share. LAMMPS is I/O-bound (one dump line per
 particle and sample) and costs ~100x more per chain; it runs on ``lammps_batch`` chains,
 ``lammps_repeats`` times (columns ``batch``, ``repeats``).

@@ -50,6 +50,7 @@ DEFAULT_COST = {
     "lammps_repeats": 1,
     "reference_tolerance": 1e-13,
     "cheapest_tolerances": [1e-3, 1e-5],
+    "timing_spread": 0.05,
 }
 DEFAULT_BASE = {"n": 15, "radius": 150e-6, "seed": 2024,
                 "effects": ["hertz", "groove_friction", "air_drag", "rotation",
@@ -139,9 +140,18 @@ def scene_for(raw: dict, setting: Setting, *, batch: int = 1):
                                    "dt": dt})
 
 
-def _run(scene, setting: Setting, batch: int) -> list[ChainResult]:
+def _run(scene, setting: Setting, batch: int, memo: dict | None = None) -> list[ChainResult]:
+    """The first ``batch`` chains of ``scene`` on ``setting``'s engine. With ``memo`` (a
+    dict), a run of the same engine, scene hash (which covers the integrator and the
+    realisation count) and batch is computed once and then read back from it."""
     from ..simulate import run_scene
-    return run_scene(scene, engine=setting.engine, realisations=range(batch))
+    key = (setting.engine, scene.hash, int(batch))
+    if memo is not None and key in memo:
+        return memo[key]
+    out = run_scene(scene, engine=setting.engine, realisations=range(batch))
+    if memo is not None:
+        memo[key] = out
+    return out
 
 
 def lammps_unavailable() -> str | None:
@@ -164,16 +174,20 @@ def _balance_is_residual(scene) -> bool:
 
 
 
-def reference_runs(raw: dict, cost: dict, batch: int, log=_log) -> tuple[list[ChainResult], dict]:
+def reference_runs(raw: dict, cost: dict, batch: int, log=_log, *,
+                   memo: dict | None = None) -> tuple[list[ChainResult], dict]:
     """Reference observables of ``batch`` chains, and the reference's own uncertainty:
-    adaptive at ``reference_tolerance`` against RK4 at the finest N of the grid."""
+    adaptive at ``reference_tolerance`` against RK4 at the finest N of the grid. With
+    ``memo`` (see ``_run``), runs already made (the grid's RK4 at the finest N, the
+    reference itself) are reused, not repeated."""
     from ..schedule import sample_interval
     ref_set = Setting("adaptive", None, float(cost["reference_tolerance"]))
     ref_scene = scene_for(raw, ref_set, batch=batch)
-    ref = _run(ref_scene, ref_set, batch)
+    memo = {} if memo is None else memo
+    ref = _run(ref_scene, ref_set, batch, memo)
     n_fine = max(int(n) for n in cost["steps_per_contact"])
     chk_set = Setting("rk4", n_fine)
-    chk = _run(scene_for(raw, chk_set, batch=batch), chk_set, batch)
+    chk = _run(scene_for(raw, chk_set, batch=batch), chk_set, batch, memo)
     unc = {k: rel_err(chk, ref, k) for k in OBSERVABLES}
     info = {"name": raw["name"], "scene_hash": ref_scene.hash, "method": "adaptive",
             "tolerance": ref_set.tolerance, "cross_check": f"rk4 at {n_fine} steps per contact time",
@@ -184,7 +198,7 @@ def reference_runs(raw: dict, cost: dict, batch: int, log=_log) -> tuple[list[Ch
             "sample_dt_s": sample_interval(ref_scene, max(ref_scene.striker_velocities)),
             "realisations": batch, "seed": ref_scene.gap_seed,
             "work": {m: chain_work(ref_scene, m) for m in SCENE_METHODS}}
-    info["sampling_floor_v_g"] = sampling_floor(raw, cost, batch)
+    info["sampling_floor_v_g"] = sampling_floor(raw, cost, batch, memo=memo)
     log(f"reference {raw['name']}: adaptive tol {ref_set.tolerance:g} vs rk4 N={n_fine}: "
         + ", ".join(f"{k} {v:.2g}" for k, v in unc.items())
         + f"; balance error {info['balance_error']:.2g}; {info['plateau_at_probes']} plateau "
@@ -193,24 +207,42 @@ def reference_runs(raw: dict, cost: dict, batch: int, log=_log) -> tuple[list[Ch
     return ref, info
 
 
-def sampling_floor(raw: dict, cost: dict, batch: int) -> float:
+def sampling_floor(raw: dict, cost: dict, batch: int, *, memo: dict | None = None) -> float:
     """v_g error of RK4 at the finest N when its samples are not aligned with the
-    reference's: both at the scene's auto sampling (RK4 samples every round(sdt/dt) steps)."""
+    reference's: both at the scene's auto sampling (RK4 samples every round(sdt/dt) steps).
+    The reference is the scene of ``reference_runs``: with its ``memo``, not run again."""
     tc = contact_time(raw)
     n_fine = max(int(n) for n in cost["steps_per_contact"])
     base = scene_from_dict(dict(raw, ensemble={"realisations": batch}))
     ref = _run(base.derive(integrator={"method": "adaptive",
                                        "tolerance": float(cost["reference_tolerance"])}),
-               Setting("adaptive"), batch)
-    chk = _run(base.derive(integrator={"method": "rk4", "dt": tc / n_fine}), Setting("rk4"), batch)
+               Setting("adaptive"), batch, memo)
+    chk = _run(base.derive(integrator={"method": "rk4", "dt": tc / n_fine}), Setting("rk4"),
+               batch, memo)
     return rel_err(chk, ref, "v_g")
 
 
 # ---------------------------------------------------------------------------------------
 # measurement
 # ---------------------------------------------------------------------------------------
+def timing_settled(walls: list[float], spread: float, cap: int) -> bool:
+    """True when a setting needs no further timed repeat: it has ``cap`` timings, or two
+    of them agree within the relative ``spread`` (the slower at most 1 + spread times
+    the faster; spread 0: always ``cap`` repeats)."""
+    if len(walls) >= cap:
+        return True
+    w = sorted(walls)
+    return spread > 0 and any(hi <= lo * (1.0 + spread) for lo, hi in zip(w, w[1:]))
+
+
 def measure(cost: dict | None = None, base: dict | None = None, *, log=_log):
-    """Run the study. Returns (rows: list of dicts with COLUMNS, info: dict)."""
+    """Run the study. Returns (rows: list of dicts with COLUMNS, info: dict).
+
+    Each setting's errors come from its first timed batch; further timed repeats (at most
+    ``repeats``, ``lammps_repeats``) only add wall times, and stop once two of them agree
+    within ``timing_spread`` (``timing_settled``). The references run after the timing:
+    their cross-check, RK4 at the finest N, is the grid's own first batch, and the
+    sampling floor reuses the reference (``reference_runs`` with the run memo)."""
     cost, base = full_config(cost, base)
     raws = scene_dicts(cost, base)
     setts = settings(cost)
@@ -227,43 +259,58 @@ def measure(cost: dict | None = None, base: dict | None = None, *, log=_log):
             return int(cost["lammps_batch"]), int(cost["lammps_repeats"])
         return int(cost["batch"]), int(cost["repeats"])
 
+    spread = float(cost["timing_spread"])
     B = max(size(s)[0] for s in setts)
     info = {"scenes": {}, "skipped": skipped, "batch": int(cost["batch"]),
             "repeats": int(cost["repeats"])}
-    refs, scenes = {}, {}
-    for name, raw in raws.items():
-        refs[name], info["scenes"][name] = reference_runs(raw, cost, B, log)
-        for s in setts:
-            scenes[name, s] = scene_for(raw, s, batch=size(s)[0])
+    scenes = {(name, s): scene_for(raw, s, batch=size(s)[0])
+              for name, raw in raws.items() for s in setts}
+    phases = {}
 
     # JIT warm-up (numba loads or compiles on the first call; LAMMPS builds its plugin),
     # one chain per method and scene, then one untimed batch to start the thread pool.
+    t0 = time.perf_counter()
     for (name, s), sc in scenes.items():
         if s == next(t for t in setts if t.method == s.method):
             _run(sc, s, 1)
     first = next(iter(scenes))
     _run(scenes[first], first[1], size(first[1])[0])
+    phases["warm_up"] = time.perf_counter() - t0
+    log(f"warm-up: {phases['warm_up']:.1f} s")
 
     keys = list(scenes)
     walls = {k: [] for k in keys}
     engine = {k: [] for k in keys}
-    results = {}
+    memo = {}           # the first batch of every setting: errors, and the cross-checks
     rounds = max(size(s)[1] for s in setts)
     for rep in range(rounds):
-        todo = [k for k in keys if rep < size(k[1])[1]]
+        todo = [k for k in keys if not timing_settled(walls[k], spread, size(k[1])[1])]
+        if not todo:
+            break
+        t0 = time.perf_counter()
         shift = (rep * len(todo)) // rounds
         for k in todo[shift:] + todo[:shift]:
             b = size(k[1])[0]
-            t0 = time.perf_counter()
+            t1 = time.perf_counter()
             runs = _run(scenes[k], k[1], b)
-            walls[k].append((time.perf_counter() - t0) / b)
+            walls[k].append((time.perf_counter() - t1) / b)
             engine[k].append(float(np.mean([r.wall_s for r in runs])))
-            results.setdefault(k, runs)
-        log(f"round {rep + 1}/{rounds} timed")
+            memo.setdefault((k[1].engine, scenes[k].hash, b), runs)
+        phases[f"round_{rep + 1}"] = time.perf_counter() - t0
+        log(f"round {rep + 1}/{rounds} timed: {len(todo)} of {len(keys)} settings, "
+            f"{phases[f'round_{rep + 1}']:.1f} s")
+
+    t0 = time.perf_counter()
+    refs = {}
+    for name, raw in raws.items():
+        refs[name], info["scenes"][name] = reference_runs(raw, cost, B, log, memo=memo)
+    phases["references"] = time.perf_counter() - t0
+    log(f"references: {phases['references']:.1f} s")
 
     rows = []
     for name, s in keys:
-        runs, sc = results[name, s], scenes[name, s]
+        sc = scenes[name, s]
+        runs = memo[s.engine, sc.hash, size(s)[0]]
         ref, rinfo = refs[name][:len(runs)], info["scenes"][name]
         balance = max(r.energy.balance_error for r in runs)
         if s.method == "lammps" and _balance_is_residual(sc):
@@ -290,7 +337,26 @@ def measure(cost: dict | None = None, base: dict | None = None, *, log=_log):
         log(f"{name:10s} {s.label:22s} wall/chain {row['wall_s_per_chain']:.3g} s  "
             f"err v_max_2 {row['err_v_max_2']:.2g}  v_g {row['err_v_g']:.2g}  "
             f"v_g_front {row['err_v_g_front']:.2g}  balance {row['balance_error']:.2g}")
+    info["timing"] = timing_summary(walls, spread, phases)
+    log(f"timing: {info['timing']['summary']}")
     return rows, info
+
+
+def timing_summary(walls: dict, spread: float, phases: dict) -> dict:
+    """What the timing provenance records: the rule, every setting's wall times per chain
+    (s, in the order timed), the relative spread max/min - 1 of those timed more than
+    once (median, largest), and the wall time of each phase of the run (s)."""
+    rel = sorted(max(w) / min(w) - 1.0 for w in walls.values() if len(w) > 1)
+    per = {f"{name} {s.label}": [float(x) for x in w] for (name, s), w in walls.items()}
+    med = statistics.median(rel) if rel else math.nan
+    big = rel[-1] if rel else math.nan
+    n = sum(len(w) for w in walls.values())
+    return {"timing_spread": spread, "walls_s_per_chain": per,
+            "spread_median": med, "spread_max": big, "timed_batches": n,
+            "phases_s": {k: round(v, 2) for k, v in phases.items()},
+            "summary": f"{n} timed batches over {len(walls)} settings; spread of repeated "
+                       f"settings (max/min - 1): median {med:.3g}, largest {big:.3g}; "
+                       + ", ".join(f"{k} {v:.1f} s" for k, v in phases.items())}
 
 
 def to_frame(rows):

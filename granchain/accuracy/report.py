@@ -43,7 +43,8 @@ def provenance_fields(info: dict, cost: dict, base: dict, preset: str | None) ->
 def write_outputs(rows, info, cost, base, *, preset=None, table=None, provenance=None,
                   timing=None, cheapest_csv=None) -> None:
     """The deterministic table and its provenance; the table with wall times (with the
-    machine in its provenance) and the cheapest settings, which depend on wall times."""
+    machine and ``info["timing"]``, every timed repeat and its spread, in its provenance)
+    and the cheapest settings, which depend on wall times."""
     from .. import tables
     cost, base = full_config(cost, base)
     df = to_frame(rows)
@@ -56,7 +57,7 @@ def write_outputs(rows, info, cost, base, *, preset=None, table=None, provenance
     if timing:
         tables.write_csv(df, timing)
         tables.write_provenance(Path(timing).with_suffix(".provenance.json"), lammps=lmp,
-                                machine=machine(), **fields)
+                                machine=machine(), timing=info.get("timing"), **fields)
     if cheapest_csv:
         tables.write_csv(cheapest_table(df, cost["cheapest_tolerances"]), cheapest_csv)
 
