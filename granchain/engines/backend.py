@@ -41,7 +41,8 @@ from ..fileio import cache_dir, source_hash
 
 # The kernels' entry points that the engines call (:func:`kernels`), by module.
 ENTRY_POINTS = {"run_window": "kernels", "run_blocks": "kernels", "energies": "kernels",
-                "run_events": "events", "finalize": "events"}
+                "run_events": "events", "run_events_lanes": "events",
+                "finalize": "events"}
 # The modules that define the entry points; every module of the package they import,
 # transitively, is compiled into them (:func:`kernel_sources`).
 _ENTRY_MODULES = ("granchain.engines.kernels", "granchain.engines.events")

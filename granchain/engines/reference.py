@@ -39,6 +39,7 @@ BLOCK_WINDOW = 256               # samples per kernel call (fixed-step blocks)
 CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
 CHUNK_CHAINS = 512               # at most this many chains in a chunk
 LANES = 32                       # chains per block of the fixed-step kernels
+EVENT_LANES = 8                  # chains per block of the event method (``run_events_lanes``)
 
 
 @dataclass(frozen=True)
@@ -123,7 +124,7 @@ def record_width(terms: Terms) -> int:
 def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | None = None,
         dt: float | None = None, tolerance: float | None = None, progress: bool | None = None,
         trace: bool | None = None, pair: str | None = None,
-        radii: np.ndarray | None = None):
+        radii: np.ndarray | None = None, lanes: bool = True):
     """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s; radii: (B, n)
     m, each chain's own (a radius spread, ``gaps.member_radii``), or None (the scene's).
     The scene's method must not be auto (``simulate`` resolves it).
@@ -134,7 +135,9 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
     The fixed-step methods (rk4, verlet) record it unless ``trace`` is False: then they
     too measure the observables on the fly (``Trajectory.observed``, equal to the
     summariser's on the record) and keep only the first and last samples. ``pair``: the event method's Runge-Kutta pair
-    (``events.PAIRS``; default ``events.DEFAULT_PAIR``)."""
+    (``events.PAIRS``; default ``events.DEFAULT_PAIR``). ``lanes``: without a trace, the
+    event method runs its chains in SIMD lanes (``events.run_events_lanes``); False runs
+    one chain per thread (``events.run_events``), with the same result bit for bit."""
     require_resolved(scene, "reference engine")
     terms = physics_terms(scene)
     gaps = np.ascontiguousarray(np.atleast_2d(np.asarray(gaps, dtype=float)))
@@ -163,7 +166,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
             rc = None if radii is None else np.atleast_2d(radii)[chunk]
             if method == "event":
                 it = _run_chunk_events(scene, terms, gaps[chunk], vs[chunk], dt, rtol, key,
-                                       bool(trace), pair or C.DEFAULT_PAIR, rc)
+                                       bool(trace), pair or C.DEFAULT_PAIR, rc, lanes)
             else:
                 it = _run_chunk(scene, terms, gaps[chunk], vs[chunk], method, dt, rtol, key, rc,
                                 trace is not False)
@@ -312,7 +315,7 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
 
 
 def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt, trace, pair,
-                      radii=None):
+                      radii=None, lanes=True):
     kern = backend.kernels(serial=gaps.shape[0] == 1)
     """The event method (``engines.events``) on a chunk of chains."""
     layout = Layout.of(terms)
@@ -366,7 +369,22 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
     V_parts = [[] for _ in range(B)]
     E_parts = [[] for _ in range(B)]
     t0 = time.perf_counter()
-    while np.any(STATUS == C.S_RUNNING):
+    in_lanes = lanes and not trace
+    if in_lanes:
+        # in lanes (``events.run_events_lanes``): the chunk's chains (ordered by expected
+        # length) dealt round-robin to one queue per thread, so that the queues cost alike
+        nq = max(1, min(backend.num_threads(), B))
+        width = max(1, min(EVENT_LANES, -(-B // nq)))
+        QUEUE = np.full((nq, -(-B // nq)), -1, dtype=np.int64)
+        QLEN = np.zeros(nq, dtype=np.int64)
+        for b in range(B):
+            QUEUE[b % nq, QLEN[b % nq]] = b
+            QLEN[b % nq] += 1
+        kern.run_events_lanes(Y, QUEUE, QLEN, width, T, H, ERROLD, STEPS, REJ, NEV, STATUS,
+                              VTHR, G, P, FL, LO, scale_abs, rel, rtol, band, land, A, Bw, E5,
+                              E3, qexp, dopnorm, t_stop, auto, VMAX, TPK, PASSED, RUNEND, RB,
+                              RBN, DROP, VINIT, E0, BAL)
+    while not in_lanes and np.any(STATUS == C.S_RUNNING):
         kern.run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, G, P, FL, LO,
                       scale_abs, rel, rtol, band, land, A, Bw, E5, E3, qexp, dopnorm,
                       t_stop, auto, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, VINIT,

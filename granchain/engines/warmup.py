@@ -32,6 +32,9 @@ def _warm_up_runs() -> None:
         # and the JIT kernels would stay uncompiled
         gaps = np.full((2, scene.n - 1), 5e-9)
         list(reference.run(scene, gaps, np.array([0.1, 0.1]), progress=False))
+        if method == "event":
+            # the event method with a trace runs its one-chain kernel (without, the lanes)
+            list(reference.run(scene, gaps, np.array([0.1, 0.1]), progress=False, trace=True))
 
 
 def build(log=print) -> Path | None:
