@@ -112,8 +112,8 @@ LAYERS = (
                  "granchain.lammps.deck", "granchain.lammps.plugin", "granchain.lammps.runner")),
     ("analysis", ("granchain.observables", "granchain.measurement", "granchain.tables",
                   "granchain.analysis")),
-    ("application", ("granchain.costmodel", "granchain.simulate", "granchain.compare",
-                     "granchain.accuracy", "granchain.cost", "granchain.figures",
+    ("application", ("granchain.costmodel", "granchain.plan", "granchain.simulate",
+                     "granchain.compare", "granchain.accuracy", "granchain.cost", "granchain.figures",
                      "granchain.thesis", "granchain.inference", "granchain.workflow",
                      "granchain.cli")),
 )
