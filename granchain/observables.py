@@ -43,7 +43,7 @@ from .effects import SPECS
 from .trajectory import ENERGY_COLUMNS, Trajectory
 
 PEAK_TOL = schedule.PEAK_TOL
-PLATEAU_SAMPLES = 5
+PLATEAU_SAMPLES = schedule.PLATEAU_SAMPLES
 
 
 def _crossing(t, y, level, stop):

@@ -47,6 +47,7 @@ RECORD_EXTRA_COLUMNS = len(ENERGY_COLUMNS) + 1
 ARRIVAL_FRACTION = 1e-3    # a particle has seen the wave once v > ARRIVAL_FRACTION * v_s
 PASS_FRACTION = 0.5        # the wave has passed an inner particle once v < this * its peak
 PEAK_TOL = 1e-4            # a peak: samples within PEAK_TOL of the maximum (observables.peak)
+PLATEAU_SAMPLES = 5        # a plateau: a near-peak run longer than this many samples
 
 
 def sample_interval(scene, v_striker: float) -> float:

@@ -29,7 +29,7 @@ from .backend import use_jit_cache
 
 use_jit_cache()   # before the first @njit(cache=True): a cache keyed by every source compiled in
 
-from ..observables import PEAK_TOL, PLATEAU_SAMPLES  # noqa: E402  (the sampled peak rules)
+from ..schedule import PEAK_TOL, PLATEAU_SAMPLES  # noqa: E402  (the sampled peak rules)
 from ..schedule import PASS_FRACTION  # noqa: E402
 from .obscodes import (B_E0, B_MAX, I_BWD, I_FOPEN, I_FWD, I_J, I_NAN, I_OVF,  # noqa: E402
                        I_PASS, I_RCOUNT, I_RHEAD, O_H, O_M, O_Y0, O_Y2, R_PLAT, R_TFR, R_TOP,

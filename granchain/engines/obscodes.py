@@ -15,7 +15,7 @@ Energy balance (BAL): the total mechanical energy of sample 0, the largest |bala
 """
 from __future__ import annotations
 
-from ..observables import PLATEAU_SAMPLES
+from ..schedule import PLATEAU_SAMPLES
 
 O_M, O_Y0, O_Y2, O_H = 0, 1, 2, 3
 OBS_F = O_H + PLATEAU_SAMPLES
