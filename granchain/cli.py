@@ -7,7 +7,6 @@ loaded (``load``): every command shows and runs the resolved scene and its hash.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import re
 import sys
@@ -16,20 +15,10 @@ from pathlib import Path
 from .costmodel import (DEFAULT_MAX_TOTAL_STEPS, add_estimates, describe_auto, resolve_auto,
                         run_estimate)
 from .errors import GranchainError
-from .fileio import atomic_write_text, check_output_path
+from .fileio import atomic_write_text, check_output_path, json_text
 from .guards import check_run, run_size, scene_warnings
 from .schedule import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost
 from .scene import load_scene
-
-
-def _jsonable(obj):
-    if isinstance(obj, float):
-        return None if not math.isfinite(obj) else obj
-    if isinstance(obj, dict):
-        return {k: _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    return obj
 
 
 def one_line(text: str) -> str:
@@ -160,9 +149,9 @@ def cmd_run(args) -> int:
     if not args.json:
         _print_human(scene, runs)
     elif not args.out:
-        print(json.dumps(_jsonable(doc)))
+        print(json_text(doc))
     if args.out:
-        atomic_write_text(args.out, json.dumps(_jsonable(doc), indent=1) + "\n", args.force, "--out")
+        atomic_write_text(args.out, json_text(doc, indent=1) + "\n", args.force, "--out")
     return 0
 
 
@@ -244,11 +233,11 @@ def cmd_compare(args) -> int:
     doc = {"scene": scene.name, "scene_hash": scene.hash, "ok": cmp.ok, "meta": cmp.meta,
            "rows": cmp.rows.astype(object).where(cmp.rows.notna(), None).to_dict("records")}
     if args.json and not args.out:
-        print(json.dumps(_jsonable(doc)))
+        print(json_text(doc))
     elif not args.json:
         _print_comparison(cmp)
     if args.out:
-        atomic_write_text(args.out, json.dumps(_jsonable(doc), indent=1) + "\n", args.force, "--out")
+        atomic_write_text(args.out, json_text(doc, indent=1) + "\n", args.force, "--out")
     return 0 if cmp.ok else 1
 
 
@@ -427,11 +416,11 @@ def _report_inference(args, res, meas, base, print_human, plot: str) -> int:
     (matplotlib is loaded only then)."""
     doc = dict(res.to_json(), measurements=str(args.measurements))
     if args.json and not args.out:
-        print(json.dumps(_jsonable(doc)))
+        print(json_text(doc))
     elif not args.json:
         print_human(res)
     if args.out:
-        atomic_write_text(args.out, json.dumps(_jsonable(doc), indent=1) + "\n", args.force, "--out")
+        atomic_write_text(args.out, json_text(doc, indent=1) + "\n", args.force, "--out")
     if args.plot:
         from .figures import inference as figs
         getattr(figs, plot)(res, meas, base, args.plot, force=args.force)

@@ -12,10 +12,17 @@ then move it onto the target: with ``force`` by ``os.replace``; without, by a ha
 that fails if anything (a file, a symlink) appeared under the target's name meanwhile, so
 nothing is ever overwritten unasked. On any failure the temporary file is removed and the
 target is left as it was.
+
+``json_text(obj, indent)`` is ``json.dumps(jsonable(obj), indent=indent)``, byte for byte
+(non-finite floats written as null), built with the C string encoder and ``float.__repr__``
+on whole lists of scalars at once instead of the standard library's pure-Python indenting
+encoder.
 """
 from __future__ import annotations
 
 import errno
+import json
+import math
 import os
 import stat
 import tempfile
@@ -24,7 +31,8 @@ from pathlib import Path
 
 from .errors import GranchainError
 
-__all__ = ["check_output_path", "atomic_write_text", "atomic_write_bytes"]
+__all__ = ["check_output_path", "atomic_write_text", "atomic_write_bytes", "jsonable",
+           "json_text"]
 
 
 def _show(path) -> str:
@@ -165,3 +173,105 @@ def source_hash(*parts: str) -> str:
             h.update(str(f.relative_to(pkg)).encode())
             h.update(f.read_bytes())
     return h.hexdigest()
+
+
+def jsonable(obj):
+    """``obj`` with every non-finite float (NaN, inf) replaced by None, dicts and lists
+    (tuples as lists) copied through."""
+    if isinstance(obj, float):
+        return None if not math.isfinite(obj) else obj
+    if isinstance(obj, dict):
+        return {k: jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    return obj
+
+
+_str = json.encoder.encode_basestring_ascii
+
+
+def _float(x: float) -> str:
+    return float.__repr__(x) if math.isfinite(x) else "null"
+
+
+# exact types of the scalars a list is written from in one pass (subclasses of these, e.g.
+# numpy's float64, take the general path, which treats them as json does)
+_SCALARS = {float: _float, int: int.__repr__, str: _str, bool: lambda x: "true" if x else "false",
+            type(None): lambda x: "null"}
+
+
+_FLOAT = {float}
+_NONFINITE = {float.__repr__(x) for x in (math.nan, math.inf, -math.inf)}
+
+
+def json_text(obj, indent: int | None = None) -> str:
+    """``json.dumps(jsonable(obj), indent=indent)``: the same text (see the module doc)."""
+    out: list[str] = []
+    _emit(obj, 0, indent, out)
+    return "".join(out)
+
+
+def _emit(o, depth: int, indent: int | None, out: list) -> None:
+    if isinstance(o, str):
+        out.append(_str(o))
+    elif o is None:
+        out.append("null")
+    elif o is True:
+        out.append("true")
+    elif o is False:
+        out.append("false")
+    elif isinstance(o, int):
+        out.append(int.__repr__(o))
+    elif isinstance(o, float):
+        out.append(_float(o))
+    elif isinstance(o, dict) and all(type(k) is str for k in o):
+        if not o:
+            out.append("{}")
+            return
+        sep, between, end = _separators(depth, indent)
+        lead = "{" + sep
+        for k, v in o.items():
+            scalar = _SCALARS.get(type(v))
+            if scalar is not None:
+                out.append(lead + _str(k) + ": " + scalar(v))
+            else:
+                out.append(lead + _str(k) + ": ")
+                _emit(v, depth + 1, indent, out)
+            lead = between
+        out.append(end + "}")
+    elif isinstance(o, (list, tuple)):
+        if not o:
+            out.append("[]")
+            return
+        sep, between, end = _separators(depth, indent)
+        types = set(map(type, o))
+        items = None
+        if types == _FLOAT:
+            items = list(map(float.__repr__, o))
+            if not _NONFINITE.isdisjoint(items):
+                items = ["null" if x in _NONFINITE else x for x in items]
+        elif types <= _SCALARS.keys():
+            items = [_SCALARS[type(x)](x) for x in o]
+        if items is not None:
+            out.append("[" + sep + between.join(items) + end + "]")
+            return
+        lead = "[" + sep
+        for v in o:
+            out.append(lead)
+            lead = between
+            _emit(v, depth + 1, indent, out)
+        out.append(end + "]")
+    else:
+        # anything else (non-string keys, other types, errors): the standard library's
+        # text, indented to this depth (a JSON text has no raw newline inside a string)
+        text = json.dumps(jsonable(o), indent=indent)
+        out.append(text if indent is None else text.replace("\n", "\n" + " " * (depth * indent)))
+
+
+def _separators(depth: int, indent: int | None) -> tuple[str, str, str]:
+    """(after the opening bracket, between two items, before the closing bracket) of a
+    container at ``depth``: json.dumps's layout."""
+    if indent is None:
+        return "", ", ", ""
+    inner = "\n" + " " * ((depth + 1) * indent)
+    return inner, "," + inner, "\n" + " " * (depth * indent)
