@@ -103,6 +103,19 @@ def _x_interp(x0, v0, a0, x1, v1, a1, h, tau):
     return x, v
 
 
+@njit(cache=True, inline="always")
+def _v_bound(c):
+    """An upper bound of v(tau) on [0, 1] (each term c_k tau^k at most max(0, c_k)), above
+    any value ``_poly_v`` computes there: its margin, 1e-12 of the coefficients' magnitude,
+    is far above their rounding errors (a few 1e-16)."""
+    ub = c[0]
+    mag = abs(c[0])
+    for k in range(1, 5):
+        ub += max(0.0, c[k])
+        mag += abs(c[k])
+    return ub + 1e-12 * mag
+
+
 @njit(cache=True)
 def _turn(c, lo, hi):
     """Root of dv/dtau on [lo, hi], where it changes sign (bisection)."""
@@ -285,6 +298,9 @@ def _peak_inside(y, ynew, K0, K1, LO, n, h, VMAX, land, c):
         if not (a0 > 0.0 and a1 < 0.0):
             continue
         _vcoef(y[ox + i], y[ov + i], a0, ynew[ox + i], ynew[ov + i], a1, h, c)
+        ub = _v_bound(c)
+        if ub <= VMAX[i] or ub - max(y[ov + i], ynew[ov + i]) <= land:
+            continue          # no maximum inside the step can pass either test
         tau = _turn(c, 0.0, 1.0)
         vp = _poly_v(c, tau)
         if vp > VMAX[i] and vp - max(y[ov + i], ynew[ov + i]) > land and tau < best:
@@ -354,11 +370,14 @@ def _observe(t0, h, y, ynew, K0, K1, LO, n, VMAX, TPK, PASSED, RUNEND, RB, RBN, 
         if a0 > 0.0 and a1 < 0.0:
             _vcoef(y[ox + i], v0, a0, ynew[ox + i], v1, a1, h, c)
             built = True
-            tau = _turn(c, 0.0, 1.0)
-            vp = _poly_v(c, tau)
-            if vp > vmx:
-                vmx = vp
-                tmx = tau
+            # a maximum that cannot set a record leaves every result below unchanged
+            # (without it, vmx > VMAX[i] only if an end of the step is above VMAX[i])
+            if _v_bound(c) > VMAX[i]:
+                tau = _turn(c, 0.0, 1.0)
+                vp = _poly_v(c, tau)
+                if vp > vmx:
+                    vmx = vp
+                    tmx = tau
         tafter = 0.0
         if vmx > VMAX[i]:
             if not built:

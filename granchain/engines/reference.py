@@ -371,15 +371,17 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
     t0 = time.perf_counter()
     in_lanes = lanes and not trace
     if in_lanes:
-        # in lanes (``events.run_events_lanes``): the chunk's chains (ordered by expected
-        # length) dealt round-robin to one queue per thread, so that the queues cost alike
+        # in lanes (``events.run_events_lanes``): the chunk's chains, longest run first
+        # (their time caps: a chain's run scales with them), dealt round-robin to one queue
+        # per thread, so that the queues cost alike and short chains fill the lanes that
+        # free up at the end
         nq = max(1, min(backend.num_threads(), B))
         width = max(1, min(EVENT_LANES, -(-B // nq)))
         QUEUE = np.full((nq, -(-B // nq)), -1, dtype=np.int64)
         QLEN = np.zeros(nq, dtype=np.int64)
-        for b in range(B):
-            QUEUE[b % nq, QLEN[b % nq]] = b
-            QLEN[b % nq] += 1
+        for k, b in enumerate(np.argsort(-t_stop, kind="stable")):
+            QUEUE[k % nq, QLEN[k % nq]] = b
+            QLEN[k % nq] += 1
         kern.run_events_lanes(Y, QUEUE, QLEN, width, T, H, ERROLD, STEPS, REJ, NEV, STATUS,
                               VTHR, G, P, FL, LO, scale_abs, rel, rtol, band, land, A, Bw, E5,
                               E3, qexp, dopnorm, t_stop, auto, VMAX, TPK, PASSED, RUNEND, RB,
