@@ -162,7 +162,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         while stop < len(order) and keys[order[stop]] == key:
             stop += 1
         group = order[start:stop]
-        for chunk in _chunks(group, scene, terms, key, method):
+        for chunk in _chunks(group, scene, terms, key, method, trace is False):
             rc = None if radii is None else np.atleast_2d(radii)[chunk]
             if method == "event":
                 it = _run_chunk_events(scene, terms, gaps[chunk], vs[chunk], dt, rtol, key,
@@ -187,25 +187,74 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         next_to_yield += 1
 
 
-def _chunks(group, scene, terms, sample_dt, method):
-    """Split chains into chunks whose recorded samples fit in CHUNK_BYTES."""
-    if scene.t_end is not None:
-        t_est = scene.t_end
-    else:
-        # the slowest striker's expected run, x4: a realisation's gaps can run longer
-        # than their mean
-        v = max(float(np.min(scene.striker_velocities)), 1e-6)
-        t_est = 4.0 * expected_duration(scene, v)
+def _chunks(group, scene, terms, sample_dt, method, observe=False):
+    """Split chains into chunks whose memory fits in CHUNK_BYTES (and CHUNK_CHAINS): the
+    recorded samples of each chain or, for the fixed-step methods measuring on the fly
+    (``observe``), their observables' arrays (a chain keeps its first and last samples and
+    a ring of RECORD_RING record samples per particle, whatever its length; the chains
+    then go in as few chunks as those limits allow, as even as whole blocks make them).
+
+    The fixed-step methods run a chunk in blocks of LANES consecutive chains, and numba
+    hands each thread an equal contiguous share of the blocks; the chains come sorted by
+    expected length, so a chunk's full blocks are dealt to the threads' shares back and
+    forth (0, 1, .., T-1, T-1, .., 0, ..) and every thread gets long and short blocks
+    alike. A chain's result does not depend on its block or lane, nor on its chunk."""
     blocked = method in ("rk4", "verlet")          # blocks of LANES chains in lockstep
-    window = BLOCK_WINDOW if blocked else WINDOW
-    per_chain = (t_est / sample_dt + window) * (terms.n + C.E_LEN) * 8
+    if blocked and observe:
+        n = terms.n
+        per_chain = 8 * (n * (3 * RECORD_RING + K.OBS_F + K.OBS_I + K.OBS_R + 2 * C.G_LEN)
+                         + 2 * (record_width(terms) + C.E_LEN) + K.OBS_WF + K.OBS_WI
+                         + K.OBS_WOUT + 5 * Layout.of(terms).ny)
+    else:
+        if scene.t_end is not None:
+            t_est = scene.t_end
+        else:
+            # the slowest striker's expected run, x4: a realisation's gaps can run longer
+            # than their mean
+            v = max(float(np.min(scene.striker_velocities)), 1e-6)
+            t_est = 4.0 * expected_duration(scene, v)
+        window = BLOCK_WINDOW if blocked else WINDOW
+        per_chain = (t_est / sample_dt + window) * (terms.n + C.E_LEN) * 8
     size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, CHUNK_CHAINS)))
-    if blocked and size < len(group):
+    threads = backend.num_threads()
+    if blocked and observe and size < len(group):
+        # whole blocks; as few chunks as the limits allow, as even as blocks make them
+        parts = -(-len(group) // max(LANES, size // LANES * LANES))
+        size = -(-len(group) // (parts * LANES)) * LANES
+    elif blocked and size < len(group):
         # whole blocks, as many on every thread
-        unit = LANES * backend.num_threads()
+        unit = LANES * threads
         size = max(LANES, size // unit * unit)
     for i in range(0, len(group), size):
-        yield group[i:i + size]
+        chunk = group[i:i + size]
+        yield _deal_blocks(chunk, threads) if blocked else chunk
+
+
+def _deal_blocks(chunk, threads):
+    """``chunk`` with its full blocks of LANES chains reordered so that numba's contiguous
+    split of the blocks over ``threads`` gives each thread blocks dealt back and forth
+    from the sorted order; a partial block stays last (the padding lanes follow it)."""
+    full = len(chunk) // LANES
+    if threads < 2 or full <= threads:
+        return chunk
+    # numba's static schedule of range(nblk): equal contiguous shares, one more for each
+    # of the first nblk % threads threads
+    nblk = -(-len(chunk) // LANES)
+    share = [nblk // threads + (t < nblk % threads) for t in range(threads)]
+    share[-1] -= nblk - full                      # the partial block stays last
+    shares = [[] for _ in range(threads)]
+    turn = list(range(threads)) + list(range(threads - 1, -1, -1))
+    k = 0
+    for blk in range(full):
+        while True:
+            t = turn[k % len(turn)]
+            k += 1
+            if len(shares[t]) < share[t]:
+                break
+        shares[t].append(blk)
+    order = [b for s in shares for b in s]
+    blocks = chunk[:full * LANES].reshape(full, LANES)[order].reshape(-1)
+    return np.concatenate([blocks, chunk[full * LANES:]])
 
 
 def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt, radii=None,

@@ -1,0 +1,141 @@
+"""How the reference engine splits chains into chunks (``reference._chunks``): every chain
+once, whole blocks of consecutive (sorted) chains dealt to the threads' shares, chunks
+sized by what a chain holds (its sample record, or with observables measured on the fly
+its ring of record samples), and a chain's result the same whatever chunk, block, lane or
+thread it lands in."""
+import math
+
+import numpy as np
+import pytest
+
+from granchain.effects import physics_terms
+from granchain.engines import reference
+from granchain.observables import summarize
+from granchain.scene import load_scene
+from granchain.schedule import sample_interval
+
+from conftest import SCENES
+
+ALL = "[hertz, groove_friction, air_drag, rotation, particle_friction]"
+
+
+def _scene(method="verlet", **over):
+    sets = [f"integrator.method={method}", f"effects={ALL}"]
+    return load_scene(SCENES / "gaps-20nm-440c.yaml", sets + [f"{k}={v}" for k, v in over.items()])
+
+
+def _chunks(sc, n_chains, observe, method="verlet"):
+    terms = physics_terms(sc)
+    key = sample_interval(sc, float(sc.striker_velocities[0]))
+    return list(reference._chunks(np.arange(n_chains), sc, terms, key, method, observe))
+
+
+def _shares(chunk, threads):
+    """The blocks (first chain of each) that numba's static schedule gives each thread."""
+    L = reference.LANES
+    firsts = [int(chunk[i]) for i in range(0, len(chunk), L)]
+    nblk = len(firsts)
+    out, i = [], 0
+    for t in range(threads):
+        k = nblk // threads + (t < nblk % threads)
+        out.append(firsts[i:i + k])
+        i += k
+    return out
+
+
+@pytest.mark.parametrize("observe", [False, True])
+@pytest.mark.parametrize("threads", [1, 2, 3, 4])
+@pytest.mark.parametrize("n_chains", [1, 31, 64, 200, 1000, 1283])
+def test_chunks_hold_every_chain_once_in_whole_sorted_blocks(monkeypatch, observe, threads,
+                                                             n_chains):
+    monkeypatch.setattr(reference.backend, "num_threads", lambda: threads)
+    sc = _scene()
+    chunks = _chunks(sc, n_chains, observe)
+    L = reference.LANES
+    flat = np.concatenate(chunks)
+    assert sorted(flat.tolist()) == list(range(n_chains))
+    for c in chunks:
+        assert len(c) <= reference.CHUNK_CHAINS
+        blocks = [c[i:i + L] for i in range(0, len(c), L)]
+        # each block: consecutive chains of the sorted group; only the last may be partial
+        for b in blocks:
+            assert np.array_equal(b, np.arange(b[0], b[0] + len(b)))
+        assert all(len(b) == L for b in blocks[:-1])
+        if len(c) < n_chains:
+            assert len(c) % L == 0 or c is chunks[-1]
+        if threads > 1 and len(c) // L > threads:
+            # dealt back and forth: every thread's blocks lie within one block per thread
+            # of the same mean position
+            means = [np.mean(s) for s in _shares(c, threads) if s]
+            full = [s for s in _shares(c, threads) if s]
+            assert max(means) - min(means) <= L * threads, (means, full)
+    if observe:
+        # as few chunks as CHUNK_CHAINS allows (1000: 512 + 488, not 192-chain chunks)
+        assert len(chunks) == math.ceil(n_chains / reference.CHUNK_CHAINS)
+
+
+def test_observed_chunks_are_sized_by_the_ring_not_the_record():
+    """A slow striker's long run: its record would fill a chunk with few chains; the
+    on-the-fly observables hold the same per chain whatever the length of the run."""
+    slow = _scene(**{"striker.velocity": 0.005, "gaps.mean": 1.9e-7})
+    rec = _chunks(slow, 1000, observe=False)
+    obs = _chunks(slow, 1000, observe=True)
+    assert len(rec[0]) < len(obs[0]) == reference.CHUNK_CHAINS
+    assert len(obs) == math.ceil(1000 / reference.CHUNK_CHAINS)
+    # the event and adaptive methods keep their sizing
+    for method in ("event", "adaptive"):
+        a = list(reference._chunks(np.arange(1000), slow, physics_terms(slow),
+                                   sample_interval(slow, 0.005), method, False))
+        b = list(reference._chunks(np.arange(1000), slow, physics_terms(slow),
+                                   sample_interval(slow, 0.005), method, True))
+        assert [x.tolist() for x in a] == [x.tolist() for x in b]
+        assert np.array_equal(np.concatenate(a), np.arange(1000))
+
+
+def _members(n_chains, n):
+    """Gaps of very different totals, so that the chains stop at different samples, and
+    striker speeds that include a chain at rest."""
+    rng = np.random.default_rng(11)
+    gaps = rng.uniform(0.0, 40e-9, (n_chains, n - 1)) * rng.uniform(0.2, 2.0, (n_chains, 1))
+    vs = np.array([[0.1, 0.07, 0.0, 0.1][i % 4] for i in range(n_chains)])
+    return gaps, vs
+
+
+def _json(run):
+    d = run.to_json()
+    d.pop("wall_s")
+    return json_safe(d)
+
+
+def json_safe(x):
+    if isinstance(x, float) and math.isnan(x):
+        return "nan"
+    if isinstance(x, dict):
+        return {k: json_safe(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [json_safe(v) for v in x]
+    return x
+
+
+@pytest.mark.parametrize("method", ["rk4", "verlet"])
+def test_a_chains_result_does_not_depend_on_its_chunk_block_or_thread(method, monkeypatch):
+    """On the fly, in large dealt chunks of small blocks, against each chain's trace run
+    with one chain per block in chunks of one block (no dealing), summarised in Python."""
+    sc = _scene(method, **{"striker.velocity": "[0.0, 0.07, 0.1]"})
+    gaps, vs = _members(27, sc.n)
+    monkeypatch.setattr(reference, "LANES", 3)            # 27 chains: 9 blocks
+    monkeypatch.setattr(reference.backend, "num_threads", lambda: 4)
+    dealt = list(reference.run(sc, gaps, vs, progress=False, trace=False))
+    assert all(t.observed is not None for t in dealt)
+    assert len({t.steps for t in dealt}) > 5 and {t.status for t in dealt} >= {"passed", "done"}
+    monkeypatch.setattr(reference, "CHUNK_CHAINS", 6)     # chunks of 2 blocks of 3
+    small = list(reference.run(sc, gaps, vs, progress=False, trace=False))
+    monkeypatch.setattr(reference, "LANES", 1)
+    monkeypatch.setattr(reference, "CHUNK_CHAINS", 1)
+    monkeypatch.setattr(reference.backend, "num_threads", lambda: 1)
+    alone = list(reference.run(sc, gaps, vs, progress=False, trace=True))
+    assert all(t.observed is None for t in alone)
+    for i in range(len(vs)):
+        want = _json(summarize(alone[i], sc.probes))
+        assert _json(summarize(dealt[i], sc.probes)) == want, i
+        assert _json(summarize(small[i], sc.probes)) == want, i
