@@ -286,9 +286,9 @@ def _straddle_groove(y, ynew, K0, K1, G, P, FL, LO, n, h, bandg):
 
 
 @njit(cache=True)
-def _peak_inside(y, ynew, K0, K1, LO, n, h, VMAX, land, c):
+def _peak_inside(y, ynew, K0, K1, LO, n, h, VMAX, bc, land, c):
     """First tau in (0, 1) of a record-setting velocity maximum inside the step, more
-    than ``land`` above both step ends; -1 if none."""
+    than ``land`` above both step ends; -1 if none. VMAX[bc]: the chain's running maxima."""
     ox = LO[K.L_X]
     ov = LO[K.L_V]
     best = 2.0
@@ -299,11 +299,11 @@ def _peak_inside(y, ynew, K0, K1, LO, n, h, VMAX, land, c):
             continue
         _vcoef(y[ox + i], y[ov + i], a0, ynew[ox + i], ynew[ov + i], a1, h, c)
         ub = _v_bound(c)
-        if ub <= VMAX[i] or ub - max(y[ov + i], ynew[ov + i]) <= land:
+        if ub <= VMAX[bc, i] or ub - max(y[ov + i], ynew[ov + i]) <= land:
             continue          # no maximum inside the step can pass either test
         tau = _turn(c, 0.0, 1.0)
         vp = _poly_v(c, tau)
-        if vp > VMAX[i] and vp - max(y[ov + i], ynew[ov + i]) > land and tau < best:
+        if vp > VMAX[bc, i] and vp - max(y[ov + i], ynew[ov + i]) > land and tau < best:
             best = tau
     return best if best < 1.0 else -1.0
 
@@ -351,8 +351,9 @@ def _merge_oldest(rb, m, DROP, i):
 
 
 @njit(cache=True)
-def _observe(t0, h, y, ynew, K0, K1, LO, n, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, c):
-    """Update the running per-particle observables with one accepted step."""
+def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, c):
+    """Update the running per-particle observables of chain bc (row bc of VMAX ... DROP)
+    with one accepted step."""
     ox = LO[K.L_X]
     ov = LO[K.L_V]
     for i in range(n):
@@ -371,58 +372,58 @@ def _observe(t0, h, y, ynew, K0, K1, LO, n, VMAX, TPK, PASSED, RUNEND, RB, RBN, 
             _vcoef(y[ox + i], v0, a0, ynew[ox + i], v1, a1, h, c)
             built = True
             # a maximum that cannot set a record leaves every result below unchanged
-            # (without it, vmx > VMAX[i] only if an end of the step is above VMAX[i])
-            if _v_bound(c) > VMAX[i]:
+            # (without it, vmx > VMAX[bc, i] only if an end of the step is above VMAX[bc, i])
+            if _v_bound(c) > VMAX[bc, i]:
                 tau = _turn(c, 0.0, 1.0)
                 vp = _poly_v(c, tau)
                 if vp > vmx:
                     vmx = vp
                     tmx = tau
         tafter = 0.0
-        if vmx > VMAX[i]:
+        if vmx > VMAX[bc, i]:
             if not built:
                 _vcoef(y[ox + i], v0, a0, ynew[ox + i], v1, a1, h, c)
                 built = True
-            VMAX[i] = vmx
-            TPK[i] = t0 + tmx * h
-            PASSED[i] = 0
-            RUNEND[i] = -1.0
+            VMAX[bc, i] = vmx
+            TPK[bc, i] = t0 + tmx * h
+            PASSED[bc, i] = 0
+            RUNEND[bc, i] = -1.0
             tafter = tmx
             # drop record steps that cannot hold the half-peak crossing any more
-            m = RBN[i]
+            m = RBN[bc, i]
             keep = 0
-            while keep < m and RB[i, keep, RB_MAX] < 0.5 * vmx:
+            while keep < m and RB[bc, i, keep, RB_MAX] < 0.5 * vmx:
                 keep += 1
             if keep > 0:
                 for q in range(keep, m):
-                    RB[i, q - keep, :] = RB[i, q, :]
+                    RB[bc, i, q - keep, :] = RB[bc, i, q, :]
                 m -= keep
             if m == RB.shape[1]:
-                m = _merge_oldest(RB[i], m, DROP, i)
-            RB[i, m, RB_T0] = t0
-            RB[i, m, RB_H] = h
-            RB[i, m, RB_MAX] = vmx
+                m = _merge_oldest(RB[bc, i], m, DROP[bc], i)
+            RB[bc, i, m, RB_T0] = t0
+            RB[bc, i, m, RB_H] = h
+            RB[bc, i, m, RB_MAX] = vmx
             for q in range(5):
-                RB[i, m, RB_C + q] = c[q]
-            RBN[i] = m + 1
+                RB[bc, i, m, RB_C + q] = c[q]
+            RBN[bc, i] = m + 1
         # after the peak: end of the near-peak run, and the pass rule
-        if VMAX[i] > 0.0 and (RUNEND[i] < 0.0 or PASSED[i] == 0):
-            lo_run = (1.0 - PEAK_TOL) * VMAX[i]
-            lo_pass = PASS_FRACTION * VMAX[i]
+        if VMAX[bc, i] > 0.0 and (RUNEND[bc, i] < 0.0 or PASSED[bc, i] == 0):
+            lo_run = (1.0 - PEAK_TOL) * VMAX[bc, i]
+            lo_pass = PASS_FRACTION * VMAX[bc, i]
             vmn = min(v1, v0 if tafter == 0.0 else v1)
             interior = a0 < 0.0 and a1 > 0.0
             if vmn < lo_run or interior:
                 if not built:
                     _vcoef(y[ox + i], v0, a0, ynew[ox + i], v1, a1, h, c)
                     built = True
-                if RUNEND[i] < 0.0:
+                if RUNEND[bc, i] < 0.0:
                     tau = _first_cross(c, lo_run, tafter, False)
                     if tau >= 0.0:
-                        RUNEND[i] = t0 + tau * h
-                if PASSED[i] == 0:
+                        RUNEND[bc, i] = t0 + tau * h
+                if PASSED[bc, i] == 0:
                     tau = _first_cross(c, lo_pass, tafter, False)
                     if tau >= 0.0:
-                        PASSED[i] = 1
+                        PASSED[bc, i] = 1
 
 
 @njit(cache=True)
@@ -591,7 +592,7 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                     h = max(tau * h, 1e-22)
                     clipped = True
                     continue
-                tau = _peak_inside(y, ynew, Kst[0], Kst[S], LO, n, h, VMAX[b], land, c)
+                tau = _peak_inside(y, ynew, Kst[0], Kst[S], LO, n, h, VMAX, b, land, c)
                 if tau > 0.0:
                     REJ[b] += 1
                     h = tau * h
@@ -616,8 +617,8 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                 if FIN[b] == K.S_RUNNING:
                     FIN[b] = K.S_STEPFAIL
                 continue
-            _observe(t, h, y, ynew, Kst[0], Kst[S], LO, n, VMAX[b], TPK[b], PASSED[b],
-                     RUNEND[b], RB[b], RBN[b], DROP[b], c)
+            _observe(t, h, y, ynew, Kst[0], Kst[S], LO, n, b, VMAX, TPK, PASSED, RUNEND, RB,
+                     RBN, DROP, c)
             if trace:
                 for j in range(ny):
                     YP[b, j] = y[j]
@@ -706,52 +707,55 @@ _PH_BEGIN, _PH_TRIAL, _PH_EMPTY = 0, 1, 2
 def _rk_trial_lanes(y, hl, g, P, FL, LO, Kb, ynew, tmp, f, acc, scale_abs, rel, rtol,
                     A, Bw, E5, E3, dopnorm, err):
     """``kernels.rk_trial`` on every lane of a block at once, lane l with step hl[l]:
-    leaves ynew, Kb[S] = f(ynew) and err[l], the scaled error norm of lane l."""
+    leaves ynew, Kb[S] = f(ynew) and err[l], the scaled error norm of lane l. Each sum over
+    the stages runs over the whole block at a time (stage outermost, every component of
+    every lane innermost: one long vectorised loop), in the stages' order, so every
+    component gets the operations of ``rk_trial`` in its order. acc: (ny, L) scratch."""
     ny, L = y.shape
     S = Bw.shape[0]
+    M = ny * L
+    af = acc.reshape(M)
+    tf = tmp.reshape(M)
+    Kf = Kb.reshape((S + 1, M))
     for s in range(1, S):
+        af[:] = 0.0
+        for q in range(s):
+            a = A[s, q]
+            for m in range(M):
+                af[m] += a * Kf[q, m]
         for j in range(ny):
             for l in range(L):
-                acc[l] = 0.0
-            for q in range(s):
-                a = A[s, q]
-                for l in range(L):
-                    acc[l] += a * Kb[q, j, l]
-            for l in range(L):
-                tmp[j, l] = y[j, l] + hl[l] * acc[l]
+                tmp[j, l] = y[j, l] + hl[l] * acc[j, l]
         K.forces_block(tmp, g, P, FL, LO, 0.0, Kb[s], f)
+    af[:] = 0.0
+    for q in range(S):
+        a = Bw[q]
+        for m in range(M):
+            af[m] += a * Kf[q, m]
     for j in range(ny):
         for l in range(L):
-            acc[l] = 0.0
-        for q in range(S):
-            a = Bw[q]
-            for l in range(L):
-                acc[l] += a * Kb[q, j, l]
-        for l in range(L):
-            ynew[j, l] = y[j, l] + hl[l] * acc[l]
+            ynew[j, l] = y[j, l] + hl[l] * acc[j, l]
     K.forces_block(ynew, g, P, FL, LO, 0.0, Kb[S], f)
+    # the error estimates: acc the 5th-order one, tmp the 3rd-order one
+    af[:] = 0.0
+    tf[:] = 0.0
+    for q in range(S + 1):
+        c5 = E5[q]
+        c3 = E3[q]
+        for m in range(M):
+            af[m] += c5 * Kf[q, m]
+            tf[m] += c3 * Kf[q, m]
     e5 = np.zeros(L)
     e3 = np.zeros(L)
-    a5 = np.empty(L)
-    a3 = np.empty(L)
     for j in range(ny):
         base = rtol * scale_abs[j]
-        for l in range(L):
-            a5[l] = 0.0
-            a3[l] = 0.0
-        for q in range(S + 1):
-            c5 = E5[q]
-            c3 = E3[q]
-            for l in range(L):
-                a5[l] += c5 * Kb[q, j, l]
-                a3[l] += c3 * Kb[q, j, l]
         for l in range(L):
             sc = base
             if rel[j] != 0:
                 sc += rtol * max(abs(y[j, l]), abs(ynew[j, l]))
             if sc > 0.0:
-                e5[l] += (a5[l] / sc) ** 2
-                e3[l] += (a3[l] / sc) ** 2
+                e5[l] += (acc[j, l] / sc) ** 2
+                e3[l] += (tmp[j, l] / sc) ** 2
     for l in range(L):
         if e5[l] == 0.0 and e3[l] == 0.0:
             err[l] = 0.0
@@ -768,9 +772,10 @@ def _lane_out(a, l, out):
 
 
 @njit(cache=True, inline="always")
-def _lane_in(a, l, src):
-    for j in range(src.shape[0]):
-        a[j, l] = src[j]
+def _stage_out(Kb, s, l, out):
+    for j in range(out.shape[0]):
+        out[j] = Kb[s, j, l]
+
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
@@ -807,7 +812,7 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
         f = np.zeros((n, L))
         g = np.zeros((ng, L))
         ebuf = np.zeros((K.E_LEN, L))
-        acc = np.zeros(L)
+        acc = np.zeros((ny, L))
         err = np.zeros(L)
         hl = np.zeros(L)
         lane_b = np.full(L, -1, dtype=np.int64)
@@ -895,7 +900,7 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                     h = min(H[b], t_stop[b] - t)
                     clipped[l] = h < H[b]
                     _lane_out(y, l, y1)
-                    _lane_out(Kb[0], l, k01)
+                    _stage_out(Kb, 0, l, k01)
                     for r in range(ng):
                         g1[r] = g[r, l]
                     s_ev = _predict(y1, k01, g1, LO, n, band, dscale)
@@ -956,15 +961,15 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                         h = max(tau * h, 1e-22)
                         clipped[l] = True
                     else:
-                        _lane_out(Kb[0], l, k01)
-                        _lane_out(Kb[S], l, ks1)
+                        _stage_out(Kb, 0, l, k01)
+                        _stage_out(Kb, S, l, ks1)
                         tau = _straddle_groove(y1, yn1, k01, ks1, g1, P, FL, LO, n, h, bandg)
                         if tau > 0.0:
                             REJ[b] += 1
                             h = max(tau * h, 1e-22)
                             clipped[l] = True
                         else:
-                            tau = _peak_inside(y1, yn1, k01, ks1, LO, n, h, VMAX[b], land, c)
+                            tau = _peak_inside(y1, yn1, k01, ks1, LO, n, h, VMAX, b, land, c)
                             if tau > 0.0:
                                 REJ[b] += 1
                                 h = tau * h
@@ -981,9 +986,8 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                                     fac = min(1.0, fac)
                                 if not clipped[l]:
                                     H[b] = h * fac
-                                _observe(t_old[l], h, y1, yn1, k01, ks1, LO, n, VMAX[b],
-                                         TPK[b], PASSED[b], RUNEND[b], RB[b], RBN[b],
-                                         DROP[b], c)
+                                _observe(t_old[l], h, y1, yn1, k01, ks1, LO, n, b, VMAX,
+                                         TPK, PASSED, RUNEND, RB, RBN, DROP, c)
                 hl[l] = h
                 if phase[l] == _PH_TRIAL and not accepted[l] and tries[l] >= MAX_TRIES:
                     fin[l] = K.S_STEPFAIL
