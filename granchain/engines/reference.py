@@ -39,7 +39,7 @@ BLOCK_WINDOW = 256               # samples per kernel call (fixed-step blocks)
 CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
 CHUNK_CHAINS = 512               # at most this many chains in a chunk
 LANES = 32                       # chains per block of the fixed-step kernels
-EVENT_LANES = 8                  # chains per block of the event method (``run_events_lanes``)
+EVENT_LANES = 16                 # chains per block of the event method (``run_events_lanes``)
 
 
 @dataclass(frozen=True)
