@@ -14,13 +14,21 @@
    summarising their trajectories into observables, in one process, both ways: with the
    sampled record summarised in Python (``trace=True``, the summariser) and with the
    observables measured on the fly by the kernel (``trace=False``), side by side.
-4. A ``--chains``-chain ``granchain run --json --out`` of that scene as a whole process
-   against its parts, measured in one process: imports, kernel, summarise, JSON output.
+4. A ``--chains``-chain ``granchain run --json --out`` of that scene as a whole process,
+   and the same process timed inside (``_PROBE``: ``granchain.cli.main`` with timers
+   wrapped around its parts): interpreter start and exit, imports, planning (scene load,
+   cost checks, run plan), kernel load (numba, the kernels module, the dispatcher's type
+   resolution and cache load), kernel, the engine around the kernel (chunks, Trajectory
+   building, the members' fields of ``run_scene``), summarise, output (JSON documents and the file), other; and the ratio
+   (process - kernel) / kernel. Medians over ``--repeats`` processes each.
 The machines are shared and noisy: compare the ratios, not absolute times across runs.
+
+    python benchmarks/overhead.py --process-only [--repeats 3]     # part 4 alone
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import statistics
 import subprocess
@@ -64,16 +72,131 @@ def _one_chain_processes(args, run, warm, base):
               "once per machine")
 
 
+# Runs ``granchain.cli.main(argv)`` with timers around its parts and prints them as one JSON
+# line on stderr. Each part is exclusive: a wrapped call's time is not counted again in
+# the part of a call that encloses it.
+_PROBE = r"""
+import sys, time
+T0 = time.perf_counter()
+import json
+from collections import defaultdict
+acc = defaultdict(float)
+stack = []
+
+def timed(owner, name, key):
+    f = getattr(owner, name)
+    def w(*a, **k):
+        t = time.perf_counter()
+        stack.append(0.0)
+        try:
+            return f(*a, **k)
+        finally:
+            dt = time.perf_counter() - t
+            inner = stack.pop()
+            acc[key] += dt - inner
+            if stack:
+                stack[-1] += dt
+    setattr(owner, name, w)
+
+import granchain.cli as cli
+from granchain import plan, simulate
+from granchain.engines import backend
+T1 = time.perf_counter()
+acc["imports"] = T1 - T0
+for name in ("load", "check_cost", "run_estimate", "check_whole_run"):
+    timed(cli, name, "planning")
+timed(simulate, "plan_run", "planning")
+timed(plan.RunPlan, "check", "planning")
+timed(simulate, "run_scene", "engine around the kernel")
+timed(simulate, "summarize", "summarise")
+timed(cli, "cmd_run", "output")
+timed(backend, "jit_entry", "kernel load")
+_entry = backend.Kernels.__getattr__
+
+def _kernel_attr(self, name):
+    f = _entry(self, name)
+    def call(*a, **k):
+        from numba.core.dispatcher import Dispatcher
+        if not getattr(Dispatcher, "_probe", False):
+            timed(Dispatcher, "_compile_for_args", "kernel load")
+            Dispatcher._probe = True
+        t = time.perf_counter()
+        stack.append(0.0)
+        try:
+            return f(*a, **k)
+        finally:
+            dt = time.perf_counter() - t
+            inner = stack.pop()
+            acc["kernel"] += dt - inner
+            if stack:
+                stack[-1] += dt
+    return call
+backend.Kernels.__getattr__ = _kernel_attr
+cli.main(sys.argv[1:])
+acc["in process"] = time.perf_counter() - T0
+print("PROBE " + json.dumps(acc), file=sys.stderr)
+"""
+
+PARTS = ("imports", "planning", "kernel load", "kernel", "engine around the kernel",
+         "summarise", "output")
+
+
+def _probe(cmd_args, env) -> dict:
+    """One probed process: its wall time ("process") and the probe's parts."""
+    t0 = time.perf_counter()
+    r = subprocess.run([sys.executable, "-c", _PROBE, *cmd_args], env=env, check=True,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    wall = time.perf_counter() - t0
+    line = [ln for ln in r.stderr.splitlines() if ln.startswith("PROBE ")][-1]
+    parts = json.loads(line[len("PROBE "):])
+    parts["process"] = wall
+    parts["start and exit"] = wall - parts.pop("in process")
+    return parts
+
+
+def _whole_process(args, base) -> None:
+    """Part 4: the whole ``granchain run`` of ``--chains`` chains, plain and probed."""
+    sets = [f"--set=ensemble.realisations={args.chains}",
+            "--set=effects=[hertz,groove_friction,air_drag,rotation,particle_friction]",
+            "--set=integrator.method=verlet"]
+    with tempfile.TemporaryDirectory() as d:
+        cli_args = ["run", str(ROOT / "granchain/scenes/gaps-20nm-440c.yaml"), *sets,
+                    "--json", "--out", str(Path(d) / "out.json"), "--force"]
+        plain = [sys.executable, "-m", "granchain.cli", *cli_args]
+        _timed(plain, base)                               # kernel cache warm
+        t_plain, probes = [], []
+        for _ in range(args.repeats):
+            t_plain.append(_timed(plain, base))
+            probes.append(_probe(cli_args, base))
+        size = (Path(d) / "out.json").stat().st_size
+    med = {k: statistics.median(p[k] for p in probes) for k in probes[0]}
+    proc, kern = med["process"], med["kernel"]
+    known = sum(med[k] for k in PARTS) + med["start and exit"]
+    print(f"granchain run of {args.chains} chains (verlet 1 ns, every effect, 20 nm gaps; "
+          f"--json --out, {size / 1e6:.1f} MB), medians of {args.repeats}, alternating: "
+          f"plain process {statistics.median(t_plain):.2f} s, probed process {proc:.2f} s")
+    for k in ("start and exit",) + PARTS:
+        print(f"  {k:<26s} {med[k]:6.3f} s  {med[k] / proc:6.1%}")
+    print(f"  {'other':<26s} {proc - known:6.3f} s  {(proc - known) / proc:6.1%}")
+    print(f"(process - kernel) / kernel = {(proc - kern) / kern:.2f}  "
+          f"(probed process; plain: {(statistics.median(t_plain) - kern) / kern:.2f})")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--chains", type=int, default=1000)
     ap.add_argument("--ensemble-only", action="store_true",
                     help="only parts 3 and 4 (no warm-up, no cold job)")
+    ap.add_argument("--process-only", action="store_true",
+                    help="only part 4 (the whole granchain run and its breakdown)")
     args = ap.parse_args(argv)
     run = [sys.executable, "-m", "granchain.cli", "run", SCENE]
     warm = [sys.executable, "-m", "granchain.cli", "warm-up"]
     base = dict(os.environ, PYTHONPATH=str(ROOT))
+    if args.process_only:
+        _whole_process(args, base)
+        return
     if not args.ensemble_only:
         _one_chain_processes(args, run, warm, base)
 
@@ -109,30 +232,7 @@ def main(argv=None):
     print(f"on the fly / record: integrate {b_int / a_int:.2f}, integrate + summarize "
           f"{(b_int + b_sum) / (a_int + a_sum):.2f}")
 
-    # 4. the whole granchain run against its parts
-    import json
-
-    from granchain import cli
-    t0 = time.perf_counter()
-    doc = {"scene": scene.name, "scene_hash": scene.hash, "runs": [r.to_json() for r in runs]}
-    text = json.dumps(cli._jsonable(doc), indent=1) + "\n"
-    t_out = time.perf_counter() - t0
-    imp = [sys.executable, "-c", "import granchain.cli, granchain.simulate, "
-           "granchain.engines.reference as r; r.backend.kernels(serial=False)"]
-    t_imp = statistics.median(_timed(imp, base) for _ in range(3))
-    sets = [f"--set=ensemble.realisations={args.chains}",
-            "--set=effects=[hertz,groove_friction,air_drag,rotation,particle_friction]",
-            "--set=integrator.method=verlet"]
-    with tempfile.TemporaryDirectory() as d:
-        cmd = [sys.executable, "-m", "granchain.cli", "run",
-               str(ROOT / "granchain/scenes/gaps-20nm-440c.yaml"), *sets, "--json",
-               "--out", str(Path(d) / "out.json"), "--force"]
-        t_proc = statistics.median(_timed(cmd, base) for _ in range(args.repeats))
-    print(f"granchain run of {args.chains} chains (--json --out), median of {args.repeats}: "
-          f"whole process {t_proc:.2f} s; its parts: imports + kernel load {t_imp:.2f} s, "
-          f"kernel {b_int:.2f} s, summarise {b_sum:.3f} s, JSON output {t_out:.3f} s "
-          f"({len(text) / 1e6:.1f} MB); kernel / process {b_int / t_proc:.2f}, "
-          f"everything but the kernel / kernel {(t_proc - b_int) / b_int:.2f}")
+    _whole_process(args, base)
 
 
 if __name__ == "__main__":
