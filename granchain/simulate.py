@@ -75,6 +75,10 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
     t0 = time.perf_counter()
     out = []
     warn = {sp.v_striker: sp.warnings for sp in plan.speeds}
+    if engine == "reference" and "trace" not in kw:
+        # observables only: the fixed-step kernels measure them on the fly (the event
+        # method always does), with the same result as summarising the record
+        kw = {**kw, "trace": False}
     for m, traj in trajectories(plan, mem, engine, **kw):
         s = summarize(traj, scene.probes)
         extra = {}
