@@ -27,6 +27,7 @@ import csv
 import dataclasses
 import json
 import math
+from collections import Counter
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
@@ -423,17 +424,25 @@ RECORD_CHUNK_BYTES = 256 * 2**20
 CHUNK_CHAINS = 512
 WINDOW_SAMPLES = {"rk4": 256, "verlet": 256, "adaptive": 2048, "event": 2048}
 EVENT_BYTES_PER_PARTICLE = 3700.0
+# The fixed-step methods measuring on the fly (no trace): per particle a ring of
+# RING_SAMPLES record samples (an index and two floats each), and the chain's state, rows
+# and running observables (~640 bytes a particle, tracemalloc), for every lane of the
+# chunk's blocks of BLOCK_LANES chains.
+RING_SAMPLES = 512
+OBSERVE_BYTES_PER_PARTICLE = 24.0 * RING_SAMPLES + 640.0
+BLOCK_LANES = 32
 
 
 def holds_records(scene, engine: str = "reference", trace: bool = False) -> bool:
     """Does a run keep each member's sample record until it ends? LAMMPS reads back the
     dump of all its chains at once. The reference engine yields chains in member order
     but runs them ordered by sampling and total gap, so a chain may wait for every other
-    one; it records the sampled trajectory except under the event method without a
-    trace (``trace``, or a measured scene: ``measurement.needs_trace``)."""
+    one; it records the sampled trajectory only on request (``trace``, or a measured
+    scene: ``measurement.needs_trace``) or under the adaptive method, which has no
+    on-the-fly observables (the event and fixed-step methods measure them as they go)."""
     if engine == "lammps":
         return True
-    return scene.method != "event" or trace or scene.measurement is not None
+    return scene.method == "adaptive" or trace or scene.measurement is not None
 
 
 def run_estimate(scene, realisations=None, engine: str = "reference", *,
@@ -475,9 +484,16 @@ def estimate_run(scene, per_v: list[dict], seconds: list[float], realisations=No
     if engine == "reference":
         window = WINDOW_SAMPLES.get(scene.method, 256) if recorded else 0
         per_chain = window * (scene.n + RECORD_EXTRA_COLUMNS) * 8.0
+        chains = min(members, CHUNK_CHAINS)
         if scene.method == "event":
             per_chain += EVENT_BYTES_PER_PARTICLE * scene.n
-        records += min(records, RECORD_CHUNK_BYTES) + min(members, CHUNK_CHAINS) * per_chain
+        elif not recorded:
+            per_chain += OBSERVE_BYTES_PER_PARTICLE * scene.n
+            # a chunk holds the chains of one sample interval (the speeds that share it)
+            share = Counter(sample_interval(scene, v) for v in scene.striker_velocities)
+            chains = min(reals * max(share.values(), default=1), CHUNK_CHAINS)
+            chains = -(-chains // BLOCK_LANES) * BLOCK_LANES
+        records += min(records, RECORD_CHUNK_BYTES) + chains * per_chain
     results = members * (MEMBER_BYTES + MEMBER_BYTES_PER_PARTICLE * scene.n)
     return {"members": members, "steps": steps,
             "worst_chain_steps": max((c["steps"] for c in per_v), default=0.0),
