@@ -572,8 +572,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def cmd_warm_up(args) -> int:
-    from .engines import warmup
-    warmup.build(log=lambda msg: print(msg, file=sys.stderr))
+    from .engines import backend, warmup
+    warmup.build(log=lambda msg: print(msg, file=sys.stderr), workers=backend.num_threads())
     return 0
 
 

@@ -3,9 +3,10 @@
 # batches of studies on the LAMMPS engine go through run_lammps_batch (lammps.smk).
 # packed_trace runs each material's packed chain, on its study's engine, and saves its v(t)
 # trace (a LAMMPS packed_trace takes the batch threads as MPI ranks).
-# jit_cache compiles the reference engine's kernels once (numba's JIT cache and the
-# ahead-of-time module, granchain.engines.backend) before any job needs them, so that jobs
-# starting together do not each pay the cold compile. The cache is per machine (under
+# jit_cache compiles the reference engine's JIT kernels once (numba's cache,
+# granchain.engines.backend; its runs in the rule's threads as processes at once) before
+# any job needs them, so that jobs starting together do not each pay the cold compile;
+# aot_kernels then builds the ahead-of-time module (one-chain runs), which no job waits for. The cache is per machine (under
 # $GRANCHAIN_CACHE_DIR or ~/.cache/granchain, and numba's beside the package); on a cluster
 # whose nodes differ in CPU, a job on another CPU type compiles for it once.
 
@@ -15,6 +16,23 @@ rule jit_cache:
         f"{RESULTS}/work/jit_cache.done",
     log:
         f"{RESULTS}/logs/jit_cache.log",
+    threads: 2
+    resources:
+        mem_mb=2000,
+        runtime=15,
+    conda:
+        "../envs/granchain.yaml"
+    script:
+        "../scripts/jit_cache.py"
+
+
+rule aot_kernels:
+    input:
+        rules.jit_cache.output,
+    output:
+        f"{RESULTS}/work/aot_kernels.done",
+    log:
+        f"{RESULTS}/logs/aot_kernels.log",
     threads: 1
     resources:
         mem_mb=1000,
@@ -22,7 +40,7 @@ rule jit_cache:
     conda:
         "../envs/granchain.yaml"
     script:
-        "../scripts/jit_cache.py"
+        "../scripts/aot_kernels.py"
 
 
 rule run_batch:
