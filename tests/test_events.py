@@ -169,3 +169,24 @@ def test_event_agrees_with_the_independent_solution_on_a_50_sphere_gapped_chain(
     v_g_front = span / (ind.t_front[p2 - 1] - ind.t_front[p1 - 1])
     assert abs(r.v_g / v_g - 1) < LONG_BOUND["v_g"], (r.v_g, v_g)
     assert abs(r.v_g_front / v_g_front - 1) < LONG_BOUND["v_g_front"], (r.v_g_front, v_g_front)
+
+
+def test_a_chain_longer_than_the_record_buffer_keeps_its_observables():
+    """More spheres than record steps kept per particle (``codes.RB_SIZE``): each
+    particle's buffer is its own, merged only when it is full, and the on-the-fly
+    observables still match the chain's own trace (60 spheres, 20 nm gaps)."""
+    from granchain.engines.codes import RB_SIZE
+    n = 60
+    assert n > RB_SIZE
+    sc = packed(**{"chain.n": n, "probes": f"[2, {n - 1}]", "integrator.method": "event",
+                   "integrator.tolerance": TOL,
+                   "gaps": "{distribution: uniform, mean: 2.0e-8, seed: 3}"})
+    (_, traj), = list(trajectories(sc, members(sc), trace=True))
+    r = summarize(traj, sc.probes)
+    vm, tp, tf, pl, fi = sampled_peaks(traj)
+    sdt = traj.meta["sample_dt"]
+    ok = np.isfinite(vm)
+    assert ok.sum() > RB_SIZE
+    assert np.all(np.abs(np.array(r.v_max)[ok] / vm[ok] - 1) < 1e-5)
+    assert np.all(np.abs(np.array(r.t_front)[ok] - tf[ok]) < 0.01 * sdt)
+    assert np.all(np.abs(np.array(r.t_peak)[ok] - tp[ok]) < sdt)

@@ -398,7 +398,7 @@ def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, VMAX, TPK, PASSED, RUNEND, RB, R
                 for q in range(keep, m):
                     RB[bc, i, q - keep, :] = RB[bc, i, q, :]
                 m -= keep
-            if m == RB.shape[1]:
+            if m == RB.shape[2]:
                 m = _merge_oldest(RB[bc, i], m, DROP[bc], i)
             RB[bc, i, m, RB_T0] = t0
             RB[bc, i, m, RB_H] = h
