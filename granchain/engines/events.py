@@ -703,6 +703,21 @@ def _level_time(rb, m, drop, vinit, level):
 _PH_BEGIN, _PH_TRIAL, _PH_EMPTY = 0, 1, 2
 
 
+@njit(cache=True, inline="always")
+def _stage_lanes(y, hl, Kf, coef, nq, af, acc, out):
+    """out = y + h_l sum_{q < nq} coef[q] K_q on every lane l: the sum over the whole block
+    at a time (af, the flat view of acc), in the stages' order."""
+    ny, L = y.shape
+    af[:] = 0.0
+    for q in range(nq):
+        a = coef[q]
+        for m in range(af.shape[0]):
+            af[m] += a * Kf[q, m]
+    for j in range(ny):
+        for l in range(L):
+            out[j, l] = y[j, l] + hl[l] * acc[j, l]
+
+
 @njit(cache=True, error_model="numpy", boundscheck=False)
 def _rk_trial_lanes(y, hl, g, P, FL, LO, Kb, ynew, tmp, f, acc, scale_abs, rel, rtol,
                     A, Bw, E5, E3, dopnorm, err):
@@ -718,23 +733,9 @@ def _rk_trial_lanes(y, hl, g, P, FL, LO, Kb, ynew, tmp, f, acc, scale_abs, rel, 
     tf = tmp.reshape(M)
     Kf = Kb.reshape((S + 1, M))
     for s in range(1, S):
-        af[:] = 0.0
-        for q in range(s):
-            a = A[s, q]
-            for m in range(M):
-                af[m] += a * Kf[q, m]
-        for j in range(ny):
-            for l in range(L):
-                tmp[j, l] = y[j, l] + hl[l] * acc[j, l]
+        _stage_lanes(y, hl, Kf, A[s], s, af, acc, tmp)
         K.forces_block(tmp, g, P, FL, LO, 0.0, Kb[s], f)
-    af[:] = 0.0
-    for q in range(S):
-        a = Bw[q]
-        for m in range(M):
-            af[m] += a * Kf[q, m]
-    for j in range(ny):
-        for l in range(L):
-            ynew[j, l] = y[j, l] + hl[l] * acc[j, l]
+    _stage_lanes(y, hl, Kf, Bw, S, af, acc, ynew)
     K.forces_block(ynew, g, P, FL, LO, 0.0, Kb[S], f)
     # the error estimates: acc the 5th-order one, tmp the 3rd-order one
     af[:] = 0.0
@@ -757,12 +758,7 @@ def _rk_trial_lanes(y, hl, g, P, FL, LO, Kb, ynew, tmp, f, acc, scale_abs, rel, 
                 e5[l] += (acc[j, l] / sc) ** 2
                 e3[l] += (tmp[j, l] / sc) ** 2
     for l in range(L):
-        if e5[l] == 0.0 and e3[l] == 0.0:
-            err[l] = 0.0
-        elif dopnorm != 0:
-            err[l] = abs(hl[l]) * e5[l] / math.sqrt((e5[l] + 0.01 * e3[l]) * ny)
-        else:
-            err[l] = abs(hl[l]) * math.sqrt(e5[l] / ny)
+        err[l] = K.error_norm(e5[l], e3[l], hl[l], ny, dopnorm)
 
 
 @njit(cache=True, inline="always")
@@ -775,7 +771,6 @@ def _lane_out(a, l, out):
 def _stage_out(Kb, s, l, out):
     for j in range(out.shape[0]):
         out[j] = Kb[s, j, l]
-
 
 
 @njit(parallel=True, cache=True, error_model="numpy")

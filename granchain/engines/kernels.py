@@ -671,6 +671,14 @@ def rk_trial(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol,
             a3 += E3[q] * K[q, j]
         e5 += (a5 / sc) ** 2
         e3 += (a3 / sc) ** 2
+    return error_norm(e5, e3, h, ny, dopnorm)
+
+
+@njit(cache=True, inline="always")
+def error_norm(e5, e3, h, ny, dopnorm):
+    """The scaled error norm of a trial step of size h from the sums of squares of its
+    scaled 5th- and 3rd-order estimates over ny components (accept if <= 1): DOP853's
+    combined norm if ``dopnorm``, else the RMS of the 5th-order one."""
     if e5 == 0.0 and e3 == 0.0:
         return 0.0
     if dopnorm != 0:
