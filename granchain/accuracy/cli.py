@@ -22,8 +22,8 @@ def preset_blocks(config: dict, preset: str | None = None) -> tuple[dict, dict, 
     return p.get("cost") or {}, p.get("base") or {}, preset
 
 
-def main(argv=None, prog: str = "python -m granchain.cost") -> int:
-    """Run a subcommand; errors a user can cause are one line on stderr, exit status 2."""
+def build_parser(prog: str = "python -m granchain.cost") -> argparse.ArgumentParser:
+    """The argument parser of ``measure``, ``figure`` and ``model``."""
     ap = argparse.ArgumentParser(prog=prog, description=DESCRIPTION)
     sub = ap.add_subparsers(dest="cmd", required=True)
     m = sub.add_parser("measure", help="run the accuracy-vs-cost study of a preset")
@@ -44,7 +44,12 @@ def main(argv=None, prog: str = "python -m granchain.cost") -> int:
     mo.add_argument("timing", help="timing/accuracy_cost.csv of a run (and its .provenance.json)")
     mo.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / MODEL_FILE))
     mo.add_argument("--force", action="store_true", help="replace the existing model")
-    args = ap.parse_args(argv)
+    return ap
+
+
+def main(argv=None, prog: str = "python -m granchain.cost") -> int:
+    """Run a subcommand; errors a user can cause are one line on stderr, exit status 2."""
+    args = build_parser(prog).parse_args(argv)
     try:
         if args.cmd == "measure":
             if args.cost_json is not None:

@@ -88,9 +88,8 @@ def render(name: str, paths: dict, out, radius: float | None = None) -> list[Pat
     return func(*args, out)
 
 
-def main(argv=None) -> int:
-    """``python -m granchain.figures NAME --<study> PATH ... --out PATH``; a missing or
-    invalid table, trace or column prints one line and returns 2."""
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``python -m granchain.figures``."""
     ap = argparse.ArgumentParser(prog="python -m granchain.figures",
                                  description="Draw one of the chapter's figures from the "
                                              "workflow's tables (PNG and PDF).")
@@ -106,7 +105,13 @@ def main(argv=None) -> int:
                     "precompressed chain's c0 (default the chapter's 150e-6; the tables do "
                     "not carry it)")
     ap.add_argument("--out", required=True, help="output path (.png/.pdf or no extension)")
-    a = ap.parse_args(argv)
+    return ap
+
+
+def main(argv=None) -> int:
+    """``python -m granchain.figures NAME --<study> PATH ... --out PATH``; a missing or
+    invalid table, trace or column prints one line and returns 2."""
+    a = build_parser().parse_args(argv)
     paths = {k: v for k, v in vars(a).items() if k not in ("name", "out", "radius") and v}
     try:
         for p in render(a.name, paths, a.out, a.radius):

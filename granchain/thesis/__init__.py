@@ -130,9 +130,8 @@ def read_inputs(paths: dict) -> dict:
     return kw
 
 
-def main(argv=None) -> int:
-    """``python -m granchain.thesis --packed-sweep P.csv ... --out-csv C --out-md M``; a
-    missing or invalid table prints one line and returns 2."""
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``python -m granchain.thesis``."""
     ap = argparse.ArgumentParser(prog="python -m granchain.thesis",
                                  description="The thesis comparison table (CSV and Markdown).")
     for s in STUDIES:
@@ -143,7 +142,13 @@ def main(argv=None) -> int:
     ap.add_argument("--out-md", required=True)
     ap.add_argument("--title", default="Thesis comparison")
     ap.add_argument("--radius", type=float, help="sphere radius in m (default 150e-6)")
-    a = ap.parse_args(argv)
+    return ap
+
+
+def main(argv=None) -> int:
+    """``python -m granchain.thesis --packed-sweep P.csv ... --out-csv C --out-md M``; a
+    missing or invalid table prints one line and returns 2."""
+    a = build_parser().parse_args(argv)
     try:
         kw = read_inputs(vars(a))
         kw["radius"] = a.radius
