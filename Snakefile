@@ -3,7 +3,7 @@
 # table, trace and figure under results/<preset>/. On a cluster:
 #     snakemake --profile workflow/profiles/slurm --config preset=full
 # Rules live in workflow/rules/*.smk; each calls the granchain package through a script in
-# workflow/scripts/ (logic: granchain/workflow/, tables.py, figures.py, thesis.py, cost.py).
+# workflow/scripts/ (logic: granchain/workflow/, tables.py, figures/, thesis/, accuracy/).
 from snakemake.utils import min_version
 
 min_version("9.0")

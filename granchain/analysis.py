@@ -4,7 +4,7 @@ Everything here reads or reduces the workflow's result tables -- CSVs with one r
 chain and units in the column names (``v_striker_m_s``, ``v_g_m_s``, ``vmax_p01_m_s`` ...;
 the columns are written by granchain/tables.py) -- or a Fig. 5.1a trace npz. Nothing here
 simulates and nothing draws: no matplotlib import. The figures (granchain/figures/) and
-the thesis table (granchain/thesis.py) both build on these functions, so each number they
+the thesis table (granchain/thesis/) both build on these functions, so each number they
 share is computed in one place.
 
 Sections: reading and checking tables; selecting rows; reductions of the packed chain

@@ -6,13 +6,12 @@ run, on the same sample grid, and returns a :class:`Comparison` whose ``rows`` (
 DataFrame, one row per member and quantity) hold both values, their difference, the
 tolerance it must meet and why. ``granchain compare`` formats it; the workflow reuses it.
 
-Both engines apply the same laws (docs/lammps_laws.md) with the same integrator and
-step, so they differ by rounding only: measured <= 1.3e-8 relative on v_max and
-<= 5e-11 on v_g over a 1000-chain ensemble, <= 6e-10 E0 on the energy terms
-(docs/lammps_engine.md). The tolerances below are far tighter than the 1e-3 the issue
-asks for, yet keep >= 75x headroom over rounding; at
-1e-3 a missing groove friction or air drag term (~1e-4 on v_max over one pass of the
-wave) would go unnoticed.
+Both engines apply the same laws (docs/explanation/lammps_laws.md) with the same
+integrator and step, so they differ by rounding only: measured <= 1.3e-8 relative on v_max
+and <= 5e-11 on v_g over a 1000-chain ensemble, <= 6e-10 E0 on the energy terms
+(docs/explanation/lammps_engine.md). The tolerances below keep >= 75x headroom over
+rounding and are tight enough to see a dropped term: at 1e-3 a missing groove friction or
+air drag term (~1e-4 on v_max over one pass of the wave) would go unnoticed.
 
 A scene with an end wall (``walls.end``) adds the wall's observables
 (``granchain.observables.wall_peak``): the peak of its dynamic force ``wall_force_max``
@@ -56,8 +55,8 @@ WHY_RESIDUAL = ("not independent: LAMMPS has no per-atom output of these works (
                 "friction, contact damping); their sum is the residual of its energy balance")
 WHY_BALANCE_RESIDUAL = "not independent: the LAMMPS ledger balances by construction (residual)"
 WHY_BALANCE = "both balances carry the same Verlet error"
-WHY_WALL = ("same wall law (LAMMPS fix wall/gran, docs/lammps_laws.md 12) and Verlet: rounding "
-            "only (measured <= 1.5e-9); 1e-6 still resolves the 2e-4 of mixing the wall's E "
+WHY_WALL = ("same wall law (LAMMPS fix wall/gran, docs/explanation/lammps_laws.md 12) and "
+            "Verlet: rounding only (measured <= 1.5e-9); 1e-6 still resolves the 2e-4 of mixing the wall's E "
             "and nu apart")
 WHY_WALL_T = "same integrator and sample grid: the wall's peak time differs by rounding only"
 WHY_WALL_STATIC = ("the preload F0 both engines start from (rounding only, measured 2e-14); "

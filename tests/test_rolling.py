@@ -1,5 +1,5 @@
-"""Rolling friction: LAMMPS ``rolling sds`` in the reference engine (docs/lammps_laws.md
-section 5), its energy ledger, its stability, and a LAMMPS run of the same chain."""
+"""Rolling friction: LAMMPS ``rolling sds`` in the reference engine
+(docs/explanation/lammps_laws.md section 5), its energy ledger, its stability, and a LAMMPS run of the same chain."""
 from __future__ import annotations
 
 import json
@@ -94,7 +94,7 @@ def two_spheres(d, w, rho, **over):
 
 
 def by_hand(c, d, w, rho, dt=0.0):
-    """docs/lammps_laws.md section 8, rolling sds, written out for one contact."""
+    """docs/explanation/lammps_laws.md section 8, rolling sds, written out for one contact."""
     rf, R, I = c.terms.rolling_friction, c.terms.R, c.terms.rotation.inertia
     fn = c.terms.hertz.K * d**1.5
     vroll = R / 2 * (w[0] - w[1])

@@ -196,7 +196,7 @@ def lammps_damping(cd: ContactDamping | None) -> tuple[float, str]:
     viscoelastic: eta_n0 converted from 1/(m s) to 1/(um us) (x 1e-12: eta_n0 m_eff a v is
     a force). coeff_restitution: e. tsuji: this LAMMPS (22 Jul 2025) computes tsuji's
     constant without the sqrt(2) of the law above (Marshall 2009, Eq. 53, alone; measured,
-    docs/lammps_laws.md section 13), so the deck writes the same force,
+    docs/explanation/lammps_laws.md section 13), so the deck writes the same force,
     eta = c sqrt(m_eff F_el / delta) with c = :func:`tsuji_damp` (e), as
     ``damping coeff_restitution`` with the e' = :func:`equivalent_restitution` (c) whose
     constant is that c."""
@@ -235,7 +235,7 @@ def lammps_comment(cd: ContactDamping) -> str:
     else:
         what = (f"# damping tsuji, e = {_r(cd.e)}: eta = c sqrt(m_eff F_el/delta), c = sqrt(2) x "
                 f"(Marshall 2009,\n# Eq. 53) = {_r(cd.damp)}. This LAMMPS's own 'damping tsuji' "
-                "lacks the sqrt(2)\n# (docs/lammps_laws.md section 13): the deck writes the same "
-                "force as 'damping\n# coeff_restitution' with e' = "
+                "lacks the sqrt(2)\n# (docs/explanation/lammps_laws.md section 13): the deck "
+                "writes the same force as 'damping\n# coeff_restitution' with e' = "
                 f"{_r(lammps_damping(cd)[0])}, whose constant c(e') is c.")
     return "\n".join((head, what, lim))

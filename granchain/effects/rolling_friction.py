@@ -1,4 +1,5 @@
-"""rolling_friction: LAMMPS ``rolling sds`` on the 1D line (docs/lammps_laws.md section 5).
+"""rolling_friction: LAMMPS ``rolling sds`` on the 1D line
+(docs/explanation/lammps_laws.md section 5).
 
 At each loaded contact of spheres k, k+1 the relative rolling velocity
 v_r = R* (omega_k - omega_{k+1}) (R* = R/2) winds a history rho (rho' = v_r, erased when

@@ -346,7 +346,7 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                 dy[owt, l] = a + pw if loaded else a
 
     if FL[F_ROLL] != 0:
-        # LAMMPS rolling sds on the 1D line (docs/lammps_laws.md sections 5 and 8):
+        # LAMMPS rolling sds on the 1D line (docs/explanation/lammps_laws.md sections 5 and 8):
         # v_roll = Reff (omega_k - omega_{k+1}), rho' = v_roll, moment
         # M = -k_roll rho - gamma_roll v_roll capped at mu_roll Fn, torque +Reff M on the
         # left sphere and -Reff M on the right one.

@@ -13,7 +13,7 @@ Two output paths, the same Trajectory objects (tested bit for bit on v):
   the deck writes LAMMPS binary dumps, ``traj.bin`` (``x vx`` of every atom, sorted by
   id) and ``ledger.bin`` (the per-chain ledger on each chain's first atom), read with
   numpy (``read_binary``): the doubles LAMMPS holds, without the text dump's printing
-  and per-line parsing (costs: docs/lammps_engine.md).
+  and per-line parsing (costs: docs/explanation/lammps_engine.md).
 * ``output="dump"``: the text dump ``traj.dump`` (``id x y z vx``, ``%.17g``) and
   ``ledger.txt``, read with MDAnalysis (``read_dump``): the path for full trajectories
   that other tools read (``granchain deck`` writes this deck by default).
@@ -24,7 +24,7 @@ shifts them by the box's xlo; its ``additional_columns`` are parsed as float64 a
 shifted, so the observables are built from the float64 columns ``x`` and ``vx``, written
 by the deck with ``%.17g``: the values LAMMPS holds, bit for bit. ``velocities="float32"``
 rounds vx to float32, as MDAnalysis' own velocity parsing would (only to measure what
-that would cost; see docs/lammps_engine.md).
+that would cost; see docs/explanation/lammps_engine.md).
 
 Energy ledger per chain (columns of ``granchain.trajectory.ENERGY_COLUMNS``), at every
 sample:
@@ -91,7 +91,7 @@ READERS = {"binary": ("traj.bin", "read_binary"), "dump": ("traj.dump", "read_du
 (E_KT, E_KR, E_H, E_WG, E_WD, E_WL) = (ENERGY_COLUMNS.index(c) for c in (
     "kinetic_translational", "kinetic_rotational", "hertz_potential", "work_groove_friction",
     "work_air_drag", "work_load"))
-# SI factors of 'units micro' values (docs/lammps_laws.md section 1)
+# SI factors of 'units micro' values (docs/explanation/lammps_laws.md section 1)
 UM = 1e-6          # um -> m
 ENERGY = 1e-15     # 1e-15 J -> J
 FORCE = 1e-9       # 1e-9 N -> N

@@ -4,7 +4,7 @@
 The runner and plugin names below load on first use, so that ``granchain.lammps.units``
 (which the effects' deck fragments use) imports nothing of the engine.
 The granular contact laws that LAMMPS applies, and the exact Verlet sequence the
-reference integrator has to mirror, are written down in ``docs/lammps_laws.md``.
+reference integrator has to mirror, are written down in ``docs/explanation/lammps_laws.md``.
 """
 import importlib
 

@@ -8,7 +8,7 @@ plain wheel, from its directory: ``lmp -in deck.lmp``.
 Choices (also stated in the deck's comments):
 
 * Physics comes only from :func:`granchain.effects.physics_terms` (SI), converted once by
-  :func:`to_micro` (``units micro``, docs/lammps_laws.md section 1).
+  :func:`to_micro` (``units micro``, docs/explanation/lammps_laws.md section 1).
 * Ensembles: chain b (one member = one gap realisation x striker speed) lies on the line
   y = b * spacing, atom ids b*n + 1 ... b*n + n (particle 1 = striker). spacing = 4R >
   2R + skin, so no two chains ever share a neighbour-list pair.

@@ -1,5 +1,5 @@
 """What the field's chains add to a LAMMPS deck: spheres of their own size and material,
-an end wall and a dead load (docs/lammps_laws.md section 12).
+an end wall and a dead load (docs/explanation/lammps_laws.md section 12).
 
 All of it comes from the chain record of :func:`granchain.effects.physics_terms`
 (``terms.chain``, SI) and is converted once with :func:`~granchain.lammps.units.to_micro`.
@@ -37,7 +37,7 @@ of the chapter's chain byte for byte (one atom type, ``pair_coeff * *``, x_1 = 0
   the explicit k = 8 G* of an unlike pair, are per unit contact radius a), and
   ``linear_history`` k_t and the rolling constants are the scene's; the wall's E*_w is
   the materials'. So one atom type per material still serves every chain
-  (docs/lammps_laws.md section 12.4).
+  (docs/explanation/lammps_laws.md section 12.4).
 """
 from __future__ import annotations
 
@@ -125,7 +125,7 @@ def positions(sp: Spheres, gaps) -> np.ndarray:
     is left. Left to right the striker's contact is exact (x_1 = 0). An overlap of an ulp
     would do nothing elastic (K delta^1.5) but, with contact damping, a closing contact's
     dashpot scales as delta^(1/4): the striker's spurious ~1e-13 um overlap kicked it at
-    setup by ~7e-9 m/s (docs/lammps_laws.md section 13)."""
+    setup by ~7e-9 m/s (docs/explanation/lammps_laws.md section 13)."""
     R = sp.radii
     g = [to_micro(float(v), "length") for v in np.asarray(gaps, dtype=float)]
     n = len(R)
@@ -167,7 +167,7 @@ def pair_coeff(terms, sp: Spheres, parts: list[tuple[str, str]]) -> str:
     lines += ["# own E and nu (LAMMPS: E* = E/(2(1-nu^2))). I != J: E = 2 E*_IJ, nu = 0, with",
              "# 1/E*_IJ = (1-nu_I^2)/E_I + (1-nu_J^2)/E_J, which LAMMPS's one-material formula "
              "turns",
-             "# back into E*_IJ (docs/lammps_laws.md section 12)."]
+             "# back into E*_IJ (docs/explanation/lammps_laws.md section 12)."]
     if mindlin:
         lines += ["# Mindlin stiffness of an unlike pair given explicitly, k = 8 G*_IJ with "
                   "1/G*_IJ =",

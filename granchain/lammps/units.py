@@ -1,13 +1,13 @@
 """LAMMPS 'units micro' for granchain's decks: SI values converted exactly.
 
 micro: mass pg, length um, time us, velocity um/us = m/s, force 1e-9 N, energy 1e-15 J
-(docs/lammps_laws.md section 1).
+(docs/explanation/lammps_laws.md section 1).
 """
 from __future__ import annotations
 
 from decimal import Decimal
 
-# SI value * 10**e = value in LAMMPS 'units micro' (docs/lammps_laws.md section 1).
+# SI value * 10**e = value in LAMMPS 'units micro' (docs/explanation/lammps_laws.md section 1).
 MICRO_EXPONENT = {
     "length": 6,          # m -> um
     "time": 6,            # s -> us
