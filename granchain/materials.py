@@ -41,7 +41,7 @@ class Material:
         return 0.0 if self.rigid else (1.0 - self.nu**2) / self.E
 
 
-# A wall that does not deform: 1/E_w = 0.
+#: A wall that does not deform: 1/E_w = 0.
 RIGID = Material("rigid", math.inf, 0.0, 0.0, "infinite stiffness (1/E = 0)")
 
 

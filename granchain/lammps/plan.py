@@ -29,11 +29,11 @@ LEDGER_BINARY_NAME = "ledger.bin"
 DUMP_COLUMNS = ("id", "x", "y", "z", "vx")
 # the binary trajectory dump (sorted by id, so no id column): what the engine reads
 BINARY_COLUMNS = ("x", "vx")
-# what a deck writes at every sample (DeckPlan.output):
-#   "dump":   traj.dump (text, DUMP_COLUMNS, for MDAnalysis and people) and ledger.txt
-#   "binary": traj.bin (LAMMPS binary dump custom, BINARY_COLUMNS) and ledger.bin (the
-#             per-chain ledger on each chain's first atom, binary): the engine's default
-#   "none":   neither (only energy.txt and thermo): LAMMPS' own cost, for benchmarks
+#: What a deck writes at every sample (DeckPlan.output):
+#:   "dump":   traj.dump (text, DUMP_COLUMNS, for MDAnalysis and people) and ledger.txt
+#:   "binary": traj.bin (LAMMPS binary dump custom, BINARY_COLUMNS) and ledger.bin (the
+#:             per-chain ledger on each chain's first atom, binary): the engine's default
+#:   "none":   neither (only energy.txt and thermo): LAMMPS' own cost, for benchmarks
 OUTPUTS = ("dump", "binary", "none")
 # per-chain ledger (ledger.txt): effect -> (granchain.trajectory.ENERGY_COLUMNS entry,
 # the per-atom LAMMPS quantity summed over the chain), in the file's column order; from the
