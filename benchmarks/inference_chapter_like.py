@@ -53,7 +53,7 @@ two of its published standard deviations). The joint fit rejects the data (a thi
 values outside their predictive range) and buys a lower v_max,1 with a smaller gap than
 the timing's. What the published numbers support is e ~ 0.96 +- 0.02 from the ratio, and
 only if the peaks are read low by a common factor of ~1.7, which the chapter's 2.5 MHz
-vibrometer does not explain (README: it lowers the peaks by 1-2 %).
+vibrometer does not explain (docs/explanation/workflow.md, Outputs: it lowers the peaks by 1-2 %).
 
     python benchmarks/inference_chapter_like.py [--realisations R] [--cache-dir DIR]
         [--out-dir DIR] [--timing-e E]
