@@ -44,7 +44,8 @@ SCENE_METHODS = ("rk4", "verlet", "adaptive", "event")   # what ``method: auto``
 SCENE_CLASSES = ("packed", "gapped")
 # method auto takes the cheapest setting whose measured error is <= tolerance / AUTO_SAFETY:
 # on other scenes (316 and 440C, 0.03-0.5 m/s, packed and 10-190 nm gaps) the error of a
-# setting at the same N was up to 2.3x the model's (docs/explanation/physics.md, "What accuracy costs in time").
+# setting at the same N was up to 2.3x the model's (docs/explanation/physics.md, "What
+# accuracy costs in time").
 AUTO_SAFETY = 4.0
 # the observable whose error auto bounds, per scene class: the peak-time v_g of a packed
 # chain; the arrival-time v_g (half-peak crossings) of a gapped one, whose probes often
