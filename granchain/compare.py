@@ -107,12 +107,16 @@ def comparison_scene(scene: Scene) -> Scene:
 
 
 def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
-            keep: bool = False, trajectory: bool = False) -> Comparison:
+            keep: bool = False, trajectory: bool = False, traces: int = 0) -> Comparison:
     """Run both engines on every member of ``scene`` and tabulate the differences (a
     scene with method auto: resolved; ``meta["scene_hash"]`` is the resolved scene's).
 
-    ``trajectory``: LAMMPS writes its full text dump, read with MDAnalysis, and each member
-    gets a row comparing the whole trajectories, every particle's v(t) at every sample."""
+    The reference engine measures every member's observables on the fly (the same values,
+    bit for bit, as summarising its sample record), so it holds no records.
+    ``traces``: the first that many members are also run with their sample record, and
+    each gets a row comparing the whole trajectories, every particle's v(t) at every
+    sample, against LAMMPS' record. ``trajectory``: every member gets that row, and
+    LAMMPS writes its full text dump, read with MDAnalysis."""
     import pandas as pd
 
     from .engines import lammps as lmp_engine
@@ -127,10 +131,15 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
     gaps = member_gaps(cs, mem)
     vs = np.array([m.v_striker for m in mem])
     radii = member_radii(cs, mem)          # each member's own under a radius spread
+    k = len(mem) if trajectory else max(0, min(int(traces), len(mem)))
     t0 = time.perf_counter()
     try:
         ref = list(reference.run(cs, gaps, vs, method="verlet", dt=cs.dt, progress=False,
-                                 trace=True, radii=radii))
+                                 trace=trajectory, radii=radii))
+        # a member re-run alone gives the same bits, so its record belongs to ref[i]
+        traced = ref[:k] if trajectory else list(reference.run(
+            cs, gaps[:k], vs[:k], method="verlet", dt=cs.dt, progress=False, trace=True,
+            radii=None if radii is None else radii[:k])) if k else []
     except NotImplementedError as exc:
         raise GranchainError(f"compare: the reference engine cannot run this scene: {exc}") from None
     t1 = time.perf_counter()
@@ -139,15 +148,15 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
                               output="dump" if trajectory else "binary"))
     t2 = time.perf_counter()
     rows = []
-    for m, r, lt in zip(mem, ref, lmp):
-        for row in member_rows(cs, r, lt, trajectory=trajectory):
+    for i, (m, r, lt) in enumerate(zip(mem, ref, lmp)):
+        for row in member_rows(cs, r, lt, trace=traced[i] if i < k else None):
             rows.append(dict(member=m.index, realisation=m.realisation, v_striker=m.v_striker,
                              **row))
     df = pd.DataFrame(rows, columns=["member", "realisation", "v_striker", "quantity",
                                      "reference", "lammps", "diff", "measure", "tolerance",
                                      "ok", "why"])
     meta = {"scene": scene.name, "scene_hash": scene.hash, "compared_scene_hash": cs.hash,
-            "chains": len(mem), "dt": cs.dt, "sample_dt": lmp[0].meta.get("sample_dt"),
+            "chains": len(mem), "traced_chains": k, "dt": cs.dt, "sample_dt": lmp[0].meta.get("sample_dt"),
             "nprocs": nprocs, "reference_wall_s": t1 - t0, "lammps_wall_s": t2 - t1,
             "lammps_output": "dump (MDAnalysis)" if trajectory else "binary",
             "lammps_version": lmp[0].meta.get("lammps_version"),
@@ -190,19 +199,21 @@ def wall_rows(sr, sl) -> list[dict]:
                  W_TOL, WHY_WALL_STATIC)]
 
 
-def member_rows(scene: Scene, ref, lmp, *, trajectory: bool = False) -> list[dict]:
-    """Rows of one member: both trajectories' observables side by side (``trajectory``:
-    and the trajectories themselves, max |v_lammps - v_reference| / v_s over every
-    particle and sample)."""
+def member_rows(scene: Scene, ref, lmp, *, trace=None) -> list[dict]:
+    """Rows of one member: both runs' observables side by side (``ref`` may have measured
+    them on the fly; ``lmp`` holds LAMMPS' sample record). ``trace``: the reference's
+    sample record of this member (``ref`` itself if it has one), adding the row of the
+    trajectories themselves, max |v_lammps - v_reference| / v_s over every particle and
+    sample."""
     sr, sl = summarize(ref, scene.probes), summarize(lmp, scene.probes)
     vfloor = arrival_speed(max(ref.v_striker, 1e-300))
-    out = [_row("samples", int(ref.t.size), int(lmp.t.size),
-                float(abs(int(ref.t.size) - int(lmp.t.size))), "exact", 0.0, WHY_SAMPLES)]
-    if trajectory:
-        same = ref.v.shape == lmp.v.shape
-        dv = float(np.max(np.abs(lmp.v - ref.v))) if same and ref.v.size else math.inf
+    out = [_row("samples", sr.samples, sl.samples, float(abs(sr.samples - sl.samples)),
+                "exact", 0.0, WHY_SAMPLES)]
+    if trace is not None:
+        same = trace.v.shape == lmp.v.shape
+        dv = float(np.max(np.abs(lmp.v - trace.v))) if same and trace.v.size else math.inf
         out.append(_row("v(t), every particle", math.nan, math.nan,
-                        dv / max(ref.v_striker, 1e-300) if same else math.inf, "max/v_s",
+                        dv / max(trace.v_striker, 1e-300) if same else math.inf, "max/v_s",
                         V_TOL, WHY_TRAJECTORY))
     for i, (a, b) in enumerate(zip(sr.v_max, sl.v_max)):
         out.append(_row(f"v_max[{i + 1}]", a, b, _rel(a, b, vfloor), "rel", V_TOL, WHY_V))

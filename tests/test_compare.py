@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 import math
 
+import pandas as pd
 import pytest
 
 import granchain.compare as C
@@ -107,6 +108,14 @@ def test_compare_trajectory_reads_the_text_dump_and_checks_every_sample(tmp_path
     rows = cmp.rows[cmp.rows.quantity == "v(t), every particle"]
     assert cmp.ok and len(rows) == 2 and (rows["diff"] < 1e-8).all()
     assert (tmp_path / "w" / "traj.dump").is_file() and cmp.meta["lammps_output"].startswith("dump")
+    # observables measured on the fly (every member) and one member's records: the same
+    # values on both sides as from the records, and the trajectory row for member 0 only
+    few = compare(sc, traces=1)
+    assert few.ok and few.meta["traced_chains"] == 1 and cmp.meta["traced_chains"] == 2
+    t_rows = few.rows[few.rows.quantity == "v(t), every particle"]
+    assert t_rows.member.tolist() == [0] and t_rows["diff"].iloc[0] == rows["diff"].iloc[0]
+    keep = lambda df: df[df.quantity != "v(t), every particle"].reset_index(drop=True)  # noqa: E731
+    pd.testing.assert_frame_equal(keep(few.rows), keep(cmp.rows))
     # the row fails when one sample of one particle is off by 1e-5 v_s
     from granchain.engines import reference
     from granchain.gaps import member_gaps, members
@@ -117,7 +126,7 @@ def test_compare_trajectory_reads_the_text_dump_and_checks_every_sample(tmp_path
     v = ref.v.copy()
     v[len(v) // 2, 3] += 1e-5 * ref.v_striker
     bad = dataclasses.replace(ref, v=v)
-    row, = [r for r in member_rows(cs, ref, bad, trajectory=True)
+    row, = [r for r in member_rows(cs, ref, bad, trace=ref)
             if r["quantity"] == "v(t), every particle"]
     assert row["ok"] is False and row["diff"] == pytest.approx(1e-5, rel=1e-6)
 

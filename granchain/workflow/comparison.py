@@ -8,7 +8,12 @@ from .. import tables
 from .run import local_mpi
 from .studies import check_chain_scenes, study_scenes
 
-COMPARISON_META = ("scene_hash", "compared_scene_hash", "chains", "dt", "sample_dt", "nprocs",
+# Members per scene whose whole trajectories are compared (the observables are compared
+# for every member; the reference engine then holds only these records)
+TRACED = 2
+
+COMPARISON_META = ("scene_hash", "compared_scene_hash", "chains", "traced_chains", "dt",
+                   "sample_dt", "nprocs",
                    "lammps_version", "balance", "tolerances")
 
 
@@ -16,14 +21,15 @@ def engine_comparison(preset: dict, threads: int | None = None) -> tuple[pd.Data
     """granchain.compare.compare on every lammps_check scene, then on its field chains
     (``chains``: a dimer, a chain on a wall, a preloaded chain...): per member and
     quantity both engines' values, the difference, its tolerance, ok and why (a walled
-    chain adds the wall's rows); column ``chain`` names the field chain ("chapter" for
-    lammps_check's own scenes); plus each scene's meta (wall times and temporary paths
+    chain adds the wall's rows; the first ``TRACED`` members of each scene add the row of
+    their whole trajectories, every particle's v(t) at every sample); column ``chain``
+    names the field chain ("chapter" for lammps_check's own scenes); plus each scene's meta (wall times and temporary paths
     left out, so the table is deterministic)."""
     from .. import compare as cmp
     local_mpi(max(1, int(threads or 1)))
     frames, metas = [], []
     for ss in study_scenes(preset, "lammps_check") + check_chain_scenes(preset):
-        c = cmp.compare(ss.scene, nprocs=max(1, int(threads or 1)))
+        c = cmp.compare(ss.scene, nprocs=max(1, int(threads or 1)), traces=TRACED)
         df = c.rows.copy()
         df.insert(0, "study", "lammps_check")
         df.insert(1, "chain", ss.chain or "chapter")
