@@ -9,8 +9,10 @@ This layer parses and validates only. A scene with ``integrator.method: auto`` k
 ``method == "auto"`` and its tolerance; the step it runs with comes from the cost model
 (``granchain.costmodel.resolve_auto``), applied where a run starts.
 
-Defaults and where they come from are listed in ``DEFAULTS`` below and in the
-README's Scenes section.
+Every key's default is in ``DEFAULTS`` below (an effect's section: in its module), and
+every key is declared once beside it (``KEYS``; an effect's: its module's ``KEYS``) with its
+unit, bounds and meaning: the checks here read the bounds from these declarations, and
+``granchain.scenekeys`` writes the reference page of the scene keys from them.
 """
 from __future__ import annotations
 
@@ -27,7 +29,7 @@ from typing import Any
 
 
 from .errors import SceneError
-from .validate import choice as _choice, number as _value, short as _short
+from .validate import Key, number as _value, number_text, short as _short
 from .scenefile import apply_overrides, read_scene_file
 from .guards import MIN_SAMPLES_PER_PULSE, floor_sig, max_sample_dt, pulse_width
 from .effects import MODULES as EFFECT_MODULES
@@ -111,6 +113,137 @@ NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9._-]{0,63}")
 NAME_RULE = "use 1-64 characters from A-Z a-z 0-9 . _ -, starting with a letter, digit or _"
 # the distributions that draw at random (gaps.seed matters only for these)
 RANDOM_GAPS = ("uniform", "exponential", "from_length")
+# integrator.tolerance when not given, by method (the fixed-step methods have none)
+DEFAULT_TOLERANCE = {"adaptive": 1e-8, "event": 1e-6, "auto": 1e-4}
+
+RADIUS_SPREADS = ("normal", "uniform")
+# a normal spread is drawn truncated at this many sd (a draw beyond it is drawn again)
+NORMAL_TRUNCATION = 4.0
+# Defaults of a chain.radius_spread block (sd has none: a given block must give it)
+RADIUS_SPREAD_DEFAULTS: dict[str, Any] = {"distribution": "normal", "sd": None, "seed": 0}
+
+# The blocks whose key defaults to null and whose given mapping is filled from defaults
+# of its own
+BLOCK_DEFAULTS = {"chain.radius_spread": RADIUS_SPREAD_DEFAULTS,
+                  "measurement": MEASUREMENT_DEFAULTS}
+
+_MATERIAL = ("a name from `granchain/data/materials.yaml`, or a mapping `{E: 200e9, nu: 0.28, "
+             "rho: 7800}` (E > 0 Pa, -0.999 <= nu <= 0.4999, rho > 0 kg/m^3; an optional "
+             "`name`)")
+
+# Each key of DEFAULTS, MEASUREMENT_DEFAULTS and RADIUS_SPREAD_DEFAULTS, declared once (an
+# effect's section: its module's KEYS). The checks below take the bounds and choices from
+# here; granchain.scenekeys writes the reference page from here.
+KEYS: tuple[Key, ...] = (
+    Key("name", "-", "The scene's name, written into deck comments, data-file titles and file "
+        "names. null: the scene file's stem (`scene` for a scene given as a mapping).",
+        allowed=NAME_RULE.removeprefix("use ")),
+    Key("material", "-", "The material of the spheres. The library has 316 and 440C stainless, "
+        "brass, aluminium 6061, 52100 chrome steel, tungsten carbide, PTFE and soda-lime "
+        "glass, each with its source; E, nu, rho of 316 and 440C are handbook values (the "
+        "thesis's Table 2.1 is not available).", allowed=_MATERIAL),
+    Key("chain.n", "1", "Number of spheres, particle 1 (the striker) included: at least the "
+        "striker and two probes.", integer=True, lo=3, hi=MAX_SPHERES),
+    Key("chain.radius", "m", "Sphere radius (the chapter's). A list gives each sphere its "
+        "own, particle 1 (the striker) first: dimer, tapered and impurity chains. Every "
+        "contact is Hertzian with 1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j and R* = R_i R_j/(R_i "
+        "+ R_j); groove, drag, rotation and friction use each sphere's own mass, radius and "
+        "inertia.", positive=True, allowed="or a list of n radii"),
+    Key("chain.materials", "-", "Each sphere's material, particle 1 first. null: every sphere "
+        "is `material`.", allowed="a list of n materials, each as `material`"),
+    Key("chain.radius_spread", "-", "Each member's radii drawn about the nominal ones "
+        "(`chain.radius_spread.*` below), from a stream of its own, so a member re-runs alone "
+        "bit for bit; both engines take it. null: every member has the nominal radii.",
+        allowed="a mapping, or null"),
+    Key("chain.radius_spread.distribution", "-", f"`normal`: truncated at "
+        f"{NORMAL_TRUNCATION:g} sd (a draw beyond is drawn again); `uniform`: on +-sqrt(3) sd. "
+        "Member r draws from rng([seed, r, RADIUS_STREAM]).", choices=RADIUS_SPREADS),
+    Key("chain.radius_spread.sd", "m", "Standard deviation of the radii; required in a "
+        "given block.", positive=True, allowed="a draw must not reach a non-positive radius: "
+        f"{NORMAL_TRUNCATION:g} sd (normal) or sqrt(3) sd (uniform) below the smallest radius"),
+    Key("chain.radius_spread.seed", "1", "Seed of the radius draws.", integer=True,
+        nonneg=True),
+    Key("striker.velocity", "m/s", "The striker's speed towards the chain (the chapter's); a "
+        "list is a sweep, one run per speed.", nonneg=True, allowed="or a list of speeds"),
+    Key("striker.radius", "m", "Particle 1's own radius: a heavy or light striker. null: as "
+        "`chain.radius` gives.", positive=True),
+    Key("striker.material", "-", "Particle 1's own material. null: as `chain.materials` (or "
+        "`material`) gives.", allowed="as `material`"),
+    Key("gaps.distribution", "-", "The gaps between neighbours (n-1 of them): `none`, a "
+        "packed chain; `fixed`, every gap `mean`; `uniform`, i.i.d. U(0, 2 mean) (the chapter "
+        "says \"random\"); `exponential`, i.i.d. with mean `mean`; `list`, the n-1 `values`; "
+        "`from_length`, the chain longer than packed by `extra_length`, split at random "
+        "over the contacts (flat Dirichlet; the chapter's Fig. 5.4).",
+        choices=GAP_DISTRIBUTIONS),
+    Key("gaps.mean", "m", "The mean gap of `fixed`, `uniform` and `exponential` (required "
+        "there, refused with the others).", nonneg=True),
+    Key("gaps.seed", "1", "Seed of the random gaps (`uniform`, `exponential`, `from_length`; "
+        "refused with the others): realisation r draws from rng([seed, r]), so any member "
+        "re-runs alone bit for bit.", integer=True, nonneg=True),
+    Key("gaps.values", "m", "The n-1 gaps of `list` (required there, refused with the "
+        "others), the same for every realisation.", nonneg=True,
+        allowed="a list of n-1 gaps, each so"),
+    Key("gaps.extra_length", "m", "The length by which the chain exceeds the packed length, "
+        "for `from_length` (required there, refused with the others): every realisation has "
+        "total gap `extra_length`.", nonneg=True),
+    Key("effects", "-", "The physical effects of the chapter's Eq. 5.1 that act; `hertz` is "
+        "always on, and `particle_friction` and `rolling_friction` act through torques, so "
+        "they need `rotation`.", choices=EFFECTS, allowed="a list of these, each once"),
+    Key("probes", "1", "The two particles whose velocities are recorded and compared (the "
+        "chapter's), in the direction the wave travels; particle 1 is the striker.",
+        allowed="two particles p1, p2 with 2 <= p1 < p2 <= n"),
+    Key("integrator.method", "-", "`rk4` and `verlet`: a fixed step `dt` (the chapter's RK4); "
+        "`adaptive` (DOP853) and `event` (event-driven; no end wall): the step follows "
+        "`tolerance`; `auto`: the cheapest setting the cost model expects to reach "
+        "`tolerance`, the relative error on v_g.", choices=METHODS),
+    Key("integrator.dt", "s", "The step of `rk4` and `verlet` (the chapter's). It must give "
+        f"at least {MIN_STEPS_PER_CONTACT} steps per shortest Hertz collision at the fastest "
+        "striker (and per dashpot time m_eff/eta with contact damping); the error shows the "
+        "limit.", positive=True),
+    Key("integrator.tolerance", "1", "The relative tolerance of `adaptive` and `event`, or of "
+        "`auto` the requested relative error on v_g; refused with `rk4` and `verlet`. null: "
+        + ", ".join(f"{number_text(t)} for {m}" for m, t in DEFAULT_TOLERANCE.items()) + ".",
+        positive=True, hi=0.1),
+    Key("t_end", "s", "How long a run lasts. `auto`: until the wave has left the whole chain "
+        "(with an end wall, until the last sphere moves back from the wall faster than it "
+        "arrived and is behind its starting position).", positive=True, allowed="or `auto`"),
+    Key("output.sample_dt", "s", "The interval of the recorded samples. It must give at least "
+        f"{MIN_SAMPLES_PER_PULSE} samples per solitary-wave width at the fastest striker, and "
+        "be no shorter than the step. `auto`: `granchain.schedule.SAMPLES_PER_PULSE` samples "
+        "per width.", positive=True, allowed="or `auto`"),
+    Key("ensemble.realisations", "1", "The number of gap realisations; realisation r draws "
+        "from rng([gaps.seed, r]).", integer=True, lo=1),
+    Key("measurement", "-", "The virtual laser vibrometer (`measurement.*` below): each probe's "
+        "velocity is resampled onto the digitiser's grid, low-pass filtered (causal, from "
+        "rest) and given noise, and the peaks, delays and v_g are read from that record as "
+        "the experiment reads them (`*_measured` fields and columns). null: the probes are "
+        "not measured. A given block is filled from the defaults below.",
+        allowed="a mapping, or null"),
+    Key("measurement.bandwidth_hz", "Hz", "The vibrometer's -3 dB bandwidth (the chapter's "
+        "vibrometers').", positive=True),
+    Key("measurement.filter", "-", "The decoder's low-pass: the analog prototype of this "
+        "kind, made digital by the bilinear transform with the bandwidth pre-warped; the "
+        "chapter does not give the response, so both are offered. A causal filter delays "
+        "each pulse, which cancels in the probe-to-probe delay.", choices=FILTERS),
+    Key("measurement.order", "1", "The filter's order.", integer=True, lo=1,
+        hi=MAX_FILTER_ORDER),
+    Key("measurement.sampling_rate_hz", "Hz", "The digitiser's rate (by default 8 x the "
+        "bandwidth, a typical rate for it).", positive=True,
+        allowed="above 2 x `bandwidth_hz`"),
+    Key("measurement.noise_rms_m_s", "m/s", "RMS of the white noise added to the recorded "
+        "samples.", nonneg=True),
+    Key("measurement.seed", "1", "Seed of the noise: member i draws from rng([seed, i]); "
+        "refused without noise.", integer=True, nonneg=True),
+    Key("walls.end", "-", "A flat wall touching the last sphere (R* = R_n; `rigid`: 1/E_w = 0); "
+        "its force is recorded (`wall_force_max`, `t_wall_peak`, `wall_force_static`). The "
+        "event method takes no wall. null: the far end is free (the chapter's chain).",
+        allowed="a material name, a mapping `{E, nu}`, or `rigid`"),
+    Key("precompression.force", "N", "A dead load F0 on particle 2 pushing the chain onto the "
+        "end wall (needs `walls.end`, no gaps). The chain starts at rest in its static state, "
+        "every contact from particle 2 to the wall overlapping by (F0/K)^(2/3); the ledger's "
+        "`work_load` is the load's work. null: no load.", nonneg=True),
+)
+_KEY = {k.path: k for k in KEYS}
 
 
 @dataclass(frozen=True)
@@ -125,11 +258,6 @@ class Measurement:
     sampling_rate_hz: float
     noise_rms_m_s: float
     seed: int
-
-
-RADIUS_SPREADS = ("normal", "uniform")
-# a normal spread is drawn truncated at this many sd (a draw beyond it is drawn again)
-NORMAL_TRUNCATION = 4.0
 
 
 @dataclass(frozen=True)
@@ -411,8 +539,10 @@ def _merge(defaults: dict, given: dict, prefix: str = "") -> dict:
     return out
 
 
-def _num(spec: dict, dotted: str, **kw):
-    return _value(_get(spec, dotted), dotted, **kw)
+def _num(spec: dict, dotted: str, *, allow_none: bool = False, fix: str | None = None):
+    """The number at a dotted key of a merged spec, checked against the key's bounds
+    (its declaration in ``KEYS``)."""
+    return _KEY[dotted].number(_get(spec, dotted), allow_none=allow_none, fix=fix)
 
 
 def check_name(value, field: str) -> str:
@@ -477,9 +607,10 @@ def _chain_spheres(spec: dict, n: int, material: Material):
             raise SceneError("chain.radius", f"has {len(rad)} entries but the chain has n = {n} "
                              "spheres", f"give one radius, or a list of exactly n = {n} radii "
                              "(particle 1, the striker, first)")
-        radii = [_value(r, f"chain.radius[{i}]", positive=True, fix=fix) for i, r in enumerate(rad)]
+        radii = [_KEY["chain.radius"].number(r, field=f"chain.radius[{i}]", fix=fix)
+                 for i, r in enumerate(rad)]
     else:
-        radii = [_num(spec, "chain.radius", positive=True, fix=fix)] * n
+        radii = [_num(spec, "chain.radius", fix=fix)] * n
     mats = spec["chain"].get("materials")
     if mats is None:
         materials = [material] * n
@@ -493,7 +624,7 @@ def _chain_spheres(spec: dict, n: int, material: Material):
                              "(particle 1, the striker, first)")
         materials = [_material(m, f"chain.materials[{i}]") for i, m in enumerate(mats)]
     if spec["striker"].get("radius") is not None:
-        radii[0] = _num(spec, "striker.radius", positive=True,
+        radii[0] = _num(spec, "striker.radius",
                         fix="give the striker's radius in metres, e.g. 189e-6")
     if spec["striker"].get("material") is not None:
         materials[0] = _material(spec["striker"]["material"], "striker.material")
@@ -508,22 +639,22 @@ def _radius_spread(value, radii) -> RadiusSpread | None:
     if not isinstance(value, dict):
         raise SceneError(where, f"expected a mapping, got {_short(value)}",
                          "write radius_spread: {distribution: normal, sd: 0.3e-6}")
-    extra = set(value) - {"distribution", "sd", "seed"}
+    extra = set(value) - set(RADIUS_SPREAD_DEFAULTS)
     if extra:
         key = sorted(map(str, extra))[0]
-        close = difflib.get_close_matches(key, ["distribution", "sd", "seed"], n=1)
+        close = difflib.get_close_matches(key, list(RADIUS_SPREAD_DEFAULTS), n=1)
         raise SceneError(f"{where}.{key}", "unknown key",
                          f"did you mean '{where}.{close[0]}'?" if close else
                          "a radius spread has distribution, sd and seed")
-    dist = _choice(value.get("distribution", "normal"), f"{where}.distribution", RADIUS_SPREADS,
-                   "distribution")
+    dist = _KEY[f"{where}.distribution"].choice(
+        value.get("distribution", RADIUS_SPREAD_DEFAULTS["distribution"]), "distribution")
     if "sd" not in value:
         raise SceneError(f"{where}.sd", "missing", "give the standard deviation of the radii in "
                          "metres, e.g. 0.3e-6")
-    sd = _value(value["sd"], f"{where}.sd", positive=True,
-                fix="give the standard deviation of the radii in metres (> 0), e.g. 0.3e-6")
-    seed = _value(value.get("seed", 0), f"{where}.seed", integer=True, nonneg=True,
-                  fix="give a whole-number seed >= 0")
+    sd = _KEY[f"{where}.sd"].number(
+        value["sd"], fix="give the standard deviation of the radii in metres (> 0), e.g. 0.3e-6")
+    seed = _KEY[f"{where}.seed"].number(value.get("seed", RADIUS_SPREAD_DEFAULTS["seed"]),
+                                        fix="give a whole-number seed >= 0")
     spread = RadiusSpread(dist, sd, seed)
     value.clear()
     value.update(distribution=dist, sd=sd, seed=seed)      # the normalised spec
@@ -577,7 +708,7 @@ def _effects(value) -> frozenset[str]:
                          "write effects: [hertz, ...]")
     seen = []
     for i, e in enumerate(value):
-        _choice(e, f"effects[{i}]", EFFECTS, "effect")
+        _KEY["effects"].choice(e, "effect", field=f"effects[{i}]")
         if e in seen:
             raise SceneError(f"effects[{i}]", f"'{e}' is listed twice (also effects[{seen.index(e)}])",
                              "list each effect once")
@@ -666,7 +797,7 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     name = check_name(spec["name"], "name") if spec["name"] is not None else "scene"
     material = _material(spec["material"])
 
-    n = _num(spec, "chain.n", integer=True, lo=3, hi=MAX_SPHERES,
+    n = _num(spec, "chain.n",
              fix=f"a chain needs at least 3 particles (the striker and two probes) and at most "
              f"{MAX_SPHERES}")
     radii, materials = _chain_spheres(spec, n, material)
@@ -677,7 +808,7 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     if spec["walls"]["end"] is not None:
         wall = _material(spec["walls"]["end"], "walls.end", wall=True)
     spread = _radius_spread(spec["chain"].get("radius_spread"), radii)
-    load = _num(spec, "precompression.force", nonneg=True, allow_none=True,
+    load = _num(spec, "precompression.force", allow_none=True,
                 fix="give the dead load on particle 2 in newtons (>= 0)") or 0.0
 
     vel = spec["striker"]["velocity"]
@@ -686,21 +817,20 @@ def _validate(raw: dict, given: set[str]) -> Scene:
         raise SceneError("striker.velocity", "empty list", "give one velocity or a list of them (m/s)")
     velocities = []
     for i, v in enumerate(vlist):
-        velocities.append(_value(v, f"striker.velocity[{i}]" if isinstance(vel, list) else
-                                 "striker.velocity", nonneg=True,
-                                 fix="the striker moves towards the chain: give a speed >= 0 in m/s"))
+        velocities.append(_KEY["striker.velocity"].number(
+            v, field=f"striker.velocity[{i}]" if isinstance(vel, list) else "striker.velocity",
+            fix="the striker moves towards the chain: give a speed >= 0 in m/s"))
 
     eff = _effects(spec["effects"])
 
     # gaps
-    dist = _choice(spec["gaps"]["distribution"], "gaps.distribution", GAP_DISTRIBUTIONS,
-                   "distribution")
+    dist = _KEY["gaps.distribution"].choice(spec["gaps"]["distribution"], "distribution")
     gap_mean = gap_values = extra = None
     if dist in ("fixed", "uniform", "exponential"):
         if spec["gaps"]["mean"] is None:
             raise SceneError("gaps.mean", f"missing for distribution '{dist}'",
                              "give the mean gap in metres, e.g. mean: 20e-9")
-        gap_mean = _num(spec, "gaps.mean", nonneg=True, fix="give the mean gap in metres (>= 0)")
+        gap_mean = _num(spec, "gaps.mean", fix="give the mean gap in metres (>= 0)")
     if dist == "list":
         vals = spec["gaps"]["values"]
         if not isinstance(vals, list):
@@ -709,15 +839,15 @@ def _validate(raw: dict, given: set[str]) -> Scene:
         if len(vals) != n - 1:
             raise SceneError("gaps.values", f"has {len(vals)} entries but the chain has {n - 1} contacts",
                              f"give exactly n-1 = {n - 1} gaps")
-        gap_values = tuple(_value(g, f"gaps.values[{i}]", nonneg=True,
-                                  fix="give a finite gap >= 0 in metres")
+        gap_values = tuple(_KEY["gaps.values"].number(g, field=f"gaps.values[{i}]",
+                                                      fix="give a finite gap >= 0 in metres")
                            for i, g in enumerate(vals))
     if dist == "from_length":
         if spec["gaps"]["extra_length"] is None:
             raise SceneError("gaps.extra_length", "missing for distribution 'from_length'",
                              "give the chain's extra length over the packed length in metres, e.g. 6e-6")
-        extra = _num(spec, "gaps.extra_length", nonneg=True, fix="give the extra length in metres (>= 0)")
-    seed = _num(spec, "gaps.seed", integer=True, nonneg=True, fix="give a whole-number seed >= 0")
+        extra = _num(spec, "gaps.extra_length", fix="give the extra length in metres (>= 0)")
+    seed = _num(spec, "gaps.seed", fix="give a whole-number seed >= 0")
 
     # each effect's own section, validated by its module
     settings = tuple((m.SPEC.name, m.settings(spec[m.SECTION], frozenset(given), m.SPEC.name in eff))
@@ -726,9 +856,9 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     pr = _probes(spec["probes"], n)
 
     # integrator
-    method = _choice(spec["integrator"]["method"], "integrator.method", METHODS, "method")
-    dt = _num(spec, "integrator.dt", positive=True, fix="give the time step in seconds, e.g. 1e-9")
-    tol = _num(spec, "integrator.tolerance", positive=True, allow_none=True, hi=0.1,
+    method = _KEY["integrator.method"].choice(spec["integrator"]["method"], "method")
+    dt = _num(spec, "integrator.dt", fix="give the time step in seconds, e.g. 1e-9")
+    tol = _num(spec, "integrator.tolerance", allow_none=True,
                fix="give a relative tolerance such as 1e-6")
     _check_unused(given, dist, eff, method)
     if "precompression.force" in given:
@@ -742,17 +872,16 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     if wall is not None and method == "event":
         raise SceneError("integrator.method", "event does not handle an end wall",
                          "use rk4, verlet or adaptive with walls.end")
-    if method in ("adaptive", "event", "auto") and tol is None:
-        tol = {"adaptive": 1e-8, "event": 1e-6, "auto": 1e-4}[method]
+    if method in DEFAULT_TOLERANCE and tol is None:
+        tol = DEFAULT_TOLERANCE[method]
         spec["integrator"]["tolerance"] = tol
 
     t_end_raw = spec["t_end"]
-    t_end = None if t_end_raw == "auto" else _num(spec, "t_end", positive=True,
-                                                    fix="give seconds or 'auto'")
+    t_end = None if t_end_raw == "auto" else _num(spec, "t_end", fix="give seconds or 'auto'")
     sd = spec["output"]["sample_dt"]
-    sample_dt = None if sd == "auto" else _num(spec, "output.sample_dt", positive=True,
+    sample_dt = None if sd == "auto" else _num(spec, "output.sample_dt",
                                                fix="give seconds or 'auto'")
-    realisations = _num(spec, "ensemble.realisations", integer=True, lo=1,
+    realisations = _num(spec, "ensemble.realisations",
                         fix="give a whole number of gap realisations >= 1")
     measurement = _measurement(spec, given)
     _drop_unset(spec)
@@ -794,22 +923,21 @@ def _measurement(spec: dict, given: set[str]) -> Measurement | None:
                          "write e.g. measurement: {bandwidth_hz: 2.5e6, filter: bessel}")
     m = _merge(MEASUREMENT_DEFAULTS, block, "measurement.")
     spec["measurement"] = m
-    bw = _num(spec, "measurement.bandwidth_hz", positive=True,
+    bw = _num(spec, "measurement.bandwidth_hz",
               fix="give the vibrometer's -3 dB bandwidth in Hz, e.g. 2.5e6")
-    kind = _choice(m["filter"], "measurement.filter", FILTERS, "filter")
-    order = _num(spec, "measurement.order", integer=True, lo=1, hi=MAX_FILTER_ORDER,
+    kind = _KEY["measurement.filter"].choice(m["filter"], "filter")
+    order = _num(spec, "measurement.order",
                  fix=f"give the filter order as a whole number from 1 to {MAX_FILTER_ORDER}")
-    fs = _num(spec, "measurement.sampling_rate_hz", positive=True,
+    fs = _num(spec, "measurement.sampling_rate_hz",
               fix="give the digitiser's sampling rate in Hz, e.g. 20e6")
     if not fs > 2.0 * bw:
         raise SceneError("measurement.sampling_rate_hz",
                          f"{fs:g} Hz is not above twice the bandwidth {bw:g} Hz",
                          f"give sampling_rate_hz > {2.0 * bw:g} (e.g. {8.0 * bw:g}) or a "
                          "smaller bandwidth_hz")
-    noise = _num(spec, "measurement.noise_rms_m_s", nonneg=True,
+    noise = _num(spec, "measurement.noise_rms_m_s",
                  fix="give the RMS of the additive white noise in m/s (>= 0)")
-    seed = _num(spec, "measurement.seed", integer=True, nonneg=True,
-                fix="give a whole-number seed >= 0")
+    seed = _num(spec, "measurement.seed", fix="give a whole-number seed >= 0")
     if "measurement.seed" in given and noise == 0:
         raise SceneError("measurement.seed", "has no effect without noise (noise_rms_m_s "
                          "is 0)", "drop it, or give measurement.noise_rms_m_s > 0")

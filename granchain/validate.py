@@ -1,11 +1,15 @@
 """One-line checks of scene values: every problem is a
 :class:`~granchain.errors.SceneError` naming the field and the fix. Shared by the scene
 parser (``granchain.scene``) and the effects, which validate their own scene sections
-(``granchain.effects``)."""
+(``granchain.effects``). Each scene key is declared once, as a :class:`Key` beside its
+default: the checks read its bounds and choices, and the reference page of the scene keys
+(``granchain.scenekeys``) is written from the same declarations."""
 from __future__ import annotations
 
 import difflib
 import math
+import re
+from dataclasses import dataclass
 
 from .errors import SceneError
 
@@ -58,3 +62,79 @@ def choice(value, field, options, what):
     close = difflib.get_close_matches(str(value), options, n=1) if isinstance(value, str) else []
     hint = f"did you mean '{close[0]}'?" if close else f"use one of {', '.join(options)}"
     raise SceneError(field, f"unknown {what} {short(value)}", hint)
+
+
+def number_text(x) -> str:
+    """A bound as the scene file would write it: 1e6, not 1e+06."""
+    return re.sub(r"e([+-])0*(\d)", lambda m: "e" + m.group(1).lstrip("+") + m.group(2),
+                  f"{x:g}")
+
+
+@dataclass(frozen=True)
+class Key:
+    """The declaration of one scene key, beside its default (``granchain.scene.DEFAULTS``,
+    an effect module's ``DEFAULTS``).
+
+    path: the dotted key, e.g. ``groove.mu``.
+    unit: the SI unit of a number; ``1`` for a dimensionless number, ``-`` for a value
+        that is not a number (a name, a choice, a mapping).
+    doc: what the key sets and when it counts (Markdown, one paragraph).
+    positive, nonneg, integer, lo, hi: the bounds :meth:`number` checks.
+    choices: the values :meth:`choice` accepts.
+    allowed: what else the key takes, or a rule the bounds cannot state (it may depend
+        on other keys), e.g. "or `auto`".
+    """
+    path: str
+    unit: str
+    doc: str
+    positive: bool = False
+    nonneg: bool = False
+    integer: bool = False
+    lo: float | None = None
+    hi: float | None = None
+    choices: tuple[str, ...] = ()
+    allowed: str = ""
+
+    @property
+    def name(self) -> str:
+        """The key's own name, the last part of its path."""
+        return self.path.rpartition(".")[2]
+
+    @property
+    def bounded(self) -> bool:
+        """Does :meth:`number` check bounds (beyond being a finite number)?"""
+        return self.positive or self.nonneg or self.lo is not None or self.hi is not None
+
+    def number(self, value, *, field: str | None = None, allow_none: bool = False,
+               fix: str | None = None):
+        """``value`` checked by :func:`number` against the key's bounds; ``field`` names
+        it in errors (default: the key's path; e.g. ``chain.radius[3]`` for a list entry)."""
+        return number(value, field or self.path, positive=self.positive, nonneg=self.nonneg,
+                      integer=self.integer, lo=self.lo, hi=self.hi, allow_none=allow_none,
+                      fix=fix)
+
+    def choice(self, value, what: str, *, field: str | None = None):
+        """``value`` checked by :func:`choice` against the key's choices."""
+        return choice(value, field or self.path, self.choices, what)
+
+    @property
+    def range_text(self) -> str:
+        """The values the key takes, in words: its choices or bounds, then ``allowed``."""
+        parts = []
+        if self.choices:
+            parts.append(", ".join(f"`{c}`" for c in self.choices))
+        fmt = str if self.integer else number_text
+        lower = ("<", "0") if self.positive else ("<=", "0") if self.nonneg else \
+            ("<=", fmt(self.lo)) if self.lo is not None else None
+        if lower and self.hi is not None:
+            cond = f"{lower[1]} {lower[0]} {self.name} <= {fmt(self.hi)}"
+        elif lower:
+            cond = f"{self.name} {'>' if lower[0] == '<' else '>='} {lower[1]}"
+        else:
+            cond = f"{self.name} <= {fmt(self.hi)}" if self.hi is not None else ""
+        if cond or self.integer:
+            parts.append(", ".join(filter(None, ("a whole number" if self.integer else "",
+                                                  f"`{cond}`" if cond else ""))))
+        if self.allowed:
+            parts.append(self.allowed)
+        return "; ".join(parts)

@@ -105,7 +105,7 @@ LAYERS = (
               "granchain.analytic", "granchain.scenefile", "granchain.validate",
               "granchain.lammps.units", "granchain.lammps")),
     ("physics", ("granchain.effects",)),
-    ("data", ("granchain.scene", "granchain.gaps", "granchain.guards")),
+    ("data", ("granchain.scene", "granchain.scenekeys", "granchain.gaps", "granchain.guards")),
     ("run plan", ("granchain.schedule",)),
     ("engines", ("granchain.trajectory", "granchain.engines", "granchain.lammps.plan",
                  "granchain.lammps.field",

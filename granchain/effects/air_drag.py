@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..lammps.units import lmp_float as _r, to_micro
-from ..validate import choice, number
+from ..validate import Key
 from .spec import EffectSpec
 
 SPEC = EffectSpec("air_drag", work="work_air_drag", work_slot="L_WD",
@@ -18,11 +18,21 @@ SPEC = EffectSpec("air_drag", work="work_air_drag", work_slot="L_WD",
                   params=("P_T0", "P_L"), flags=("F_DRAG", "F_ODD"))
 
 
-# The scene section of this effect, its defaults (the chapter's Chapter-4 constants) and
-# its validated settings (``settings``).
+# The scene section of this effect, its defaults (the chapter's Chapter-4 constants), its
+# keys' declarations and its validated settings (``settings``).
 SECTION = "drag"
 DEFAULTS = {"T0": 0.052, "L": 2.5e-3, "form": "as_printed"}
 FORMS = ("as_printed", "odd")
+KEYS = (
+    Key("drag.T0", "s", "Time constant T0 of the drag law F = -m (v/T0 - v^2/L); the "
+        "default is the chapter's fit (its Chapter 4).", positive=True),
+    Key("drag.L", "m", "Length L of the drag law; the default is the chapter's fit (its "
+        "Chapter 4).", positive=True),
+    Key("drag.form", "-", "`as_printed`: the chapter's Eq. 5.1 as printed, F = -m (v/T0 - "
+        "v^2/L), which turns propulsive for v > L/T0 (about 0.048 m/s); `odd`: F = -m (v/T0 "
+        "- v|v|/L), the form odd in v.", choices=FORMS),
+)
+_KEY = {k.name: k for k in KEYS}
 
 
 @dataclass(frozen=True)
@@ -35,9 +45,8 @@ class Settings:
 def settings(sec: dict, given: frozenset, on: bool) -> Settings:
     """The validated ``drag`` section (a merged mapping); ``given``: the dotted keys the
     scene wrote; ``on``: whether air_drag is enabled."""
-    return Settings(number(sec["T0"], "drag.T0", positive=True),
-                    number(sec["L"], "drag.L", positive=True),
-                    choice(sec["form"], "drag.form", FORMS, "form"))
+    return Settings(_KEY["T0"].number(sec["T0"]), _KEY["L"].number(sec["L"]),
+                    _KEY["form"].choice(sec["form"], "form"))
 
 
 def force(m, v, T0, L, odd):

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 from ..errors import SceneError
 from ..lammps.units import lmp_float as _r, to_micro
-from ..validate import choice, number
+from ..validate import Key
 from .spec import EffectSpec
 
 SPEC = EffectSpec("contact_damping", work="work_contact_damping", work_slot="L_WC",
@@ -51,6 +51,24 @@ DEFAULTS = {"model": "coeff_restitution", "e": None, "eta": None, "limit_damping
 # the section stays out of a scene's normalised spec (and hash) unless the effect is on
 # or a key of it is given: scenes from before the effect existed keep their hashes
 SECTION_OPTIONAL = True
+KEYS = (
+    Key("damping.model", "-", "LAMMPS `pair granular` damping on the Hertz contacts and the "
+        "end wall, F = F_el + eta w (w the overlap rate): `coeff_restitution`, eta = c(e) "
+        "sqrt(m_eff F_el/delta), a coefficient of restitution e at any impact speed; "
+        "`viscoelastic`, eta = eta_n0 m_eff a (a = sqrt(R* delta)), LAMMPS's coefficient; "
+        "`tsuji`, Tsuji's c(e) in the same form. The work it does is the ledger's "
+        "`work_contact_damping` (table column `work_damping_J`).", choices=MODELS),
+    Key("damping.e", "1", "Coefficient of restitution of `coeff_restitution` and `tsuji`; "
+        "required there, refused with `viscoelastic`.", positive=True, hi=1.0),
+    Key("damping.eta", "1/(m s)", "eta_n0 of `viscoelastic` (LAMMPS's second "
+        "`hertz/material` coefficient); required there, refused with the other models.",
+        nonneg=True),
+    Key("damping.limit_damping", "-", "`true`: the net normal force is held at >= 0. "
+        "`false`: it may turn attractive near the end of a contact, as in LAMMPS (a particle "
+        "then peaks slightly above the speed it leaves with). Coulomb caps use |F| either "
+        "way.", allowed="`true` or `false`"),
+)
+_KEY = {k.name: k for k in KEYS}
 
 
 @dataclass(frozen=True)
@@ -64,11 +82,11 @@ class Settings:
 def settings(sec: dict, given: frozenset, on: bool) -> Settings:
     """The validated ``damping`` section (a merged mapping); ``given``: the dotted keys the
     scene wrote; ``on``: whether contact_damping is enabled."""
-    model = choice(sec["model"], "damping.model", MODELS, "model")
-    e = number(sec["e"], "damping.e", allow_none=True, positive=True, hi=1.0,
-               fix="give a coefficient of restitution 0 < e <= 1")
-    eta = number(sec["eta"], "damping.eta", allow_none=True, nonneg=True,
-                 fix="give LAMMPS's viscoelastic coefficient eta_n0 in 1/(m s), >= 0")
+    model = _KEY["model"].choice(sec["model"], "model")
+    e = _KEY["e"].number(sec["e"], allow_none=True,
+                         fix="give a coefficient of restitution 0 < e <= 1")
+    eta = _KEY["eta"].number(sec["eta"], allow_none=True,
+                             fix="give LAMMPS's viscoelastic coefficient eta_n0 in 1/(m s), >= 0")
     limit = sec["limit_damping"]
     if not isinstance(limit, bool):
         raise SceneError("damping.limit_damping", f"expected true or false, got {limit!r}",

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 from ..errors import SceneError
 from ..lammps.units import lmp_float as _r, to_micro
-from ..validate import number
+from ..validate import Key
 from .spec import EffectSpec
 
 SPEC = EffectSpec("groove_friction", state=(("L_XG", "particle"),), work="work_groove_friction",
@@ -42,6 +42,26 @@ SPEC = EffectSpec("groove_friction", state=(("L_XG", "particle"),), work="work_g
 SECTION = "groove"
 DEFAULTS = {"s": None, "angle_deg": 90.0, "mu": 0.293, "g": 9.81, "kt": "mindlin",
             "damping": 1.0}
+KEYS = (
+    Key("groove.s", "1", "Groove geometry factor s = sin(opening angle / 2): the Coulomb limit "
+        "is Fc = mu m g / s and the slip u = v - s R omega. null: from `groove.angle_deg`; "
+        "refused together with it.", positive=True, hi=1.0),
+    Key("groove.angle_deg", "deg", "Opening angle of the groove (s = sin(angle/2)). The "
+        "default, a 90-degree groove (s = 0.7071), is assumed: the thesis's Chapter 4, which "
+        "fixes s, is not available.", lo=1e-6, hi=180.0),
+    Key("groove.mu", "1", "Coulomb coefficient mu_pg of the groove walls on every sphere; the "
+        "default is the chapter's fit (its Chapter 4).", nonneg=True),
+    Key("groove.g", "m/s^2", "Gravitational acceleration, which loads the spheres onto the "
+        "groove walls.", nonneg=True),
+    Key("groove.kt", "N/m", "Stick spring k_g of the elastic-plastic (Cundall-Strack) groove "
+        "contact. `mindlin`: the Mindlin stiffness of the two wall contacts under the static "
+        "wall load m g / (2 s) each, k_g = 2 x 8 G*_w a_w (a sphere on a flat of its own "
+        "material).", positive=True, allowed="or `mindlin`"),
+    Key("groove.damping", "1", "Stick dashpot zeta as a fraction of critical damping (1: "
+        "critical): gamma_g = 2 zeta sqrt(k_g m_u), m_u the mass the slip sees, so stick "
+        "settles within one period of the stick oscillator instead of ringing.", nonneg=True),
+)
+_KEY = {k.name: k for k in KEYS}
 
 
 @dataclass(frozen=True)
@@ -60,18 +80,17 @@ def settings(sec: dict, given: frozenset, on: bool) -> Settings:
         raise SceneError("groove.s", "given together with groove.angle_deg",
                          "give one of them (s = sin(angle/2))")
     if sec["s"] is not None:
-        s = number(sec["s"], "groove.s", positive=True, hi=1.0,
-                   fix="the groove factor s lies in (0, 1]")
+        s = _KEY["s"].number(sec["s"], fix="the groove factor s lies in (0, 1]")
     else:
-        ang = number(sec["angle_deg"], "groove.angle_deg", lo=1e-6, hi=180.0,
-                     fix="give the groove opening angle in degrees (0, 180]")
+        ang = _KEY["angle_deg"].number(sec["angle_deg"],
+                                       fix="give the groove opening angle in degrees (0, 180]")
         s = math.sin(math.radians(ang) / 2.0)
-    mu = number(sec["mu"], "groove.mu", nonneg=True)
-    g = number(sec["g"], "groove.g", nonneg=True)
-    kt = None if sec["kt"] == "mindlin" else number(
-        sec["kt"], "groove.kt", positive=True, fix="give a stiffness in N/m or 'mindlin'")
-    damping = number(sec["damping"], "groove.damping", nonneg=True,
-                     fix="give the stick damping as a fraction of critical (default 1)")
+    mu = _KEY["mu"].number(sec["mu"])
+    g = _KEY["g"].number(sec["g"])
+    kt = None if sec["kt"] == "mindlin" else _KEY["kt"].number(
+        sec["kt"], fix="give a stiffness in N/m or 'mindlin'")
+    damping = _KEY["damping"].number(
+        sec["damping"], fix="give the stick damping as a fraction of critical (default 1)")
     return Settings(s, mu, g, kt, damping)
 
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from ..errors import SceneError
 from ..lammps.units import lmp_float as _r, to_micro
-from ..validate import choice, number
+from ..validate import Key
 from .spec import EffectSpec
 
 SPEC = EffectSpec("particle_friction", state=(("L_XT", "contact"),),
@@ -30,6 +30,18 @@ SPEC = EffectSpec("particle_friction", state=(("L_XT", "contact"),),
 SECTION = "contact"
 DEFAULTS = {"mu_pp": 1.4, "tangential": "mindlin", "kt": None}
 MODELS = ("mindlin", "linear_history")
+KEYS = (
+    Key("contact.mu_pp", "1", "Coulomb coefficient mu_pp of the friction between neighbouring "
+        "spheres, on the slip w = R (omega_k + omega_k+1): |T| <= mu_pp f at each loaded "
+        "contact; the default is the chapter's fit (its Chapter 4).", nonneg=True),
+    Key("contact.tangential", "-", "The stick law, as LAMMPS's: `mindlin`, k_t = 8 G_eff a "
+        "(a = sqrt(R* delta), G_eff = G/(2(2-nu))), so that both engines share one law; "
+        "`linear_history`, a constant k_t (`contact.kt`).", choices=MODELS),
+    Key("contact.kt", "N/m", "The tangential spring of `tangential: linear_history`; required "
+        "there, refused with `mindlin` (its stiffness follows from the material).",
+        positive=True),
+)
+_KEY = {k.name: k for k in KEYS}
 
 
 @dataclass(frozen=True)
@@ -42,10 +54,9 @@ class Settings:
 def settings(sec: dict, given: frozenset, on: bool) -> Settings:
     """The validated ``contact`` section (a merged mapping); ``given``: the dotted keys the
     scene wrote; ``on``: whether particle_friction is enabled."""
-    mu = number(sec["mu_pp"], "contact.mu_pp", nonneg=True)
-    model = choice(sec["tangential"], "contact.tangential", MODELS, "model")
-    kt = number(sec["kt"], "contact.kt", positive=True, allow_none=True,
-                fix="give the tangential stiffness in N/m")
+    mu = _KEY["mu_pp"].number(sec["mu_pp"])
+    model = _KEY["tangential"].choice(sec["tangential"], "model")
+    kt = _KEY["kt"].number(sec["kt"], allow_none=True, fix="give the tangential stiffness in N/m")
     if on and model == "linear_history" and kt is None:
         raise SceneError("contact.kt", "missing for tangential: linear_history",
                          "give the tangential spring stiffness in N/m, or use tangential: mindlin")

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 from ..errors import SceneError
 from ..lammps.units import lmp_float as _r, to_micro
-from ..validate import number
+from ..validate import Key
 from .spec import EffectSpec
 
 SPEC = EffectSpec("rolling_friction", state=(("L_PS", "contact"),),
@@ -31,6 +31,19 @@ SPEC = EffectSpec("rolling_friction", state=(("L_PS", "contact"),),
 # chapter)
 SECTION = "rolling"
 DEFAULTS = {"k_roll": None, "gamma_roll": 0.0, "mu_roll": 0.01}
+KEYS = (
+    Key("rolling.k_roll", "N/m", "Rolling spring k_roll of LAMMPS `rolling sds`: the moment "
+        "M = -k_roll rho - gamma_roll v_r on the rolling history rho (rho' = v_r, the "
+        "relative rolling velocity R* (omega_k - omega_k+1)), capped at mu_roll f; torque "
+        "R* M on the two spheres, equal and opposite (not in the chapter's Eq. 5.1; the same "
+        "law in both engines). Required while rolling_friction is on: the chapter gives no "
+        "value.", positive=True),
+    Key("rolling.gamma_roll", "N s/m", "Rolling dashpot gamma_roll of the moment.",
+        nonneg=True),
+    Key("rolling.mu_roll", "1", "Coulomb coefficient of the rolling moment: |M| <= mu_roll "
+        "f, f the contact's normal force.", nonneg=True),
+)
+_KEY = {k.name: k for k in KEYS}
 
 
 @dataclass(frozen=True)
@@ -43,12 +56,12 @@ class Settings:
 def settings(sec: dict, given: frozenset, on: bool) -> Settings:
     """The validated ``rolling`` section (a merged mapping); ``given``: the dotted keys the
     scene wrote; ``on``: whether rolling_friction is enabled."""
-    k_roll = number(sec["k_roll"], "rolling.k_roll", positive=True, allow_none=True)
+    k_roll = _KEY["k_roll"].number(sec["k_roll"], allow_none=True)
     if on and k_roll is None:
         raise SceneError("rolling.k_roll", "missing while rolling_friction is on",
                          "give the rolling spring stiffness in N/m")
-    return Settings(k_roll, number(sec["gamma_roll"], "rolling.gamma_roll", nonneg=True),
-                    number(sec["mu_roll"], "rolling.mu_roll", nonneg=True))
+    return Settings(k_roll, _KEY["gamma_roll"].number(sec["gamma_roll"]),
+                    _KEY["mu_roll"].number(sec["mu_roll"]))
 
 
 def rolling_map(rho, vr, kr, gr, cap):
