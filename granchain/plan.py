@@ -77,6 +77,12 @@ class RunPlan:
         """Warnings of every striker speed, in order, without repeats."""
         return list(dict.fromkeys(w for sp in self.speeds for w in sp.warnings))
 
+    @property
+    def sampling(self) -> dict[float, tuple[float, float]]:
+        """Striker speed -> (sample interval, expected duration) s, as the engines take
+        it (``engines.reference.run``'s ``sampling``)."""
+        return {sp.v_striker: (sp.sample_dt, sp.duration_s) for sp in self.speeds}
+
     def member_seconds(self, engine: str = "reference") -> float:
         """Estimated wall time (s) of one realisation: every striker speed's chain."""
         k = ENGINES.index(engine)

@@ -27,7 +27,8 @@ def trajectories(scene: Scene | RunPlan, mem: list[Member], engine: str = "refer
     plan runs its scene). The reference engine records the sampled trajectory of its
     event method only on request (``trace=True``); a measured scene requests it
     (``measurement.needs_trace``)."""
-    scene = scene.scene if isinstance(scene, RunPlan) else plan_run(scene).scene
+    plan = scene if isinstance(scene, RunPlan) else plan_run(scene)
+    scene = plan.scene
     g = member_gaps(scene, mem)
     vs = np.array([m.v_striker for m in mem])
     radii = member_radii(scene, mem)
@@ -37,7 +38,7 @@ def trajectories(scene: Scene | RunPlan, mem: list[Member], engine: str = "refer
             kw = {**kw, "trace": True}
         if radii is not None:
             kw = {**kw, "radii": radii}
-        it = reference.run(scene, g, vs, **kw)
+        it = reference.run(scene, g, vs, sampling=plan.sampling, **kw)
     elif engine == "lammps":
         try:
             from .engines import lammps as lmp_engine

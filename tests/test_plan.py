@@ -132,6 +132,37 @@ def test_run_scene_plans_once(monkeypatch):
     assert calls == {"auto": 0, "dur": 0}
 
 
+def test_the_reference_engine_reads_the_plans_sampling(monkeypatch):
+    """The engine takes each speed's sample interval and expected duration from the plan
+    (it computes neither itself), with the same results as when it computes them."""
+    from granchain import simulate
+    from granchain.engines import reference
+    from granchain.gaps import member_gaps, members
+    sc = scene_from_dict({"material": "ss440c", "chain": {"n": 6}, "probes": [2, 5],
+                          "striker": {"velocity": [0.05, 0.1]},
+                          "gaps": {"distribution": "uniform", "mean": 2e-8, "seed": 3},
+                          "effects": EFFECTS, "integrator": {"method": "verlet", "dt": 1e-9},
+                          "ensemble": {"realisations": 2}})
+    mem = members(sc)
+    alone = [s.v_max for s in (summarize_all(reference.run(
+        sc, member_gaps(sc, mem), [m.v_striker for m in mem], trace=False), sc))]
+    p = plan_run(sc)
+
+    def refuse(*a, **k):
+        raise AssertionError("the engine recomputed what the plan holds")
+
+    monkeypatch.setattr(reference, "sample_interval", refuse)
+    monkeypatch.setattr(reference, "expected_duration", refuse)
+    assert [r.v_max for r in simulate.run_scene(p)] == alone
+    with pytest.raises(AssertionError, match="recomputed"):
+        next(reference.run(sc, member_gaps(sc, mem)[:1], [0.05]))
+
+
+def summarize_all(trajs, sc):
+    from granchain.observables import summarize
+    return [summarize(t, sc.probes) for t in trajs]
+
+
 def test_run_scene_cost_guard_reads_the_plan():
     """The per-chain guard refuses from the plan's estimates, naming the limit."""
     from granchain.simulate import run_scene

@@ -124,7 +124,8 @@ def record_width(terms: Terms) -> int:
 def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | None = None,
         dt: float | None = None, tolerance: float | None = None, progress: bool | None = None,
         trace: bool | None = None, pair: str | None = None,
-        radii: np.ndarray | None = None, lanes: bool = True):
+        radii: np.ndarray | None = None, lanes: bool = True,
+        sampling: dict[float, tuple[float, float]] | None = None):
     """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s; radii: (B, n)
     m, each chain's own (a radius spread, ``gaps.member_radii``), or None (the scene's).
     The scene's method must not be auto (``simulate`` resolves it).
@@ -137,7 +138,10 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
     summariser's on the record) and keep only the first and last samples. ``pair``: the event method's Runge-Kutta pair
     (``events.PAIRS``; default ``events.DEFAULT_PAIR``). ``lanes``: without a trace, the
     event method runs its chains in SIMD lanes (``events.run_events_lanes``); False runs
-    one chain per thread (``events.run_events``), with the same result bit for bit."""
+    one chain per thread (``events.run_events``), with the same result bit for bit.
+    ``sampling``: striker speed -> (sample interval, expected duration) of the run plan
+    (``granchain.plan.RunPlan.sampling``), computed once there; speeds it lacks are
+    computed here (``schedule.sample_interval``, ``schedule.expected_duration``)."""
     require_resolved(scene, "reference engine")
     terms = physics_terms(scene)
     gaps = np.ascontiguousarray(np.atleast_2d(np.asarray(gaps, dtype=float)))
@@ -150,7 +154,10 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
     # Chains with the same sampling run together; normally all of them. Inside that,
     # ordered by striker speed and total gap (the flight time that sets the length of a
     # t_end auto run), so that chains of similar length share a chunk and a block.
-    keys = np.array([sample_interval(scene, v) for v in vs])
+    sampling = dict(sampling or {})
+    for v in set(vs.tolist()) - set(sampling):
+        sampling[v] = (sample_interval(scene, v), None)
+    keys = np.array([sampling[v][0] for v in vs.tolist()])
     order = np.lexsort((np.arange(len(vs)), gaps.sum(axis=1), vs, keys))
     done_total = 0
     out: dict[int, Trajectory] = {}
@@ -162,7 +169,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         while stop < len(order) and keys[order[stop]] == key:
             stop += 1
         group = order[start:stop]
-        for chunk in _chunks(group, scene, terms, key, method, trace is False):
+        for chunk in _chunks(group, scene, terms, key, method, trace is False, sampling):
             rc = None if radii is None else np.atleast_2d(radii)[chunk]
             if method == "event":
                 it = _run_chunk_events(scene, terms, gaps[chunk], vs[chunk], dt, rtol, key,
@@ -187,7 +194,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         next_to_yield += 1
 
 
-def _chunks(group, scene, terms, sample_dt, method, observe=False):
+def _chunks(group, scene, terms, sample_dt, method, observe=False, sampling=None):
     """Split chains into chunks whose memory fits in CHUNK_BYTES (and CHUNK_CHAINS): the
     recorded samples of each chain or, for the fixed-step methods measuring on the fly
     (``observe``), their observables' arrays (a chain keeps its first and last samples and
@@ -211,8 +218,10 @@ def _chunks(group, scene, terms, sample_dt, method, observe=False):
         else:
             # the slowest striker's expected run, x4: a realisation's gaps can run longer
             # than their mean
-            v = max(float(np.min(scene.striker_velocities)), 1e-6)
-            t_est = 4.0 * expected_duration(scene, v)
+            v = float(np.min(scene.striker_velocities))
+            planned = (sampling or {}).get(v, (None, None))[1] if v >= 1e-6 else None
+            t_est = 4.0 * (planned if planned is not None
+                           else expected_duration(scene, max(v, 1e-6)))
         window = BLOCK_WINDOW if blocked else WINDOW
         per_chain = (t_est / sample_dt + window) * (terms.n + C.E_LEN) * 8
     size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, CHUNK_CHAINS)))
