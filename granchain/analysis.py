@@ -53,14 +53,15 @@ NEEDS = {
 # reading and checking tables
 # ---------------------------------------------------------------------------------------
 def read_table(path) -> pd.DataFrame:
-    """One result table (CSV) as a DataFrame, its file name in ``df.attrs["name"]``;
-    a one-line error when the file is missing."""
+    """One result table (its Parquet copy or its CSV, ``granchain.tables.read_table``) as
+    a DataFrame, its file name in ``df.attrs["name"]``; a one-line error when the file is
+    missing."""
     path = Path(path)
     if not path.is_file():
         raise GranchainError(f"table '{path}' not found; produce it with the workflow "
                              f"(snakemake --cores 2 {path})")
-    from .tables import read_csv
-    df = read_csv(path)
+    from . import tables
+    df = tables.read_table(path)
     df.attrs["name"] = path.name
     return df
 

@@ -16,12 +16,17 @@ Every table the workflow writes goes through this module, so its layout is defin
 - ``write_csv(df, path)``: floats with full round-trip precision ("%.17g"), NaN as "NaN",
   written to a temporary file and renamed, so a killed job never leaves a truncated table
   that looks complete.
+- ``write_parquet(df, path)``: a per-member table as typed, zstd-compressed Parquet (the
+  column types of ``granchain.columns``), written the same way and byte-deterministic. It
+  sits next to the table's CSV, which stays the diffable record; ``read_table(path)``
+  reads the Parquet copy when there is one (the same DataFrame as the CSV gives).
 - ``write_provenance(path, **extra)``: the JSON sidecar (versions, git commit, and whatever
   the caller adds: preset, study, scene hashes, seeds, ...). Deterministic: no timestamps.
 - ``write_npz(path, **arrays)``: a byte-deterministic .npz (fixed zip timestamps).
 
 Tables hold no wall-clock times (they are byte-identical between runs); timings go to
-separate tables (``timing_table``).
+separate tables (``timing_table``). Every column's type, unit and meaning is in
+``granchain.columns`` (``column_reference_markdown``).
 """
 from __future__ import annotations
 
@@ -40,6 +45,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from . import columns as reference
 from .observables import ENERGY_MAP, MEASURED_COLUMNS, WALL_COLUMNS, ChainResult, vmax_columns
 
 FLOAT_FORMAT = "%.17g"
@@ -254,10 +260,96 @@ def write_csv(df: pd.DataFrame, path: str | os.PathLike) -> None:
     _atomic_write_bytes(path, csv_text(df).encode())
 
 
+# Text columns of the per-member, summary and timing tables (granchain.columns): read as
+# text, so that a scene hash of digits alone, or a peaks_not_final of one particle, keeps
+# its characters.
+_TEXT_COLUMNS = {name: str for entries in (reference.MEMBER, reference.SUMMARY,
+                                           reference.TIMING)
+                 for name, col in entries.items() if col.dtype == "string"}
+
+
 def read_csv(path: str | os.PathLike) -> pd.DataFrame:
     """Read a table written by :func:`write_csv` back with the same values (pandas >= 3
-    parses "%.17g" floats exactly by default; tests/test_workflow.py checks the round trip)."""
-    return pd.read_csv(path, keep_default_na=False, na_values=[NA_REP])
+    parses "%.17g" floats exactly by default; tests/test_workflow.py checks the round trip).
+    The tables' text columns are read as text."""
+    return pd.read_csv(path, keep_default_na=False, na_values=[NA_REP], dtype=_TEXT_COLUMNS)
+
+
+# Parquet copies of the per-member tables: zstd, one row group, no pandas or Arrow schema
+# metadata (nothing that depends on the pandas version goes into the bytes).
+PARQUET_COMPRESSION = "zstd"
+PARQUET_LEVEL = 9
+_ARROW_TYPES = {"float": "float64", "int": "int64", "bool": "bool_", "string": "string"}
+_PANDAS_TYPES = {"float": "float64", "int": "int64", "bool": "bool", "string": "str"}
+
+
+def _member_types(names, strict: bool) -> dict[str, str]:
+    """{column: type} of a per-member table's columns (granchain.columns); strict: a
+    column without an entry is an error, else it is left out."""
+    types = {}
+    for c in names:
+        col = reference.member_column(c)
+        if col is None:
+            if strict:
+                raise ValueError(f"column '{c}' has no entry in granchain.columns; add its "
+                                 "type, unit and description there")
+            continue
+        types[c] = col.dtype
+    return types
+
+
+def typed(df: pd.DataFrame, strict: bool = True) -> pd.DataFrame:
+    """A per-member table with each column in its type (granchain.columns: float64, int64,
+    bool, text); strict: every column must have an entry, else columns without one are
+    left as they are."""
+    types = _member_types(df.columns, strict)
+    return df.astype({c: _PANDAS_TYPES[t] for c, t in types.items()})
+
+
+def parquet_bytes(df: pd.DataFrame) -> bytes:
+    """A per-member table as Parquet: typed columns (:func:`typed`), zstd, one row group;
+    the same table gives the same bytes (for one pyarrow version, which the file names)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    df = typed(df)
+    types = _member_types(df.columns, strict=True)
+    schema = pa.schema([(c, getattr(pa, _ARROW_TYPES[types[c]])()) for c in df.columns])
+    table = pa.Table.from_pandas(df, schema=schema, preserve_index=False)
+    table = table.replace_schema_metadata(None)
+    buf = pa.BufferOutputStream()
+    pq.write_table(table, buf, compression=PARQUET_COMPRESSION,
+                   compression_level=PARQUET_LEVEL, row_group_size=max(1, len(df)),
+                   store_schema=False)
+    return buf.getvalue().to_pybytes()
+
+
+def write_parquet(df: pd.DataFrame, path: str | os.PathLike) -> None:
+    """Write a per-member table as Parquet (:func:`parquet_bytes`), atomically."""
+    _atomic_write_bytes(path, parquet_bytes(df))
+
+
+def parquet_path(path: str | os.PathLike) -> Path:
+    """The Parquet copy of a table: the same name with suffix .parquet."""
+    return Path(path).with_suffix(".parquet")
+
+
+def read_table(path: str | os.PathLike) -> pd.DataFrame:
+    """A per-member table from its Parquet copy when there is one not older than the CSV,
+    else from the CSV (``path``: either file). Both give the same DataFrame: the columns
+    of granchain.columns in their types, NaN where a value is missing."""
+    path = Path(path)
+    pq_path, csv_path = parquet_path(path), path.with_suffix(".csv")
+    if pq_path.is_file() and (not csv_path.is_file()
+                              or pq_path.stat().st_mtime >= csv_path.stat().st_mtime):
+        import pyarrow.parquet as pq
+        return typed(pq.read_table(pq_path).to_pandas(), strict=False)
+    return typed(read_csv(csv_path), strict=False)
+
+
+def column_reference_markdown() -> str:
+    """The reference of every table column and JSON key (granchain.columns) as a MyST
+    Markdown page."""
+    return reference.reference_markdown()
 
 
 def write_npz(path: str | os.PathLike, **arrays) -> None:

@@ -470,6 +470,9 @@ def test_tiny_tables_follow_the_contract(tiny_run):
     for study in gw.STUDIES:
         df = _tables(tiny_run, study)
         assert list(df.columns) == tables.columns(P["base"]["n"])
+        # the Parquet copy the figures read holds the same table
+        pd.testing.assert_frame_equal(
+            tables.read_table(root / "tables" / f"{study}.parquet"), tables.typed(df))
         scenes = gw.study_scenes(P, study)
         assert len(df) == sum(ss.members * len(ss.engines) for ss in scenes)
         assert (df["study"] == study).all()

@@ -1,4 +1,5 @@
-"""Gathering: a study's batch tables -> its table, summary, provenance and timing.
+"""Gathering: a study's batch tables -> its table (CSV and its Parquet copy), summary,
+provenance and timing.
 
 Pure table work (the batches' rows are complete): concatenate, put the rows in table
 order, check every member is there exactly once, and write.
@@ -79,8 +80,9 @@ def study_provenance(preset_name: str, preset: dict, study: str, scenes: list[St
 
 
 def gather(preset_name: str, preset: dict, study: str, batch_csvs, timing_csvs,
-           out_table, out_summary, out_provenance, out_timing) -> pd.DataFrame:
-    """Concatenate a study's batch tables into its table, summary, provenance and timing."""
+           out_table, out_summary, out_provenance, out_timing, out_parquet) -> pd.DataFrame:
+    """Concatenate a study's batch tables into its table (``out_table``, CSV, and
+    ``out_parquet``, its typed Parquet copy), summary, provenance and timing."""
     scenes = study_scenes(preset, study)
     parts = [tables.read_csv(p) for p in batch_csvs]
     df = pd.concat(parts, ignore_index=True) if parts else \
@@ -100,4 +102,6 @@ def gather(preset_name: str, preset: dict, study: str, batch_csvs, timing_csvs,
     tables.write_provenance(out_provenance, lammps="lammps" in set(df["engine"]),
                             **study_provenance(preset_name, preset, study, scenes, df))
     tables.write_csv(df, out_table)
+    # after the CSV: tables.read_table takes the Parquet copy when it is not older
+    tables.write_parquet(df, out_parquet)
     return df

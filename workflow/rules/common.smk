@@ -44,6 +44,12 @@ def table_path(study):
     return f"{RESULTS}/tables/{study}.csv"
 
 
+def parquet_path(study):
+    """results/<preset>/tables/<study>.parquet: the table's typed Parquet copy, which the
+    figures and the thesis comparison read (granchain.tables.read_table)."""
+    return f"{RESULTS}/tables/{study}.parquet"
+
+
 def trace_path(material):
     return f"{RESULTS}/traces/packed_trace_{material}.npz"
 
@@ -115,6 +121,7 @@ def all_targets():
     summaries, traces, figures, the engine and thesis comparisons, accuracy vs cost."""
     return [
         *[table_path(s) for s in STUDIES],
+        *[parquet_path(s) for s in STUDIES],
         *[f"{RESULTS}/tables/{s}_summary.csv" for s in STUDIES],
         *[trace_path(m) for m in trace_materials()],
         f"{RESULTS}/tables/lammps_vs_reference.csv",

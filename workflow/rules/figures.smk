@@ -42,7 +42,7 @@ rule fig5_1a:
 
 rule fig5_1b:
     input:
-        packed_sweep=table_path("packed_sweep"),
+        packed_sweep=parquet_path("packed_sweep"),
         code=FIG_CODE,
     output:
         png=report(
@@ -70,7 +70,7 @@ rule fig5_1b:
 
 rule fig5_1c:
     input:
-        packed_sweep=table_path("packed_sweep"),
+        packed_sweep=parquet_path("packed_sweep"),
         code=FIG_CODE,
     output:
         png=report(
@@ -98,8 +98,8 @@ rule fig5_1c:
 
 rule fig5_3b:
     input:
-        gap_profile=table_path("gap_profile"),
-        packed_sweep=table_path("packed_sweep"),
+        gap_profile=parquet_path("gap_profile"),
+        packed_sweep=parquet_path("packed_sweep"),
         code=FIG_CODE,
     output:
         png=report(
@@ -127,8 +127,8 @@ rule fig5_3b:
 
 rule fig5_3c:
     input:
-        gap_sweep=table_path("gap_sweep"),
-        packed_sweep=table_path("packed_sweep"),
+        gap_sweep=parquet_path("gap_sweep"),
+        packed_sweep=parquet_path("packed_sweep"),
         code=FIG_CODE,
     output:
         png=report(
@@ -157,8 +157,8 @@ rule fig5_3c:
 
 rule fig5_4b:
     input:
-        extra_length=table_path("extra_length"),
-        packed_sweep=table_path("packed_sweep"),
+        extra_length=parquet_path("extra_length"),
+        packed_sweep=parquet_path("packed_sweep"),
         code=FIG_CODE,
     output:
         png=report(
@@ -194,7 +194,7 @@ for _study in OPTIONAL:
         name:
             f"{_study}_figure"
         input:
-            **{_study: table_path(_study)},
+            **{_study: parquet_path(_study)},
             code=FIG_CODE,
         output:
             png=report(
@@ -224,17 +224,17 @@ for _study in OPTIONAL:
 
 rule thesis_comparison:
     input:
-        packed_sweep=table_path("packed_sweep"),
-        packed_trace=table_path("packed_trace"),
-        gap_profile=table_path("gap_profile"),
-        gap_sweep=table_path("gap_sweep"),
-        extra_length=table_path("extra_length"),
+        packed_sweep=parquet_path("packed_sweep"),
+        packed_trace=parquet_path("packed_trace"),
+        gap_profile=parquet_path("gap_profile"),
+        gap_sweep=parquet_path("gap_sweep"),
+        extra_length=parquet_path("extra_length"),
         trace=trace_path("ss440c") if "ss440c" in trace_materials() else [],
         vibrometer=f"{RESULTS}/tables/vibrometer.csv" if PLAN.vibrometer else [],
-        precompression=table_path("precompression") if "precompression" in OPTIONAL else [],
-        wall=table_path("wall") if "wall" in OPTIONAL else [],
-        radius_spread=table_path("radius_spread") if "radius_spread" in OPTIONAL else [],
-        dissipation=table_path("dissipation") if "dissipation" in OPTIONAL else [],
+        precompression=parquet_path("precompression") if "precompression" in OPTIONAL else [],
+        wall=parquet_path("wall") if "wall" in OPTIONAL else [],
+        radius_spread=parquet_path("radius_spread") if "radius_spread" in OPTIONAL else [],
+        dissipation=parquet_path("dissipation") if "dissipation" in OPTIONAL else [],
         code=THESIS_CODE,
     output:
         csv=report(

@@ -1,6 +1,7 @@
 # Gather: a study's batch tables -> tables/<study>.csv (one row per member, with the
-# Eq. 5.4 bound from a packed reference), <study>_summary.csv (percentile bands),
-# <study>.provenance.json, and timing/<study>.csv (wall times, kept out of the tables).
+# Eq. 5.4 bound from a packed reference) and its typed Parquet copy <study>.parquet (which
+# the figures read), <study>_summary.csv (percentile bands), <study>.provenance.json, and
+# timing/<study>.csv (wall times, kept out of the tables).
 
 # Light jobs: on a cluster they run on the submitting node instead of waiting in the queue.
 localrules:
@@ -26,6 +27,7 @@ rule gather_study:
             subcategory="{study}",
             labels={"table": "{study}", "kind": "summary (percentile bands)"},
         ),
+        parquet=parquet_path("{study}"),
         provenance=f"{RESULTS}/tables/{{study}}.provenance.json",
         timing=f"{RESULTS}/timing/{{study}}.csv",
     params:

