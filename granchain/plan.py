@@ -26,7 +26,10 @@ ENGINES = ("reference", "lammps")
 
 @dataclass(frozen=True)
 class SpeedPlan:
-    """One striker speed of a run plan: what one chain (member) at that speed needs."""
+    """One striker speed of a run plan: what one chain (member) at that speed needs.
+    ``scene``: the scene its chains run with on the reference engine (under method auto,
+    the setting chosen for this speed alone)."""
+    scene: Scene
     v_striker: float
     sample_dt: float            # s, schedule.sample_interval
     duration_s: float           # simulated time, schedule.expected_duration
@@ -45,9 +48,16 @@ class SpeedPlan:
 @dataclass(frozen=True)
 class RunPlan:
     """The plan of one scene's run. ``scene``: the scene that runs (method auto
-    resolved); ``auto``: auto's choice as text (``costmodel.describe_auto``), "" unless
-    the scene asked for auto; ``scene_class``: the cost model's class (packed, gapped);
-    ``speeds``: one :class:`SpeedPlan` per striker speed, in the scene's order."""
+    resolved, one setting for every striker speed); ``auto``: auto's choice as text
+    (``costmodel.describe_auto``), "" unless the scene asked for auto; ``scene_class``:
+    the cost model's class (packed, gapped); ``speeds``: one :class:`SpeedPlan` per
+    striker speed, in the scene's order.
+
+    Under method auto each striker speed gets the cheapest setting for itself
+    (``SpeedPlan.scene``), which the reference engine runs: a sweep may run its slow
+    strikers with the event method and its fast ones with a fixed step. ``scene`` is the
+    one setting for all of them, for what takes a single step (a LAMMPS deck, the
+    comparison of engines); ``per_speed`` says whether the speeds' settings differ."""
     scene: Scene
     auto: str
     scene_class: str
@@ -71,6 +81,10 @@ class RunPlan:
             if sp.v_striker == float(v):
                 return sp
         raise KeyError(f"scene '{self.scene.name}' has no striker speed {v:g} m/s")
+
+    @property
+    def per_speed(self) -> bool:
+        return any(sp.scene is not self.scene for sp in self.speeds)
 
     @property
     def warnings(self) -> list[str]:
@@ -115,16 +129,45 @@ def plan_run(scene: Scene | RunPlan, model: costmodel.CostModel | None = None) -
     sdt = {v: sample_interval(scene, v) for v in vs}
     dur = {v: expected_duration(scene, v) for v in vs}
     auto = ""
+    own: dict[float, Scene] = {}
     if scene.method == "auto":
         model = model or costmodel.load_model()
         setting = costmodel.auto_setting(scene, model, durations=dur, sample_dts=sdt)
-        scene = costmodel.apply_auto(scene, setting)
+        whole = costmodel.apply_auto(scene, setting)
+        if len(set(vs)) > 1:
+            own = _auto_per_speed(scene, whole, setting, model, dur, sdt)
+        scene = whole
         auto = costmodel.describe_auto(scene)
+        if own:
+            auto += "; per striker speed: " + ", ".join(
+                f"{v:g} m/s {costmodel.describe_auto(own[v]).split('-> ', 1)[1]}"
+                for v in dict.fromkeys(vs))
     speeds = []
     for v in vs:
-        c = cost_estimate(scene, v, duration=dur[v], sample_dt=sdt[v])
-        secs = tuple(costmodel.member_seconds(scene, v, e, model, duration=dur[v],
+        sc = own.get(v, scene)
+        c = cost_estimate(sc, v, duration=dur[v], sample_dt=sdt[v])
+        secs = tuple(costmodel.member_seconds(sc, v, e, model, duration=dur[v],
                                               steps=c["steps"]) for e in ENGINES)
-        speeds.append(SpeedPlan(v, sdt[v], dur[v], c["steps"], c["samples"],
-                                c["record_bytes"], secs, tuple(physics_warnings(scene, v))))
+        speeds.append(SpeedPlan(sc, v, sdt[v], dur[v], c["steps"], c["samples"],
+                                c["record_bytes"], secs, tuple(physics_warnings(sc, v))))
     return RunPlan(scene, auto, costmodel.scene_class(scene), tuple(speeds))
+
+
+def _auto_per_speed(scene: Scene, whole: Scene, setting, model, dur, sdt) -> dict[float, Scene]:
+    """Striker speed -> its own resolved scene (that speed alone, auto's cheapest setting
+    for it), or {} when every speed gets ``setting`` (the whole sweep's choice). A speed
+    alone has one sample interval, so the fixed steps stay on offer where a sweep of
+    several intervals could not align them."""
+    own = {}
+    for v in dict.fromkeys(scene.striker_velocities):
+        v = float(v)
+        if v <= 0:
+            continue
+        alone = scene.derive(**{"striker.velocity": v})
+        pick = costmodel.auto_setting(alone, model, durations={v: dur[v]},
+                                      sample_dts={v: sdt[v]})
+        own[v] = costmodel.apply_auto(alone, pick)
+    if all(o.method == whole.method and o.dt == whole.dt and o.tolerance == whole.tolerance
+           for o in own.values()):
+        return {}
+    return own

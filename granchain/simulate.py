@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from typing import Callable
 
 import numpy as np
 
@@ -26,28 +27,49 @@ def trajectories(scene: Scene | RunPlan, mem: list[Member], engine: str = "refer
     """Yield (member, Trajectory) in order (a scene with method auto runs resolved; a run
     plan runs its scene). The reference engine records the sampled trajectory of its
     event method only on request (``trace=True``); a measured scene requests it
-    (``measurement.needs_trace``)."""
+    (``measurement.needs_trace``). On the reference engine each striker speed runs with
+    its plan's setting (``SpeedPlan.scene``: under method auto, the speed's own), the
+    speeds of one setting together; LAMMPS runs the plan's one setting."""
     plan = scene if isinstance(scene, RunPlan) else plan_run(scene)
     scene = plan.scene
-    g = member_gaps(scene, mem)
-    vs = np.array([m.v_striker for m in mem])
-    radii = member_radii(scene, mem)
+    if engine == "reference" and plan.per_speed:
+        runs: dict[int, tuple[Scene, list[int]]] = {}
+        for i, m in enumerate(mem):
+            sc = plan.at(m.v_striker).scene
+            runs.setdefault(id(sc), (sc, []))[1].append(i)
+        done: dict[int, object] = {}
+        nxt = 0
+        for sc, idx in runs.values():
+            for i, traj in zip(idx, _reference(sc, plan.sampling, [mem[i] for i in idx], kw)):
+                done[i] = traj
+                while nxt in done:
+                    yield mem[nxt], done.pop(nxt)
+                    nxt += 1
+        return
     if engine == "reference":
-        from .engines import reference
-        if needs_trace(scene):
-            kw = {**kw, "trace": True}
-        if radii is not None:
-            kw = {**kw, "radii": radii}
-        it = reference.run(scene, g, vs, sampling=plan.sampling, **kw)
+        it = _reference(scene, plan.sampling, mem, kw)
     elif engine == "lammps":
         try:
             from .engines import lammps as lmp_engine
         except ImportError as exc:
             raise GranchainError(f"the LAMMPS engine is not available: {exc}") from None
-        it = lmp_engine.run(scene, g, vs, radii=radii, **kw)
+        it = lmp_engine.run(scene, member_gaps(scene, mem), [m.v_striker for m in mem],
+                            radii=member_radii(scene, mem), **kw)
     else:
         raise GranchainError(f"unknown engine '{engine}'; use one of {', '.join(ENGINES)}")
     yield from zip(mem, it)
+
+
+def _reference(scene: Scene, sampling: dict, mem: list[Member], kw: dict):
+    """The reference engine's trajectories of ``mem``, in order."""
+    from .engines import reference
+    if needs_trace(scene):
+        kw = {**kw, "trace": True}
+    radii = member_radii(scene, mem)
+    if radii is not None:
+        kw = {**kw, "radii": radii}
+    return reference.run(scene, member_gaps(scene, mem), np.array([m.v_striker for m in mem]),
+                         sampling=sampling, **kw)
 
 
 def _float_or_none(x) -> float | None:
@@ -56,7 +78,7 @@ def _float_or_none(x) -> float | None:
 
 def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=None, *,
               max_steps: float = DEFAULT_MAX_STEPS, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
-              **kw) -> list[ChainResult]:
+              progress: Callable[[int], None] | None = None, **kw) -> list[ChainResult]:
     """Observables of every member of the scene, one :class:`~granchain.observables.ChainResult`
     each, with its member fields set.
 
@@ -68,7 +90,12 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
     ``warnings``: the plan's one-line physics warnings for its striker speed (empty when
     none), and ``batch_wall_s``, the wall time of the whole call. A scene with a
     measurement block also gets the vibrometer's fields (``granchain.measurement``): it
-    needs the probes' velocity histories (``measurement.needs_trace``)."""
+    needs the probes' velocity histories (``measurement.needs_trace``).
+
+    ``progress``: called with 1 as each member's result is done (members arrive as the
+    engine finishes each of its chunks), e.g. a progress bar's ``update``
+    (``granchain.progress``); the engine's own progress line is then off. It sees the
+    results' count only, so it changes none of them."""
     plan = plan_run(scene)
     plan.check(max_steps, max_memory_gb)
     scene = plan.scene
@@ -80,6 +107,8 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
         # observables only: the fixed-step kernels measure them on the fly (the event
         # method always does), with the same result as summarising the record
         kw = {**kw, "trace": False}
+    if progress is not None:
+        kw = {**kw, "progress": False}
     for m, traj in trajectories(plan, mem, engine, **kw):
         s = summarize(traj, scene.probes)
         extra = {}
@@ -93,5 +122,7 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
             s, member=m.index, realisation=m.realisation, engine=engine,
             method=traj.meta.get("method"), dt=_float_or_none(traj.meta.get("dt")),
             warnings=warn[m.v_striker], **extra))
+        if progress is not None:
+            progress(1)
     wall = time.perf_counter() - t0
     return [dataclasses.replace(s, batch_wall_s=wall) for s in out]

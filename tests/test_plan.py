@@ -25,13 +25,14 @@ def _scene(method="auto", gap_nm=20.0, v=(0.05, 0.1), **integrator):
 
 
 def test_plan_resolves_auto_as_resolve_auto_does():
-    """The plan's scene is the one resolve_auto gives (same setting, same hash), with
-    auto's choice described; a scene that is not auto runs as it is."""
+    """The plan's scene (its one setting for every speed) is the one resolve_auto gives
+    (same setting, same hash), with auto's choice described, and each speed's own after
+    it; a scene that is not auto runs as it is."""
     for tol in (1e-3, 1e-4, 1e-5):
         raw = _scene(tolerance=tol)
         p = plan_run(raw)
         assert p.scene.hash == costmodel.resolve_auto(raw).hash
-        assert p.auto == costmodel.describe_auto(p.scene) and p.auto.startswith("auto (")
+        assert p.auto.startswith(costmodel.describe_auto(p.scene) + "; per striker speed: 0.05 m/s ")
     rk4 = _scene("rk4", dt=1e-9)
     assert plan_run(rk4).scene is rk4 and plan_run(rk4).auto == ""
     p = plan_run(rk4)
@@ -63,6 +64,12 @@ def test_member_seconds_is_the_cost_auto_ranks_by():
         for v in ((0.1,), (0.01, 0.05)):
             raw = _scene(gap_nm=gap, v=v, tolerance=1e-4)
             p = plan_run(raw)
+            if p.per_speed:
+                # each speed at its own setting: the cost of that speed's run alone
+                alone = [plan_run(raw.derive(**{"striker.velocity": u})).member_seconds()
+                         for u in v]
+                assert p.member_seconds() == pytest.approx(sum(alone), rel=1e-12)
+                continue
             cls = p.scene_class
             ratio = costmodel.work_ratio(raw, model, cls)[p.method]
             rows = [r for r in model.envelope("v_g", cls) if r["method"] == p.method]
@@ -98,8 +105,8 @@ def test_setting_seconds_interpolates_between_measured_settings():
 
 
 def test_run_scene_plans_once(monkeypatch):
-    """run_scene of an auto scene asks the cost model for auto's setting once and
-    computes each striker speed's schedule once (the engine aside); given a plan, not
+    """run_scene of an auto scene asks the cost model for auto's settings once (the
+    sweep's, and each speed's) and computes each striker speed's schedule once (the engine aside); given a plan, not
     at all."""
     from granchain import plan as plan_mod
     from granchain import simulate
@@ -124,7 +131,8 @@ def test_run_scene_plans_once(monkeypatch):
     raw = _scene(tolerance=1e-4)
     with pytest.raises(RuntimeError, match="stop before"):
         simulate.run_scene(raw)
-    assert calls == {"auto": 1, "dur": len(raw.striker_velocities)}
+    # the sweep's one setting, then each speed's own
+    assert calls == {"auto": 1 + len(raw.striker_velocities), "dur": len(raw.striker_velocities)}
     p = plan_run(raw)
     calls.update(auto=0, dur=0)
     with pytest.raises(RuntimeError, match="stop before"):
@@ -156,6 +164,39 @@ def test_the_reference_engine_reads_the_plans_sampling(monkeypatch):
     assert [r.v_max for r in simulate.run_scene(p)] == alone
     with pytest.raises(AssertionError, match="recomputed"):
         next(reference.run(sc, member_gaps(sc, mem)[:1], [0.05]))
+
+
+def test_auto_chooses_per_striker_speed():
+    """Method auto on a sweep gives each striker speed the cheapest setting for itself
+    (190 nm gaps at 1e-4: the event method for the slow striker, where the flight between
+    contacts is long, a fixed step for the fast one). The reference engine runs each
+    member with its speed's setting: the same results, bit for bit, as the speed's own
+    scene resolved and run alone; the plan's one setting stays for LAMMPS."""
+    from granchain import simulate
+    sc = scene_from_dict({"material": "ss440c", "chain": {"n": 8}, "probes": [2, 7],
+                          "striker": {"velocity": [0.01, 1.0]},
+                          "gaps": {"distribution": "uniform", "mean": 1.9e-7, "seed": 3},
+                          "effects": EFFECTS, "integrator": {"method": "auto", "tolerance": 1e-4},
+                          "ensemble": {"realisations": 2}})
+    p = plan_run(sc)
+    slow, fast = p.at(0.01).scene, p.at(1.0).scene
+    assert p.per_speed and slow.method == "event" and fast.method in ("rk4", "verlet")
+    assert "per striker speed: 0.01 m/s event" in p.auto
+    # each speed's setting is auto's own choice for that speed alone
+    for v, own in ((0.01, slow), (1.0, fast)):
+        alone = costmodel.resolve_auto(sc.derive(**{"striker.velocity": v}))
+        assert (own.method, own.dt, own.tolerance) == (alone.method, alone.dt, alone.tolerance)
+    res = simulate.run_scene(p)
+    assert [r.member for r in res] == list(range(4))
+    assert sorted((r.v_striker, r.method) for r in res) == [
+        (0.01, "event"), (0.01, "event"), (1.0, fast.method), (1.0, fast.method)]
+    for v in (0.01, 1.0):
+        alone = simulate.run_scene(costmodel.resolve_auto(sc.derive(**{"striker.velocity": v})))
+        assert [r.v_max for r in res if r.v_striker == v] == [r.v_max for r in alone]
+        assert [r.realisation for r in res if r.v_striker == v] == [0, 1]
+    # one setting for every speed: no per-speed scenes
+    one = plan_run(sc.derive(**{"striker.velocity": [0.01, 0.01]}))
+    assert not one.per_speed
 
 
 def summarize_all(trajs, sc):
