@@ -7,7 +7,7 @@ The cost model (``granchain/data/cost_model.csv``, provenance beside it) holds o
 (scene class, setting): class ``packed`` (no realisation has a gap) or ``gapped``; a setting
 is rk4 or verlet at N steps per contact time, or adaptive or event at a tolerance; the
 errors are the largest measured over the class's scenes, the wall time their mean. It is written by
-``python -m granchain.cost model`` from a measurement (``granchain.accuracy``).
+``python -m granchain.accuracy model`` from a measurement (``granchain.accuracy``).
 
 dt is stored as N steps per contact time: under Hertz scaling the error of a setting at
 given N transfers across striker speeds, materials and radii (the auto sample interval is
@@ -155,7 +155,7 @@ class CostModel:
         if not rows:
             raise GranchainError(f"cost model granchain/data/cost_model.csv has no {method} "
                                  f"rows for {scene_class} chains; re-measure it with "
-                                 "'python -m granchain.cost model'")
+                                 "'python -m granchain.accuracy model'")
         fixed = method not in TOLERANCE_METHODS
         x = steps_per_contact if fixed else tolerance
         key = "steps_per_contact" if fixed else "tolerance"
@@ -207,7 +207,7 @@ def load_model() -> CostModel:
     root = resources.files("granchain")
     if not root.joinpath(MODEL_FILE).is_file():
         raise GranchainError("integrator.method auto: the cost model granchain/data/cost_model.csv "
-                             "is missing; run 'python -m granchain.cost model' or choose a method")
+                             "is missing; run 'python -m granchain.accuracy model' or choose a method")
     with resources.as_file(root.joinpath(MODEL_FILE)) as p:
         cols = read_model_csv(p)
     return CostModel(cols, json.loads(root.joinpath(MODEL_PROVENANCE).read_text()))

@@ -113,7 +113,7 @@ LAYERS = (
     ("analysis", ("granchain.observables", "granchain.measurement", "granchain.tables",
                   "granchain.analysis")),
     ("application", ("granchain.costmodel", "granchain.plan", "granchain.simulate",
-                     "granchain.compare", "granchain.accuracy", "granchain.cost", "granchain.figures",
+                     "granchain.compare", "granchain.accuracy", "granchain.figures",
                      "granchain.thesis", "granchain.inference", "granchain.workflow",
                      "granchain.cli")),
 )

@@ -975,7 +975,7 @@ def test_validate_of_auto_shows_the_resolved_setting(tmp_path, capsys):
 
 def test_importing_the_scene_layer_is_light():
     code = ("import sys, granchain.scene\n"
-            f"print(sorted(m for m in {HEAVY!r} + ('granchain.costmodel', 'granchain.cost', "
+            f"print(sorted(m for m in {HEAVY!r} + ('granchain.costmodel', "
             "'granchain.accuracy', 'granchain.engines') if m in sys.modules), 0)")
     assert _heavy_modules(code) == "[] 0"
 

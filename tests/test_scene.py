@@ -149,6 +149,6 @@ def test_scene_layer_does_not_import_the_accuracy_study(tmp_path):
                        env={**os.environ, "PYTHONPATH": str(REPO)})
     mods = p.stdout.strip().splitlines()[-1]
     assert "granchain.scene" in mods, p.stdout + p.stderr
-    for heavy in ("granchain.cost", "granchain.costmodel", "granchain.accuracy",
+    for heavy in ("granchain.costmodel", "granchain.accuracy",
                   "granchain.engines", "granchain.simulate"):
         assert f"'{heavy}" not in mods, mods

@@ -9,8 +9,7 @@ Modules, one job each:
   model from a measured table;
 * :mod:`~granchain.accuracy.report`: tables, provenance, the packaged cost model file and
   the figure;
-* :mod:`~granchain.accuracy.cli`: ``python -m granchain.cost measure|figure|model`` (also
-  ``python -m granchain.accuracy``).
+* :mod:`~granchain.accuracy.cli`: ``python -m granchain.accuracy measure|figure|model``.
 
 The run-time side, ``integrator.method: auto``, is :mod:`granchain.costmodel` (numpy
 only); it reads the cost model this study writes.
@@ -73,13 +72,41 @@ worst over the gapped scenes); error: the largest over the class's scenes; wall:
 mean. It is package data, ``granchain/data/cost_model.csv`` with
 ``cost_model.provenance.json`` (scene hashes, machine, versions; no dates), written from the
 default preset's measurement by
-``python -m granchain.cost model results/default/timing/accuracy_cost.csv --force``.
+``python -m granchain.accuracy model results/default/timing/accuracy_cost.csv --force``.
 
 Transfer: dt is stored as N steps per contact time. Under Hertz scaling the dynamics of a
 chain depend on t / t_c and v / v_s only (tests/test_physics.py: v_max / v_s is
 scale-free), the auto sample interval is a fixed fraction of t_c, and gaps scale with the
 overlap delta_m ~ v_s^(4/5); so the error of a setting at given N transfers across striker
 speeds, materials and radii. Friction and drag break the scaling mildly;
-tests/test_cost.py checks that settings resolved from the 440C / 0.1 m/s model meet their
+tests/test_accuracy.py checks that settings resolved from the 440C / 0.1 m/s model meet their
 tolerance on 316 at 0.05 m/s, packed and gapped.
 """
+from __future__ import annotations
+
+from .analysis import (achievable, cheapest, cheapest_table, envelope,
+                                model_from_table, rel_err, scene_class)
+from .cli import main
+from .cli import preset_blocks
+from .measure import (COLUMNS, DEFAULT_BASE, DEFAULT_COST, DETERMINISTIC, METHODS,
+                               OBSERVABLES, TIMING_ONLY, Setting, contact_time, full_config,
+                               lammps_unavailable, measure, reference_runs, sampling_floor,
+                               scene_dicts, scene_for, settings, timing_settled,
+                               timing_summary, to_frame)
+from .report import machine, plot, provenance_fields, write_model, write_outputs
+from ..costmodel import (AUTO_SAFETY, MODEL_COLUMNS, MODEL_FILE, MODEL_PROVENANCE,
+                        SCENE_METHODS, auto_setting, fixed_step, is_packed, load_model,
+                        resolve_auto)
+from ..scene import MIN_STEPS_PER_CONTACT
+
+__all__ = ["AUTO_SAFETY", "COLUMNS", "DEFAULT_BASE", "DEFAULT_COST", "DETERMINISTIC",
+           "METHODS", "MIN_STEPS_PER_CONTACT", "MODEL_COLUMNS", "MODEL_FILE",
+           "MODEL_PROVENANCE", "OBSERVABLES", "SCENE_METHODS", "TIMING_ONLY", "Setting",
+           "achievable", "auto_setting", "cheapest", "cheapest_table", "contact_time",
+           "envelope", "fixed_step", "full_config", "is_packed", "lammps_unavailable",
+           "load_model", "machine", "main", "measure", "model_from_table", "plot",
+           "preset_blocks", "provenance_fields", "reference_runs", "rel_err",
+           "resolve_auto", "sampling_floor", "scene_class", "scene_dicts", "scene_for",
+           "settings", "timing_settled", "timing_summary", "to_frame", "write_model",
+           "write_outputs"]
+

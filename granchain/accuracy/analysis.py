@@ -5,7 +5,7 @@ Errors against the reference (``rel_err``), the error envelope of each method
 meeting a tolerance (``cheapest``, ``cheapest_table``), the tightest verifiable tolerance
 (``achievable``), and the cost model's rows (``model_from_table``). The packaged cost
 model is looked up at run time by :mod:`granchain.costmodel`, which repeats ``envelope``,
-``cheapest`` and ``achievable`` on its rows without pandas (tests/test_cost.py checks
+``cheapest`` and ``achievable`` on its rows without pandas (tests/test_accuracy.py checks
 that both agree).
 """
 from __future__ import annotations

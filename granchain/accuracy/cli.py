@@ -1,5 +1,5 @@
-"""Command line of the accuracy-vs-cost study: ``python -m granchain.cost
-measure|figure|model`` (``python -m granchain.accuracy`` is the same)."""
+"""Command line of the accuracy-vs-cost study: ``python -m granchain.accuracy
+measure|figure|model``."""
 from __future__ import annotations
 
 import argparse
@@ -22,7 +22,7 @@ def preset_blocks(config: dict, preset: str | None = None) -> tuple[dict, dict, 
     return p.get("cost") or {}, p.get("base") or {}, preset
 
 
-def build_parser(prog: str = "python -m granchain.cost") -> argparse.ArgumentParser:
+def build_parser(prog: str = "python -m granchain.accuracy") -> argparse.ArgumentParser:
     """The argument parser of ``measure``, ``figure`` and ``model``."""
     ap = argparse.ArgumentParser(prog=prog, description=DESCRIPTION)
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -47,7 +47,7 @@ def build_parser(prog: str = "python -m granchain.cost") -> argparse.ArgumentPar
     return ap
 
 
-def main(argv=None, prog: str = "python -m granchain.cost") -> int:
+def main(argv=None, prog: str = "python -m granchain.accuracy") -> int:
     """Run a subcommand; errors a user can cause are one line on stderr, exit status 2."""
     args = build_parser(prog).parse_args(argv)
     try:

@@ -76,7 +76,7 @@ def write_model(timing_csv, out, *, force: bool = False) -> None:
     for name, sc in src["scenes"].items():
         c = scene_class(name)
         floor[c] = max(floor.get(c, 0.0), sc.get("sampling_floor_v_g") or 0.0)
-    prov = {"source": f"python -m granchain.cost model {Path(timing_csv).as_posix()}",
+    prov = {"source": f"python -m granchain.accuracy model {Path(timing_csv).as_posix()}",
             "preset": src.get("preset"),
             "scenes": {k: {kk: v.get(kk) for kk in ("name", "scene_hash", "uncertainty",
                                                     "plateau_at_probes", "realisations",

