@@ -276,7 +276,11 @@ def read_csv(path: str | os.PathLike) -> pd.DataFrame:
 
 
 # Parquet copies of the per-member tables: zstd, one row group, no pandas or Arrow schema
-# metadata (nothing that depends on the pandas version goes into the bytes).
+# metadata (nothing that depends on the pandas version goes into the bytes). Float columns
+# are stored byte-stream-split (their bytes grouped by significance before compression:
+# the default preset's gap_sweep table takes 170 B a row instead of 236 B, against 714 B
+# as CSV), text columns dictionary-encoded (a few distinct names each); the level hardly
+# matters (1 to 19 within 3 % in size).
 PARQUET_COMPRESSION = "zstd"
 PARQUET_LEVEL = 9
 _ARROW_TYPES = {"float": "float64", "int": "int64", "bool": "bool_", "string": "string"}
@@ -319,7 +323,9 @@ def parquet_bytes(df: pd.DataFrame) -> bytes:
     buf = pa.BufferOutputStream()
     pq.write_table(table, buf, compression=PARQUET_COMPRESSION,
                    compression_level=PARQUET_LEVEL, row_group_size=max(1, len(df)),
-                   store_schema=False)
+                   store_schema=False,
+                   use_dictionary=[c for c in df.columns if types[c] == "string"],
+                   use_byte_stream_split=[c for c in df.columns if types[c] == "float"])
     return buf.getvalue().to_pybytes()
 
 
