@@ -417,7 +417,7 @@ def test_auto_rejects_a_tolerance_out_of_range(tmp_path, capsys):
 @pytest.mark.slow
 def test_costmodel_lookup_agrees_with_the_pandas_analysis():
     """costmodel repeats envelope / cheapest / achievable on the model's rows without
-    pandas: the same answers as granchain.accuracy.analysis on the same table."""
+    pandas: the same answers as granchain.accuracy.envelope on the same table."""
     model, frame = costmodel.load_model(), _model_frame()
     for cls in (None, "packed", "gapped"):
         for obs in ("v_g", "v_g_front", "v_max_2", "balance"):

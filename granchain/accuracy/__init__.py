@@ -2,9 +2,9 @@
 
 Modules, one job each:
 
-* :mod:`~granchain.accuracy.measure`: the study's scenes and settings, and the harness
+* :mod:`~granchain.accuracy.harness`: the study's scenes and settings, and the harness
   that runs them (reference engine, LAMMPS) and times them;
-* :mod:`~granchain.accuracy.analysis`: errors against the reference, the error envelope,
+* :mod:`~granchain.accuracy.envelope`: errors against the reference, the error envelope,
   the cheapest setting for a tolerance, the tightest achievable tolerance, and the cost
   model from a measured table;
 * :mod:`~granchain.accuracy.report`: tables, provenance, the packaged cost model file and
@@ -37,7 +37,7 @@ at ``reference_tolerance`` (1e-13), cross-checked with RK4 at the finest N of th
 their mutual difference is the reference's own uncertainty (``ref_uncertainty_*``), below
 which no error is meaningful. One reference per scene serves every method; the
 cross-check is the grid's own RK4 batch at the finest N, and the sampling floor below
-reuses the reference (no run is made twice: ``measure._run``'s memo).
+reuses the reference (no run is made twice: ``harness._run``'s memo).
 
 Sampling: observables read sampled histories (auto sampling, ~t_c / 163), so a run is
 compared with a reference sampled at the same times. ``costmodel.fixed_step`` puts N steps
@@ -52,10 +52,10 @@ chains (integration and observables), over B; the median of its timed repeats; a
 warm-up; every setting of every scene timed side by side in one run, interleaved (repeat r
 starts its round at a different setting), because the machine is shared and noisy. A
 setting is timed again until two of its wall times agree within ``timing_spread`` (5 %),
-at most ``repeats`` times (``measure.timing_settled``): on a quiet machine two repeats,
+at most ``repeats`` times (``harness.timing_settled``): on a quiet machine two repeats,
 on a noisy one up to ``repeats``. Its errors come from its first batch (the runs are
 deterministic), so repeats only add wall times; the timing provenance keeps every wall
-time, their spread and the run's phases (``measure.timing_summary``).
+time, their spread and the run's phases (``harness.timing_summary``).
 ``engine_s_per_chain`` is the engine's own share. LAMMPS is I/O-bound (one dump line per
 particle and sample) and costs ~100x more per chain; it runs on ``lammps_batch`` chains,
 ``lammps_repeats`` times (columns ``batch``, ``repeats``).
@@ -66,7 +66,7 @@ and the cheapest settings (which depend on wall times) to ``timing/``.
 
 The cost model
 --------------
-``analysis.model_from_table`` reduces a measured table to one row per (scene class,
+``envelope.model_from_table`` reduces a measured table to one row per (scene class,
 setting of the reference engine): class ``packed`` (the packed chain) or ``gapped`` (the
 worst over the gapped scenes); error: the largest over the class's scenes; wall: their
 mean. It is package data, ``granchain/data/cost_model.csv`` with
@@ -84,11 +84,11 @@ tolerance on 316 at 0.05 m/s, packed and gapped.
 """
 from __future__ import annotations
 
-from .analysis import (achievable, cheapest, cheapest_table, envelope,
+from .envelope import (achievable, cheapest, cheapest_table, envelope,
                                 model_from_table, rel_err, scene_class)
 from .cli import main
 from .cli import preset_blocks
-from .measure import (COLUMNS, DEFAULT_BASE, DEFAULT_COST, DETERMINISTIC, METHODS,
+from .harness import (COLUMNS, DEFAULT_BASE, DEFAULT_COST, DETERMINISTIC, METHODS,
                                OBSERVABLES, TIMING_ONLY, Setting, contact_time, full_config,
                                lammps_unavailable, measure, reference_runs, sampling_floor,
                                scene_dicts, scene_for, settings, timing_settled,

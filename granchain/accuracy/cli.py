@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..costmodel import MODEL_FILE
 from ..errors import GranchainError
-from .measure import measure
+from .harness import measure
 from .report import plot, write_model, write_outputs
 
 DESCRIPTION = "What accuracy costs in time, and the cost model behind method: auto."

@@ -12,8 +12,8 @@ import numpy as np
 from .. import costmodel
 from ..errors import GranchainError
 from ..scene import TOLERANCE_METHODS
-from .analysis import cheapest, cheapest_table, model_from_table, scene_class
-from .measure import DETERMINISTIC, METHODS, full_config, to_frame
+from .envelope import cheapest, cheapest_table, model_from_table, scene_class
+from .harness import DETERMINISTIC, METHODS, full_config, to_frame
 
 
 def machine() -> dict:

@@ -12,7 +12,7 @@ as gw``). One job per module; each imports only those above it:
 - ``captions``    study sizes for the report's captions
 - ``run``         a job: one batch, the traces, the packed reference; threads and logs
 - ``gather``      batch tables -> a study's table, summary, provenance and timing
-- ``comparison``  LAMMPS against the reference engine (granchain.compare)
+- ``lammps_check``  LAMMPS against the reference engine (granchain.compare)
 - ``rerun``       one member alone, reproducing its row
 - ``vibrometer``  the vibrometer study: one run per chain, recorded with every setting
 """
@@ -21,7 +21,7 @@ from __future__ import annotations
 from .batches import (JOB_OVERHEAD_S, Batch, batches, find_batch, members_per_job,
                       realisation_cost, runtime_minutes)
 from .captions import FIGURES, caption_sizes, describe, vibrometer_sizes
-from .comparison import COMPARISON_META, engine_comparison, write_engine_comparison
+from .lammps_check import COMPARISON_META, engine_comparison, write_engine_comparison
 from .config import (ENGINES, ENSEMBLE_STUDIES, FIELD_STUDIES, OPTIONAL_STUDIES,
                      QUESTION_STUDIES, SCHEMA, ConfigError,
                      config_error_message,

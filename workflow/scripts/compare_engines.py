@@ -1,4 +1,4 @@
-# LAMMPS vs reference on the lammps_check scenes. Logic: granchain.workflow.comparison.
+# LAMMPS vs reference on the lammps_check scenes. Logic: granchain.workflow.lammps_check.
 from granchain import workflow as gw
 
 with gw.log_to(snakemake.log[0]):

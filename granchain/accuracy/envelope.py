@@ -22,7 +22,7 @@ from ..observables import ChainResult
 
 def rel_err(runs: list[ChainResult], ref: list[ChainResult], observable: str) -> float:
     """Largest |x / x_ref - 1| over the chains of the result field ``observable`` (one of
-    ``measure.OBSERVABLES``); inf where a run lost what the reference has."""
+    ``harness.OBSERVABLES``); inf where a run lost what the reference has."""
     worst = 0.0
     for r, q in zip(runs, ref):
         x, x0 = getattr(r, observable), getattr(q, observable)

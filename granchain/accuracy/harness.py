@@ -20,7 +20,7 @@ from ..costmodel import SCENE_METHODS, chain_work, fixed_step
 from ..errors import GranchainError
 from ..observables import ChainResult
 from ..scene import MIN_STEPS_PER_CONTACT, TOLERANCE_METHODS, scene_from_dict
-from .analysis import rel_err
+from .envelope import rel_err
 
 METHODS = ("rk4", "verlet", "adaptive", "event", "lammps")
 OBSERVABLES = ("v_max_2", "v_g", "v_g_front")
