@@ -439,7 +439,7 @@ def holds_records(scene, engine: str = "reference", trace: bool = False) -> bool
     dump of all its chains at once. The reference engine yields chains in member order
     but runs them ordered by sampling and total gap, so a chain may wait for every other
     one; it records the sampled trajectory only on request (``trace``, or a measured
-    scene: ``measurement.needs_trace``) or under the adaptive method, which has no
+    scene: ``vibrometer.needs_trace``) or under the adaptive method, which has no
     on-the-fly observables (the event and fixed-step methods measure them as they go)."""
     if engine == "lammps":
         return True

@@ -260,7 +260,7 @@ class ChainResult:
     dt: float | None = None
     warnings: tuple[str, ...] = ()
     batch_wall_s: float | None = None
-    # The vibrometer (``granchain.measurement``), set by run_scene for a scene with a
+    # The vibrometer (``granchain.vibrometer``), set by run_scene for a scene with a
     # measurement block (measured True); otherwise None and left out of the JSON and the
     # table row. measured_not_final: the probes (1-based) whose recorded peak is not
     # final (its values, and the delays and v_g, are NaN).

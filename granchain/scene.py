@@ -66,7 +66,7 @@ DEFAULTS: dict[str, Any] = {
     "t_end": "auto",
     "output": {"sample_dt": "auto"},
     "ensemble": {"realisations": 1},
-    # the virtual laser vibrometer (granchain.measurement); None: the scene is not
+    # the virtual laser vibrometer (granchain.vibrometer); None: the scene is not
     # measured. A given block is filled from MEASUREMENT_DEFAULTS.
     "measurement": None,
     # a flat wall touching the last sphere: a material (name or {E, nu}) or 'rigid';

@@ -14,7 +14,7 @@ import numpy as np
 
 from .errors import GranchainError
 from .gaps import Member, member_gaps, member_radii, members
-from .measurement import measure, needs_trace
+from .vibrometer import measure, needs_trace
 from .observables import ChainResult, summarize
 from .plan import RunPlan, plan_run
 from .schedule import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS
@@ -27,7 +27,7 @@ def trajectories(scene: Scene | RunPlan, mem: list[Member], engine: str = "refer
     """Yield (member, Trajectory) in order (a scene with method auto runs resolved; a run
     plan runs its scene). The reference engine records the sampled trajectory of its
     event method only on request (``trace=True``); a measured scene requests it
-    (``measurement.needs_trace``). On the reference engine each striker speed runs with
+    (``vibrometer.needs_trace``). On the reference engine each striker speed runs with
     its plan's setting (``SpeedPlan.scene``: under method auto, the speed's own), the
     speeds of one setting together; LAMMPS runs the plan's one setting."""
     plan = scene if isinstance(scene, RunPlan) else plan_run(scene)
@@ -89,8 +89,8 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
     sample record each (the plan's estimates, ``RunPlan.check``). Each result carries
     ``warnings``: the plan's one-line physics warnings for its striker speed (empty when
     none), and ``batch_wall_s``, the wall time of the whole call. A scene with a
-    measurement block also gets the vibrometer's fields (``granchain.measurement``): it
-    needs the probes' velocity histories (``measurement.needs_trace``).
+    measurement block also gets the vibrometer's fields (``granchain.vibrometer``): it
+    needs the probes' velocity histories (``vibrometer.needs_trace``).
 
     ``progress``: called with 1 as each member's result is done (members arrive as the
     engine finishes each of its chunks), e.g. a progress bar's ``update``

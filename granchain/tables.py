@@ -64,7 +64,7 @@ BASE_COLUMNS = (
 GROUP_COLUMNS = ("material", "engine", "v_striker_m_s", "gap_mean_nm", "extra_length_um")
 SUMMARY_OBSERVABLES = ("v_g_m_s", "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio",
                        "v_g_front_m_s", "v_g_bound_eq54_m_s")
-# ... and for a table of measured scenes (granchain.measurement)
+# ... and for a table of measured scenes (granchain.vibrometer)
 SUMMARY_MEASURED = ("v_max_1_measured_m_s", "v_max_2_measured_m_s", "v_max_ratio_measured",
                     "v_g_measured_m_s", "v_g_front_measured_m_s")
 # ... and for a table of walled scenes: grouped by scene too (scenes that differ only in
@@ -88,7 +88,7 @@ TIMING_COLUMNS = ("study", "engine", "batch", "scene_hash", "members", "steps", 
 def columns(n: int, measured: bool = False, walled: bool = False,
             settings=()) -> list[str]:
     """The table's columns: ``BASE_COLUMNS``, for a table of measured scenes the
-    vibrometer's ``MEASURED_COLUMNS`` (``granchain.measurement``), for scenes with an end
+    vibrometer's ``MEASURED_COLUMNS`` (``granchain.vibrometer``), for scenes with an end
     wall its ``WALL_COLUMNS``, the ``settings`` columns a question study's table has (of
     ``SETTING_COLUMNS``, in that order), then one v_max per particle."""
     unknown = set(settings) - set(SETTING_COLUMNS)

@@ -120,7 +120,7 @@ def test_hertz_chain_on_a_wall_scales_as_v_to_the_six_fifths():
     """A chain of Hertz contacts alone has no force scale: its wall force peak is exactly
     ~ v_s^(6/5) (what the wall study's fit is compared with); with the chapter's friction
     and drag the fitted exponent (the wall study, tiny preset) is a little above it."""
-    from granchain.analysis import power_law_fit
+    from granchain.reductions import power_law_fit
     ss, = gw.study_scenes(_preset("tiny"), "wall")
     v = np.array(ss.scene.striker_velocities)
     hertz = ss.scene.derive(effects=["hertz"], groove=None, drag=None, contact=None)

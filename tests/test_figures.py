@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from granchain import analysis, figures, thesis
+from granchain import reductions, figures, thesis
 from granchain.thesis import rows as thesis_rows
 from granchain import tables as gtables
 from granchain.errors import GranchainError
@@ -128,7 +128,7 @@ def tables(tmp_path_factory):
 
 
 def _read(tdir, study):
-    return analysis.read_table(tdir / f"{study}.csv")
+    return reductions.read_table(tdir / f"{study}.csv")
 
 
 def _paths(tdir, rdir):
@@ -538,7 +538,7 @@ def test_figures_are_byte_identical_on_rerun(tables, tmp_path):
 @pytest.mark.slow
 def test_fit_slope_is_least_squares_through_origin(tables):
     packed = _read(tables[0], "packed_sweep")
-    fits = analysis.vmax_fits(packed)
+    fits = reductions.vmax_fits(packed)
     assert set(fits) == set(MATERIALS)
     for mat in MATERIALS:
         d = packed[packed["material"] == mat]
@@ -555,8 +555,8 @@ def test_packed_vg_is_exact_on_the_sweep_and_interpolates_between(tables):
     packed = _read(tables[0], "packed_sweep")
     d = packed[packed["material"] == "ss440c"].sort_values("v_striker_m_s")
     v = d["v_striker_m_s"].to_numpy()
-    np.testing.assert_allclose(analysis.packed_vg(packed, "ss440c", v), d["v_g_m_s"], rtol=1e-12)
-    mid = analysis.packed_vg(packed, "ss440c", np.sqrt(v[0] * v[1]))[0]
+    np.testing.assert_allclose(reductions.packed_vg(packed, "ss440c", v), d["v_g_m_s"], rtol=1e-12)
+    mid = reductions.packed_vg(packed, "ss440c", np.sqrt(v[0] * v[1]))[0]
     assert d["v_g_m_s"].iloc[0] < mid < d["v_g_m_s"].iloc[1]
 
 
@@ -569,8 +569,8 @@ def test_gapped_chains_are_below_packed_and_the_eq54_bound(tables):
     peak-time v_g may exceed it slightly (peak timing of reshaped pulses; at most 1.4% over
     the 3360 chains of the default preset's gap_sweep, 10-190 nm at 0.01-1 m/s)."""
     packed, gs = _read(tables[0], "packed_sweep"), _read(tables[0], "gap_sweep")
-    b = analysis.bound_ratios(gs, packed, 150e-6)
-    assert len(b) == len(analysis.arrived(gs)) > 0
+    b = reductions.bound_ratios(gs, packed, 150e-6)
+    assert len(b) == len(reductions.arrived(gs)) > 0
     assert (b["v_g_m_s"] < 0.97 * b["vg_packed"]).all()
     assert (b["r_front"] <= 1.0).all(), b["r_front"].max()
     assert (b["r_peak"] <= 1.02).all(), b["r_peak"].max()
@@ -584,7 +584,7 @@ def test_gapped_chains_are_below_packed_and_the_eq54_bound(tables):
 
 def test_oscillation_measure():
     prof = np.array([[1.0, 0.9, 1.1, 1.0], [1.0, 0.8, 0.8, 0.8]])
-    np.testing.assert_allclose(analysis.oscillation(prof), [0.2, 0.0])
+    np.testing.assert_allclose(reductions.oscillation(prof), [0.2, 0.0])
 
 
 # --- clear errors ----------------------------------------------------------------------
@@ -952,7 +952,7 @@ def test_row_builders_without_their_tables(tables):
 def test_gap_for_reduction_inverts_eq54():
     vg0, vs, radius = 480.0, 0.1, 150e-6
     for red in (0.05, 1 / 3, 0.5):
-        g = analysis.gap_for_reduction(vg0, vs, red, radius)
+        g = reductions.gap_for_reduction(vg0, vs, red, radius)
         assert g > 0
         assert _eq54(vg0, g, vs, radius) == pytest.approx((1 - red) * vg0, rel=1e-12)
 
@@ -960,15 +960,15 @@ def test_gap_for_reduction_inverts_eq54():
 def test_pulse_width_of_a_triangle():
     t = np.linspace(0.0, 4.0, 401)
     v = np.clip(1.0 - np.abs(t - 2.0), 0.0, None)        # peak 1 at t = 2, base 2 wide
-    assert analysis.pulse_width(t, v) == pytest.approx(1.0, rel=1e-9)
-    assert analysis.pulse_width(t, v, 0.05) == pytest.approx(1.9, rel=1e-9)
-    assert math.isnan(analysis.pulse_width(t, np.ones_like(t)))
+    assert reductions.pulse_width(t, v) == pytest.approx(1.0, rel=1e-9)
+    assert reductions.pulse_width(t, v, 0.05) == pytest.approx(1.9, rel=1e-9)
+    assert math.isnan(reductions.pulse_width(t, np.ones_like(t)))
 
 
 def test_layers_import_one_way():
     """analysis and thesis load without matplotlib; figures and thesis without the
     workflow package."""
-    code = ("import sys, granchain.analysis, granchain.thesis; "
+    code = ("import sys, granchain.reductions, granchain.thesis; "
             "assert 'matplotlib' not in sys.modules, 'matplotlib'; "
             "import granchain.figures; "
             "assert 'granchain.workflow' not in sys.modules, 'workflow'")

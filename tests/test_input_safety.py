@@ -346,15 +346,15 @@ def test_a_symlink_named_like_the_target_survives_without_force(tmp_path, capsys
     (tmp_path / "r.json").unlink()
     target = tmp_path / "r.json"
     with pytest.raises(GranchainError, match="exists"):
-        import granchain.fileio as F
-        real = F.check_output_path
+        from granchain import fileio
+        real = fileio.check_output_path
 
         def late(path, force=False, field="--out", probe=True):
             p = real(path, force, field, probe=probe)
             if not probe:
                 target.symlink_to(victim)
             return p
-        monkeypatch.setattr(F, "check_output_path", late)
+        monkeypatch.setattr(fileio, "check_output_path", late)
         atomic_write_text(target, "new", force=False)
     assert target.is_symlink() and victim.read_text() == "precious"
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
@@ -489,7 +489,7 @@ def test_results_are_frozen_typed_and_keep_their_json_and_row_layout():
     assert ledger == [*ENERGY_COLUMNS, "initial", "final_mechanical", "balance_error"]
     assert pickle.loads(pickle.dumps(run)) == run
     doc = run.to_json()
-    # an unmeasured run's JSON leaves the vibrometer's fields out (granchain.measurement),
+    # an unmeasured run's JSON leaves the vibrometer's fields out (granchain.vibrometer),
     # a free-end run the end wall's
     from granchain.observables import MEASURED_FIELDS, WALL_FIELDS
     assert list(doc) == [f.name for f in dataclasses.fields(ChainResult)
@@ -817,19 +817,19 @@ def test_peaks_within_their_stated_error_of_the_bound_are_accepted(tmp_path, cap
                                                                     no_compute):
     """A peak measured just above v_s, within 5 of its stated errors, is noise and is read;
     a heavier striker can give particle 2 more than v_s (energy: v_s sqrt(m_1/m_2))."""
-    from granchain import inference as I
+    from granchain import inference
     csv_path = tmp_path / "m.csv"
     csv_path.write_text(PEAKS_HEAD + "0.07,1.0e-5,0.075,0.05,0.002\n")
     base = load_scene(write(tmp_path, JOINT_BASE, "base.yaml"))
-    meas = I.read_measurements(csv_path, peaks=True)
-    I.check_peaks(meas, base)                                  # 0.075 <= 0.07 + 5 x 0.002
+    meas = inference.read_measurements(csv_path, peaks=True)
+    inference.check_peaks(meas, base)                          # 0.075 <= 0.07 + 5 x 0.002
     heavy = base.derive(striker={"radius": 189e-6})
-    assert I.peak_bounds(heavy)[0] == pytest.approx((189 / 150) ** 1.5)
+    assert inference.peak_bounds(heavy)[0] == pytest.approx((189 / 150) ** 1.5)
     csv_path.write_text(PEAKS_HEAD + "0.07,1.0e-5,0.095,0.05,0\n")
-    meas = I.read_measurements(csv_path, peaks=True)
-    I.check_peaks(meas, heavy)                                 # 0.095 < 0.07 x 1.414
+    meas = inference.read_measurements(csv_path, peaks=True)
+    inference.check_peaks(meas, heavy)                         # 0.095 < 0.07 x 1.414
     with pytest.raises(GranchainError, match="column 'vmax_1_m_s'.*above"):
-        I.check_peaks(meas, base)
+        inference.check_peaks(meas, base)
 
 
 @pytest.mark.parametrize("scene, needles", [
@@ -924,14 +924,14 @@ def test_auto_duration_covers_the_whole_chain():
 
 
 def test_workflow_presets_pass_the_default_limits():
-    from granchain import workflow as W
+    from granchain import workflow
     for name in ("tiny", "default", "full"):
-        _, preset = W.load_config(REPO / "config" / "config.yaml", name)
-        for study in W.preset_studies(preset):
-            for ss in W.study_scenes(preset, study):
+        _, preset = workflow.load_config(REPO / "config" / "config.yaml", name)
+        for study in workflow.preset_studies(preset):
+            for ss in workflow.study_scenes(preset, study):
                 schedule.check_cost(ss.scene)
-                schedule.check_cost(W.packed_scene(ss))
-        for ss in W.check_chain_scenes(preset):
+                schedule.check_cost(workflow.packed_scene(ss))
+        for ss in workflow.check_chain_scenes(preset):
             schedule.check_cost(ss.scene)
 
 

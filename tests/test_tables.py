@@ -12,7 +12,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from granchain import analysis, tables
+from granchain import reductions, tables
 from granchain.columns import member_column
 
 N = 12
@@ -109,8 +109,8 @@ def test_read_table_prefers_a_parquet_copy_that_is_not_older(tmp_path):
     tables.write_parquet(changed, tables.parquet_path(csv))
     t = csv.stat().st_mtime
     os.utime(tables.parquet_path(csv), (t + 1, t + 1))
-    assert (analysis.read_table(csv)["v_g_m_s"] == 123.0).all()       # the copy
-    assert analysis.read_table(csv).attrs["name"] == "t.csv"
+    assert (reductions.read_table(csv)["v_g_m_s"] == 123.0).all()       # the copy
+    assert reductions.read_table(csv).attrs["name"] == "t.csv"
     os.utime(csv, (t + 2, t + 2))                                      # a newer CSV wins
     assert not (tables.read_table(tables.parquet_path(csv))["v_g_m_s"] == 123.0).any()
 

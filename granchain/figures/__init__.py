@@ -5,7 +5,7 @@ pandas DataFrames read from ``results/{preset}/tables/{study}.csv`` (one row per
 units in column names; the columns are written by granchain/tables.py) -- or, for
 Fig. 5.1a, the trace npz -- and writes ``{out}.png`` and ``{out}.pdf``. Nothing here
 simulates: figures only read tables, and every number they show comes from
-granchain.analysis.
+granchain.reductions.
 
 - :func:`fig5_1a`  particle velocities in time along the packed chain (one trace);
 - :func:`fig5_1b`  v_max vs striker velocity, linear fit through the origin (packed_sweep);
@@ -41,7 +41,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..analysis import read_table, read_trace, read_vibrometer_trace
+from ..reductions import read_table, read_trace, read_vibrometer_trace
 from ..errors import GranchainError
 from .fig5_1 import fig5_1a, fig5_1b, fig5_1c
 from .fig5_2 import fig5_2a, vibrometer

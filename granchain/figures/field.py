@@ -2,7 +2,7 @@
 the chapter's chain ending on a wall (wall study).
 
 Draws into ``{out}.png`` and ``{out}.pdf`` from tables/precompression.csv and
-tables/wall.csv; the numbers come from granchain.analysis (``precompression_rows``,
+tables/wall.csv; the numbers come from granchain.reductions (``precompression_rows``,
 ``wall_fits``) and the theory from granchain.analytic.
 """
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..analysis import (HERTZ_WALL_EXPONENT, label, precompression_rows, radius_or_default,
+from ..reductions import (HERTZ_WALL_EXPONENT, label, precompression_rows, radius_or_default,
                         wall_fits)
 from ..analytic import precompressed_speed_ratio
 from .style import colormap, drawn, figure, plain_log, save

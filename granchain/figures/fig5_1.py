@@ -2,7 +2,7 @@
 with fits through the origin (5.1b), v_g vs v_s with Nesterenko's curve (5.1c).
 
 Each function draws one panel into ``{out}.png`` and ``{out}.pdf`` from a trace or the
-packed_sweep table; the numbers come from granchain.analysis.
+packed_sweep table; the numbers come from granchain.reductions.
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..analysis import (NEEDS, PROBES, arrived, label, material, peak_profile,
+from ..reductions import (NEEDS, PROBES, arrived, label, material, peak_profile,
                         reference_engine, require, vmax_columns, vmax_fits)
 from ..analytic import nesterenko_speed
 from ..errors import GranchainError

@@ -3,8 +3,8 @@ counterpart) and what the instrument does to v_max,1, v_max,2 and dt against its
 bandwidth (the vibrometer study).
 
 Each function draws into ``{out}.png`` and ``{out}.pdf`` from the vibrometer trace or
-table; the numbers come from granchain.analysis (the recordings from
-granchain.measurement, in the workflow's vibrometer job).
+table; the numbers come from granchain.reductions (the recordings from
+granchain.vibrometer, in the workflow's vibrometer job).
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..analysis import NEEDS, label, vibrometer_bands
+from ..reductions import NEEDS, label, vibrometer_bands
 from ..errors import GranchainError
 from .style import drawn, figure, plain_log, save
 

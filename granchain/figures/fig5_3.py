@@ -2,7 +2,7 @@
 mean gaps (5.3b), v_g vs v_s for each mean gap with bands and the Eq. 5.4 bound (5.3c).
 
 Each function draws one panel into ``{out}.png`` and ``{out}.pdf`` from the gap_profile
-or gap_sweep table and the packed_sweep table; the numbers come from granchain.analysis.
+or gap_sweep table and the packed_sweep table; the numbers come from granchain.reductions.
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..analysis import (NEEDS, PROBES, arrived, band, label, materials_in, n_particles,
+from ..reductions import (NEEDS, PROBES, arrived, band, label, materials_in, n_particles,
                         oscillation, packed_profile, packed_vg, peak_profile,
                         radius_or_default, reference_engine, require)
 from ..analytic import eq54_group_velocity

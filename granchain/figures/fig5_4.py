@@ -2,7 +2,7 @@
 length, with the Eq. 5.4 bound.
 
 Draws into ``{out}.png`` and ``{out}.pdf`` from the extra_length and packed_sweep
-tables; the numbers come from granchain.analysis.
+tables; the numbers come from granchain.reductions.
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..analysis import (NEEDS, PROBES, arrived, band, label, materials_in, n_particles,
+from ..reductions import (NEEDS, PROBES, arrived, band, label, materials_in, n_particles,
                         packed_vg, radius_or_default, reference_engine, require)
 from ..analytic import eq54_group_velocity
 from .style import color, drawn, figure, save

@@ -3,7 +3,7 @@
 peaks of Fig. 5.2 (dissipation study)?
 
 Draws into ``{out}.png`` and ``{out}.pdf`` from tables/radius_spread.csv and
-tables/dissipation.csv; the numbers come from granchain.analysis (``spread_oscillation``,
+tables/dissipation.csv; the numbers come from granchain.reductions (``spread_oscillation``,
 ``first_reaching``, ``dissipation_curves``, ``dissipation_match``, ``MEASURED_PEAKS``).
 """
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.ticker import FuncFormatter
 
-from ..analysis import (MEASURED_PEAKS, PROBES, dissipation_curves, dissipation_match,
+from ..reductions import (MEASURED_PEAKS, PROBES, dissipation_curves, dissipation_match,
                         first_reaching, label, n_particles, peak_profile, reference_engine,
                         spread_oscillation)
 from .style import color, colormap, drawn, figure, material_style, save

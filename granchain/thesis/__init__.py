@@ -9,7 +9,7 @@ support it); nothing here is tuned to the chapter. Experimental numbers of the c
 are compared as "experiment vs model".
 
 The rows are built per group of chapter numbers in :mod:`granchain.thesis.rows`, from
-the reductions of :mod:`granchain.analysis`; this module assembles them
+the reductions of :mod:`granchain.reductions`; this module assembles them
 (:func:`comparison`), writes CSV and Markdown (:func:`write`, :func:`markdown`) and is
 the command line::
 
@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..analysis import read_table, read_trace
+from ..reductions import read_table, read_trace
 from ..errors import GranchainError
-from . import rows as R
+from . import rows as thesis_rows
 
 COLUMNS = ["id", "quantity", "kind", "chapter_text", "chapter_value", "chapter_uncertainty",
            "project_value", "ratio", "unit", "evidence", "reason"]
@@ -59,17 +59,17 @@ def comparison(packed_sweep: pd.DataFrame, packed_trace: pd.DataFrame | None = N
     pulse_width row needs the trace and is left out without it; the vibrometer rows
     need the vibrometer study's table, the field rows the precompression and wall
     studies' tables, the question rows the radius_spread and dissipation studies')."""
-    pk = R.packed_chain(packed_sweep, radius)
-    rows = (R.packed_chain_rows(pk)
-            + R.group_velocity_rows(pk)
-            + R.experiment_rows(pk, gap_profile, gap_sweep)
-            + R.gap_rows(pk, gap_profile, gap_sweep)
-            + R.bound_rows(pk, gap_sweep, extra_length)
-            + R.energy_rows(pk, packed_trace, trace)
-            + R.instrument_rows(pk, vibrometer)
-            + R.field_rows(pk, precompression, wall)
-            + R.tolerance_rows(pk, radius_spread)
-            + R.dissipation_rows(pk, dissipation))
+    pk = thesis_rows.packed_chain(packed_sweep, radius)
+    rows = (thesis_rows.packed_chain_rows(pk)
+            + thesis_rows.group_velocity_rows(pk)
+            + thesis_rows.experiment_rows(pk, gap_profile, gap_sweep)
+            + thesis_rows.gap_rows(pk, gap_profile, gap_sweep)
+            + thesis_rows.bound_rows(pk, gap_sweep, extra_length)
+            + thesis_rows.energy_rows(pk, packed_trace, trace)
+            + thesis_rows.instrument_rows(pk, vibrometer)
+            + thesis_rows.field_rows(pk, precompression, wall)
+            + thesis_rows.tolerance_rows(pk, radius_spread)
+            + thesis_rows.dissipation_rows(pk, dissipation))
     return pd.DataFrame(rows, columns=COLUMNS)
 
 

@@ -22,7 +22,7 @@ keys of ``granchain.thesis.COLUMNS``, in table order:
                                 v_max,2/v_max,1, and does it give the measured peaks or leave
                                 a loss at the striker (dissipation study)?
 
-Every number comes from granchain.analysis; reasons quote the numbers that support them.
+Every number comes from granchain.reductions; reasons quote the numbers that support them.
 """
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .. import analysis as A
+from .. import reductions
 from ..analytic import eq54_group_velocity, nesterenko_speed
 from ..errors import GranchainError
 from ..scene import DEFAULTS
@@ -95,16 +95,16 @@ class PackedChain:
 
 def packed_chain(packed_sweep: pd.DataFrame, radius: float | None = None) -> PackedChain:
     """:class:`PackedChain` of the packed sweep; ``radius`` in m (default 150 um)."""
-    A.require(packed_sweep, A.NEEDS["fig5_1c"] + ["v_max_ratio"], "thesis comparison")
+    reductions.require(packed_sweep, reductions.NEEDS["fig5_1c"] + ["v_max_ratio"], "thesis comparison")
     mat = SIM_MATERIAL
-    radius = A.radius_or_default(radius)
-    packed = A.reference_engine(packed_sweep)
-    fits = A.vmax_fits(packed)
+    radius = reductions.radius_or_default(radius)
+    packed = reductions.reference_engine(packed_sweep)
+    fits = reductions.vmax_fits(packed)
     if mat not in fits:
         raise GranchainError(f"thesis comparison: packed_sweep has no '{mat}' rows (the "
                              "chapter simulates 440C); add it to the config's materials")
     pm = packed[packed["material"] == mat]
-    ref = A.nearest_speed(packed, mat, V_REF)
+    ref = reductions.nearest_speed(packed, mat, V_REF)
     return PackedChain(
         table=packed, fits=fits, rows=pm,
         s1=fits[mat]["v_max_1"], s2=fits[mat]["v_max_2"],
@@ -112,13 +112,13 @@ def packed_chain(packed_sweep: pd.DataFrame, radius: float | None = None) -> Pac
         r2=(pm["v_max_2_m_s"] / pm["v_striker_m_s"]).to_numpy(dtype=float),
         ratio_med=float(np.median(pm["v_max_ratio"].astype(float))),
         vmin=float(pm["v_striker_m_s"].min()), vmax=float(pm["v_striker_m_s"].max()),
-        ref=ref, vs_ref=A.striker_speed(ref),
-        prof=A.peak_profile(ref, "thesis") if A.vmax_columns(ref) else None,
+        ref=ref, vs_ref=reductions.striker_speed(ref),
+        prof=reductions.peak_profile(ref, "thesis") if reductions.vmax_columns(ref) else None,
         radius=radius)
 
 
 def _loss_text(pk: PackedChain) -> str:
-    losses = A.non_hertz_work_fraction(pk.ref)
+    losses = reductions.non_hertz_work_fraction(pk.ref)
     return (f"all non-Hertz work at {pk.vs_ref:g} m/s is {pct(losses)} of E, so it moves "
             f"v_max (~ sqrt E) by < {pct(abs(losses))}")
 
@@ -128,7 +128,7 @@ def packed_chain_rows(pk: PackedChain) -> list[dict]:
     """vmax_slope, vmax1_over_vs, vmax2_over_vs, vmax_ratio: the packed chain's peaks."""
     s1, s2, prof, vs_ref = pk.s1, pk.s2, pk.prof, pk.vs_ref
     other = [m for m in pk.fits if m != SIM_MATERIAL]
-    other_txt = ", " + ", ".join(f"{A.label(m)}: {pk.fits[m]['v_max_1']:.4f}/"
+    other_txt = ", " + ", ".join(f"{reductions.label(m)}: {pk.fits[m]['v_max_1']:.4f}/"
                                  f"{pk.fits[m]['v_max_2']:.4f}" for m in other) if other else ""
     settle = (f"v_max,i/v_s = {prof[0, 1]:.3f} (particle 2), {prof[0, 5]:.3f} (6), "
               f"{prof[0, -1]:.3f} ({prof.shape[1]}) at {vs_ref:g} m/s"
@@ -163,11 +163,11 @@ def packed_chain_rows(pk: PackedChain) -> list[dict]:
 def group_velocity_rows(pk: PackedChain) -> list[dict]:
     """vg_nesterenko: v_g / V_N with Nesterenko's V_N = (16/25)^(1/5) c^(4/5) v_m^(1/5)
     at v_m = 0.64 v_s."""
-    m = A.material(SIM_MATERIAL)
-    pa = A.arrived(pk.rows)
+    m = reductions.material(SIM_MATERIAL)
+    pa = reductions.arrived(pk.rows)
     vN = nesterenko_speed(m, 0.64 * pa["v_striker_m_s"].to_numpy(dtype=float))
     dev = pa["v_g_m_s"].to_numpy(dtype=float) / vN
-    refa = A.arrived(pk.ref)
+    refa = reductions.arrived(pk.ref)
     vs_ref = pk.vs_ref
     vg_ref = float(refa["v_g_m_s"].median()) if len(refa) else math.nan
     q = vg_ref / float(nesterenko_speed(m, 0.64 * vs_ref))
@@ -187,20 +187,20 @@ def _gap_profile(gap_profile: pd.DataFrame | None) -> pd.DataFrame | None:
     """The gap_profile table's reference-engine rows, checked for the columns used."""
     if gap_profile is None:
         return None
-    gp = A.reference_engine(gap_profile)
-    A.require(gp, A.NEEDS["fig5_3b"] + ["v_max_1_m_s", "v_max_2_m_s", "v_max_ratio",
+    gp = reductions.reference_engine(gap_profile)
+    reductions.require(gp, reductions.NEEDS["fig5_3b"] + ["v_max_1_m_s", "v_max_2_m_s", "v_max_ratio",
                                         "v_g_m_s", "wave_arrived"], "thesis comparison")
     return gp
 
 
 def _gap_sweep(gap_sweep: pd.DataFrame | None, pk: PackedChain):
-    """(reference-engine gap_sweep rows, their :func:`~granchain.analysis.bound_ratios`),
+    """(reference-engine gap_sweep rows, their :func:`~granchain.reductions.bound_ratios`),
     or (None, None) without the table."""
     if gap_sweep is None:
         return None, None
-    gs = A.reference_engine(gap_sweep)
-    A.require(gs, A.NEEDS["fig5_3c"] + ["gap_mean_probes_nm"], "thesis comparison")
-    return gs, A.bound_ratios(gs, pk.table, pk.radius)
+    gs = reductions.reference_engine(gap_sweep)
+    reductions.require(gs, reductions.NEEDS["fig5_3c"] + ["gap_mean_probes_nm"], "thesis comparison")
+    return gs, reductions.bound_ratios(gs, pk.table, pk.radius)
 
 
 def _bound_text(b: pd.DataFrame) -> str:
@@ -227,9 +227,9 @@ def experiment_rows(pk: PackedChain, gap_profile: pd.DataFrame | None = None,
     gp = _gap_profile(gap_profile)
     if gp is not None:
         g_nm = float(gp["gap_mean_nm"].iloc[0])
-        gr = A.band(gp["v_max_ratio"])
-        g1 = A.band(gp["v_max_1_m_s"] / gp["v_striker_m_s"])
-        g2 = A.band(gp["v_max_2_m_s"] / gp["v_striker_m_s"])
+        gr = reductions.band(gp["v_max_ratio"])
+        g1 = reductions.band(gp["v_max_1_m_s"] / gp["v_striker_m_s"])
+        g2 = reductions.band(gp["v_max_2_m_s"] / gp["v_striker_m_s"])
         lo_e, hi_e = 0.80 - 0.08, 0.80 + 0.08
         overlap = max(0.0, min(hi_e, gr[2]) - max(lo_e, gr[0]))
         gtxt = (f"with {g_nm:g} nm gaps the model's ratio spreads over 5-95% "
@@ -287,15 +287,15 @@ def gap_rows(pk: PackedChain, gap_profile: pd.DataFrame | None = None,
     gp = _gap_profile(gap_profile)
     if gp is not None:
         g_nm = float(gp["gap_mean_nm"].iloc[0])
-        o = A.band(A.oscillation(A.peak_profile(gp, "thesis")))
-        posc = float(A.oscillation(pk.prof)[0]) if pk.prof is not None else math.nan
-        gpa = A.arrived(gp)
-        vs_gp = A.striker_speed(gp)
-        vg0_gp = float(A.packed_vg(pk.table, gp["material"].iloc[0], vs_gp)[0])
+        o = reductions.band(reductions.oscillation(reductions.peak_profile(gp, "thesis")))
+        posc = float(reductions.oscillation(pk.prof)[0]) if pk.prof is not None else math.nan
+        gpa = reductions.arrived(gp)
+        vs_gp = reductions.striker_speed(gp)
+        vg0_gp = float(reductions.packed_vg(pk.table, gp["material"].iloc[0], vs_gp)[0])
         vg_gp = float(gpa["v_g_m_s"].median()) if len(gpa) else math.nan
         red = 1.0 - vg_gp / vg0_gp
         bound_gp = float(eq54_group_velocity(vg0_gp, g_nm * 1e-9, vs_gp, radius))
-        need = A.gap_for_reduction(vg0_gp, vs_gp, 1.0 / 3.0, radius) * 1e9
+        need = reductions.gap_for_reduction(vg0_gp, vs_gp, 1.0 / 3.0, radius) * 1e9
         n_gp = len(gp)
     else:
         o = (math.nan,) * 3
@@ -320,8 +320,8 @@ def gap_rows(pk: PackedChain, gap_profile: pd.DataFrame | None = None,
     ]
     gs = None
     if gap_sweep is not None:
-        gs = A.reference_engine(gap_sweep)
-        A.require(gs, A.NEEDS["fig5_3c"] + ["gap_mean_probes_nm"], "thesis comparison")
+        gs = reductions.reference_engine(gap_sweep)
+        reductions.require(gs, reductions.NEEDS["fig5_3c"] + ["gap_mean_probes_nm"], "thesis comparison")
     for gm, key in (("ss316", "fitted_gap_316"), ("ss440c", "fitted_gap_440c")):
         rows += _fitted_gap_rows(pk, gs, gm, key)
     return rows
@@ -336,22 +336,22 @@ def _fitted_gap_rows(pk: PackedChain, gs: pd.DataFrame | None, gm: str, key: str
     sim_txt = "gap_sweep table not given"
     sim_med, g_near = math.nan, math.nan
     if gm in pk.fits:
-        vg0_f = float(A.packed_vg(pk.table, gm, V_REF)[0])
+        vg0_f = float(reductions.packed_vg(pk.table, gm, V_REF)[0])
         bound = float(eq54_group_velocity(vg0_f, gfit * 1e-9, V_REF, pk.radius))
     if gs is not None and gm in set(gs["material"]):
-        d = A.nearest_speed(gs, gm, V_REF)
+        d = reductions.nearest_speed(gs, gm, V_REF)
         gaps = np.array(sorted(set(d["gap_mean_nm"].astype(float))))
         g_near = float(gaps[int(np.argmin(np.abs(gaps - gfit)))])
-        dn = A.arrived(d[d["gap_mean_nm"].astype(float) == g_near])
+        dn = reductions.arrived(d[d["gap_mean_nm"].astype(float) == g_near])
         if len(dn):
-            b = A.band(dn["v_g_m_s"])
+            b = reductions.band(dn["v_g_m_s"])
             sim_med = b[1]
             sim_txt = (f"simulated v_g at the nearest simulated gap {g_near:g} nm: median "
                        f"{b[1]:.1f} (5-95% {b[0]:.1f}-{b[2]:.1f}) m/s at "
-                       f"{A.striker_speed(d):g} m/s")
+                       f"{reductions.striker_speed(d):g} m/s")
         else:
             sim_txt = f"no arrived chain at {g_near:g} nm"
-    name = A.label(gm)
+    name = reductions.label(gm)
     return [
         make_row(key, f"fitted mean gap, {name} chain (fit of measured v_g to Fig. 5.3c)",
                  "fit to experiment", f"{gfit:g} nm", gfit, math.nan, "nm",
@@ -388,13 +388,13 @@ def bound_rows(pk: PackedChain, gap_sweep: pd.DataFrame | None = None,
                      f"(std) off the nominal mean" if len(bs) else "no arrived chain")
     else:
         under, bound_txt = math.nan, "gap_sweep table not given"
-    el = A.reference_engine(extra_length) if extra_length is not None else None
+    el = reductions.reference_engine(extra_length) if extra_length is not None else None
     if el is not None:
-        A.require(el, A.NEEDS["fig5_4b"] + ["gap_mean_probes_nm"], "thesis comparison")
-        n = A.n_particles(el)
-        be = A.bound_ratios(el, pk.table, pk.radius)
+        reductions.require(el, reductions.NEEDS["fig5_4b"] + ["gap_mean_probes_nm"], "thesis comparison")
+        n = reductions.n_particles(el)
+        be = reductions.bound_ratios(el, pk.table, pk.radius)
         f_own = float(np.mean(be["r_peak"] <= 1.0)) if len(be) else math.nan
-        nom = A.bound_ratios(el.assign(gbar_nominal_nm=el["extra_length_um"] * 1e3 / (n - 1)),
+        nom = reductions.bound_ratios(el.assign(gbar_nominal_nm=el["extra_length_um"] * 1e3 / (n - 1)),
                              pk.table, pk.radius, "gbar_nominal_nm")
         f_nom = float(np.mean(nom["r_peak"] <= 1.0)) if len(nom) else math.nan
         el_txt = (f"{len(be)} arrived chains ({len(el) - len(be)} not arrived); "
@@ -422,15 +422,15 @@ def energy_rows(pk: PackedChain, packed_trace: pd.DataFrame | None = None,
     packed_trace, else the packed sweep's row nearest V_REF) and, with a trace,
     pulse_width (FWHM of the middle particle's velocity pulse, s)."""
     mat, radius = SIM_MATERIAL, pk.radius
-    near = A.nearest_speed(packed_trace, mat, V_REF) if packed_trace is not None else None
+    near = reductions.nearest_speed(packed_trace, mat, V_REF) if packed_trace is not None else None
     erow = near if near is not None and len(near) else pk.ref
     src = "packed_trace.csv" if erow is not pk.ref else "packed_sweep.csv"
-    wg = A.work_fraction(erow, "work_groove_J")
-    wa = A.work_fraction(erow, "work_air_J")
-    wp = A.work_fraction(erow, "work_particle_friction_J")
-    vs_e = A.striker_speed(erow)
-    mass = A.sphere_mass(A.material(mat).rho, radius)
-    dx = A.groove_slide(float(erow["work_groove_J"].iloc[0]), mass, GRAVITY, MU_PG)
+    wg = reductions.work_fraction(erow, "work_groove_J")
+    wa = reductions.work_fraction(erow, "work_air_J")
+    wp = reductions.work_fraction(erow, "work_particle_friction_J")
+    vs_e = reductions.striker_speed(erow)
+    mass = reductions.sphere_mass(reductions.material(mat).rho, radius)
+    dx = reductions.groove_slide(float(erow["work_groove_J"].iloc[0]), mass, GRAVITY, MU_PG)
     t_run = float(trace["t_s"][-1] - trace["t_s"][0]) if trace is not None else math.nan
     rows = [
         make_row("dE_coulomb_over_E", f"packed 440C, v_s = {vs_e:g} m/s: groove-friction "
@@ -455,12 +455,12 @@ def _pulse_width_row(pk: PackedChain, trace: dict) -> dict:
     """pulse_width: FWHM of the velocity pulse of the particle midway between the probes,
     with its width at 5% of the peak and Nesterenko's 5 D / V_N for comparison."""
     v = np.asarray(trace["v_m_s"], dtype=float)
-    mid = (A.PROBES[0] + A.PROBES[1]) // 2
-    w = A.pulse_width(trace["t_s"], v[:, mid - 1]) if v.shape[1] >= mid else math.nan
-    w5 = A.pulse_width(trace["t_s"], v[:, mid - 1], 0.05) if v.shape[1] >= mid else math.nan
-    vN = float(nesterenko_speed(A.material(str(trace["material"])),
+    mid = (reductions.PROBES[0] + reductions.PROBES[1]) // 2
+    w = reductions.pulse_width(trace["t_s"], v[:, mid - 1]) if v.shape[1] >= mid else math.nan
+    w5 = reductions.pulse_width(trace["t_s"], v[:, mid - 1], 0.05) if v.shape[1] >= mid else math.nan
+    vN = float(nesterenko_speed(reductions.material(str(trace["material"])),
                                 pk.s2 * float(trace["v_striker_m_s"])))
-    return make_row("pulse_width", f"packed {A.label(str(trace['material']))}, v_s = "
+    return make_row("pulse_width", f"packed {reductions.label(str(trace['material']))}, v_s = "
                     f"{float(trace['v_striker_m_s']):g} m/s: FWHM of particle {mid}'s velocity "
                     "pulse", "simulation", "solitary wave ~2 us wide", 2e-6, w, "s",
                     f"fig5_1a; {trace.get('name', 'packed_trace npz')}",
@@ -487,8 +487,8 @@ def instrument_rows(pk: PackedChain, vibrometer: pd.DataFrame | None = None) -> 
                          math.nan, math.nan, "fraction", "vibrometer.csv",
                          "vibrometer table not given (the preset has no vibrometer study)")
                 for q in ("vmax1", "vmax2")]
-    bands = A.vibrometer_bands(vibrometer)
-    bw = A.nearest_bandwidth(vibrometer, CHAPTER_BANDWIDTH_HZ)
+    bands = reductions.vibrometer_bands(vibrometer)
+    bw = reductions.nearest_bandwidth(vibrometer, CHAPTER_BANDWIDTH_HZ)
     at = bands[bands["bandwidth_hz"].astype(float) == bw]
     deficits = {"v_max,1": 1.0 - EXP_VMAX_OVER_VS["v_max,1"] / pk.s1,
                 "v_max,2": 1.0 - EXP_VMAX_OVER_VS["v_max,2"] / pk.s2}
@@ -582,8 +582,8 @@ def field_rows(pk: PackedChain, precompression: pd.DataFrame | None = None,
                               ("pre_vg_over_c0_weak", "precompressed chain, weakest wave: "
                                "v_g / c0"))]
     else:
-        r = A.precompression_rows(precompression, pk.radius)
-        mats = ", ".join(A.label(m) for m in dict.fromkeys(r["material"]))
+        r = reductions.precompression_rows(precompression, pk.radius)
+        mats = ", ".join(reductions.label(m) for m in dict.fromkeys(r["material"]))
         loaded = r[r["F0_N"] > 0]
         free = r[r["F0_N"] == 0]
         loads = ", ".join(f"{f:g}" for f in sorted(set(loaded["F0_N"])))
@@ -631,17 +631,17 @@ def field_rows(pk: PackedChain, precompression: pd.DataFrame | None = None,
     chap = "a Hertz solitary wave: F_wall ~ v_s^(6/5)"
     if wall is None:
         rows.append(make_row("wall_force_exponent", quantity, BEYOND, chap,
-                             A.HERTZ_WALL_EXPONENT, math.nan, "-", "wall; wall.csv",
+                             reductions.HERTZ_WALL_EXPONENT, math.nan, "-", "wall; wall.csv",
                              "wall table not given (the preset has no wall study)"))
         return rows
-    fits = A.wall_fits(wall)
+    fits = reductions.wall_fits(wall)
     mat = SIM_MATERIAL if SIM_MATERIAL in fits else next(iter(fits))
     f = fits[mat]
     local = (f"local exponents {f['local'].min():.4f}-{f['local'].max():.4f}, the largest at "
              f"the lowest speeds" if f["local"].size else "one speed")
     rows.append(make_row(
-        "wall_force_exponent", f"{A.label(mat)} {quantity}, fit over v_s = {f['v'].min():g}-"
-        f"{f['v'].max():g} m/s", BEYOND, chap, A.HERTZ_WALL_EXPONENT, f["exponent"], "-",
+        "wall_force_exponent", f"{reductions.label(mat)} {quantity}, fit over v_s = {f['v'].min():g}-"
+        f"{f['v'].max():g} m/s", BEYOND, chap, reductions.HERTZ_WALL_EXPONENT, f["exponent"], "-",
         "wall; wall.csv",
         f"agrees: a = {f['prefactor']:.4g} N at 1 m/s over {f['n']} speeds ({local}); a pure "
         "Hertz chain gives exactly 6/5 (Hertz laws scale: F ~ v^(6/5) at any amplitude), "
@@ -660,7 +660,7 @@ QUESTION_EXP = "experiment (beyond the chapter)"
 
 def tolerance_rows(pk: PackedChain, radius_spread: pd.DataFrame | None = None) -> list[dict]:
     """Can a sphere-size tolerance alone make the chapter's ~20% oscillation (Fig. 5.3b)?
-    On the gap20_oscillation measure (:func:`granchain.analysis.spread_oscillation`), for
+    On the gap20_oscillation measure (:func:`granchain.reductions.spread_oscillation`), for
     440C (else the study's first material):
 
     - spread_oscillation: the median at the study's largest radius sd, against the
@@ -680,11 +680,11 @@ def tolerance_rows(pk: PackedChain, radius_spread: pd.DataFrame | None = None) -
                          ev, why),
                 make_row("spread_sd_for_gap_oscillation", q2, QUESTION_SIM, chap2, math.nan,
                          math.nan, "um", ev, why)]
-    o = A.spread_oscillation(radius_spread)
+    o = reductions.spread_oscillation(radius_spread)
     mat = SIM_MATERIAL if SIM_MATERIAL in set(o["material"]) else o["material"].iloc[0]
     o = o[o["material"] == mat]
-    packed, spread, gaps = (o[o["kind"] == k] for k in A.SPREAD_KINDS)
-    vs = A.striker_speed(A.reference_engine(radius_spread))
+    packed, spread, gaps = (o[o["kind"] == k] for k in reductions.SPREAD_KINDS)
+    vs = reductions.striker_speed(reductions.reference_engine(radius_spread))
     dist = ", ".join(dict.fromkeys(
         radius_spread.loc[radius_spread["radius_sd_m"] > 0, "radius_spread_distribution"]))
     sd = spread["radius_sd_m"].to_numpy(dtype=float) * 1e6
@@ -702,7 +702,7 @@ def tolerance_rows(pk: PackedChain, radius_spread: pd.DataFrame | None = None) -
     target = float(g["osc_median"])
     x = np.concatenate([[0.0], sd]) if len(packed) else sd
     y = np.concatenate([[pv], med]) if len(packed) else med
-    hit = A.first_reaching(x, y, target)
+    hit = reductions.first_reaching(x, y, target)
     curve = ", ".join(f"{s:g} um: {pct(m)}" for s, m in zip(sd, med))
     gtxt = (f"the {g['gap_mean_nm']:g} nm gaps' median {pct(target)} (5-95% {pct(g['osc_p5'])}"
             f"-{pct(g['osc_p95'])}, {int(g['n'])} chains of equal spheres)")
@@ -716,7 +716,7 @@ def tolerance_rows(pk: PackedChain, radius_spread: pd.DataFrame | None = None) -
                    f"excess, and its 95th percentile, {pct(p95)}, is "
                    + ("below" if p95 < g["osc_p5"] else "above") +
                    f" the gapped chains' 5th, {pct(g['osc_p5'])}")
-    what = (f"{A.label(mat)}, v_s = {vs:g} m/s, {dist} spreads of sd {sd.min():g}-"
+    what = (f"{reductions.label(mat)}, v_s = {vs:g} m/s, {dist} spreads of sd {sd.min():g}-"
             f"{sd.max():g} um, {int(spread['n'].max())} chains each")
     return [
         make_row("spread_oscillation", f"{what}: {q1} (sd = {sd.max():g} um)", QUESTION_SIM,
@@ -745,7 +745,7 @@ def _nearest_gap(rows: pd.DataFrame, mat: str, gap_nm: float):
 def dissipation_rows(pk: PackedChain, dissipation: pd.DataFrame | None = None) -> list[dict]:
     """Which contact damping (coefficient of restitution e) gives the measured v_max,2 /
     v_max,1 = 0.80 +/- 0.08, and does it give the measured peaks 0.57 and 0.46 v_s, or leave
-    a loss at the striker? From :func:`granchain.analysis.dissipation_match` (the median
+    a loss at the striker? From :func:`granchain.reductions.dissipation_match` (the median
     curves against e), for 440C (else the study's first material):
 
     - diss_e_ratio_packed, diss_e_ratio_gapped: the largest e at which the packed chain's,
@@ -756,8 +756,8 @@ def dissipation_rows(pk: PackedChain, dissipation: pd.DataFrame | None = None) -
     - diss_striker_factor: 0.57 / v_max,1 there, the factor on the striker's speed that the
       measured v_max,1 needs (the reason compares it with 0.46 / v_max,2's)."""
     ev = "dissipation; dissipation.csv"
-    rm, rh = A.MEASURED_PEAKS["ratio"]
-    (m1, h1), (m2, h2) = A.MEASURED_PEAKS["v1"], A.MEASURED_PEAKS["v2"]
+    rm, rh = reductions.MEASURED_PEAKS["ratio"]
+    (m1, h1), (m2, h2) = reductions.MEASURED_PEAKS["v1"], reductions.MEASURED_PEAKS["v2"]
     chap_ratio = f"v_max,2 / v_max,1 = {rm:g} +/- {rh:g} measured (95% CI, Fig. 5.2b)"
     ids = [("diss_e_ratio_packed", "packed chain with contact damping: the largest e at which "
             "the median v_max,2 / v_max,1 is the measured 0.80", chap_ratio, math.nan,
@@ -777,8 +777,8 @@ def dissipation_rows(pk: PackedChain, dissipation: pd.DataFrame | None = None) -
         return [make_row(i, q, QUESTION_EXP, c, v, math.nan, u, ev,
                          "dissipation table not given (the preset has no dissipation study)",
                          chapter_uncertainty=h) for i, q, c, v, h, u in ids]
-    m = A.dissipation_match(dissipation)
-    curves = A.dissipation_curves(dissipation)
+    m = reductions.dissipation_match(dissipation)
+    curves = reductions.dissipation_curves(dissipation)
     mat = SIM_MATERIAL if SIM_MATERIAL in set(m["material"]) else m["material"].iloc[0]
     others = [x for x in dict.fromkeys(m["material"]) if x != mat]
     pm = m[(m["material"] == mat) & (m["gap_mean_nm"] == 0)]
@@ -786,7 +786,7 @@ def dissipation_rows(pk: PackedChain, dissipation: pd.DataFrame | None = None) -
     gp = _nearest_gap(m, mat, FITTED_GAPS_NM.get(mat, 0.0))
     model = str(dissipation["damping_model"].iloc[0])
     vs = float(m["v_striker_m_s"].iloc[0])
-    head = f"{A.label(mat)}, {model}, v_s = {vs:g} m/s"
+    head = f"{reductions.label(mat)}, {model}, v_s = {vs:g} m/s"
 
     def band_e(r) -> str:
         lo, hi = r["e_ratio_lo"], r["e_ratio_hi"]
@@ -796,7 +796,7 @@ def dissipation_rows(pk: PackedChain, dissipation: pd.DataFrame | None = None) -
 
     def at(r) -> str:
         gap = "packed" if r["gap_mean_nm"] == 0 else f"{r['gap_mean_nm']:g} nm gaps"
-        return (f"{A.label(r['material'])} {gap}: e = {r['e_ratio']:.4f}, v_max,1 = "
+        return (f"{reductions.label(r['material'])} {gap}: e = {r['e_ratio']:.4f}, v_max,1 = "
                 f"{r['v1']:.3f} v_s, v_max,2 = {r['v2']:.3f} v_s, v_g = {r['vg']:.1f} m/s")
 
     other_txt = "; ".join(at(r) for _, r in m.iterrows()

@@ -462,7 +462,7 @@ def vibrometer_scenes(preset: dict) -> list[StudyScene]:
     """The vibrometer study's scenes (none if the preset has no ``vibrometer`` study): one
     per mean gap (0: the packed chain, one realisation; else ``realisations``), every
     striker speed, on the reference engine. Each carries the study's first instrument
-    setting as its measurement block (so ``measurement.needs_trace`` holds for it); the
+    setting as its measurement block (so ``vibrometer.needs_trace`` holds for it); the
     other settings filter the same trajectories (:func:`vibrometer_settings`)."""
     spec = (preset.get("studies") or {}).get(VIBROMETER)
     if not spec:

@@ -2,7 +2,7 @@
 
 One job. Each chain (material x mean gap x striker speed x realisation, the scenes of
 :func:`.studies.vibrometer_scenes`) is simulated once, keeping its probes' velocity
-histories; the recording (``granchain.measurement``) is post-processing, so every
+histories; the recording (``granchain.vibrometer``) is post-processing, so every
 instrument setting (filter x bandwidth, :func:`.studies.vibrometer_settings`) filters the
 same trajectory, nothing is re-simulated per bandwidth.
 
@@ -29,7 +29,7 @@ import pandas as pd
 from .. import tables
 from ..errors import GranchainError
 from ..gaps import members as scene_members
-from ..measurement import extract, measure, needs_trace, record
+from ..vibrometer import extract, measure, needs_trace, record
 from ..observables import probe_span, summarize
 from ..scene import MEASUREMENT_DEFAULTS
 from ..simulate import trajectories
@@ -166,7 +166,7 @@ def write_vibrometer(preset_name: str, preset: dict, out_table, out_provenance, 
                     "bandwidth_hz": sorted(float(b) for b in spec["bandwidth_hz"]),
                     "sampling_rate_hz": float(spec["sampling_rate_hz"]),
                     "noise_rms_m_s": 0.0},
-        recording="granchain.measurement: resampled onto the digitiser grid, causal "
+        recording="granchain.vibrometer: resampled onto the digitiser grid, causal "
                   "analog prototype (bilinear, bandwidth pre-warped), same filter on both "
                   "probes; peaks refined as granchain.observables.peak")
     tables.write_csv(df, out_table)
