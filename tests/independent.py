@@ -1,4 +1,4 @@
-"""Independent references for the tests: written here from the physics notes with scipy,
+"""Independent references for the tests: written here from the equations with scipy,
 sharing no code (and no constants) with granchain's engines, effects or materials.
 
 ``hertz_chain_peaks`` integrates the chapter's chain with the Hertz contacts only:
@@ -33,8 +33,8 @@ chain) and <= 7e-13 (walled and loaded), momentum 2e-15; one sphere on a wall an
 spheres against the closed forms: peak force 1.2e-12, contact time 2e-13, final
 velocities 1.7e-12; the chapter chain: 1.7e-12 from ``hertz_chain_peaks``.
 
-``hertz_chain_general(..., damping=...)`` adds the contact damping of the physics notes
-("Contact dissipation", LAMMPS pair granular on hertz/material): F = F_el + eta w at
+``hertz_chain_general(..., damping=...)`` adds the contact damping of LAMMPS pair granular
+on hertz/material: F = F_el + eta w at
 every contact and the end wall, coeff_restitution (e), tsuji (e) or viscoelastic
 (eta_n0), optionally limit_damping; the work of the damping forces is integrated with
 the motion. Undamped calls are unchanged (bit-identical results). Its own errors, from
@@ -58,7 +58,7 @@ from scipy.optimize import brentq
 
 RTOL = 1e-12
 
-# Handbook values of the physics notes' materials table: (E [Pa], nu, rho [kg/m^3]).
+# Handbook values of the materials: (E [Pa], nu, rho [kg/m^3]).
 SS440C = (200e9, 0.28, 7800.0)
 SS316 = (193e9, 0.30, 8000.0)
 
@@ -203,7 +203,7 @@ def _solve(E, nu, rho, R, n, v_s, gaps, probes, t_end, rtol):
 # ---------------------------------------------------------------------------------------
 # The general chain: unequal spheres, mixed materials, an end wall, a dead load
 # ---------------------------------------------------------------------------------------
-# Written from the physics notes' "Beyond the chapter" section with scipy's DOP853, like
+# Written from the equations of the field chains (docs/explanation/physics.md) with scipy's DOP853, like
 # the solver above, and sharing no code with granchain. Contact of spheres i and j:
 #   f = k delta^(3/2) for delta > 0, else 0;   k = (4/3) E* sqrt(R*),
 #   1/E* = (1 - nu_i^2)/E_i + (1 - nu_j^2)/E_j,   R* = R_i R_j / (R_i + R_j);
@@ -612,7 +612,7 @@ def _integrate_by_contact(rhs, C, n, fixed, y0, T, rtol, extra_switches=None):
 
 
 # ---------------------------------------------------------------------------------------
-# Contact damping (physics notes, "Contact dissipation": LAMMPS pair granular's damping on
+# Contact damping (LAMMPS pair granular's damping on
 # hertz/material contacts). At a contact of overlap delta > 0 closing at the overlap
 # rate w = delta' (m/s), the normal force is
 #   F = F_el + eta w,    F_el = k delta^(3/2),

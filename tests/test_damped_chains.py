@@ -1,4 +1,4 @@
-"""Damped chains (effects/contact_damping.py; physics notes, "Contact dissipation"): at a
+"""Damped chains (effects/contact_damping.py): at a
 contact of overlap delta > 0 closing at w = delta', F = F_el + eta w, with
 eta = c(e) sqrt(m_eff F_el / delta) (coeff_restitution, tsuji) or eta_n0 m_eff sqrt(R* delta)
 (viscoelastic), the same law at the end wall with m_eff = m_n and R* = R_n, and with

@@ -1,4 +1,4 @@
-"""Chains the field builds (physics notes, "Beyond the chapter"): spheres of unequal size,
+"""Chains the field builds: spheres of unequal size,
 mixed materials, a heavy striker, an end wall, a dead load on particle 2.
 
 Two parts. First, the independent solution the engine is compared with
@@ -67,7 +67,7 @@ def vstar(F0: float, R: float, E: float, nu: float, rho: float) -> float:
 
 
 def c0_preloaded(F0: float, R: float, E: float, nu: float, rho: float) -> float:
-    """Linear long-wave speed of a preloaded chain of equal spheres (physics notes):
+    """Linear long-wave speed of a preloaded chain of equal spheres (Nesterenko):
     c0 = 2R sqrt(k2 / m), k2 = (3/2) k^(2/3) F0^(1/3)."""
     k = hertz_k(R, E, nu, R, E, nu)
     k2 = 1.5 * k ** (2.0 / 3.0) * F0 ** (1.0 / 3.0)

@@ -28,7 +28,7 @@ from independent import hertz_chain_general
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "config" / "config.yaml"
-# 440C handbook values (the physics notes) and the chapter's radius, written out here
+# 440C handbook values and the chapter's radius, written out here
 E, NU, RHO, R = 200e9, 0.28, 7800.0, 150e-6
 K = 4.0 / 3.0 * E / (2.0 * (1.0 - NU ** 2)) * math.sqrt(R / 2.0)
 M = RHO * 4.0 / 3.0 * math.pi * R ** 3

@@ -148,7 +148,7 @@ def _paths(tdir, rdir):
 # formulas.
 RADIUS = 150e-6                      # the chapter's spheres (the figures' default radius)
 N_CHAIN = 15
-# handbook E (Pa), nu, rho (kg/m^3) of the physics notes, for Nesterenko's speed
+# handbook E (Pa), nu, rho (kg/m^3), for Nesterenko's speed
 HANDBOOK = {"ss316": (193e9, 0.30, 8000.0), "ss440c": (200e9, 0.28, 7800.0)}
 LABEL = {"ss316": "316", "ss440c": "440C"}
 VMAX_COLS = [f"vmax_p{i:02d}_m_s" for i in range(1, N_CHAIN + 1)]

@@ -13,7 +13,7 @@ Each effect module (``hertz``, ``rotation``, ``groove_friction``, ``air_drag``,
 ``physics_terms(scene)`` returns a :class:`Terms` holding one record per enabled effect.
 Both engines take the physics from here; no engine reads scene fields for physics.
 
-Conventions (the project's physics notes): z along the chain, theta the rotation about the
+Conventions: z along the chain, theta the rotation about the
 horizontal axis perpendicular to it (LAMMPS: x and omega_y); a sphere rolling forward has
 omega > 0. Slip at the groove: u = v - s R omega. Slip at the contact of spheres k, k+1:
 w = R (omega_k + omega_{k+1}).
