@@ -17,6 +17,7 @@ from .costmodel import (DEFAULT_MAX_TOTAL_STEPS, add_estimates, describe_auto, r
 from .errors import GranchainError
 from .fileio import atomic_write_text, check_output_path, json_text
 from .guards import check_run, run_size, scene_warnings
+from .progress import bar
 from .schedule import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost
 from .scene import load_scene
 
@@ -139,8 +140,10 @@ def cmd_run(args) -> int:
     kw = _engine_kw(args)
     if args.engine == "reference":
         kw["trace"] = False         # observables on the fly; a measured scene still traces
-    runs = run_scene(scene, engine=args.engine, max_steps=args.max_steps,
-                     max_memory_gb=args.max_memory_gb, **kw)
+    chains = len(scene.striker_velocities) * scene.realisations
+    with bar(chains, f"{scene.name}: chains", enabled=_progress(args)) as shown:
+        runs = run_scene(scene, engine=args.engine, max_steps=args.max_steps,
+                         max_memory_gb=args.max_memory_gb, progress=shown.update, **kw)
     if len(runs) == 1:
         doc = dict(runs[0].to_json(), scene=scene.name, scene_hash=scene.hash)
     else:
@@ -259,20 +262,45 @@ def _print_inference(res, out=None) -> None:
           f"run now, the rest cached): mean gaps {nm(res.gap_grid_m[0])}-{nm(res.gap_grid_m[1])} "
           f"({res.gap_grid_m[2]} points) x {len(res.speeds_m_s)} striker speed(s) x "
           f"{res.realisations} realisations", file=out)
+    _print_sources(res, out)
     print(f"Eq. 5.4 reading (chapter): least-squares {nm(res.eq54_gap_m)}, "
           f"upper-bound reading {nm(res.eq54_gap_bound_m)}", file=out)
-    for f in res.flags:
-        print(f"warning: {f}: " + {
-            "posterior_at_grid_end": "the posterior still has weight at the largest simulated "
-                                     "mean gap; median and upper bound not measured (n/a): "
-                                     "raise --gap-max-nm",
-            "no_simulated_match": "no simulated mean gap reproduces the timings"}[f], file=out)
+    _print_warnings([f"{f}: " + {
+        "posterior_at_grid_end": "the posterior still has weight at the largest simulated "
+                                 "mean gap; median and upper bound not measured (n/a): "
+                                 "raise --gap-max-nm",
+        "no_simulated_match": "no simulated mean gap reproduces the timings"}[f]
+        for f in res.flags], out)
 
 
-def check_grid(base, args) -> None:
+def _print_sources(res, out) -> None:
+    """Where an inference's gap law and striker speeds came from: the base scene, or the
+    defaults of ``inference.complete_base``."""
+    speeds = ", ".join(f"{v:g}" for v in res.speeds_m_s)
+    law = ("the base scene's gap law (gaps.distribution)" if res.gap_law_source == "scene"
+           else "the chapter's gap law (default: the base scene gives no gaps.distribution)")
+    sp = (f"the base scene's striker speeds {speeds} m/s (striker.velocity)"
+          if res.speeds_source == "scene" else
+          f"the data's striker speeds {speeds} m/s (default: the base scene gives no "
+          "striker.velocity)")
+    print(f"simulated with {law} and {sp}", file=out)
+
+
+def _speeds_origin(src) -> tuple[str, str]:
+    """(where the simulated striker speeds come from, how to simulate fewer), for the
+    grid guards' messages; ``src``: the sources of ``inference.complete_base``."""
+    if src["speeds"] == "data":
+        return ("the data's; the base scene gives no striker.velocity",
+                "give the base scene fewer striker speeds (striker.velocity) bracketing the "
+                "data")
+    return "striker.velocity of --scene", "the base scene's striker speeds"
+
+
+def check_grid(base, args, src) -> None:
     """Refuse an inference whose simulated grid (mean gaps x striker speeds x
     realisations) is beyond the whole-run limits, cached points included. Values the
-    inference itself refuses (too few points or realisations) are left to it."""
+    inference itself refuses (too few points or realisations) are left to it. ``base``:
+    the completed base scene, ``src`` its sources (``inference.complete_base``)."""
     from .inference import check_base, grid_scene
     check_base(base)
     G, R = args.gap_points, args.realisations
@@ -291,11 +319,12 @@ def check_grid(base, args) -> None:
     est["result_bytes"] = 2 * ends[1]["result_bytes"] + 16.0 * G * len(speeds) * R
     est["record_bytes"] = 2 * ends[1]["record_bytes"]
     est["bytes"] = est["result_bytes"] + est["record_bytes"]
+    origin, fewer = _speeds_origin(src)
     size = (f"{G * len(speeds) * R} chains: {G} mean gaps (--gap-points) x {len(speeds)} "
-            f"striker speed{'s' if len(speeds) != 1 else ''} (striker.velocity of --scene) x "
+            f"striker speed{'s' if len(speeds) != 1 else ''} ({origin}) x "
             f"{R} realisations (--realisations) of {base.n} spheres (chain.n)")
     check_run("the inference grid", est, size=size,
-              fix="lower --realisations, --gap-points or the base scene's striker speeds",
+              fix=f"lower --realisations, --gap-points or {fewer}",
               max_total_steps=args.max_total_steps, max_memory_gb=args.max_memory_gb)
 
 
@@ -318,23 +347,23 @@ def _print_joint_inference(res, out=None) -> None:
           f"{nm(g0)}-{nm(g1)} ({G} points, {res.gap_spacing} spacing) x e {_fmt(e0)}-{_fmt(e1)} "
           f"({E} points) x {len(res.speeds_m_s)} striker speed(s) x {res.realisations} "
           "realisations", file=out)
+    _print_sources(res, out)
     print(f"posterior predictive check: {res.predictive_outside} of {res.predictive_values} "
           "measured values outside their 95% predictive range", file=out)
     print(f"Eq. 5.4 reading (chapter; packed chain at the inferred e): least-squares "
           f"{nm(res.eq54_gap_m)}, upper-bound reading {nm(res.eq54_gap_bound_m)}", file=out)
-    for f in res.flags:
-        print(f"warning: {f}: " + {
-            "posterior_at_grid_end": "the posterior still has weight at the largest simulated "
-                                     "mean gap; its median and upper bound not measured (n/a): "
-                                     "raise --gap-max-nm",
-            "restitution_at_grid_end": "the posterior still has weight at the smallest "
-                                       "simulated e; its median and lower bound not measured "
-                                       "(n/a): lower --e-min",
-            "no_simulated_match": "no simulated (mean gap, e) reproduces the data"}[f],
-            file=out)
+    _print_warnings([f"{f}: " + {
+        "posterior_at_grid_end": "the posterior still has weight at the largest simulated "
+                                 "mean gap; its median and upper bound not measured (n/a): "
+                                 "raise --gap-max-nm",
+        "restitution_at_grid_end": "the posterior still has weight at the smallest "
+                                   "simulated e; its median and lower bound not measured "
+                                   "(n/a): lower --e-min",
+        "no_simulated_match": "no simulated (mean gap, e) reproduces the data"}[f]
+        for f in res.flags], out)
 
 
-def check_joint_grid(base, args) -> None:
+def check_joint_grid(base, args, src) -> None:
     """Refuse a joint inference whose grid (mean gaps x restitutions x striker speeds x
     realisations) is beyond the whole-run limits, as :func:`check_grid`."""
     from .errors import SceneError
@@ -362,19 +391,20 @@ def check_joint_grid(base, args) -> None:
     est["result_bytes"] = 2 * ends[1]["result_bytes"] + 32.0 * G * E * len(speeds) * R
     est["record_bytes"] = 2 * ends[1]["record_bytes"]
     est["bytes"] = est["result_bytes"] + est["record_bytes"]
+    origin, fewer = _speeds_origin(src)
     size = (f"{G * E * len(speeds) * R} chains: {G} mean gaps (--gap-points) x {E} "
             f"restitutions (--e-points) x {len(speeds)} striker speed"
-            f"{'s' if len(speeds) != 1 else ''} (striker.velocity of --scene) x {R} "
+            f"{'s' if len(speeds) != 1 else ''} ({origin}) x {R} "
             f"realisations (--realisations) of {base.n} spheres (chain.n)")
     check_run("the inference grid", est, size=size,
-              fix="lower --realisations, --gap-points, --e-points or the base scene's "
-                  "striker speeds", max_total_steps=args.max_total_steps,
-              max_memory_gb=args.max_memory_gb)
+              fix=f"lower --realisations, --gap-points, --e-points or {fewer}",
+              max_total_steps=args.max_total_steps, max_memory_gb=args.max_memory_gb)
 
 
 def cmd_infer(args) -> int:
     from .errors import SceneError
-    from .inference import check_restitution_base, infer, parse_fit, read_measurements
+    from .inference import (check_restitution_base, complete_base, infer, parse_fit,
+                            read_measurements)
     fit = parse_fit(args.fit)
     if args.plot:
         check_output_path(args.plot, args.force, "--plot")
@@ -385,27 +415,31 @@ def cmd_infer(args) -> int:
         check_output_path(args.out, args.force, "--out")
     joint = "restitution" in fit
     meas = read_measurements(args.measurements, peaks=joint)
-    base = resolve_auto(load_scene(args.scene, args.set))
+    # the gap law and speeds the base scene leaves out are filled in before method auto
+    # is resolved, so that auto chooses for the scene that runs
+    base, src = complete_base(load_scene(args.scene, args.set), meas)
+    base = resolve_auto(base)
     if joint:
         try:
             check_restitution_base(base)
         except SceneError as exc:
             raise GranchainError(f"{args.scene}: {exc} (--fit names restitution)") from None
-        return _infer_joint(args, meas, base)
-    check_grid(base, args)
+        return _infer_joint(args, meas, base, src)
+    check_grid(base, args, src)
     res = infer(base, meas, gap_max=args.gap_max_nm * 1e-9, gap_points=args.gap_points,
                 realisations=args.realisations, cache_dir=None if args.no_cache else args.cache_dir,
-                source=f"{args.measurements}, ", prior=args.prior)
+                source=f"{args.measurements}, ", prior=args.prior, progress=_progress(args))
     return _report_inference(args, res, meas, base, _print_inference, "plot_inference")
 
 
-def _infer_joint(args, meas, base) -> int:
+def _infer_joint(args, meas, base, src) -> int:
     from .inference import infer_joint
-    check_joint_grid(base, args)
+    check_joint_grid(base, args, src)
     res = infer_joint(base, meas, gap_max=args.gap_max_nm * 1e-9, gap_points=args.gap_points,
                       e_min=args.e_min, e_points=args.e_points, realisations=args.realisations,
                       cache_dir=None if args.no_cache else args.cache_dir,
-                      source=f"{args.measurements}, ", prior=args.prior)
+                      source=f"{args.measurements}, ", prior=args.prior,
+                      progress=_progress(args))
     return _report_inference(args, res, meas, base, _print_joint_inference,
                              "plot_joint_inference")
 
@@ -425,6 +459,16 @@ def _report_inference(args, res, meas, base, print_human, plot: str) -> int:
         from .figures import inference as figs
         getattr(figs, plot)(res, meas, base, args.plot, force=args.force)
     return 0
+
+
+def _progress(args) -> bool | None:
+    """Progress bars: off with --no-progress, else when stderr is a terminal (None)."""
+    return False if args.no_progress else None
+
+
+def _no_progress(sp) -> None:
+    sp.add_argument("--no-progress", action="store_true",
+                    help="no progress bar on stderr (shown only when stderr is a terminal)")
 
 
 def _default_cache() -> str:
@@ -497,6 +541,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "(id x y z vx) read with MDAnalysis, for a full trajectory kept with "
                          "--workdir. Same results")
     _cost_args(sp)
+    _no_progress(sp)
     sp.set_defaults(func=cmd_run)
 
     sp = sub.add_parser("compare", help="run a scene through the reference engine and LAMMPS "
@@ -526,6 +571,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = sub.add_parser("warm-up", help="compile the reference engine's kernels for this machine "
                                         "(numba's JIT cache and the ahead-of-time module)")
+    _no_progress(sp)
     sp.set_defaults(func=cmd_warm_up)
 
     sp = sub.add_parser("infer", help="infer the mean gap of a chain (and its coefficient of "
@@ -538,7 +584,8 @@ def build_parser() -> argparse.ArgumentParser:
                          "gap_mean,restitution (the mean gap and contact_damping's e, from "
                          "the timing and both probes' peaks)")
     sp.add_argument("--scene", required=True, help="base scene YAML: material, chain, effects, "
-                    "integrator, gap law (gaps.distribution), simulated speeds (striker.velocity)")
+                    "integrator, gap law (gaps.distribution; default the chapter's uniform "
+                    "law), simulated speeds (striker.velocity; default the data's)")
     sp.add_argument("--set", action="append", default=[], metavar="KEY.SUB=VALUE",
                     help="override a field of the base scene; repeatable")
     sp.add_argument("--json", action="store_true", help="print one JSON object")
@@ -566,6 +613,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "(default $GRANCHAIN_CACHE_DIR/inference, else $XDG_CACHE_HOME/granchain/inference)")
     sp.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
     _run_limits(sp)
+    _no_progress(sp)
     sp.set_defaults(func=cmd_infer)
 
     return p
@@ -573,7 +621,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def cmd_warm_up(args) -> int:
     from .engines import backend, warmup
-    warmup.build(log=lambda msg: print(msg, file=sys.stderr), workers=backend.num_threads())
+    warmup.build(log=lambda msg: print(msg, file=sys.stderr), workers=backend.num_threads(),
+                 progress=_progress(args))
     return 0
 
 

@@ -8,7 +8,10 @@ arrival delay), optional ``dt_err_s`` (one-sigma Gaussian error of that timing) 
 optional ``chain_id`` (rows with the same id were measured on one assembled chain and share
 one gap realisation) -- and a base scene (material, radius, n, probes, effects, integrator,
 the gap law's shape in its ``gaps:`` block, the simulated striker speeds in
-``striker.velocity``).
+``striker.velocity``). A base scene without ``gaps.distribution`` gets the chapter's
+uniform law, one without ``striker.velocity`` is simulated at the data's own striker
+speeds (:func:`complete_base`; the result says which, ``gap_law_source`` and
+``speeds_source``).
 
 Method: a grid posterior over the gap law's mean, with a likelihood built from simulated
 ensembles (never from Eq. 5.4).
@@ -177,6 +180,7 @@ COLUMNS = ("v_striker_m_s", *TIMING_COLUMNS, "dt_err_s", "chain_id", *PEAK_COLUM
            "vmax_err_m_s")
 FITS = ("gap_mean", "restitution")      # what --fit may name
 GAP_LAWS = ("uniform", "exponential")     # laws whose realisations scale with their mean
+DEFAULT_GAP_LAW = "uniform"               # the chapter's: uniform on [0, 2 mean], i.i.d.
 CACHE_FORMAT = 1                          # bump when the cached arrays change meaning
 FINE_POINTS = 801                         # posterior evaluation points over [0, gap_max]
 EDGE_WEIGHT = 1e-2        # posterior density at gap_max, relative to its peak, that flags
@@ -407,6 +411,32 @@ def timing(result, column: str) -> float:
     return {"dt_peak_s": result.dt_peak, "dt_front_s": result.dt_front}[column]
 
 
+def complete_base(base: Scene, meas: Measurements) -> tuple[Scene, dict]:
+    """The scene the inference simulates, and where its gap law and striker speeds come
+    from (``{"gap_law": "scene" | "default", "speeds": "scene" | "data"}``).
+
+    A base scene that does not give ``gaps.distribution`` gets DEFAULT_GAP_LAW, the
+    chapter's (its mean is a placeholder: the inference sets it); one that does not give
+    ``striker.velocity`` is simulated at the data's own striker speeds. What the scene
+    gives is kept as it is, and checked by :func:`check_base` and :func:`check_speeds`.
+    The returned scene keeps the base scene's ``given``, so completing it again changes
+    nothing and reports the same sources."""
+    change = {}
+    src = {"gap_law": "scene", "speeds": "scene"}
+    if "gaps.distribution" not in base.given:
+        src["gap_law"] = "default"
+        if base.gap_distribution != DEFAULT_GAP_LAW:
+            change["gaps"] = {"distribution": DEFAULT_GAP_LAW, "mean": 0.0}
+    if "striker.velocity" not in base.given:
+        src["speeds"] = "data"
+        speeds = sorted({float(v) for v in meas.v})
+        if list(base.striker_velocities) != speeds:
+            change["striker"] = {"velocity": speeds}
+    if change:
+        base = dataclasses.replace(base.derive(change), given=base.given)
+    return base, src
+
+
 def check_base(base: Scene) -> None:
     """A base scene the inference can use: a gap law with a mean that scales its
     realisations, and a fixed set of striker speeds."""
@@ -414,7 +444,8 @@ def check_base(base: Scene) -> None:
     if base.gap_distribution not in GAP_LAWS:
         raise SceneError("gaps.distribution", f"'{base.gap_distribution}' has no mean gap to "
                          "infer", f"use one of {', '.join(GAP_LAWS)} (mean: any value; the "
-                         "inference sets it)")
+                         "inference sets it), or leave gaps.distribution out for the "
+                         f"chapter's {DEFAULT_GAP_LAW} law")
 
 
 def grid_scene(base: Scene, gap_mean: float, realisations: int) -> Scene:
@@ -453,10 +484,14 @@ def _cache_file(cache_dir: Path, scene: Scene) -> Path:
 
 
 def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: int,
-                  cache_dir=None, engine: str = "reference") -> Grid:
+                  cache_dir=None, engine: str = "reference",
+                  progress: bool | None = None) -> Grid:
     """Simulate (or read from ``cache_dir``) the grid of mean gaps
-    ``linspace(0, gap_max, gap_points)`` x the base scene's speeds x ``realisations``."""
+    ``linspace(0, gap_max, gap_points)`` x the base scene's speeds x ``realisations``.
+    ``progress``: a bar of the chains still to simulate on stderr (``granchain.progress``;
+    None: when stderr is a terminal)."""
     from .costmodel import resolve_auto
+    from .progress import bar
     from .simulate import run_scene
     check_base(base)
     if gap_points < 3:
@@ -472,7 +507,7 @@ def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: in
     base = base.derive(striker={"velocity": [float(v) for v in speeds]})
     gaps = np.linspace(0.0, gap_max, gap_points)
     out = {c: np.full((gaps.size, speeds.size, realisations), np.nan) for c in TIMING_COLUMNS}
-    hashes, simulated = [], 0
+    hashes, simulated, todo = [], 0, []
     for k, g in enumerate(gaps):
         scene = resolve_auto(grid_scene(base, g, realisations))
         hashes.append(scene.hash)
@@ -481,18 +516,22 @@ def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: in
             with np.load(path) as z:
                 for c in TIMING_COLUMNS:
                     out[c][k] = z[c]
-            continue
-        res = run_scene(scene, engine=engine)
-        simulated += len(res)
-        for r in res:
-            j = int(np.searchsorted(speeds, r.v_striker))
-            for c in TIMING_COLUMNS:
-                out[c][k, j, r.realisation] = timing(r, c)
-        if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            buf = io.BytesIO()
-            np.savez(buf, **{c: out[c][k] for c in TIMING_COLUMNS})
-            atomic_write_bytes(path, buf.getvalue(), force=True, field="--cache-dir")
+        else:
+            todo.append((k, scene, path))
+    with bar(len(todo) * speeds.size * realisations, f"{base.name}: inference grid",
+             enabled=progress) as shown:
+        for k, scene, path in todo:
+            res = run_scene(scene, engine=engine, progress=shown.update)
+            simulated += len(res)
+            for r in res:
+                j = int(np.searchsorted(speeds, r.v_striker))
+                for c in TIMING_COLUMNS:
+                    out[c][k, j, r.realisation] = timing(r, c)
+            if path is not None:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                buf = io.BytesIO()
+                np.savez(buf, **{c: out[c][k] for c in TIMING_COLUMNS})
+                atomic_write_bytes(path, buf.getvalue(), force=True, field="--cache-dir")
     return Grid(gaps, speeds, out, tuple(hashes), simulated)
 
 
@@ -558,16 +597,17 @@ def interp_rel_error(grid: Grid, column: str) -> float:
     return float(np.percentile(e, 95) / 4.0) if e.size else 0.0
 
 
-def check_speeds(meas: Measurements, grid: Grid, source: str = "") -> None:
-    """Every row's striker speed must lie within the simulated speeds."""
-    lo, hi = grid.speeds[0], grid.speeds[-1]
+def check_speeds(meas: Measurements, speeds, source: str = "") -> None:
+    """Every row's striker speed must lie within the simulated ``speeds`` (m/s)."""
+    lo, hi = float(min(speeds)), float(max(speeds))
     for k, (v, line) in enumerate(zip(meas.v, meas.lines)):
         if v < lo * (1 - SPEED_RTOL) or v > hi * (1 + SPEED_RTOL):
             rng = f"{lo:g} m/s" if lo == hi else f"{lo:g}-{hi:g} m/s"
             raise _bad(f"{source}row {k + 1} (line {line}), column 'v_striker_m_s'",
                        f"{v:g} m/s is outside the simulated striker speeds ({rng})",
                        "add speeds to the base scene's striker.velocity list so they "
-                       "bracket every row")
+                       "bracket every row, or leave striker.velocity out to simulate the "
+                       "data's own speeds")
 
 
 def peak_bounds(base: Scene) -> tuple[float, float]:
@@ -656,6 +696,8 @@ class Inference:
     realisations: int
     gap_grid_m: tuple[float, float, int]
     speeds_m_s: tuple[float, ...]
+    gap_law_source: str           # "scene": the base scene's gaps.distribution; "default"
+    speeds_source: str            # "scene": its striker.velocity; "data": the rows' speeds
     interp_rel_error: float
     rows: int
     chains: int
@@ -723,14 +765,19 @@ def _eq54(T0: np.ndarray, speeds: np.ndarray, meas: Measurements, probes):
 
 def infer(base: Scene, meas: Measurements, *, gap_max: float = 250e-9, gap_points: int = 26,
           realisations: int = 64, cache_dir=None, grid: Grid | None = None,
-          source: str = "", prior: str = PRIOR) -> Inference:
-    """Infer the mean gap (module doc) from ``meas`` with the base scene's model; a given
-    ``grid`` is used as is (it must come from ``simulate_grid`` on this base scene)."""
+          source: str = "", prior: str = PRIOR, progress: bool | None = None) -> Inference:
+    """Infer the mean gap (module doc) from ``meas`` with the base scene's model, completed
+    by :func:`complete_base`; a given ``grid`` is used as is (it must come from
+    ``simulate_grid`` on the completed base scene). ``progress``: a progress bar of the
+    grid's simulation on stderr (``simulate_grid``)."""
+    base, src = complete_base(base, meas)
     check_base(base)
     check_peaks(meas, base, source)
+    # checked before the grid is simulated
+    check_speeds(meas, base.striker_velocities if grid is None else grid.speeds, source)
     if grid is None:
-        grid = simulate_grid(base, gap_max, gap_points, realisations, cache_dir)
-    check_speeds(meas, grid, source)
+        grid = simulate_grid(base, gap_max, gap_points, realisations, cache_dir,
+                             progress=progress)
     fine = np.linspace(0.0, float(grid.gaps[-1]), FINE_POINTS)
     rel = interp_rel_error(grid, meas.column)
     logpost = log_likelihood(grid, meas, fine, rel) + log_prior(fine, prior)
@@ -743,7 +790,8 @@ def infer(base: Scene, meas: Measurements, *, gap_max: float = 250e-9, gap_point
         method="grid posterior, simulated-ensemble kernel likelihood",
         realisations=grid.realisations,
         gap_grid_m=(float(grid.gaps[0]), float(grid.gaps[-1]), int(grid.gaps.size)),
-        speeds_m_s=tuple(float(v) for v in grid.speeds), interp_rel_error=rel,
+        speeds_m_s=tuple(float(v) for v in grid.speeds), gap_law_source=src["gap_law"],
+        speeds_source=src["speeds"], interp_rel_error=rel,
         rows=len(meas), chains=len(meas.groups), scene=base.name,
         scene_hashes=grid.hashes, flags=tuple(flags), posterior_g_m=fine, posterior_pdf=pdf,
         grid=grid)
@@ -851,12 +899,14 @@ def check_joint_options(gap_max: float, gap_points: int, e_min: float, e_points:
 
 def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: float,
                         e_points: int, realisations: int, cache_dir=None,
-                        engine: str = "reference") -> JointGrid:
+                        engine: str = "reference", progress: bool | None = None) -> JointGrid:
     """Simulate (or read from ``cache_dir``) the joint grid: mean gaps
     ``gap_nodes(gap_max, gap_points)`` x restitutions ``restitution_nodes(e_min,
-    e_points)`` x the base scene's speeds x ``realisations`` (module doc)."""
+    e_points)`` x the base scene's speeds x ``realisations`` (module doc). ``progress``
+    as :func:`simulate_grid`."""
     import time
     from .costmodel import resolve_auto
+    from .progress import bar
     from .simulate import run_scene
     check_base(base)
     check_restitution_base(base)
@@ -869,7 +919,7 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
     gaps, es = gap_nodes(gap_max, gap_points), restitution_nodes(e_min, e_points)
     shape = (gaps.size, es.size, speeds.size, realisations)
     out = {c: np.full(shape, np.nan) for c in JOINT_OBS}
-    hashes, simulated = [], 0
+    hashes, simulated, todo = [], 0, []
     t0 = time.perf_counter()
     for k, g in enumerate(gaps):
         for j, e in enumerate(es):
@@ -880,8 +930,12 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
                 with np.load(path) as z:
                     for c in JOINT_OBS:
                         out[c][k, j] = z[c]
-                continue
-            res = run_scene(scene, engine=engine)
+            else:
+                todo.append((k, j, scene, path))
+    with bar(len(todo) * speeds.size * realisations, f"{base.name}: inference grid",
+             enabled=progress) as shown:
+        for k, j, scene, path in todo:
+            res = run_scene(scene, engine=engine, progress=shown.update)
             simulated += len(res)
             for r in res:
                 s = int(np.searchsorted(speeds, r.v_striker))
@@ -1076,10 +1130,6 @@ def _model_rel(errs: dict, column: str, fine_g: np.ndarray, gaps: np.ndarray) ->
 
 
 # --- likelihood and posterior --------------------------------------------------------
-def joint_check_speeds(meas: Measurements, grid: JointGrid, source: str = "") -> None:
-    check_speeds(meas, Grid(grid.gaps, grid.speeds, {}, (), 0), source)
-
-
 def fine_axes(grid: JointGrid) -> tuple[np.ndarray, np.ndarray]:
     """The posterior's evaluation points: mean gaps (quadratic spacing, as the nodes) and
     restitutions (uniform) over the grid's range."""
@@ -1209,6 +1259,8 @@ class JointInference:
     gap_spacing: str
     restitution_grid: tuple[float, float, int]
     speeds_m_s: tuple[float, ...]
+    gap_law_source: str           # as Inference
+    speeds_source: str
     interp_rel_error: dict
     rows: int
     chains: int
@@ -1273,20 +1325,23 @@ def predictive(grid: JointGrid, meas: Measurements, draws: np.ndarray,
 def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = 500e-9,
                 gap_points: int = 21, e_min: float = E_MIN, e_points: int = E_POINTS,
                 realisations: int = 64, cache_dir=None, grid: JointGrid | None = None,
-                source: str = "", prior: str = PRIOR) -> JointInference:
+                source: str = "", prior: str = PRIOR,
+                progress: bool | None = None) -> JointInference:
     """Infer the mean gap and the coefficient of restitution together (module doc) from
-    ``meas`` (timings and both probes' peaks on every row) with the base scene's model; a
-    given ``grid`` is used as is (from ``simulate_joint_grid`` on this base scene)."""
+    ``meas`` (timings and both probes' peaks on every row) with the base scene's model,
+    completed by :func:`complete_base`; a given ``grid`` is used as is (from
+    ``simulate_joint_grid`` on the completed base scene). ``progress`` as :func:`infer`."""
+    base, src = complete_base(base, meas)
     check_base(base)
     check_restitution_base(base)
     if not meas.has_peaks:
         raise GranchainError(f"{source}columns 'vmax_1_m_s', 'vmax_2_m_s': fitting the "
                              "restitution needs the measured peaks on every row; give them")
     check_peaks(meas, base, source)
+    check_speeds(meas, base.striker_velocities if grid is None else grid.speeds, source)
     if grid is None:
         grid = simulate_joint_grid(base, gap_max, gap_points, e_min, e_points, realisations,
-                                   cache_dir)
-    joint_check_speeds(meas, grid, source)
+                                   cache_dir, progress=progress)
     fg, fe = fine_axes(grid)
     errs = joint_interp_errors(grid, meas.column)
     logpost = joint_log_likelihood(grid, meas, fg, fe, errs) + log_prior(fg, prior)[:, None]
@@ -1343,7 +1398,8 @@ def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = 500e-9,
         gap_spacing="quadratic",
         restitution_grid=(float(grid.restitutions[0]), float(grid.restitutions[-1]),
                           int(grid.restitutions.size)),
-        speeds_m_s=tuple(float(v) for v in grid.speeds),
+        speeds_m_s=tuple(float(v) for v in grid.speeds), gap_law_source=src["gap_law"],
+        speeds_source=src["speeds"],
         interp_rel_error={k: {"g_max": float(np.max(v["g"])), "e": float(v["e"]),
                               "speed": float(v["speed"])} for k, v in errs.items()},
         rows=len(meas), chains=len(meas.groups), scene=base.name,

@@ -25,7 +25,7 @@ import pytest
 
 from granchain import inference as I
 from granchain.cli import main
-from granchain.scene import scene_from_dict
+from granchain.scene import load_scene, scene_from_dict
 
 from conftest import REPO
 
@@ -482,6 +482,8 @@ def test_infer_command_json_and_plot(tmp_path, capsys):
         assert key in doc
     assert doc["n_simulated"] == 5 * 2 * 8 and doc["n_simulated_now"] == 80
     assert doc["timing_column"] == "dt_peak_s" and doc["chains"] == 1
+    assert doc["speeds_m_s"] == [0.04, 0.06] and doc["speeds_source"] == "scene"
+    assert doc["gap_law_source"] == "scene"
     assert (tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG"
     assert main(argv) == 0
     again = json.loads(capsys.readouterr().out)
@@ -493,3 +495,79 @@ def test_shipped_example_is_labelled_synthetic(repo):
     assert text.startswith("# SYNTHETIC")
     meas = I.read_measurements(repo / "measurements" / "example_synthetic.csv")
     assert len(meas) == 8 and len(meas.groups) == 5
+
+
+# ---------------------------------------------------------------------------------------
+# a base scene without a gap law or striker speeds
+# ---------------------------------------------------------------------------------------
+BARE = "material: ss440c\neffects: [hertz]\n"
+ROWS_CSV = "v_striker_m_s,dt_front_s,dt_err_s\n0.05,2.95e-05,2.0e-07\n0.035,3.41e-05,2.0e-07\n"
+
+
+def test_a_bare_base_scene_runs_with_the_chapter_law_at_the_data_speeds(tmp_path, capsys):
+    """A base scene with neither gaps.distribution nor striker.velocity: the grid is the
+    chapter's uniform law at the rows' own speeds, and the output says both were
+    defaulted."""
+    scene = tmp_path / "bare.yaml"
+    scene.write_text(BARE)
+    csv_path = tmp_path / "m.csv"
+    csv_path.write_text(ROWS_CSV)
+    argv = ["infer", str(csv_path), "--scene", str(scene), "--gap-points", "3",
+            "--gap-max-nm", "100", "--realisations", "2", "--cache-dir", str(tmp_path / "c")]
+    assert main(argv + ["--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["gap_law"].startswith("uniform on [0, 2 mean]")
+    assert doc["gap_law_source"] == "default"
+    assert doc["speeds_m_s"] == [0.035, 0.05] and doc["speeds_source"] == "data"
+    assert doc["n_simulated"] == 3 * 2 * 2
+    assert main(argv) == 0                    # the summary, from the cache
+    out = capsys.readouterr().out
+    assert ("simulated with the chapter's gap law (default: the base scene gives no "
+            "gaps.distribution) and the data's striker speeds 0.035, 0.05 m/s (default: the "
+            "base scene gives no striker.velocity)") in out
+
+
+def test_what_the_base_scene_gives_is_kept(tmp_path):
+    """complete_base fills in only what the base scene (file or --set) leaves out: its own
+    gap law and speeds stay, the sources say so, and completing twice changes nothing."""
+    meas = I.read_measurements(_write(tmp_path / "m.csv", ROWS_CSV))
+    path = _write(tmp_path / "s.yaml", BARE + "gaps: {distribution: exponential, mean: 1.0e-8}\n"
+                  "striker: {velocity: [0.03, 0.06]}\n")
+    given = load_scene(path)
+    base, src = I.complete_base(given, meas)
+    assert base.hash == given.hash and src == {"gap_law": "scene", "speeds": "scene"}
+    law_only = load_scene(_write(tmp_path / "b.yaml", BARE), ["gaps.distribution=exponential",
+                                                             "gaps.mean=1e-8"])
+    base, src = I.complete_base(law_only, meas)
+    assert base.gap_distribution == "exponential" and base.striker_velocities == (0.035, 0.05)
+    assert src == {"gap_law": "scene", "speeds": "data"}
+    speeds_only = load_scene(_write(tmp_path / "c.yaml", BARE + "striker: {velocity: 0.04}\n"))
+    base, src = I.complete_base(speeds_only, meas)
+    assert base.gap_distribution == "uniform" and base.striker_velocities == (0.04,)
+    assert src == {"gap_law": "default", "speeds": "scene"}
+    again, src_again = I.complete_base(base, meas)
+    assert again is base and src_again == src
+
+
+def _write(path, text):
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("scene_text, needles", [
+    ("gaps: {distribution: none}\n", ["gaps.distribution", "'none' has no mean gap to infer"]),
+    ("gaps: {distribution: fixed, mean: 1.0e-8}\n", ["gaps.distribution", "'fixed'"]),
+    ("striker: {velocity: 0.1}\n", ["row 1 (line 2)", "0.05 m/s is outside the simulated "
+                                    "striker speeds (0.1 m/s)", "striker.velocity"]),
+    ("striker: {velocity: [0.04, 0.1]}\n", ["row 2 (line 3)", "(0.04-0.1 m/s)"]),
+])
+def test_an_explicit_base_scene_that_cannot_be_used_is_one_line(tmp_path, capsys, scene_text,
+                                                                 needles):
+    """An explicit gap law without a mean to infer, or explicit speeds that do not bracket
+    the rows, are refused in one line (before anything is simulated): the defaults apply
+    only to what the scene leaves out."""
+    scene = _write(tmp_path / "s.yaml", BARE + scene_text)
+    csv_path = _write(tmp_path / "m.csv", ROWS_CSV)
+    refused(capsys, ["infer", str(csv_path), "--scene", str(scene), "--gap-points", "3",
+                     "--realisations", "2", "--cache-dir", str(tmp_path / "c")], *needles)
+    assert not (tmp_path / "c").exists()

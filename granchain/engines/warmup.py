@@ -4,6 +4,7 @@ ahead-of-time module that ``engines.backend`` loads for serial calls."""
 from __future__ import annotations
 
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -20,8 +21,9 @@ RUNS = (("rk4", False), ("verlet", False), ("adaptive", False), ("event", True),
 GROUPS = (RUNS[:4], RUNS[4:])
 
 
-def _warm_up_runs(runs=RUNS) -> None:
-    """Small chains through the reference engine's methods (every effect on, gaps)."""
+def _warm_up_runs(runs=RUNS, done=None) -> None:
+    """Small chains through the reference engine's methods (every effect on, gaps);
+    ``done(1)`` after each run, if given."""
     import numpy as np
 
     from ..scene import scene_from_dict
@@ -40,34 +42,56 @@ def _warm_up_runs(runs=RUNS) -> None:
         # and the JIT kernels would stay uncompiled
         gaps = np.full((2, scene.n - 1), 5e-9)
         list(reference.run(scene, gaps, np.array([0.1, 0.1]), progress=False, trace=trace))
+        if done is not None:
+            done(1)
 
 
-def warm_jit(workers: int = 1) -> None:
+def warm_jit(workers: int = 1, done=None) -> None:
     """Compile the JIT kernels into numba's cache (or load them from it): with workers > 1,
     the groups of :data:`GROUPS` in that many processes at once (each compiles what its
     runs reach; numba writes each cache entry atomically), then this process loads them
-    all from the cache."""
+    all from the cache. ``done(k)`` as k of :data:`RUNS` are compiled (a progress bar's
+    ``update``), if given."""
     import subprocess
-    import sys
     if workers > 1:
         procs = []
         for k in range(min(workers, len(GROUPS))):
             runs = [r for g in GROUPS[k::workers] for r in g]
             code = ("from granchain.engines.warmup import _warm_up_runs; "
                     f"_warm_up_runs({runs!r})")
-            procs.append(subprocess.Popen([sys.executable, "-c", code]))
-        bad = [p.wait() for p in procs]
+            procs.append((subprocess.Popen([sys.executable, "-c", code]), len(runs)))
+        bad = []
+        for proc, n in procs:
+            bad.append(proc.wait())
+            if done is not None:
+                done(n)
         if any(bad):
             raise RuntimeError(f"a warm-up process failed (exit codes {bad})")
-    _warm_up_runs()
+        _warm_up_runs()
+    else:
+        _warm_up_runs(done=done)
 
 
-def build(log=print, workers: int = 1, aot: bool = True) -> Path | None:
+def build(log=print, workers: int = 1, aot: bool = True,
+          progress: bool | None = None) -> Path | None:
     """Warm numba's JIT cache (in ``workers`` processes at once, :func:`warm_jit`) and,
     with ``aot``, compile the ahead-of-time module for this machine. Returns the module's
-    path (None if numba.pycc is not available or ``aot`` is off)."""
+    path (None if numba.pycc is not available or ``aot`` is off). ``progress``: a bar on
+    stderr counting the warm-up runs and the ahead-of-time module (``granchain.progress``;
+    None: when stderr is a terminal); ``log``'s lines are written around it."""
+    from ..progress import bar
+    with bar(len(RUNS) + (1 if aot else 0), "granchain warm-up", unit="step",
+             enabled=progress) as shown:
+        def say(msg):
+            with shown.external_write_mode(file=sys.stderr):
+                log(msg)
+        return _build(say, workers, aot, shown.update)
+
+
+def _build(log, workers: int, aot: bool, done) -> Path | None:
+    """:func:`build`, with ``done(k)`` as k of its steps finish."""
     t0 = time.perf_counter()
-    warm_jit(workers)
+    warm_jit(workers, done)
     log(f"granchain warm-up: JIT kernels compiled or loaded from numba's cache in "
         f"{time.perf_counter() - t0:.1f} s ({workers} process{'es' if workers > 1 else ''})")
     if not aot:
@@ -79,6 +103,7 @@ def build(log=print, workers: int = 1, aot: bool = True) -> Path | None:
             from numba.pycc import CC
     except ImportError:
         log("granchain warm-up: numba.pycc is not available; runs use the JIT kernels only")
+        done(1)
         return None
     # the signatures the warm-up compiled (argument and return types, as the engine calls them)
     sigs = {e: jit_entry(e).nopython_signatures for e in ENTRY_POINTS}
@@ -87,6 +112,7 @@ def build(log=print, workers: int = 1, aot: bool = True) -> Path | None:
         raise RuntimeError(f"warm-up compiled {[len(sigs[e]) for e in bad]} signatures of {bad}; "
                            "the engine must call each entry point with one set of types")
     if aot_available():
+        done(1)
         log(f"granchain warm-up: ahead-of-time kernels already built for this machine "
             f"({cache_dir() / 'aot'}, {module_name()})")
         return next(p for p in (cache_dir() / "aot").iterdir() if p.name.startswith(module_name()))
@@ -108,6 +134,7 @@ def build(log=print, workers: int = 1, aot: bool = True) -> Path | None:
     os.replace(built, final)            # atomic: a concurrent build or reader sees old or new
     tmp.rmdir()
     aot_module.cache_clear()
+    done(1)
     log(f"granchain warm-up: ahead-of-time kernels compiled in {time.perf_counter() - t1:.1f} s "
         f"-> {final}")
     return final
