@@ -113,10 +113,13 @@ def load(args):
 
 
 def cmd_validate(args) -> int:
-    scene = load(args)
+    from .plan import plan_run
+    plan = plan_run(load_scene(args.scene, args.set))
+    scene = plan.scene
     print(f"{args.scene}: valid scene '{scene.name}' ({scene.hash}), {scene.n} particles, "
           f"{len(scene.striker_velocities)} striker speed(s) x {scene.realisations} realisation(s), "
-          f"effects: {', '.join(sorted(scene.effects))}, integrator {describe_auto(scene)}")
+          f"effects: {', '.join(sorted(scene.effects))}, integrator "
+          f"{plan.auto or describe_auto(scene)}")
     _print_warnings(scene_warnings(scene), sys.stdout)
     return 0
 
@@ -131,18 +134,21 @@ def check_whole_run(scene, args, est) -> None:
 
 
 def cmd_run(args) -> int:
+    from .plan import plan_run
     from .simulate import run_scene
-    scene = load(args)
+    # the run plan: method auto chooses per striker speed for the reference engine
+    plan = plan_run(load_scene(args.scene, args.set))
+    scene = plan.scene
     if args.out:
         check_output_path(args.out, args.force, "--out")     # refuse before spending the compute
-    check_cost(scene, args.max_steps, args.max_memory_gb)
-    check_whole_run(scene, args, run_estimate(scene, engine=args.engine))
+    plan.check(args.max_steps, args.max_memory_gb)
+    check_whole_run(scene, args, plan.estimate(engine=args.engine))
     kw = _engine_kw(args)
     if args.engine == "reference":
         kw["trace"] = False         # observables on the fly; a measured scene still traces
     chains = len(scene.striker_velocities) * scene.realisations
     with bar(chains, f"{scene.name}: chains", enabled=_progress(args)) as shown:
-        runs = run_scene(scene, engine=args.engine, max_steps=args.max_steps,
+        runs = run_scene(plan, engine=args.engine, max_steps=args.max_steps,
                          max_memory_gb=args.max_memory_gb, progress=shown.update, **kw)
     if len(runs) == 1:
         doc = dict(runs[0].to_json(), scene=scene.name, scene_hash=scene.hash)
@@ -224,15 +230,17 @@ def cmd_compare(args) -> int:
     if args.np < 1:
         raise GranchainError(f"--np: must be >= 1 (got {args.np})")
     check_cost(scene, args.max_steps, args.max_memory_gb)
-    # both engines run every member with velocity Verlet at the scene's step, and the
-    # comparison holds both records of every member
+    if args.traces < 0:
+        raise GranchainError(f"--traces: must be >= 0 (got {args.traces})")
+    # both engines run every member with velocity Verlet at the scene's step; LAMMPS'
+    # records of every member are read back, the reference's only for the traced members
     verlet = scene.derive(**{"integrator.method": "verlet"})
     check_whole_run(scene, args, add_estimates(
-        run_estimate(verlet, engine="reference", trace=True),
+        run_estimate(verlet, engine="reference", trace=args.trajectory),
         run_estimate(verlet, engine="lammps")))
     cmp = compare(scene, nprocs=args.np,
                   workdir=Path(args.workdir) if args.workdir else None, force=args.force,
-                  trajectory=args.trajectory)
+                  trajectory=args.trajectory, traces=args.traces)
     doc = {"scene": scene.name, "scene_hash": scene.hash, "ok": cmp.ok, "meta": cmp.meta,
            "rows": cmp.rows.astype(object).where(cmp.rows.notna(), None).to_dict("records")}
     if args.json and not args.out:
@@ -553,9 +561,13 @@ def build_parser() -> argparse.ArgumentParser:
                     help="allow --out (and a non-empty --workdir) to be replaced")
     sp.add_argument("--np", type=int, default=1, metavar="N", help="LAMMPS MPI ranks (default 1)")
     sp.add_argument("--workdir", metavar="DIR", help="keep the LAMMPS deck, dump and log in DIR")
+    sp.add_argument("--traces", type=int, default=1, metavar="N",
+                    help="also compare the whole trajectories (every particle's v(t) at every "
+                         "sample) of the first N members (default 1; the observables are "
+                         "compared for every member)")
     sp.add_argument("--trajectory", action="store_true",
-                    help="also compare the whole trajectories (LAMMPS writes its text dump, "
-                         "read with MDAnalysis)")
+                    help="compare the whole trajectories of every member (LAMMPS writes its "
+                         "text dump, read with MDAnalysis)")
     _cost_args(sp)
     sp.set_defaults(func=cmd_compare)
 

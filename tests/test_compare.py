@@ -7,7 +7,7 @@ import math
 import pandas as pd
 import pytest
 
-import granchain.compare as C
+import granchain.compare as compare_mod
 from granchain.cli import main as cli_main
 from granchain.scene import scene_from_dict
 from granchain.trajectory import ENERGY_COLUMNS
@@ -27,7 +27,7 @@ def scene_yaml(repo):
 
 
 def test_rows_of_a_hertz_chain():
-    cmp = C.compare(packed())
+    cmp = compare_mod.compare(packed())
     df = cmp.rows
     assert list(df.columns) == ["member", "realisation", "v_striker", "quantity", "reference",
                                 "lammps", "diff", "measure", "tolerance", "ok", "why"]
@@ -38,8 +38,8 @@ def test_rows_of_a_hertz_chain():
         assert name in q
     assert df.ok.map(lambda x: x is True).all() and cmp.ok     # every row checked and met
     vrows = df.quantity.str.startswith("v_")
-    assert vrows.sum() == 15 + 4 and (df.loc[vrows, "tolerance"] == C.V_TOL).all()
-    assert (df.loc[df.quantity.str.startswith("dt_"), "tolerance"] == C.T_TOL).all()
+    assert vrows.sum() == 15 + 4 and (df.loc[vrows, "tolerance"] == compare_mod.V_TOL).all()
+    assert (df.loc[df.quantity.str.startswith("dt_"), "tolerance"] == compare_mod.T_TOL).all()
     assert cmp.meta["balance"] == "independent"
     assert cmp.scene.method == "verlet" and cmp.scene.sample_dt == pytest.approx(9e-9)
     # the reference's own ledger is the yardstick: its balance error is Verlet's
@@ -48,7 +48,7 @@ def test_rows_of_a_hertz_chain():
 
 
 def test_contact_friction_rows_are_marked_not_independent():
-    cmp = C.compare(packed(effects="[hertz, rotation, particle_friction]"))
+    cmp = compare_mod.compare(packed(effects="[hertz, rotation, particle_friction]"))
     df = cmp.rows
     # the residual group is the scene's effects.residual_work: contact friction alone here;
     # the works of effects that are off (rolling friction) are checked rows, 0 on both sides
@@ -65,8 +65,9 @@ def test_cli_table_and_exit_status(scene_yaml, capsys, monkeypatch):
     assert cli_main(["compare", scene_yaml, *HERTZ]) == 0
     out = capsys.readouterr().out
     assert "v_max[15]" in out and "v_g" in out and "kinetic_translational" in out
-    assert "[b] not the 1e-3 of a loose cross-check" in out and out.rstrip().endswith("all tolerances met")
-    monkeypatch.setattr(C, "V_TOL", 0.0)            # nothing agrees to the last bit
+    assert "] not the 1e-3 of a loose cross-check" in out and out.rstrip().endswith("all tolerances met")
+    assert "v(t), every particle" in out                      # --traces 1, the default
+    monkeypatch.setattr(compare_mod, "V_TOL", 0.0)            # nothing agrees to the last bit
     assert cli_main(["compare", scene_yaml, *HERTZ]) == 1
     out = capsys.readouterr().out
     assert "FAIL" in out and "tolerance(s) missed" in out
@@ -78,7 +79,8 @@ def test_cli_json_and_out(scene_yaml, tmp_path, capsys):
     doc = json.loads(out.read_text())
     assert doc["ok"] is True and doc["scene"] == "packed-440c"
     assert {r["quantity"] for r in doc["rows"]} >= {"v_max[1]", "v_g", "hertz_potential"}
-    assert doc["meta"]["tolerances"] == {"v": C.V_TOL, "t": C.T_TOL, "energy_over_E0": C.E_TOL}
+    assert doc["meta"]["tolerances"] == {"v": compare_mod.V_TOL, "t": compare_mod.T_TOL,
+                                         "energy_over_E0": compare_mod.E_TOL}
     assert cli_main(["compare", scene_yaml, *HERTZ, "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "exists" in err and err.count("\n") == 1
@@ -142,16 +144,16 @@ def test_walled_scene_compares_the_wall_force():
     from granchain.gaps import member_gaps, members
     sc = packed(**{"chain.n": 8, "probes": "[2, 7]", "walls.end": "ss316",
                    "precompression.force": 0.02, "striker.velocity": 0.2})
-    cmp = C.compare(sc)
+    cmp = compare_mod.compare(sc)
     df = cmp.rows.set_index("quantity")
-    assert cmp.ok and cmp.meta["tolerances"]["wall_force"] == C.W_TOL
-    for q, tol in (("wall_force_max", C.W_TOL), ("t_wall_peak", C.T_TOL),
-                   ("wall_force_static", C.W_TOL)):
+    assert cmp.ok and cmp.meta["tolerances"]["wall_force"] == compare_mod.W_TOL
+    for q, tol in (("wall_force_max", compare_mod.W_TOL), ("t_wall_peak", compare_mod.T_TOL),
+                   ("wall_force_static", compare_mod.W_TOL)):
         r = df.loc[q]
         assert r.ok is not None and bool(r.ok) and r.tolerance == tol and r["diff"] < 1e-8, (q, r)
         assert math.isfinite(r.reference) and r.reference > 0, q
     assert df.loc["wall_force_static", "reference"] == pytest.approx(0.02, rel=1e-12)
-    assert "wall_force_max" not in C.compare(packed(**{"chain.n": 6, "probes": "[2, 6]"})
+    assert "wall_force_max" not in compare_mod.compare(packed(**{"chain.n": 6, "probes": "[2, 6]"})
                                              ).rows.quantity.tolist()
     # a wall force 1e-5 too large (the whole record), or a preload 1e-5 too large
     cs = cmp.scene
@@ -161,6 +163,6 @@ def test_walled_scene_compares_the_wall_force():
     for change, failing in (({"wall_force": ref.wall_force * (1 + 1e-5)}, "wall_force_max"),
                             ({"wall_static": ref.wall_static * (1 + 1e-5)}, "wall_force_static")):
         bad = dataclasses.replace(ref, **change)
-        rows = {r["quantity"]: r for r in C.member_rows(cs, ref, bad)}
+        rows = {r["quantity"]: r for r in compare_mod.member_rows(cs, ref, bad)}
         assert rows[failing]["ok"] is False, failing
         assert rows["t_wall_peak"]["ok"] is True
