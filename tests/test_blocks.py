@@ -4,7 +4,7 @@ the lane it lands in, nor on its neighbours stopping earlier or later."""
 import numpy as np
 import pytest
 
-from granchain.engines import kernels as K
+from granchain.engines import kernels
 from granchain.engines import reference
 from granchain.scene import load_scene
 
@@ -88,16 +88,16 @@ def test_blocks_agree_with_the_per_chain_window(method):
     code = reference.METHOD_CODES[method]
     # per chain
     Y = np.zeros((B, ny))
-    Y[:, lay.LO[K.L_V]] = vs
+    Y[:, lay.LO[kernels.L_VEL]] = vs
     NS, STEPS, REJ = (np.zeros(B, dtype=np.int64) for _ in range(3))
     STATUS = np.zeros(B, dtype=np.int64)
     counts = np.zeros(B, dtype=np.int64)
     V1 = np.full((B, samples, n), np.nan)
-    E1 = np.full((B, samples, K.E_LEN), np.nan)
-    K.run_window(code, Y, np.zeros((B, ny)), np.zeros(B), np.full(B, sc.dt), NS, STEPS, REJ,
-                 STATUS, np.full(B, 1e-4), G, P, FL, lay.LO, np.ones(ny),
-                 np.ones(ny, dtype=np.int64), 1e-8, sc.dt, every, every * sc.dt,
-                 np.full(B, samples, dtype=np.int64), False, V1, E1, counts)
+    E1 = np.full((B, samples, kernels.E_LEN), np.nan)
+    kernels.run_window(code, Y, np.zeros((B, ny)), np.zeros(B), np.full(B, sc.dt), NS, STEPS, REJ,
+                       STATUS, np.full(B, 1e-4), G, P, FL, lay.LO, np.ones(ny),
+                       np.ones(ny, dtype=np.int64), 1e-8, sc.dt, every, every * sc.dt,
+                       np.full(B, samples, dtype=np.int64), False, V1, E1, counts)
     # blocks of 4 lanes
     L = 4
     nblk = -(-B // L)
@@ -105,21 +105,21 @@ def test_blocks_agree_with_the_per_chain_window(method):
     GB = np.zeros((nblk, G.shape[1], L))
     GB[:, :, :] = G[0][None, :, None]        # padding lanes: the first chain's rows, at rest
     for b in range(B):
-        YB[b // L, lay.LO[K.L_V], b % L] = vs[b]
+        YB[b // L, lay.LO[kernels.L_VEL], b % L] = vs[b]
         GB[b // L, :, b % L] = G[b]
     Bp = nblk * L
-    STATUS2 = np.full(Bp, K.S_DONE, dtype=np.int64)
-    STATUS2[:B] = K.S_RUNNING
+    STATUS2 = np.full(Bp, kernels.S_DONE, dtype=np.int64)
+    STATUS2[:B] = kernels.S_RUNNING
     NT = np.ones(Bp, dtype=np.int64)
     NT[:B] = samples
     NS2, STEPS2, counts2 = (np.zeros(Bp, dtype=np.int64) for _ in range(3))
     V2 = np.full((Bp, samples, n), np.nan)
-    E2 = np.full((Bp, samples, K.E_LEN), np.nan)
+    E2 = np.full((Bp, samples, kernels.E_LEN), np.nan)
     YF = np.zeros((Bp, ny))
-    K.run_blocks(code, YB, np.zeros_like(YB), YF, np.zeros(Bp), NS2, STEPS2, STATUS2,
-                 np.full(Bp, 1e-4), GB, P, FL, lay.LO, sc.dt, every, NT, False, V2, E2,
-                 counts2, False, every * sc.dt, 0.0,
-                 *reference._Observed(Bp, n, n, observe=False).args())
+    kernels.run_blocks(code, YB, np.zeros_like(YB), YF, np.zeros(Bp), NS2, STEPS2, STATUS2,
+                       np.full(Bp, 1e-4), GB, P, FL, lay.LO, sc.dt, every, NT, False, V2, E2,
+                       counts2, False, every * sc.dt, 0.0,
+                       *reference._Observed(Bp, n, n, observe=False).args())
     assert np.array_equal(counts, counts2[:B]) and counts.max() == samples
     assert np.array_equal(STEPS, STEPS2[:B])
     assert np.array_equal(V1, V2[:B]) and np.array_equal(E1, E2[:B])

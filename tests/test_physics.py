@@ -6,7 +6,7 @@ import pytest
 
 from granchain import analytic
 from granchain.effects import physics_terms
-from granchain.engines import kernels as K
+from granchain.engines import kernels
 from granchain.engines import reference
 from granchain.engines.reference import Layout, chain_rows, pack
 
@@ -28,13 +28,13 @@ def test_hertz_force_matches_closed_form():
     lay = Layout.of(t2)
     P, FL = pack(t2)
     y = np.zeros(lay.ny)
-    y[lay.LO[K.L_X]] = 3.7e-8              # particle 1 pushed into particle 2
+    y[lay.LO[kernels.L_DISP]] = 3.7e-8              # particle 1 pushed into particle 2
     dy = np.zeros(lay.ny)
     f = np.zeros(2)
-    K.forces(y, chain_rows(t2, np.zeros(1))[0], P, FL, lay.LO, 0.0, dy, f)
+    kernels.forces(y, chain_rows(t2, np.zeros(1))[0], P, FL, lay.LO, 0.0, dy, f)
     assert f[0] == pytest.approx(expect[-1], rel=1e-14)
-    assert dy[lay.LO[K.L_V]] == pytest.approx(-expect[-1] / two.mass, rel=1e-14)
-    assert dy[lay.LO[K.L_V] + 1] == pytest.approx(expect[-1] / two.mass, rel=1e-14)
+    assert dy[lay.LO[kernels.L_VEL]] == pytest.approx(-expect[-1] / two.mass, rel=1e-14)
+    assert dy[lay.LO[kernels.L_VEL] + 1] == pytest.approx(expect[-1] / two.mass, rel=1e-14)
 
 
 def _traj(scene, method, dt):
@@ -134,26 +134,26 @@ def test_particle_friction_opposes_slip_on_both_spheres():
     P, FL = pack(terms)
     LO = lay.LO
     y = np.zeros(lay.ny)
-    y[LO[K.L_X]] = 1e-7                      # loaded contact (stays loaded for > 400 ns)
-    y[LO[K.L_W]:LO[K.L_W] + 2] = [50.0, 30.0]
+    y[LO[kernels.L_DISP]] = 1e-7                      # loaded contact (stays loaded for > 400 ns)
+    y[LO[kernels.L_SPIN]:LO[kernels.L_SPIN] + 2] = [50.0, 30.0]
     gaps = chain_rows(terms, np.zeros(1))[0]
     f = np.zeros(2)
-    slip0 = y[LO[K.L_W]] + y[LO[K.L_W] + 1]
+    slip0 = y[LO[kernels.L_SPIN]] + y[LO[kernels.L_SPIN] + 1]
     k = [np.zeros(lay.ny) for _ in range(5)]
     torques = []
     erot0 = 0.5 * sc.inertia * (50.0**2 + 30.0**2)
     for _ in range(400):
-        K.rk4_step(y, 1e-9, gaps, P, FL, LO, *k, f)
+        kernels.rk4_step(y, 1e-9, gaps, P, FL, LO, *k, f)
         dy = np.zeros(lay.ny)
-        K.forces(y, gaps, P, FL, LO, 0.0, dy, f)
-        torques.append(dy[LO[K.L_W]:LO[K.L_W] + 2].copy())
+        kernels.forces(y, gaps, P, FL, LO, 0.0, dy, f)
+        torques.append(dy[LO[kernels.L_SPIN]:LO[kernels.L_SPIN] + 2].copy())
     torques = np.array(torques)
-    slip1 = y[LO[K.L_W]] + y[LO[K.L_W] + 1]
+    slip1 = y[LO[kernels.L_SPIN]] + y[LO[kernels.L_SPIN] + 1]
     assert np.all(torques[:, 0] <= 0) and np.all(torques[:, 1] <= 0)
     assert np.allclose(torques[:, 0], torques[:, 1])
     assert f[0] > 0                          # still in contact
     assert abs(slip1) < 0.5 * abs(slip0)
-    w = y[LO[K.L_W]:LO[K.L_W] + 2]
+    w = y[LO[kernels.L_SPIN]:LO[kernels.L_SPIN] + 2]
     assert 0.5 * sc.inertia * (w**2).sum() < erot0
 
 
@@ -176,7 +176,7 @@ def test_groove_friction_slides_then_rolls_without_slip():
     assert np.allclose(tr.v[late, 0], v_roll, rtol=1e-4)
     assert np.ptp(tr.v[late, 0]) < 1e-9 * v0                  # stick holds: constant speed
     w = v_roll / (s * sc.radius)
-    assert tr.energy[-1, K.E_KR] == pytest.approx(0.5 * sc.inertia * w * w, rel=1e-3)
+    assert tr.energy[-1, kernels.E_KIN_ROT] == pytest.approx(0.5 * sc.inertia * w * w, rel=1e-3)
 
 
 def test_eq54_is_an_upper_bound_for_gapped_chains():
@@ -235,13 +235,16 @@ def test_sliding_groove_friction_dissipates_exactly_coulomb(method, damping):
     tr = next(reference.run(sc, np.zeros((1, 14)), [0.1], method=method))
     Fc = physics_terms(sc).groove_friction.Fc
     rigid = -Fc * np.trapezoid(np.abs(tr.v), tr.t, axis=0).sum()
-    assert tr.energy[-1, K.E_WG] == pytest.approx(rigid, rel=1e-3)
+    assert tr.energy[-1, kernels.E_WORK_GROOVE] == pytest.approx(rigid, rel=1e-3)
 
 
 # every parameter of P that only friction, drag or rotation code reads
-NON_HERTZ_P = [K.P_I, K.P_S, K.P_FC, K.P_KG, K.P_T0, K.P_L, K.P_MU, K.P_KT, K.P_KR, K.P_GR,
-               K.P_MUR, K.P_GG]
-EFFECT_FLAGS = [K.F_ROT, K.F_GROOVE, K.F_DRAG, K.F_PP, K.F_ROLL]
+NON_HERTZ_P = [kernels.P_INERTIA, kernels.P_GROOVE_S, kernels.P_GROOVE_LIMIT,
+               kernels.P_GROOVE_SPRING, kernels.P_DRAG_T0, kernels.P_DRAG_L, kernels.P_PARTICLE_MU,
+               kernels.P_PARTICLE_SPRING, kernels.P_ROLLING_SPRING, kernels.P_ROLLING_DASHPOT,
+               kernels.P_ROLLING_MU, kernels.P_GROOVE_DASHPOT]
+EFFECT_FLAGS = [kernels.F_ROTATION, kernels.F_GROOVE_FRICTION, kernels.F_AIR_DRAG,
+                kernels.F_PARTICLE_FRICTION, kernels.F_ROLLING_FRICTION]
 
 
 def _window(sc, P, FL, lay, method, dt=2e-9, samples=64, every=10):
@@ -250,17 +253,18 @@ def _window(sc, P, FL, lay, method, dt=2e-9, samples=64, every=10):
     the number of samples recorded."""
     n, ny = sc.n, lay.ny
     Y = np.zeros((1, ny))
-    Y[0, lay.LO[K.L_V]] = 0.1
+    Y[0, lay.LO[kernels.L_VEL]] = 0.1
     zi = lambda: np.zeros(1, dtype=np.int64)        # noqa: E731
     STATUS, NS, STEPS, REJ, counts = zi(), zi(), zi(), zi(), zi()
     scale = np.full(ny, 1e-9)
     Vout = np.full((1, samples, n), np.nan)
-    Eout = np.full((1, samples, K.E_LEN), np.nan)
-    K.run_window(reference.METHOD_CODES[method], Y, np.zeros((1, ny)), np.zeros(1),
-                 np.full(1, dt), NS, STEPS, REJ, STATUS, np.full(1, 1e-4),
-                 chain_rows(physics_terms(sc), np.zeros((1, n - 1))), P, FL, lay.LO, scale, np.ones(ny, dtype=np.int64),
-                 1e-8, dt, every, every * dt, np.full(1, samples, dtype=np.int64), False,
-                 Vout, Eout, counts)
+    Eout = np.full((1, samples, kernels.E_LEN), np.nan)
+    kernels.run_window(reference.METHOD_CODES[method], Y, np.zeros((1, ny)), np.zeros(1),
+                       np.full(1, dt), NS, STEPS, REJ, STATUS, np.full(1, 1e-4),
+                       chain_rows(physics_terms(sc), np.zeros((1, n - 1))), P, FL, lay.LO, scale,
+                       np.ones(ny, dtype=np.int64),
+                       1e-8, dt, every, every * dt, np.full(1, samples, dtype=np.int64), False,
+                       Vout, Eout, counts)
     return Y[0], Vout[0], Eout[0], int(counts[0])
 
 
@@ -275,8 +279,11 @@ def test_hertz_only_chain_has_no_friction_state_and_never_enters_friction_code(m
     lay = Layout.of(terms)
     n = sc.n
     assert lay.ny == 2 * n
-    assert lay.LO[K.L_X] == 0 and lay.LO[K.L_V] == n and lay.LO[K.L_NY] == 2 * n
-    absent = [K.L_W, K.L_XG, K.L_XT, K.L_PS, K.L_WG, K.L_WD, K.L_WT, K.L_WR]
+    assert (lay.LO[kernels.L_DISP] == 0 and lay.LO[kernels.L_VEL] == n
+            and lay.LO[kernels.L_STATE_SIZE] == 2 * n)
+    absent = [kernels.L_SPIN, kernels.L_GROOVE_HIST, kernels.L_PARTICLE_HIST,
+              kernels.L_ROLLING_HIST, kernels.L_WORK_GROOVE, kernels.L_WORK_DRAG,
+              kernels.L_WORK_PARTICLE, kernels.L_WORK_ROLLING]
     assert (lay.LO[absent] == -1).all()
     P, FL = pack(terms)
     assert not FL.any()

@@ -8,7 +8,7 @@ before the run (a negative velocity or a spin, which no scene gives) and a dump 
 theta' and the groove history (~200 frames); all cases run in one LAMMPS process, their
 decks separated by ``clear``. The reference engine runs its own kernels (RK4, the
 continuous law) from the same states. Both are compared with the exact solution of the
-regime, written here from the physics notes, and with each other:
+regime, written here from the equations, and with each other:
 
 - air drag only: z'' = -(z'/T0 - q/L), q = z'^2 (as printed) or z'|z'| (odd): a Bernoulli
   equation, 1/z' = c + (1/v0 - c) e^(t/T0) with c = T0/L (c = -T0/L for the odd form
@@ -36,7 +36,7 @@ import numpy as np
 import pytest
 
 from granchain.effects import physics_terms
-from granchain.engines import kernels as K
+from granchain.engines import kernels
 from granchain.engines.reference import Layout, chain_rows, pack
 from granchain.lammps import build_plugin, run_lammps
 from granchain.lammps.deck import render
@@ -145,27 +145,28 @@ def run_reference(sc, states, steps: int, every: int) -> Run:
     ks = [np.zeros(lay.ny) for _ in range(5)]
     y = np.zeros(lay.ny)
     for b, (v0, w0) in enumerate(states):
-        y[LO[K.L_V] + 3 * b] = v0
+        y[LO[kernels.L_VEL] + 3 * b] = v0
         if sc.has("rotation"):
-            y[LO[K.L_W] + 3 * b] = w0
+            y[LO[kernels.L_SPIN] + 3 * b] = w0
     rec = [y.copy()]
     for n in range(1, steps + 1):
-        K.rk4_step(y, sc.dt, gaps, P, FL, LO, *ks, f)
+        kernels.rk4_step(y, sc.dt, gaps, P, FL, LO, *ks, f)
         if n % every == 0:
             rec.append(y.copy())
     r = np.array(rec)                               # (S, ny)
     strikers = np.arange(0, 3 * B, 3)
     others = np.array([i for i in range(3 * B) if i % 3])
     # the other spheres never move
-    assert np.all(r[:, LO[K.L_X] + others] == 0.0) and np.all(r[:, LO[K.L_V] + others] == 0.0)
+    assert (np.all(r[:, LO[kernels.L_DISP] + others] == 0.0)
+            and np.all(r[:, LO[kernels.L_VEL] + others] == 0.0))
 
     def block(slot):
         if LO[slot] < 0:
             return np.zeros((B, r.shape[0]))
         return r[:, LO[slot] + strikers].T
 
-    return Run(t=np.arange(r.shape[0]) * every * sc.dt, z=block(K.L_X), v=block(K.L_V),
-               w=block(K.L_W), xi=block(K.L_XG))
+    return Run(t=np.arange(r.shape[0]) * every * sc.dt, z=block(kernels.L_DISP),
+               v=block(kernels.L_VEL), w=block(kernels.L_SPIN), xi=block(kernels.L_GROOVE_HIST))
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from granchain.effects import physics_terms
-from granchain.engines import kernels as K
+from granchain.engines import kernels
 from granchain.engines import reference
 from granchain.engines.reference import Layout, chain_rows, pack
 
@@ -41,9 +41,9 @@ class Chain:
         n = scene.n
         self.n = n
         self.y = np.zeros(self.lay.ny)
-        self.y[self.LO[K.L_V]] = scene.striker_velocities[0]
+        self.y[self.LO[kernels.L_VEL]] = scene.striker_velocities[0]
         if w0 is not None:
-            self.y[self.LO[K.L_W]:self.LO[K.L_W] + n] = w0
+            self.y[self.LO[kernels.L_SPIN]:self.LO[kernels.L_SPIN] + n] = w0
         gaps = np.zeros(n - 1) if gaps is None else np.asarray(gaps, dtype=float)
         # the kernels' per-chain rows: the gaps first, then masses, radii, constants
         self.gaps = chain_rows(self.terms, gaps)[0]
@@ -54,8 +54,8 @@ class Chain:
         return self.y[o:o + (self.n if size is None else size)]
 
     def energy(self):
-        e = np.zeros(K.E_LEN)
-        K.energies(self.y, self.gaps, self.P, self.FL, self.LO, e)
+        e = np.zeros(kernels.E_LEN)
+        kernels.energies(self.y, self.gaps, self.P, self.FL, self.LO, e)
         return e
 
     def run(self, method, dt, nsteps, every=1):
@@ -63,13 +63,13 @@ class Chain:
         acc = np.zeros(self.lay.ny)
         ks = [np.zeros(self.lay.ny) for _ in range(5)]
         if method == "verlet":      # setup: forces without history update
-            K.forces(self.y, self.gaps, self.P, self.FL, self.LO, 0.0, acc, self.f)
+            kernels.forces(self.y, self.gaps, self.P, self.FL, self.LO, 0.0, acc, self.f)
         ys, es = [self.y.copy()], [self.energy()]
         for s in range(1, nsteps + 1):
             if method == "verlet":
-                K.verlet_step(self.y, acc, dt, self.gaps, self.P, self.FL, self.LO, self.f)
+                kernels.verlet_step(self.y, acc, dt, self.gaps, self.P, self.FL, self.LO, self.f)
             else:
-                K.rk4_step(self.y, dt, self.gaps, self.P, self.FL, self.LO, *ks, self.f)
+                kernels.rk4_step(self.y, dt, self.gaps, self.P, self.FL, self.LO, *ks, self.f)
             if s % every == 0:
                 ys.append(self.y.copy())
                 es.append(self.energy())
@@ -77,8 +77,8 @@ class Chain:
 
 
 def balance(E):
-    tot = E[:, K.E_KT] + E[:, K.E_KR] + E[:, K.E_H]
-    return np.abs(tot - tot[0] - E[:, K.E_WG:].sum(axis=1)).max() / tot[0]
+    tot = E[:, kernels.E_KIN_TRANS] + E[:, kernels.E_KIN_ROT] + E[:, kernels.E_HERTZ]
+    return np.abs(tot - tot[0] - E[:, kernels.E_WORK_GROOVE:].sum(axis=1)).max() / tot[0]
 
 
 # ---------------------------------------------------------------------------------------
@@ -87,9 +87,9 @@ def balance(E):
 def two_spheres(d, w, rho, **over):
     """Two spheres overlapping by d (m), spins w (rad/s), rolling history rho (m)."""
     c = Chain(pair(effects=ROLL, **{**ROLL_PARAMS, **over}), w0=w)
-    c.block(K.L_X)[0] = d
-    c.block(K.L_V)[0] = 0.0
-    c.block(K.L_PS, 1)[0] = rho
+    c.block(kernels.L_DISP)[0] = d
+    c.block(kernels.L_VEL)[0] = 0.0
+    c.block(kernels.L_ROLLING_HIST, 1)[0] = rho
     return c
 
 
@@ -122,22 +122,23 @@ def test_rolling_torque_is_the_lammps_formula(w, rho, regime, hist_dt):
     d = 5e-8
     c = two_spheres(d, w, rho)
     dy = np.zeros(c.lay.ny)
-    K.forces(c.y, c.gaps, c.P, c.FL, c.LO, hist_dt, dy, c.f)
+    kernels.forces(c.y, c.gaps, c.P, c.FL, c.LO, hist_dt, dy, c.f)
     t0, t1, power, rho_new = by_hand(c, d, w, rho, hist_dt)
     cap = c.terms.rolling_friction.mu_roll * c.f[0]
     assert c.f[0] == pytest.approx(c.terms.hertz.K * d**1.5, rel=1e-15)
     assert (abs(t0) * c.terms.rotation.inertia / (c.terms.R / 2) < cap * (1 - 1e-9)) == (regime == "stick")
-    wo = c.LO[K.L_W]
+    wo = c.LO[kernels.L_SPIN]
     assert dy[wo] == pytest.approx(t0, rel=1e-14, abs=0)
     assert dy[wo + 1] == pytest.approx(t1, rel=1e-14, abs=0)
     assert dy[wo] == -dy[wo + 1]                       # equal and opposite
-    assert dy[c.LO[K.L_WR]] == pytest.approx(power, rel=1e-14, abs=0)
+    assert dy[c.LO[kernels.L_WORK_ROLLING]] == pytest.approx(power, rel=1e-14, abs=0)
     assert power <= 0 or regime == "stick"             # sliding always dissipates
-    assert dy[c.LO[K.L_PS]] == pytest.approx(c.terms.R / 2 * (w[0] - w[1]), rel=1e-15)
+    assert dy[c.LO[kernels.L_ROLLING_HIST]] == pytest.approx(c.terms.R / 2 * (w[0] - w[1]),
+                                                             rel=1e-15)
     if hist_dt > 0:                                    # LAMMPS: history advanced and mapped
-        assert c.block(K.L_PS, 1)[0] == pytest.approx(rho_new, rel=1e-13, abs=1e-30)
+        assert c.block(kernels.L_ROLLING_HIST, 1)[0] == pytest.approx(rho_new, rel=1e-13, abs=1e-30)
     else:                                              # derivative only: y untouched
-        assert c.block(K.L_PS, 1)[0] == rho
+        assert c.block(kernels.L_ROLLING_HIST, 1)[0] == rho
 
 
 def test_rolling_torque_opposes_relative_spin():
@@ -145,16 +146,16 @@ def test_rolling_torque_opposes_relative_spin():
     for w in ((105.0, 100.0), (400.0, 100.0)):         # stick, slide
         c = two_spheres(5e-8, w, 0.0)
         dy = np.zeros(c.lay.ny)
-        K.forces(c.y, c.gaps, c.P, c.FL, c.LO, 1e-9, dy, c.f)
-        assert dy[c.LO[K.L_W]] < 0 < dy[c.LO[K.L_W] + 1]
+        kernels.forces(c.y, c.gaps, c.P, c.FL, c.LO, 1e-9, dy, c.f)
+        assert dy[c.LO[kernels.L_SPIN]] < 0 < dy[c.LO[kernels.L_SPIN] + 1]
     c = two_spheres(5e-8, (105.0, 100.0), 0.0, **{"rolling.gamma_roll": 0.0})
-    K.forces(c.y, c.gaps, c.P, c.FL, c.LO, 1e-9, dy, c.f)
-    assert c.block(K.L_PS, 1)[0] > 0                   # rho += dt Reff (w_L - w_R)
-    assert dy[c.LO[K.L_W]] < 0 < dy[c.LO[K.L_W] + 1]
+    kernels.forces(c.y, c.gaps, c.P, c.FL, c.LO, 1e-9, dy, c.f)
+    assert c.block(kernels.L_ROLLING_HIST, 1)[0] > 0                   # rho += dt Reff (w_L - w_R)
+    assert dy[c.LO[kernels.L_SPIN]] < 0 < dy[c.LO[kernels.L_SPIN] + 1]
     # spheres rolling together (equal spins) feel no rolling moment
     c = two_spheres(5e-8, (400.0, 400.0), 0.0)
-    K.forces(c.y, c.gaps, c.P, c.FL, c.LO, 1e-9, dy, c.f)
-    assert dy[c.LO[K.L_W]] == 0 and dy[c.LO[K.L_W] + 1] == 0
+    kernels.forces(c.y, c.gaps, c.P, c.FL, c.LO, 1e-9, dy, c.f)
+    assert dy[c.LO[kernels.L_SPIN]] == 0 and dy[c.LO[kernels.L_SPIN] + 1] == 0
 
 
 def test_return_map_stores_the_dashpot_and_project_matches_it():
@@ -162,19 +163,20 @@ def test_return_map_stores_the_dashpot_and_project_matches_it():
     (RK4, DOP853) uses the same map; an open contact has no history."""
     d, w = 5e-8, (2000.0, -3000.0)
     c = two_spheres(d, w, 0.0)
-    K.project(c.y, c.gaps, c.P, c.FL, c.LO, c.f)
+    kernels.project(c.y, c.gaps, c.P, c.FL, c.LO, c.f)
     rf = c.terms.rolling_friction
     cap = rf.mu_roll * c.terms.hertz.K * d**1.5
     vr = c.terms.R / 2 * 5000.0
-    assert c.block(K.L_PS, 1)[0] == pytest.approx((cap - rf.gamma_roll * vr) / rf.k_roll, rel=1e-13)
-    assert -rf.k_roll * c.block(K.L_PS, 1)[0] - rf.gamma_roll * vr == pytest.approx(-cap, rel=1e-9)
+    rho = c.block(kernels.L_ROLLING_HIST, 1)[0]
+    assert rho == pytest.approx((cap - rf.gamma_roll * vr) / rf.k_roll, rel=1e-13)
+    assert -rf.k_roll * rho - rf.gamma_roll * vr == pytest.approx(-cap, rel=1e-9)
     c = two_spheres(-1e-9, w, 3e-9)                   # apart: history erased
-    K.project(c.y, c.gaps, c.P, c.FL, c.LO, c.f)
-    assert c.block(K.L_PS, 1)[0] == 0.0
+    kernels.project(c.y, c.gaps, c.P, c.FL, c.LO, c.f)
+    assert c.block(kernels.L_ROLLING_HIST, 1)[0] == 0.0
     c = two_spheres(-1e-9, w, 3e-9)
     dy = np.zeros(c.lay.ny)
-    K.forces(c.y, c.gaps, c.P, c.FL, c.LO, 1e-9, dy, c.f)
-    assert c.block(K.L_PS, 1)[0] == 0.0 and dy[c.LO[K.L_W]] == 0.0
+    kernels.forces(c.y, c.gaps, c.P, c.FL, c.LO, 1e-9, dy, c.f)
+    assert c.block(kernels.L_ROLLING_HIST, 1)[0] == 0.0 and dy[c.LO[kernels.L_SPIN]] == 0.0
 
 
 def test_zero_history_above_the_cap_gives_zero_moment_in_verlet():
@@ -185,11 +187,11 @@ def test_zero_history_above_the_cap_gives_zero_moment_in_verlet():
     vr = 0.5 * c.terms.R * (w[0] - w[1])              # as the kernel computes it
     c = two_spheres(5e-8, w, -(vr * dt))              # rho + dt v_roll == 0 exactly
     dy = np.zeros(c.lay.ny)
-    K.forces(c.y, c.gaps, c.P, c.FL, c.LO, dt, dy, c.f)
+    kernels.forces(c.y, c.gaps, c.P, c.FL, c.LO, dt, dy, c.f)
     assert c.n == 2 and c.f[0] > 0
     assert c.terms.rolling_friction.gamma_roll * vr > c.terms.rolling_friction.mu_roll * c.f[0]
-    assert c.block(K.L_PS, 1)[0] == 0.0
-    assert dy[c.LO[K.L_W]] == 0.0 and dy[c.LO[K.L_W] + 1] == 0.0
+    assert c.block(kernels.L_ROLLING_HIST, 1)[0] == 0.0
+    assert dy[c.LO[kernels.L_SPIN]] == 0.0 and dy[c.LO[kernels.L_SPIN] + 1] == 0.0
 
 
 # ---------------------------------------------------------------------------------------
@@ -201,8 +203,8 @@ def test_energy_balance_closes_with_rolling_rk4():
     the Hertz chain itself (measured 4.1e-10; without the rolling work column: 1.5e-2)."""
     c = Chain(five(CONTACT_ROLL), w0=SPINS)
     _, E = c.run("rk4", 1e-9, 3000)
-    wr = E[-1, K.E_WR]
-    e0 = E[0, K.E_KT] + E[0, K.E_KR]
+    wr = E[-1, kernels.E_WORK_ROLLING]
+    e0 = E[0, kernels.E_KIN_TRANS] + E[0, kernels.E_KIN_ROT]
     assert wr < -1e-2 * e0
     assert balance(E) < 1e-9
     # the same chain without rolling: the ledger error is no smaller (it is the Hertz one)
@@ -235,7 +237,7 @@ def test_rk4_converges_to_the_lammps_law(tmp_path):
     assert every == 32 and last == 32 * int(round(T / dt))
     c = Chain(five(ROLL), w0=w_read)
     Yr, _ = c.run("rk4", dt, int(round(T / dt)))
-    wo, vo = c.LO[K.L_W], c.LO[K.L_V]
+    wo, vo = c.LO[kernels.L_SPIN], c.LO[kernels.L_VEL]
     wr, vr = Yr[:, wo:wo + 5], Yr[:, vo:vo + 5]
     rel_w = np.abs(wr - wy).max(axis=0) / np.abs(wy).max(axis=0)
     rel_v = np.abs(vr - vx).max(axis=0) / np.abs(vx).max(axis=0)
@@ -269,7 +271,7 @@ def test_spinning_chain_with_rolling_stays_bounded():
     c = Chain(five(ROLL, **{"rolling.k_roll": 1e7, "rolling.gamma_roll": 1.0}), w0=SPINS)
     Y, E = c.run("rk4", 1e-9, 20000, every=10)
     assert np.all(np.isfinite(Y))
-    mech = E[:, K.E_KT] + E[:, K.E_KR] + E[:, K.E_H]
+    mech = E[:, kernels.E_KIN_TRANS] + E[:, kernels.E_KIN_ROT] + E[:, kernels.E_HERTZ]
     assert mech.max() <= mech[0] * (1 + 2e-9)
     assert balance(E) < 1e-9
 
@@ -298,9 +300,9 @@ def test_chain_driver_is_the_engines_verlet():
     traj = next(reference.run(scene, gaps[None, :], scene.striker_velocities, method="verlet"))
     c = Chain(scene, gaps=gaps)
     Y, E = c.run("verlet", scene.dt, 4000, every=10)
-    assert np.array_equal(traj.v, Y[:, c.LO[K.L_V]:c.LO[K.L_V] + 5])
+    assert np.array_equal(traj.v, Y[:, c.LO[kernels.L_VEL]:c.LO[kernels.L_VEL] + 5])
     assert np.array_equal(traj.energy, E)
-    assert np.any(Y[:, c.LO[K.L_PS]:c.LO[K.L_PS] + 4] != 0)
+    assert np.any(Y[:, c.LO[kernels.L_ROLLING_HIST]:c.LO[kernels.L_ROLLING_HIST] + 4] != 0)
 
 def _lammps_histories(tmp_path, scene, w0):
     """Run write_deck's deck in LAMMPS with initial spins ``w0`` (rad/s) written into
@@ -341,8 +343,8 @@ def _lammps_vs_reference(tmp_path, scene, w0, gaps=None):
     gaps = np.zeros(scene.n - 1) if gaps is None else np.asarray(gaps, dtype=float)
     c = Chain(scene, w0=w_read, gaps=gaps)
     Y, _ = c.run("verlet", scene.dt, last, every=every)
-    v_ref = Y[:, c.LO[K.L_V]:c.LO[K.L_V] + scene.n]
-    w_ref = Y[:, c.LO[K.L_W]:c.LO[K.L_W] + scene.n]
+    v_ref = Y[:, c.LO[kernels.L_VEL]:c.LO[kernels.L_VEL] + scene.n]
+    w_ref = Y[:, c.LO[kernels.L_SPIN]:c.LO[kernels.L_SPIN] + scene.n]
     rel_v = np.abs(vx - v_ref).max(axis=0) / np.abs(v_ref).max(axis=0)
     rel_w = np.abs(wy - w_ref).max(axis=0) / np.abs(w_ref).max(axis=0)
     return rel_v, rel_w, c, Y
@@ -361,8 +363,8 @@ def test_lammps_rolling_chain_matches_reference_verlet(tmp_path, effects, tol):
     assert rel_v.max() < tol and rel_w.max() < tol
     # the run exercised the rolling law: slides at the cap and sticks below it
     rf = c.terms.rolling_friction
-    ps, wo = c.LO[K.L_PS], c.LO[K.L_W]
-    xo = c.LO[K.L_X]
+    ps, wo = c.LO[kernels.L_ROLLING_HIST], c.LO[kernels.L_SPIN]
+    xo = c.LO[kernels.L_DISP]
     dlt = Y[:, xo:xo + 4] - Y[:, xo + 1:xo + 5]
     on = dlt > 0
     cap = rf.mu_roll * c.terms.hertz.K * np.where(on, dlt, 0) ** 1.5

@@ -6,7 +6,7 @@ import pytest
 from numba import njit
 
 from granchain.effects import physics_terms
-from granchain.engines import kernels as K
+from granchain.engines import kernels
 from granchain.engines.reference import Layout, chain_rows, pack
 
 from conftest import SCENES, packed, run1
@@ -34,7 +34,7 @@ def _friction_record(y, gaps, P, FL, LO, dt, steps):
     |k_g xi_g + gamma_g u| / Fc and the contact's |k_t xi_t| / (mu_pp f) (NaN while the
     contact is open). Below 1: the history holds the force under the Coulomb cap (stick).
     Also the largest Hertz force of the run."""
-    n = int(P[K.P_N])
+    n = int(P[kernels.P_N_SPHERES])
     ny = y.shape[0]
     k1, k2, k3, k4 = np.empty(ny), np.empty(ny), np.empty(ny), np.empty(ny)
     tmp, dy = np.empty(ny), np.empty(ny)
@@ -44,22 +44,25 @@ def _friction_record(y, gaps, P, FL, LO, dt, steps):
     u = np.empty((steps, n))
     groove = np.empty((steps, n))
     contact = np.empty((steps, n - 1))
-    sR = P[K.P_S] * P[K.P_R]
-    ox, ov, ow, og, ot = LO[K.L_X], LO[K.L_V], LO[K.L_W], LO[K.L_XG], LO[K.L_XT]
+    sR = P[kernels.P_GROOVE_S] * P[kernels.P_RADIUS]
+    ox, ov, ow = LO[kernels.L_DISP], LO[kernels.L_VEL], LO[kernels.L_SPIN]
+    og, ot = LO[kernels.L_GROOVE_HIST], LO[kernels.L_PARTICLE_HIST]
     for s in range(steps):
-        K.rk4_step(y, dt, gaps, P, FL, LO, k1, k2, k3, k4, tmp, f)
-        K.forces(y, gaps, P, FL, LO, 0.0, dy, f)
+        kernels.rk4_step(y, dt, gaps, P, FL, LO, k1, k2, k3, k4, tmp, f)
+        kernels.forces(y, gaps, P, FL, LO, 0.0, dy, f)
         for i in range(n):
             u[s, i] = y[ov + i] - sR * y[ow + i]
-            groove[s, i] = abs(P[K.P_KG] * y[og + i] + P[K.P_GG] * u[s, i]) / P[K.P_FC]
+            groove[s, i] = abs(P[kernels.P_GROOVE_SPRING] * y[og + i]
+                               + P[kernels.P_GROOVE_DASHPOT] * u[s, i]) / P[kernels.P_GROOVE_LIMIT]
         for k in range(n - 1):
-            w[s, k] = P[K.P_R] * (y[ow + k] + y[ow + k + 1])
+            w[s, k] = P[kernels.P_RADIUS] * (y[ow + k] + y[ow + k + 1])
             contact[s, k] = np.nan
             fmax = max(fmax, f[k])
             if f[k] > 0.0:
                 d = y[ox + k] - y[ox + k + 1] - gaps[k]
-                kt = P[K.P_KT] * math.sqrt(d) if FL[K.F_MINDLIN] != 0 else P[K.P_KT]
-                contact[s, k] = kt * abs(y[ot + k]) / (P[K.P_MU] * f[k])
+                kt = P[kernels.P_PARTICLE_SPRING]
+                kt = kt * math.sqrt(d) if FL[kernels.F_PARTICLE_MINDLIN] != 0 else kt
+                contact[s, k] = kt * abs(y[ot + k]) / (P[kernels.P_PARTICLE_MU] * f[k])
     return w, u, groove, contact, fmax
 
 
@@ -101,7 +104,7 @@ def test_all_effects_pass_a_wave_without_chatter():
     LO = lay.LO
     n, vs, steps = sc.n, 0.1, 40000
     y = np.zeros(lay.ny)
-    y[LO[K.L_V]] = vs
+    y[LO[kernels.L_VEL]] = vs
     w, u, groove, contact, fmax = _friction_record(y, chain_rows(terms, np.zeros(n - 1))[0], P, FL,
                                                    LO, 1e-9, steps)
     assert np.all(np.isfinite(w)) and np.all(np.isfinite(u)) and np.all(np.isfinite(groove))

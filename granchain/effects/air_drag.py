@@ -13,9 +13,9 @@ from ..lammps.units import lmp_float as _r, to_micro
 from ..validate import Key
 from .spec import EffectSpec
 
-SPEC = EffectSpec("air_drag", work="work_air_drag", work_slot="L_WD",
+SPEC = EffectSpec("air_drag", work="work_air_drag", work_slot="L_WORK_DRAG",
                   table_column="work_air_J", lammps_ledger="f_gd[3]",
-                  params=("P_T0", "P_L"), flags=("F_DRAG", "F_ODD"))
+                  params=("P_DRAG_T0", "P_DRAG_L"), flags=("F_AIR_DRAG", "F_DRAG_ODD"))
 
 
 # The scene section of this effect, its defaults (the chapter's Chapter-4 constants), its
@@ -72,7 +72,7 @@ def build(scene) -> AirDrag:
 
 def kernel(ad: AirDrag) -> tuple[dict, dict]:
     """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
-    return {"P_T0": ad.T0, "P_L": ad.L}, {"F_DRAG": 1, "F_ODD": int(ad.odd)}
+    return {"P_DRAG_T0": ad.T0, "P_DRAG_L": ad.L}, {"F_AIR_DRAG": 1, "F_DRAG_ODD": int(ad.odd)}
 
 
 def lammps_fix(ad: AirDrag) -> tuple[str, str]:

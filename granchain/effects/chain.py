@@ -26,10 +26,10 @@ from .spec import EffectSpec
 # Not an effect a scene switches: the spheres themselves, declared as the effects are.
 # Its ledger column is the dead load's work F0 x_2, computed from the state (no
 # accumulated work slot).
-SPEC = EffectSpec("chain", params=("P_N", "P_R", "P_M", "P_F0"),
-                  flags=("F_WALL", "F_LOAD", "F_HET"),
-                  rows=("G_GAP", "G_M", "G_I", "G_R", "G_K"), work="work_load",
-                  state=(("L_X", "particle"), ("L_V", "particle")))
+SPEC = EffectSpec("chain", params=("P_N_SPHERES", "P_RADIUS", "P_MASS", "P_DEAD_LOAD"),
+                  flags=("F_END_WALL", "F_DEAD_LOAD", "F_HETEROGENEOUS"),
+                  rows=("G_GAP", "G_MASS", "G_INERTIA", "G_RADIUS", "G_HERTZ_K"), work="work_load",
+                  state=(("L_DISP", "particle"), ("L_VEL", "particle")))
 
 
 @dataclass(frozen=True)
@@ -74,12 +74,12 @@ def build(scene) -> Chain:
 def rows(ch: Chain) -> dict:
     """Per-sphere / per-contact rows of the kernels' per-chain array (by G slot name);
     a contact row's last entry is the wall's."""
-    return {"G_M": ch.masses, "G_I": ch.inertias, "G_R": ch.radii,
-            "G_K": ch.K + (ch.K_wall if ch.K_wall is not None else 0.0,)}
+    return {"G_MASS": ch.masses, "G_INERTIA": ch.inertias, "G_RADIUS": ch.radii,
+            "G_HERTZ_K": ch.K + (ch.K_wall if ch.K_wall is not None else 0.0,)}
 
 
 def kernel(ch: Chain) -> tuple[dict, dict]:
     """(parameters, flags) of the reference kernels, by slot name."""
-    return ({"P_F0": ch.load},
-            {"F_WALL": int(ch.K_wall is not None), "F_LOAD": int(ch.load > 0.0),
-             "F_HET": int(ch.heterogeneous)})
+    return ({"P_DEAD_LOAD": ch.load},
+            {"F_END_WALL": int(ch.K_wall is not None), "F_DEAD_LOAD": int(ch.load > 0.0),
+             "F_HETEROGENEOUS": int(ch.heterogeneous)})

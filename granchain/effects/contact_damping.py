@@ -36,10 +36,11 @@ from ..lammps.units import lmp_float as _r, to_micro
 from ..validate import Key
 from .spec import EffectSpec
 
-SPEC = EffectSpec("contact_damping", work="work_contact_damping", work_slot="L_WC",
+SPEC = EffectSpec("contact_damping", work="work_contact_damping", work_slot="L_WORK_DAMPING",
                   table_column="work_damping_J", lammps_reports_work=False,
-                  params=("P_DMP",), flags=("F_DAMP", "F_DMODEL", "F_DLIM"),
-                  rows=("G_ME", "G_RS"))
+                  params=("P_DAMPING_COEF",),
+                  flags=("F_CONTACT_DAMPING", "F_DAMPING_MODEL", "F_DAMPING_LIMIT"),
+                  rows=("G_DAMPING_MEFF", "G_DAMPING_RSTAR"))
 
 MODELS = ("coeff_restitution", "viscoelastic", "tsuji")
 # the kernels' codes of the models: the viscoelastic prefactor, or the sqrt(m F / delta)
@@ -175,9 +176,10 @@ def time_scale(scene, v: float) -> tuple[float, str]:
 
 def kernel(cd: ContactDamping) -> tuple[dict, dict]:
     """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
-    return ({"P_DMP": cd.damp},
-            {"F_DAMP": 1, "F_DMODEL": VISCOELASTIC if cd.model == "viscoelastic" else SQRT_FORM,
-             "F_DLIM": int(cd.limit_damping)})
+    return ({"P_DAMPING_COEF": cd.damp},
+            {"F_CONTACT_DAMPING": 1,
+             "F_DAMPING_MODEL": VISCOELASTIC if cd.model == "viscoelastic" else SQRT_FORM,
+             "F_DAMPING_LIMIT": int(cd.limit_damping)})
 
 
 def rows(cd: ContactDamping, chain) -> dict:
@@ -189,7 +191,7 @@ def rows(cd: ContactDamping, chain) -> dict:
                  for k in range(n - 1)) + (m[-1],)
     rs = tuple(0.5 * R[k] if R[k] == R[k + 1] else R[k] * R[k + 1] / (R[k] + R[k + 1])
                for k in range(n - 1)) + (R[-1],)
-    return {"G_ME": meff, "G_RS": rs}
+    return {"G_DAMPING_MEFF": meff, "G_DAMPING_RSTAR": rs}
 
 
 # LAMMPS's coeff_restitution constant: c(e) = -K_CR ln e / sqrt(pi^2 + ln^2 e), K_CR =

@@ -30,10 +30,12 @@ from ..lammps.units import lmp_float as _r, to_micro
 from ..validate import Key
 from .spec import EffectSpec
 
-SPEC = EffectSpec("groove_friction", state=(("L_XG", "particle"),), work="work_groove_friction",
-                  work_slot="L_WG", table_column="work_groove_J", lammps_ledger="f_gd[2]",
-                  params=("P_S", "P_FC", "P_KG", "P_GG"), flags=("F_GROOVE",),
-                  rows=("G_FC", "G_KG", "G_GG"))
+SPEC = EffectSpec("groove_friction", state=(("L_GROOVE_HIST", "particle"),),
+                  work="work_groove_friction", work_slot="L_WORK_GROOVE",
+                  table_column="work_groove_J", lammps_ledger="f_gd[2]",
+                  params=("P_GROOVE_S", "P_GROOVE_LIMIT", "P_GROOVE_SPRING", "P_GROOVE_DASHPOT"),
+                  flags=("F_GROOVE_FRICTION",),
+                  rows=("G_GROOVE_LIMIT", "G_GROOVE_SPRING", "G_GROOVE_DASHPOT"))
 
 
 # The scene section of this effect and its defaults: the chapter's mu_pg and g; s =
@@ -180,12 +182,14 @@ def build(scene) -> GrooveFriction:
 
 def kernel(gf: GrooveFriction) -> tuple[dict, dict]:
     """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
-    return {"P_S": gf.s, "P_FC": gf.Fc, "P_KG": gf.kt, "P_GG": gf.gamma}, {"F_GROOVE": 1}
+    return ({"P_GROOVE_S": gf.s, "P_GROOVE_LIMIT": gf.Fc, "P_GROOVE_SPRING": gf.kt,
+             "P_GROOVE_DASHPOT": gf.gamma}, {"F_GROOVE_FRICTION": 1})
 
 
 def rows(gf: GrooveFriction, chain) -> dict:
     """Per-sphere rows of the kernels' per-chain array, by G slot name."""
-    return {"G_FC": gf.Fc_each, "G_KG": gf.kt_each, "G_GG": gf.gamma_each}
+    return {"G_GROOVE_LIMIT": gf.Fc_each, "G_GROOVE_SPRING": gf.kt_each,
+            "G_GROOVE_DASHPOT": gf.gamma_each}
 
 
 def error_scale(gf: GrooveFriction, terms, delta: float, v: float) -> float:

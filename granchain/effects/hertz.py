@@ -15,7 +15,7 @@ import numpy as np
 from ..lammps.units import lmp_float as _r, to_micro
 from .spec import EffectSpec
 
-SPEC = EffectSpec("hertz", params=("P_K",))
+SPEC = EffectSpec("hertz", params=("P_HERTZ_K",))
 
 
 def force(K, d):
@@ -52,7 +52,7 @@ def build(scene) -> Hertz:
 
 def kernel(h: Hertz) -> tuple[dict, dict]:
     """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
-    return {"P_K": h.K}, {}
+    return {"P_HERTZ_K": h.K}, {}
 
 
 def lammps_pair(h: Hertz) -> tuple[str, str]:

@@ -19,10 +19,11 @@ from ..lammps.units import lmp_float as _r, to_micro
 from ..validate import Key
 from .spec import EffectSpec
 
-SPEC = EffectSpec("particle_friction", state=(("L_XT", "contact"),),
-                  work="work_particle_friction", work_slot="L_WT",
+SPEC = EffectSpec("particle_friction", state=(("L_PARTICLE_HIST", "contact"),),
+                  work="work_particle_friction", work_slot="L_WORK_PARTICLE",
                   table_column="work_particle_friction_J", lammps_reports_work=False,
-                  params=("P_MU", "P_KT"), flags=("F_PP", "F_MINDLIN"), rows=("G_KT",))
+                  params=("P_PARTICLE_MU", "P_PARTICLE_SPRING"),
+                  flags=("F_PARTICLE_FRICTION", "F_PARTICLE_MINDLIN"), rows=("G_PARTICLE_SPRING",))
 
 
 # The scene section of this effect and its defaults: the chapter's mu_pp; LAMMPS's
@@ -123,12 +124,13 @@ def build(scene) -> ParticleFriction:
 def rows(pf: ParticleFriction, chain) -> dict:
     """Per-contact rows of the kernels' per-chain array (the wall contact has no
     tangential friction)."""
-    return {"G_KT": pf.kt_each + (0.0,)}
+    return {"G_PARTICLE_SPRING": pf.kt_each + (0.0,)}
 
 
 def kernel(pf: ParticleFriction) -> tuple[dict, dict]:
     """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
-    return {"P_MU": pf.mu, "P_KT": pf.kt}, {"F_PP": 1, "F_MINDLIN": int(pf.model == "mindlin")}
+    return ({"P_PARTICLE_MU": pf.mu, "P_PARTICLE_SPRING": pf.kt},
+            {"F_PARTICLE_FRICTION": 1, "F_PARTICLE_MINDLIN": int(pf.model == "mindlin")})
 
 
 def error_scale(pf: ParticleFriction, terms, delta: float, v: float) -> float:

@@ -21,10 +21,11 @@ from ..lammps.units import lmp_float as _r, to_micro
 from ..validate import Key
 from .spec import EffectSpec
 
-SPEC = EffectSpec("rolling_friction", state=(("L_PS", "contact"),),
-                  work="work_rolling_friction", work_slot="L_WR",
+SPEC = EffectSpec("rolling_friction", state=(("L_ROLLING_HIST", "contact"),),
+                  work="work_rolling_friction", work_slot="L_WORK_ROLLING",
                   table_column="work_rolling_J", lammps_reports_work=False,
-                  params=("P_KR", "P_GR", "P_MUR"), flags=("F_ROLL",), rows=("G_RE",))
+                  params=("P_ROLLING_SPRING", "P_ROLLING_DASHPOT", "P_ROLLING_MU"),
+                  flags=("F_ROLLING_FRICTION",), rows=("G_ROLLING_REFF",))
 
 
 # The scene section of this effect and its defaults (no default k_roll: it is not in the
@@ -120,12 +121,13 @@ def rows(rf: RollingFriction, chain) -> dict:
     R = chain.radii
     reff = tuple(0.5 * R[k] if R[k] == R[k + 1] else R[k] * R[k + 1] / (R[k] + R[k + 1])
                  for k in range(len(R) - 1))
-    return {"G_RE": reff + (0.0,)}
+    return {"G_ROLLING_REFF": reff + (0.0,)}
 
 
 def kernel(rf: RollingFriction) -> tuple[dict, dict]:
     """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
-    return {"P_KR": rf.k_roll, "P_GR": rf.gamma_roll, "P_MUR": rf.mu_roll}, {"F_ROLL": 1}
+    return ({"P_ROLLING_SPRING": rf.k_roll, "P_ROLLING_DASHPOT": rf.gamma_roll,
+             "P_ROLLING_MU": rf.mu_roll}, {"F_ROLLING_FRICTION": 1})
 
 
 def error_scale(rf: RollingFriction, terms, delta: float, v: float) -> float:

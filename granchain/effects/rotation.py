@@ -8,8 +8,8 @@ from dataclasses import dataclass
 
 from .spec import EffectSpec
 
-SPEC = EffectSpec("rotation", state=(("L_W", "particle"),), lammps_ledger="c_erot_atom",
-                  params=("P_I",), flags=("F_ROT",))
+SPEC = EffectSpec("rotation", state=(("L_SPIN", "particle"),), lammps_ledger="c_erot_atom",
+                  params=("P_INERTIA",), flags=("F_ROTATION",))
 
 
 @dataclass(frozen=True)
@@ -23,7 +23,7 @@ def build(scene) -> Rotation:
 
 def kernel(rot: Rotation) -> tuple[dict, dict]:
     """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
-    return {"P_I": rot.inertia}, {"F_ROT": 1}
+    return {"P_INERTIA": rot.inertia}, {"F_ROTATION": 1}
 
 
 def error_scale(rot: Rotation, terms, delta: float, v: float) -> float:

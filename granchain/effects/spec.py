@@ -42,5 +42,5 @@ class EffectSpec:
     @property
     def work_code(self) -> str | None:
         """The kernels' name of the effect's ledger column (``E_`` and the work slot's
-        suffix: L_WG -> E_WG)."""
+        suffix: L_WORK_GROOVE -> E_WORK_GROOVE)."""
         return "E_" + self.work_slot[2:] if self.work_slot else None

@@ -7,8 +7,10 @@ chain and each effect declare (``EffectSpec``: params, flags, rows, state, work_
 registry order; the method codes and the statuses; the Runge-Kutta tableaux (DOP853 from
 scipy's own coefficient file, Dormand-Prince 5(4)); the event method's record-step buffer.
 
-The generated names (``P_K``, ``F_GROOVE``, ``G_M``, ``L_XG``, ``E_WG``, ...) are module
-constants, so numba freezes them into the kernels like any other.
+The generated names (``P_HERTZ_K``, ``F_GROOVE_FRICTION``, ``G_MASS``, ``L_GROOVE_HIST``,
+``E_WORK_GROOVE``, ...) are module constants, so numba freezes them into the kernels like any
+other. Their prefix names the array they index: P parameters, F flags, G per-chain rows,
+L layout offsets (state blocks and accumulated works), E energy columns.
 """
 from __future__ import annotations
 
@@ -30,20 +32,21 @@ _SPECS = (_chain.SPEC,) + tuple(m.SPEC for m in MODULES)
 P_SLOTS = _number(p for s in _SPECS for p in s.params)
 F_SLOTS = _number(f for s in _SPECS for f in s.flags)
 # rows of a chain's per-chain array G (B, G_LEN * n), each block n rows long: row
-# G_X * n + i is entry i of block G_X. Per contact (G_GAP, G_K, G_KT, G_RE): contacts
-# 0 .. n-2 (spheres k, k+1), then the end wall at n-1. Per sphere: the rest.
+# G_X * n + i is entry i of block G_X. Per contact (G_GAP, G_HERTZ_K, G_PARTICLE_SPRING,
+# G_ROLLING_REFF, G_DAMPING_MEFF, G_DAMPING_RSTAR): contacts 0 .. n-2 (spheres k, k+1), then
+# the end wall at n-1. Per sphere: the rest.
 # G_GAP: kernel gaps (overlap_k = x_k - x_{k+1} - G_GAP_k; the wall's x_n - G_GAP_{n-1})
 G_SLOTS = _number(r for s in _SPECS for r in s.rows)
-# layout offsets LO (-1: absent): the state blocks (positions and velocities, then each
-# effect's), then one accumulated-work entry per effect that does work, then L_NY (the
-# state's length)
+# layout offsets LO (-1: absent): the state blocks (displacements and velocities, then
+# each effect's), then one accumulated-work entry per effect that does work, then
+# L_STATE_SIZE (the state's length)
 L_SLOTS = _number([b for s in _SPECS for b, _ in s.state]
-                  + [s.work_slot for s in _SPECS if s.work_slot] + ["L_NY"])
+                  + [s.work_slot for s in _SPECS if s.work_slot] + ["L_STATE_SIZE"])
 # sample columns of the energy array, in ENERGY_COLUMNS order: kinetic translational,
 # kinetic rotational, Hertz potential, then the works (each effect's, then the dead load's)
-E_SLOTS = {"E_KT": 0, "E_KR": 1, "E_H": 2,
+E_SLOTS = {"E_KIN_TRANS": 0, "E_KIN_ROT": 1, "E_HERTZ": 2,
            **{s.work_code: ENERGY_COLUMNS.index(s.work) for s in _SPECS if s.work_code},
-           "E_WL": ENERGY_COLUMNS.index(_chain.SPEC.work)}
+           "E_WORK_LOAD": ENERGY_COLUMNS.index(_chain.SPEC.work)}
 globals().update({**P_SLOTS, **F_SLOTS, **G_SLOTS, **L_SLOTS, **E_SLOTS})
 P_LEN, F_LEN, G_LEN, L_LEN, E_LEN = (len(P_SLOTS), len(F_SLOTS), len(G_SLOTS), len(L_SLOTS),
                                      len(ENERGY_COLUMNS))

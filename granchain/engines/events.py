@@ -50,7 +50,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..schedule import PASS_FRACTION, PEAK_TOL
-from . import kernels as K
+from . import kernels
 from .codes import DEFAULT_PAIR, PAIRS, RB_C, RB_H, RB_LEN, RB_MAX, RB_SIZE, RB_T0  # noqa: F401
 from .kernels import energies, forces, project
 
@@ -188,8 +188,8 @@ def _hermite_root(d0, w0, d1, w1, h, level, up):
 def _predict(y, dy, gaps, LO, n, band, dscale):
     """Time to the first predicted crossing of 0 by a pair's overlap (inf if none); for
     a pair on its onset, the time to close by the overlap scale dscale."""
-    ox = LO[K.L_X]
-    ov = LO[K.L_V]
+    ox = LO[kernels.L_DISP]
+    ov = LO[kernels.L_VEL]
     best = math.inf
     for k in range(n - 1):
         d = y[ox + k] - y[ox + k + 1] - gaps[k]
@@ -230,8 +230,8 @@ def _predict(y, dy, gaps, LO, n, band, dscale):
 def _straddle(y, ynew, gaps, LO, n, band, h):
     """After a trial step: the first tau in (0, 1) at which a pair's overlap crosses its
     band (onset or release inside the step), or -1 if none does."""
-    ox = LO[K.L_X]
-    ov = LO[K.L_V]
+    ox = LO[kernels.L_DISP]
+    ov = LO[kernels.L_VEL]
     best = 2.0
     for k in range(n - 1):
         d0 = y[ox + k] - y[ox + k + 1] - gaps[k]
@@ -253,19 +253,19 @@ def _straddle_groove(y, ynew, K0, K1, G, P, FL, LO, n, h, bandg):
     """After a trial step: the first tau in (0, 1) at which a sphere's groove contact
     switches between stick and slip, i.e. its trial force q = k_g xi + gamma_g u crosses
     +-Fc (``effects.groove_friction``), or -1 if none does."""
-    if FL[K.F_GROOVE] == 0:
+    if FL[kernels.F_GROOVE_FRICTION] == 0:
         return -1.0
-    s_g = P[K.P_S]
-    rot = FL[K.F_ROT] != 0
-    og = LO[K.L_XG]
-    ov = LO[K.L_V]
-    ow = LO[K.L_W]
+    s_g = P[kernels.P_GROOVE_S]
+    rot = FL[kernels.F_ROTATION] != 0
+    og = LO[kernels.L_GROOVE_HIST]
+    ov = LO[kernels.L_VEL]
+    ow = LO[kernels.L_SPIN]
     best = 2.0
     for i in range(n):
-        kg = G[K.G_KG * n + i]
-        gam = G[K.G_GG * n + i]
-        Fc = G[K.G_FC * n + i]
-        sR = s_g * G[K.G_R * n + i]
+        kg = G[kernels.G_GROOVE_SPRING * n + i]
+        gam = G[kernels.G_GROOVE_DASHPOT * n + i]
+        Fc = G[kernels.G_GROOVE_LIMIT * n + i]
+        sR = s_g * G[kernels.G_RADIUS * n + i]
         u0 = y[ov + i] - (sR * y[ow + i] if rot else 0.0)
         u1 = ynew[ov + i] - (sR * ynew[ow + i] if rot else 0.0)
         du0 = K0[ov + i] - (sR * K0[ow + i] if rot else 0.0)
@@ -289,8 +289,8 @@ def _straddle_groove(y, ynew, K0, K1, G, P, FL, LO, n, h, bandg):
 def _peak_inside(y, ynew, K0, K1, LO, n, h, VMAX, bc, land, c):
     """First tau in (0, 1) of a record-setting velocity maximum inside the step, more
     than ``land`` above both step ends; -1 if none. VMAX[bc]: the chain's running maxima."""
-    ox = LO[K.L_X]
-    ov = LO[K.L_V]
+    ox = LO[kernels.L_DISP]
+    ov = LO[kernels.L_VEL]
     best = 2.0
     for i in range(n):
         a0 = K0[ov + i]
@@ -354,8 +354,8 @@ def _merge_oldest(rb, m, DROP, i):
 def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, c):
     """Update the running per-particle observables of chain bc (row bc of VMAX ... DROP)
     with one accepted step."""
-    ox = LO[K.L_X]
-    ov = LO[K.L_V]
+    ox = LO[kernels.L_DISP]
+    ov = LO[kernels.L_VEL]
     for i in range(n):
         v0 = y[ov + i]
         v1 = ynew[ov + i]
@@ -430,8 +430,8 @@ def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, VMAX, TPK, PASSED, RUNEND, RB, R
 def _dense(yp, kp, y1, k1, h, tau, LO, n, out):
     """State at t0 + tau h inside the step yp -> y1 (derivatives kp, k1)."""
     ny = yp.shape[0]
-    ox = LO[K.L_X]
-    ov = LO[K.L_V]
+    ox = LO[kernels.L_DISP]
+    ov = LO[kernels.L_VEL]
     for j in range(ny):
         out[j] = _hermite3(yp[j], kp[j], y1[j], k1[j], h, tau)
     for i in range(n):
@@ -444,10 +444,10 @@ def _dense(yp, kp, y1, k1, h, tau, LO, n, out):
 @njit(cache=True)
 def _mech_balance(y, gaps, P, FL, LO, ebuf, e0):
     energies(y, gaps, P, FL, LO, ebuf)
-    tot = ebuf[K.E_KT] + ebuf[K.E_KR] + ebuf[K.E_H]
+    tot = ebuf[kernels.E_KIN_TRANS] + ebuf[kernels.E_KIN_ROT] + ebuf[kernels.E_HERTZ]
     # every work column (they follow the mechanical energies, codes.E_SLOTS)
-    work = ebuf[K.E_H + 1]
-    for c in range(K.E_H + 2, K.E_LEN):
+    work = ebuf[kernels.E_HERTZ + 1]
+    for c in range(kernels.E_HERTZ + 2, kernels.E_LEN):
         work += ebuf[c]
     return abs(tot - e0 - work)
 
@@ -457,7 +457,7 @@ def _flush(b, y, k1, g, P, FL, LO, n, sdt, NT, NS, YP, KP, TP, T, Vout, Eout, co
            tmp, ebuf):
     """Trace samples due inside the last step, while the window has room."""
     W = Vout.shape[1]
-    ov = LO[K.L_V]
+    ov = LO[kernels.L_VEL]
     hp = T[b] - TP[b]
     while (counts[b] < W and NS[b] < NT[b] and hp > 0.0
            and NS[b] * sdt <= T[b] * (1.0 + 1e-13)):
@@ -489,17 +489,17 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
     ``schedule.last_detached``).
     """
     B = Y.shape[0]
-    n = int(P[K.P_N])
+    n = int(P[kernels.P_N_SPHERES])
     ny = Y.shape[1]
     S = Bw.shape[0]
-    ov = LO[K.L_V]
-    ox = LO[K.L_X]
+    ov = LO[kernels.L_VEL]
+    ox = LO[kernels.L_DISP]
     W = Vout.shape[1]
-    bandg = rtol * P[K.P_FC]
+    bandg = rtol * P[kernels.P_GROOVE_LIMIT]
     dscale = scale_abs[ox]
     for b in prange(B):
         counts[b] = 0
-        if STATUS[b] != K.S_RUNNING:
+        if STATUS[b] != kernels.S_RUNNING:
             continue
         y = Y[b]
         Kst = KST[b]
@@ -507,14 +507,14 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
         f = np.zeros(n)
         ynew = np.empty(ny)
         tmp = np.empty(ny)
-        ebuf = np.empty(K.E_LEN)
+        ebuf = np.empty(kernels.E_LEN)
         c = np.empty(5)
         if INIT[b] == 0:
             INIT[b] = 1
             forces(y, g, P, FL, LO, 0.0, Kst[0], f)
             NEV[b] += 1
             energies(y, g, P, FL, LO, ebuf)
-            E0[b] = ebuf[K.E_KT] + ebuf[K.E_KR] + ebuf[K.E_H]
+            E0[b] = ebuf[kernels.E_KIN_TRANS] + ebuf[kernels.E_KIN_ROT] + ebuf[kernels.E_HERTZ]
             for i in range(n):
                 VINIT[b, i] = y[ov + i]
                 VMAX[b, i] = y[ov + i]
@@ -531,19 +531,19 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                     KP[b, j] = Kst[0, j]
                 TP[b] = 0.0
             if t_stop[b] <= 0.0:
-                FIN[b] = K.S_DONE
+                FIN[b] = kernels.S_DONE
         while True:
             if trace:
                 _flush(b, y, Kst[0], g, P, FL, LO, n, sdt, NT, NS, YP, KP, TP, T, Vout,
                        Eout, counts, tmp, ebuf)
                 if counts[b] >= W:
                     break
-            if FIN[b] != K.S_RUNNING:
+            if FIN[b] != kernels.S_RUNNING:
                 STATUS[b] = FIN[b]
                 break
             t = T[b]
             if t >= t_stop[b] * (1.0 - 1e-14):
-                FIN[b] = K.S_DONE
+                FIN[b] = kernels.S_DONE
                 continue
             h = min(H[b], t_stop[b] - t)
             clipped = h < H[b]
@@ -556,8 +556,8 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
             rejected = False
             while tries < MAX_TRIES:
                 tries += 1
-                err = K.rk_trial(y, h, g, P, FL, LO, Kst, ynew, tmp, f, scale_abs, rel, rtol,
-                                 A, Bw, E5, E3, dopnorm)
+                err = kernels.rk_trial(y, h, g, P, FL, LO, Kst, ynew, tmp, f, scale_abs, rel,
+                                       rtol, A, Bw, E5, E3, dopnorm)
                 NEV[b] += S
                 if not math.isfinite(err):
                     # a trial step far too long (into a stiff contact): shrink hard
@@ -567,7 +567,7 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                     H[b] = h
                     clipped = False
                     if h < 1e-22:
-                        FIN[b] = K.S_NONFINITE
+                        FIN[b] = kernels.S_NONFINITE
                         break
                     continue
                 if err > 1.0:
@@ -577,7 +577,7 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                     H[b] = h
                     clipped = False
                     if h < 1e-22:
-                        FIN[b] = K.S_STEPFAIL
+                        FIN[b] = kernels.S_STEPFAIL
                         break
                     continue
                 tau = _straddle(y, ynew, g, LO, n, band, h)
@@ -614,8 +614,8 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                     H[b] = h * fac
                 break
             if not accepted:
-                if FIN[b] == K.S_RUNNING:
-                    FIN[b] = K.S_STEPFAIL
+                if FIN[b] == kernels.S_RUNNING:
+                    FIN[b] = kernels.S_STEPFAIL
                 continue
             _observe(t, h, y, ynew, Kst[0], Kst[S], LO, n, b, VMAX, TPK, PASSED, RUNEND, RB,
                      RBN, DROP, c)
@@ -643,11 +643,11 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
             bal = _mech_balance(y, g, P, FL, LO, ebuf, E0[b])
             if bal > BAL[b]:
                 BAL[b] = bal
-            if not K._finite(y, LO, n):
-                FIN[b] = K.S_NONFINITE
+            if not kernels._finite(y, LO, n):
+                FIN[b] = kernels.S_NONFINITE
             elif auto_stop and y[ov + n - 1] > VTHR[b] and \
                     y[ox + n - 2] - y[ox + n - 1] - g[n - 2] <= 0.0:
-                FIN[b] = K.S_PASSED
+                FIN[b] = kernels.S_PASSED
 
 
 @njit(cache=True)
@@ -734,9 +734,9 @@ def _rk_trial_lanes(y, hl, g, P, FL, LO, Kb, ynew, tmp, f, acc, scale_abs, rel, 
     Kf = Kb.reshape((S + 1, M))
     for s in range(1, S):
         _stage_lanes(y, hl, Kf, A[s], s, af, acc, tmp)
-        K.forces_block(tmp, g, P, FL, LO, 0.0, Kb[s], f)
+        kernels.forces_block(tmp, g, P, FL, LO, 0.0, Kb[s], f)
     _stage_lanes(y, hl, Kf, Bw, S, af, acc, ynew)
-    K.forces_block(ynew, g, P, FL, LO, 0.0, Kb[S], f)
+    kernels.forces_block(ynew, g, P, FL, LO, 0.0, Kb[S], f)
     # the error estimates: acc the 5th-order one, tmp the 3rd-order one
     af[:] = 0.0
     tf[:] = 0.0
@@ -758,7 +758,7 @@ def _rk_trial_lanes(y, hl, g, P, FL, LO, Kb, ynew, tmp, f, acc, scale_abs, rel, 
                 e5[l] += (acc[j, l] / sc) ** 2
                 e3[l] += (tmp[j, l] / sc) ** 2
     for l in range(L):
-        err[l] = K.error_norm(e5[l], e3[l], hl[l], ny, dopnorm)
+        err[l] = kernels.error_norm(e5[l], e3[l], hl[l], ny, dopnorm)
 
 
 @njit(cache=True, inline="always")
@@ -787,13 +787,13 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
     ends with STATUS[b] set (kernels.S_*), exactly as ``run_events`` leaves it.
     """
     nblk = QUEUE.shape[0]
-    n = int(P[K.P_N])
+    n = int(P[kernels.P_N_SPHERES])
     ny = Y.shape[1]
     ng = gaps.shape[1]
     S = Bw.shape[0]
-    ov = LO[K.L_V]
-    ox = LO[K.L_X]
-    bandg = rtol * P[K.P_FC]
+    ov = LO[kernels.L_VEL]
+    ox = LO[kernels.L_DISP]
+    bandg = rtol * P[kernels.P_GROOVE_LIMIT]
     dscale = scale_abs[ox]
     for blk in prange(nblk):
         if QLEN[blk] == 0:
@@ -806,7 +806,7 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
         Kb = np.zeros((S + 1, ny, L))
         f = np.zeros((n, L))
         g = np.zeros((ng, L))
-        ebuf = np.zeros((K.E_LEN, L))
+        ebuf = np.zeros((kernels.E_LEN, L))
         acc = np.zeros((ny, L))
         err = np.zeros(L)
         hl = np.zeros(L)
@@ -844,7 +844,7 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                             y[j, l] = Y[b, j]
                         for r in range(ng):
                             g[r, l] = gaps[b, r]
-                        fin[l] = K.S_RUNNING
+                        fin[l] = kernels.S_RUNNING
                         fresh[l] = True
                         phase[l] = _PH_BEGIN
                 any_fresh = False
@@ -852,8 +852,8 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                     any_fresh = any_fresh or fresh[l]
                 if any_fresh:
                     # the new chains' first derivative and energies (run_events' INIT)
-                    K.forces_block(y, g, P, FL, LO, 0.0, Kz, f)
-                    K.energies_block(y, g, P, FL, LO, ebuf)
+                    kernels.forces_block(y, g, P, FL, LO, 0.0, Kz, f)
+                    kernels.energies_block(y, g, P, FL, LO, ebuf)
                     for l in range(L):
                         if not fresh[l]:
                             continue
@@ -862,22 +862,23 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                         for j in range(ny):
                             Kb[0, j, l] = Kz[j, l]
                         NEV[b] += 1
-                        E0[b] = ebuf[K.E_KT, l] + ebuf[K.E_KR, l] + ebuf[K.E_H, l]
+                        E0[b] = (ebuf[kernels.E_KIN_TRANS, l] + ebuf[kernels.E_KIN_ROT, l]
+                                 + ebuf[kernels.E_HERTZ, l])
                         for i in range(n):
                             VINIT[b, i] = y[ov + i, l]
                             VMAX[b, i] = y[ov + i, l]
                             TPK[b, i] = 0.0
                             RUNEND[b, i] = -1.0
                         if t_stop[b] <= 0.0:
-                            fin[l] = K.S_DONE
+                            fin[l] = kernels.S_DONE
                 again = False
                 for l in range(L):
                     if phase[l] != _PH_BEGIN:
                         continue
                     b = lane_b[l]
-                    if fin[l] == K.S_RUNNING and T[b] >= t_stop[b] * (1.0 - 1e-14):
-                        fin[l] = K.S_DONE
-                    if fin[l] != K.S_RUNNING:
+                    if fin[l] == kernels.S_RUNNING and T[b] >= t_stop[b] * (1.0 - 1e-14):
+                        fin[l] = kernels.S_DONE
+                    if fin[l] != kernels.S_RUNNING:
                         STATUS[b] = fin[l]
                         for j in range(ny):
                             Y[b, j] = y[j, l]
@@ -934,7 +935,7 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                     H[b] = h
                     clipped[l] = False
                     if h < 1e-22:
-                        fin[l] = K.S_NONFINITE
+                        fin[l] = kernels.S_NONFINITE
                         phase[l] = _PH_BEGIN
                 elif e > 1.0:
                     REJ[b] += 1
@@ -943,7 +944,7 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                     H[b] = h
                     clipped[l] = False
                     if h < 1e-22:
-                        fin[l] = K.S_STEPFAIL
+                        fin[l] = kernels.S_STEPFAIL
                         phase[l] = _PH_BEGIN
                 else:
                     _lane_out(y, l, y1)
@@ -985,7 +986,7 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                                          TPK, PASSED, RUNEND, RB, RBN, DROP, c)
                 hl[l] = h
                 if phase[l] == _PH_TRIAL and not accepted[l] and tries[l] >= MAX_TRIES:
-                    fin[l] = K.S_STEPFAIL
+                    fin[l] = kernels.S_STEPFAIL
                     phase[l] = _PH_BEGIN
             if not any_acc:
                 continue
@@ -995,7 +996,7 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
             for j in range(ny):
                 for l in range(L):
                     Z[j, l] = ynew[j, l] if accepted[l] else 0.0
-            K.project_block(Z, g, P, FL, LO, f)
+            kernels.project_block(Z, g, P, FL, LO, f)
             any_refresh = False
             for l in range(L):
                 refresh[l] = False
@@ -1013,22 +1014,23 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                     refresh[l] = True
                     any_refresh = True
             if any_refresh:
-                K.forces_block(Z, g, P, FL, LO, 0.0, Kz, f)
+                kernels.forces_block(Z, g, P, FL, LO, 0.0, Kz, f)
                 for l in range(L):
                     if refresh[l]:
                         NEV[lane_b[l]] += 1
                         for j in range(ny):
                             Kb[0, j, l] = Kz[j, l]
-            K.energies_block(Z, g, P, FL, LO, ebuf)
+            kernels.energies_block(Z, g, P, FL, LO, ebuf)
             for l in range(L):
                 if not accepted[l]:
                     continue
                 b = lane_b[l]
                 T[b] = t_old[l] + hl[l]
                 STEPS[b] += 1
-                tot = ebuf[K.E_KT, l] + ebuf[K.E_KR, l] + ebuf[K.E_H, l]
-                work = ebuf[K.E_H + 1, l]
-                for q in range(K.E_H + 2, K.E_LEN):
+                tot = (ebuf[kernels.E_KIN_TRANS, l] + ebuf[kernels.E_KIN_ROT, l]
+                       + ebuf[kernels.E_HERTZ, l])
+                work = ebuf[kernels.E_HERTZ + 1, l]
+                for q in range(kernels.E_HERTZ + 2, kernels.E_LEN):
                     work += ebuf[q, l]
                 bal = abs(tot - E0[b] - work)
                 if bal > BAL[b]:
@@ -1038,8 +1040,8 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                     if not math.isfinite(y[j, l]):
                         finite = False
                 if not finite:
-                    fin[l] = K.S_NONFINITE
+                    fin[l] = kernels.S_NONFINITE
                 elif auto_stop and y[ov + n - 1, l] > VTHR[b] and \
                         y[ox + n - 2, l] - y[ox + n - 1, l] - g[n - 2, l] <= 0.0:
-                    fin[l] = K.S_PASSED
+                    fin[l] = kernels.S_PASSED
                 phase[l] = _PH_BEGIN

@@ -31,23 +31,32 @@ use_jit_cache()   # before the first @njit(cache=True): a cache keyed by every s
 
 from ..schedule import PEAK_TOL, PLATEAU_SAMPLES  # noqa: E402  (the sampled peak rules)
 from ..schedule import PASS_FRACTION  # noqa: E402
-from .obscodes import (B_E0, B_MAX, I_BWD, I_FOPEN, I_FWD, I_J, I_NAN, I_OVF,  # noqa: E402
-                       I_PASS, I_RCOUNT, I_RHEAD, O_H, O_M, O_Y0, O_Y2, R_PLAT, R_TFR, R_TOP,
-                       R_TPK, R_VMAX, W_M, W_PREV, W_Y0, W_Y2, WI_J, WI_NAN, WI_PASS)
+from .obscodes import (BAL_E0, BAL_MAX, OF_AFTER, OF_BEFORE, OF_MAX, OF_RECENT,  # noqa: E402
+                       OI_AFTER_OPEN, OI_ARGMAX, OI_NAN, OI_NEAR_AFTER, OI_NEAR_BEFORE, OI_PASSED,
+                       OI_RING_COUNT, OI_RING_HEAD, OI_RING_OVERFLOW, OUT_MAX_SAMPLE, OUT_PLATEAU,
+                       OUT_T_FRONT, OUT_T_PEAK, OUT_VMAX, WF_AFTER, WF_BEFORE, WF_MAX, WF_PREV,
+                       WI_ARGMAX, WI_NAN, WI_PASSED)
 
 from ..effects import (air_drag, contact_damping, groove_friction, hertz, particle_friction,
                        rolling_friction)
 
 # the kernels' numbering of parameters, flags, layout blocks, methods, energy columns,
 # statuses, and the DOP853 tableau (numba-free, shared with the engines' Python side)
-from .codes import (DOP_A, DOP_B, DOP_C, DOP_E3, DOP_E5, E_H, E_KR, E_KT, E_LEN,  # noqa: E402,F401
-                    E_WC, E_WD, E_WG, E_WL, E_WR, E_WT, F_DAMP, F_DLIM, F_DMODEL, F_DRAG,
-                    F_GROOVE, F_HET, F_LEN, F_LOAD, G_ME, G_RS, L_WC, P_DMP,
-                    F_MINDLIN, F_ODD, F_PP, F_ROLL, F_ROT, F_WALL, G_FC, G_GG, G_I, G_K, G_KG,
-                    G_KT, G_LEN, G_M, G_R, G_RE, L_LEN, L_NY, L_PS, L_V, L_W, L_WD, L_WG,
-                    L_WR, L_WT, L_X, L_XG, L_XT, M_DOP853, M_RK4, M_VERLET, NST, P_F0, P_FC,
-                    P_GG, P_GR, P_I, P_K, P_KG, P_KR, P_KT, P_L, P_LEN, P_M, P_MU, P_MUR, P_N,
-                    P_R, P_S, P_T0, S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL,
+from .codes import (DOP_A, DOP_B, DOP_C, DOP_E3, DOP_E5, E_HERTZ, E_KIN_ROT,  # noqa: E402,F401
+                    E_KIN_TRANS, E_LEN, E_WORK_DAMPING, E_WORK_DRAG, E_WORK_GROOVE, E_WORK_LOAD,
+                    E_WORK_PARTICLE, E_WORK_ROLLING, F_AIR_DRAG, F_CONTACT_DAMPING,
+                    F_DAMPING_LIMIT, F_DAMPING_MODEL, F_DEAD_LOAD, F_DRAG_ODD, F_END_WALL,
+                    F_GROOVE_FRICTION, F_HETEROGENEOUS, F_LEN, F_PARTICLE_FRICTION,
+                    F_PARTICLE_MINDLIN, F_ROLLING_FRICTION, F_ROTATION, G_DAMPING_MEFF,
+                    G_DAMPING_RSTAR, G_GROOVE_DASHPOT, G_GROOVE_LIMIT, G_GROOVE_SPRING, G_HERTZ_K,
+                    G_INERTIA, G_LEN, G_MASS, G_PARTICLE_SPRING, G_RADIUS, G_ROLLING_REFF, L_DISP,
+                    L_GROOVE_HIST, L_LEN, L_PARTICLE_HIST, L_ROLLING_HIST, L_SPIN, L_STATE_SIZE,
+                    L_VEL, L_WORK_DAMPING, L_WORK_DRAG, L_WORK_GROOVE, L_WORK_PARTICLE,
+                    L_WORK_ROLLING, M_DOP853, M_RK4, M_VERLET, NST, P_DAMPING_COEF, P_DEAD_LOAD,
+                    P_DRAG_L, P_DRAG_T0, P_GROOVE_DASHPOT, P_GROOVE_LIMIT, P_GROOVE_S,
+                    P_GROOVE_SPRING, P_HERTZ_K, P_INERTIA, P_LEN, P_MASS, P_N_SPHERES,
+                    P_PARTICLE_MU, P_PARTICLE_SPRING, P_RADIUS, P_ROLLING_DASHPOT, P_ROLLING_MU,
+                    P_ROLLING_SPRING, S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL,
                     S_TIMEOUT, WORK_SLOTS)
 
 
@@ -134,17 +143,17 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
     hist_dt = 0 (RK4, DOP853, Verlet setup) y is not modified and dy carries the
     history rates.
     """
-    n = int(P[P_N])
+    n = int(P[P_N_SPHERES])
     L = y.shape[1]
-    ox = LO[L_X]
-    ov = LO[L_V]
-    ow = LO[L_W]
-    oM = G_M * n
-    oI = G_I * n
-    oR = G_R * n
-    oK = G_K * n
-    rot = FL[F_ROT] != 0
-    wall = FL[F_WALL] != 0
+    ox = LO[L_DISP]
+    ov = LO[L_VEL]
+    ow = LO[L_SPIN]
+    oM = G_MASS * n
+    oI = G_INERTIA * n
+    oR = G_RADIUS * n
+    oK = G_HERTZ_K * n
+    rot = FL[F_ROTATION] != 0
+    wall = FL[F_END_WALL] != 0
     # a row that exists when rotation is off (its value is then never used)
     owr = ow if rot else ov
     # bit k of shut: contact k (k < 63) is open in every lane, its row of f is zero
@@ -158,7 +167,7 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                 f[k, l] = 0.0
             if k < 63:
                 shut |= 1 << k
-    load = FL[F_LOAD] != 0
+    load = FL[F_DEAD_LOAD] != 0
     if wall:
         # the end wall: contact n-1, overlap x_n - G_{n-1}
         c = 0
@@ -168,15 +177,15 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
             f[n - 1, l] = _hertz_force(gaps[oK + n - 1, l], d)
         if c == 0 and n - 1 < 63:
             shut |= 1 << (n - 1)
-    if FL[F_DAMP] != 0:
+    if FL[F_CONTACT_DAMPING] != 0:
         # contact damping (effects/contact_damping.py): f becomes the net normal force
         # F_el + eta w of every closed contact, w its overlap rate; its work -(F - F_el) w
-        model = FL[F_DMODEL]
-        dmp = P[P_DMP]
-        lim = FL[F_DLIM] != 0
-        oME = G_ME * n
-        oRS = G_RS * n
-        owc = LO[L_WC]
+        model = FL[F_DAMPING_MODEL]
+        dmp = P[P_DAMPING_COEF]
+        lim = FL[F_DAMPING_LIMIT] != 0
+        oME = G_DAMPING_MEFF * n
+        oRS = G_DAMPING_RSTAR * n
+        owc = LO[L_WORK_DAMPING]
         for l in range(L):
             dy[owc, l] = 0.0
         for k in range(n if wall else n - 1):
@@ -199,7 +208,7 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                 dy[owc, l] = a - (F - fel) * w if d > 0.0 else a
     if wall or load:
         # the end wall's force and the dead load on particle 2
-        F0 = P[P_F0]
+        F0 = P[P_DEAD_LOAD]
         for i in range(n):
             if (i == 0 or _bit(shut, i - 1)) and (_bit(shut, i) if (i < n - 1 or wall) else True) \
                     and not (load and i == 1):
@@ -235,11 +244,11 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
         for j in range(nL):
             dyf[ow * L + j] = 0.0
 
-    if FL[F_DRAG] != 0:
-        T0 = P[P_T0]
-        Ld = P[P_L]
-        odd = FL[F_ODD] != 0
-        owd = LO[L_WD]
+    if FL[F_AIR_DRAG] != 0:
+        T0 = P[P_DRAG_T0]
+        Ld = P[P_DRAG_L]
+        odd = FL[F_DRAG_ODD] != 0
+        owd = LO[L_WORK_DRAG]
         for l in range(L):
             dy[owd, l] = 0.0
         for i in range(n):
@@ -252,13 +261,13 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                 dy[ov + i, l] += F / m
                 dy[owd, l] += F * v
 
-    if FL[F_GROOVE] != 0:
-        s_g = P[P_S]
-        oFc = G_FC * n
-        oKg = G_KG * n
-        oGg = G_GG * n
-        og = LO[L_XG]
-        owg = LO[L_WG]
+    if FL[F_GROOVE_FRICTION] != 0:
+        s_g = P[P_GROOVE_S]
+        oFc = G_GROOVE_LIMIT * n
+        oKg = G_GROOVE_SPRING * n
+        oGg = G_GROOVE_DASHPOT * n
+        og = LO[L_GROOVE_HIST]
+        owg = LO[L_WORK_GROOVE]
         for l in range(L):
             dy[owg, l] = 0.0
         for i in range(n):
@@ -286,12 +295,12 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                 if rot:
                     dy[ow + i, l] += -sR * F / gaps[oI + i, l]
 
-    if FL[F_PP] != 0:
-        mu = P[P_MU]
-        oKt = G_KT * n
-        mindlin = FL[F_MINDLIN] != 0
-        ot = LO[L_XT]
-        owt = LO[L_WT]
+    if FL[F_PARTICLE_FRICTION] != 0:
+        mu = P[P_PARTICLE_MU]
+        oKt = G_PARTICLE_SPRING * n
+        mindlin = FL[F_PARTICLE_MINDLIN] != 0
+        ot = LO[L_PARTICLE_HIST]
+        owt = LO[L_WORK_PARTICLE]
         for l in range(L):
             dy[owt, l] = 0.0
         for k in range(n - 1):
@@ -345,17 +354,17 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
                 a = dy[owt, l]
                 dy[owt, l] = a + pw if loaded else a
 
-    if FL[F_ROLL] != 0:
+    if FL[F_ROLLING_FRICTION] != 0:
         # LAMMPS rolling sds on the 1D line (docs/explanation/lammps_laws.md sections 5 and 8):
         # v_roll = Reff (omega_k - omega_{k+1}), rho' = v_roll, moment
         # M = -k_roll rho - gamma_roll v_roll capped at mu_roll Fn, torque +Reff M on the
         # left sphere and -Reff M on the right one.
-        kr = P[P_KR]
-        gr = P[P_GR]
-        mur = P[P_MUR]
-        oRe = G_RE * n
-        op = LO[L_PS]
-        owro = LO[L_WR]
+        kr = P[P_ROLLING_SPRING]
+        gr = P[P_ROLLING_DASHPOT]
+        mur = P[P_ROLLING_MU]
+        oRe = G_ROLLING_REFF * n
+        op = LO[L_ROLLING_HIST]
+        owro = LO[L_WORK_ROLLING]
         for l in range(L):
             dy[owro, l] = 0.0
         for k in range(n - 1):
@@ -410,35 +419,36 @@ def _cap(coef, y, gaps, P, FL, ox, ov, n, k, l, d):
     """Coulomb cap coef |F| of inner contact k in lane l at overlap d > 0: F the Hertz
     force, or with contact damping the net normal force (as ``forces_block`` computes
     it), for the return mapping."""
-    K = gaps[G_K * n + k, l]
-    if FL[F_DAMP] == 0:
+    K = gaps[G_HERTZ_K * n + k, l]
+    if FL[F_CONTACT_DAMPING] == 0:
         return coef * K * d * math.sqrt(d)
     fel = K * d * math.sqrt(d)
     w = y[ov + k, l] - y[ov + k + 1, l]
-    F = fel + _damping_force(fel, d, w, gaps[G_ME * n + k, l], gaps[G_RS * n + k, l],
-                             FL[F_DMODEL], P[P_DMP])
-    return coef * abs(0.0 if (FL[F_DLIM] != 0 and F < 0.0) else F)
+    F = fel + _damping_force(fel, d, w, gaps[G_DAMPING_MEFF * n + k, l],
+                             gaps[G_DAMPING_RSTAR * n + k, l], FL[F_DAMPING_MODEL],
+                             P[P_DAMPING_COEF])
+    return coef * abs(0.0 if (FL[F_DAMPING_LIMIT] != 0 and F < 0.0) else F)
 
 
 @_blk
 def project_block(y, gaps, P, FL, LO, f):
     """Return mapping of the friction histories of a block onto their Coulomb caps
     (after a step)."""
-    n = int(P[P_N])
+    n = int(P[P_N_SPHERES])
     L = y.shape[1]
-    ox = LO[L_X]
-    ov = LO[L_V]
-    ow = LO[L_W]
-    rot = FL[F_ROT] != 0
+    ox = LO[L_DISP]
+    ov = LO[L_VEL]
+    ow = LO[L_SPIN]
+    rot = FL[F_ROTATION] != 0
     owr = ow if rot else ov
-    oK = G_K * n
-    if FL[F_GROOVE] != 0:
-        oFc = G_FC * n
-        oKg = G_KG * n
-        oGg = G_GG * n
-        oR = G_R * n
-        s_g = P[P_S]
-        og = LO[L_XG]
+    oK = G_HERTZ_K * n
+    if FL[F_GROOVE_FRICTION] != 0:
+        oFc = G_GROOVE_LIMIT * n
+        oKg = G_GROOVE_SPRING * n
+        oGg = G_GROOVE_DASHPOT * n
+        oR = G_RADIUS * n
+        s_g = P[P_GROOVE_S]
+        og = LO[L_GROOVE_HIST]
         for i in range(n):
             if not (_moving(y, ov + i, L) or _moving(y, og + i, L)
                     or (rot and _moving(y, ow + i, L))):
@@ -447,11 +457,11 @@ def project_block(y, gaps, P, FL, LO, f):
                 u = _groove_slip(y[ov + i, l], y[owr + i, l], s_g * gaps[oR + i, l], rot)
                 y[og + i, l] = _groove_map(y[og + i, l], u, gaps[oKg + i, l], gaps[oGg + i, l],
                                            gaps[oFc + i, l])
-    if FL[F_PP] != 0:
-        ot = LO[L_XT]
-        mu = P[P_MU]
-        oKt = G_KT * n
-        mindlin = FL[F_MINDLIN] != 0
+    if FL[F_PARTICLE_FRICTION] != 0:
+        ot = LO[L_PARTICLE_HIST]
+        mu = P[P_PARTICLE_MU]
+        oKt = G_PARTICLE_SPRING * n
+        mindlin = FL[F_PARTICLE_MINDLIN] != 0
         for k in range(n - 1):
             if not _any_contact(y, ox, gaps, k, L):
                 for l in range(L):
@@ -463,12 +473,12 @@ def project_block(y, gaps, P, FL, LO, f):
                 kt = ktc * math.sqrt(d) if mindlin else ktc
                 xi = _contact_map(y[ot + k, l], kt, _cap(mu, y, gaps, P, FL, ox, ov, n, k, l, d))
                 y[ot + k, l] = 0.0 if d <= 0.0 else xi
-    if FL[F_ROLL] != 0:
-        op = LO[L_PS]
-        oRe = G_RE * n
-        kr = P[P_KR]
-        gr = P[P_GR]
-        mur = P[P_MUR]
+    if FL[F_ROLLING_FRICTION] != 0:
+        op = LO[L_ROLLING_HIST]
+        oRe = G_ROLLING_REFF * n
+        kr = P[P_ROLLING_SPRING]
+        gr = P[P_ROLLING_DASHPOT]
+        mur = P[P_ROLLING_MU]
         for k in range(n - 1):
             if not _any_contact(y, ox, gaps, k, L):
                 for l in range(L):
@@ -485,51 +495,51 @@ def project_block(y, gaps, P, FL, LO, f):
 @_blk
 def energies_block(y, gaps, P, FL, LO, out):
     """Energy ledger (E_LEN, L) of a block: kinetic, Hertz potential, accumulated works."""
-    n = int(P[P_N])
+    n = int(P[P_N_SPHERES])
     L = y.shape[1]
-    ox = LO[L_X]
-    ov = LO[L_V]
-    oK = G_K * n
-    het = FL[F_HET] != 0
+    ox = LO[L_DISP]
+    ov = LO[L_VEL]
+    oK = G_HERTZ_K * n
+    het = FL[F_HETEROGENEOUS] != 0
     for e in range(E_LEN):
         for l in range(L):
             out[e, l] = 0.0
     if het:
-        oM = G_M * n
+        oM = G_MASS * n
         for i in range(n):
             for l in range(L):
-                out[E_KT, l] += 0.5 * gaps[oM + i, l] * y[ov + i, l] * y[ov + i, l]
+                out[E_KIN_TRANS, l] += 0.5 * gaps[oM + i, l] * y[ov + i, l] * y[ov + i, l]
     else:
         for i in range(n):
             for l in range(L):
-                out[E_KT, l] += y[ov + i, l] * y[ov + i, l]
+                out[E_KIN_TRANS, l] += y[ov + i, l] * y[ov + i, l]
         for l in range(L):
-            out[E_KT, l] = 0.5 * gaps[G_M * n, l] * out[E_KT, l]
-    if FL[F_ROT] != 0:
-        ow = LO[L_W]
-        oI = G_I * n
+            out[E_KIN_TRANS, l] = 0.5 * gaps[G_MASS * n, l] * out[E_KIN_TRANS, l]
+    if FL[F_ROTATION] != 0:
+        ow = LO[L_SPIN]
+        oI = G_INERTIA * n
         if het:
             for i in range(n):
                 for l in range(L):
-                    out[E_KR, l] += 0.5 * gaps[oI + i, l] * y[ow + i, l] * y[ow + i, l]
+                    out[E_KIN_ROT, l] += 0.5 * gaps[oI + i, l] * y[ow + i, l] * y[ow + i, l]
         else:
             for i in range(n):
                 for l in range(L):
-                    out[E_KR, l] += y[ow + i, l] * y[ow + i, l]
+                    out[E_KIN_ROT, l] += y[ow + i, l] * y[ow + i, l]
             for l in range(L):
-                out[E_KR, l] *= 0.5 * gaps[oI, l]
+                out[E_KIN_ROT, l] *= 0.5 * gaps[oI, l]
     for k in range(n - 1):
         if not _any_contact(y, ox, gaps, k, L):
             continue
         for l in range(L):
-            out[E_H, l] += _hertz_energy(gaps[oK + k, l], _overlap_l(y, ox, gaps, k, l))
-    if FL[F_WALL] != 0:
+            out[E_HERTZ, l] += _hertz_energy(gaps[oK + k, l], _overlap_l(y, ox, gaps, k, l))
+    if FL[F_END_WALL] != 0:
         for l in range(L):
-            out[E_H, l] += _hertz_energy(gaps[oK + n - 1, l], y[ox + n - 1, l] - gaps[n - 1, l])
-    if FL[F_LOAD] != 0:
-        F0 = P[P_F0]
+            out[E_HERTZ, l] += _hertz_energy(gaps[oK + n - 1, l], y[ox + n - 1, l] - gaps[n - 1, l])
+    if FL[F_DEAD_LOAD] != 0:
+        F0 = P[P_DEAD_LOAD]
         for l in range(L):
-            out[E_WL, l] = F0 * y[ox + 1, l]
+            out[E_WORK_LOAD, l] = F0 * y[ox + 1, l]
     for slot, col in WORK_SLOTS:
         o = LO[slot]
         if o >= 0:
@@ -566,12 +576,12 @@ def rk4_block(y, h, gaps, P, FL, LO, k1, k2, k3, k4, tmp, f):
 def verlet_block(y, acc, h, gaps, P, FL, LO, f):
     """One LAMMPS-order velocity-Verlet step of a block; acc holds the derivative of the
     last call."""
-    n = int(P[P_N])
+    n = int(P[P_N_SPHERES])
     L = y.shape[1]
-    ox = LO[L_X]
-    ov = LO[L_V]
-    ow = LO[L_W]
-    rot = FL[F_ROT] != 0
+    ox = LO[L_DISP]
+    ov = LO[L_VEL]
+    ow = LO[L_SPIN]
+    rot = FL[F_ROTATION] != 0
     hh = 0.5 * h
     for i in range(n):
         for l in range(L):
@@ -697,7 +707,7 @@ def dop853_try(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol):
 
 @njit(cache=True)
 def _finite(y, LO, n):
-    for j in range(LO[L_X], LO[L_V] + n):
+    for j in range(LO[L_DISP], LO[L_VEL] + n):
         if not math.isfinite(y[j]):
             return False
     return True
@@ -718,9 +728,9 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
     """
     B = Y.shape[0]
     W = Vout.shape[1]
-    n = int(P[P_N])
+    n = int(P[P_N_SPHERES])
     ny = Y.shape[1]
-    ov = LO[L_V]
+    ov = LO[L_VEL]
     for b in prange(B):
         counts[b] = 0
         if STATUS[b] != S_RUNNING:
@@ -802,8 +812,8 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
             if not _finite(y, LO, n):
                 STATUS[b] = S_NONFINITE
                 break
-            if auto_stop and _left(y[ov + n - 1], _overlap(y, LO[L_X], g, n - 2),
-                                   y[LO[L_X] + n - 1], VTHR[b], FL[F_WALL] != 0):
+            if auto_stop and _left(y[ov + n - 1], _overlap(y, LO[L_DISP], g, n - 2),
+                                   y[LO[L_DISP] + n - 1], VTHR[b], FL[F_END_WALL] != 0):
                 STATUS[b] = S_PASSED
 
 
@@ -825,25 +835,26 @@ def _wall_force_of(K, d, w, meff, rs, P, FL):
     """Force (N) of the end wall at overlap d and closing speed w: Hertz, and with contact
     damping the net force as ``forces_block`` applies it."""
     fel = _hertz_force(K, d)
-    if FL[F_DAMP] == 0 or d <= 0.0:
+    if FL[F_CONTACT_DAMPING] == 0 or d <= 0.0:
         return fel
-    F = fel + _damping_force(fel, d, w, meff, rs, FL[F_DMODEL], P[P_DMP])
-    return 0.0 if (FL[F_DLIM] != 0 and F < 0.0) else F
+    F = fel + _damping_force(fel, d, w, meff, rs, FL[F_DAMPING_MODEL], P[P_DAMPING_COEF])
+    return 0.0 if (FL[F_DAMPING_LIMIT] != 0 and F < 0.0) else F
 
 
 @njit(cache=True, inline="always")
 def _wall_force(y, g, n, LO, P, FL):
     """Force (N) of the end wall on one chain (state y, per-chain array g)."""
-    return _wall_force_of(g[G_K * n + n - 1], y[LO[L_X] + n - 1] - g[n - 1],
-                          y[LO[L_V] + n - 1], g[G_ME * n + n - 1], g[G_RS * n + n - 1], P, FL)
+    return _wall_force_of(g[G_HERTZ_K * n + n - 1], y[LO[L_DISP] + n - 1] - g[n - 1],
+                          y[LO[L_VEL] + n - 1], g[G_DAMPING_MEFF * n + n - 1],
+                          g[G_DAMPING_RSTAR * n + n - 1], P, FL)
 
 
 @njit(cache=True, inline="always")
 def _wall_force_l(y, g, n, LO, P, FL, l):
     """Force (N) of the end wall on lane l of a block."""
-    return _wall_force_of(g[G_K * n + n - 1, l], y[LO[L_X] + n - 1, l] - g[n - 1, l],
-                          y[LO[L_V] + n - 1, l], g[G_ME * n + n - 1, l],
-                          g[G_RS * n + n - 1, l], P, FL)
+    return _wall_force_of(g[G_HERTZ_K * n + n - 1, l], y[LO[L_DISP] + n - 1, l] - g[n - 1, l],
+                          y[LO[L_VEL] + n - 1, l], g[G_DAMPING_MEFF * n + n - 1, l],
+                          g[G_DAMPING_RSTAR * n + n - 1, l], P, FL)
 
 
 @njit(cache=True, inline="always")
@@ -884,69 +895,69 @@ def _obs_velocity(k, y, of, oi, rk, rv):
     new maximum, which are the only candidates for a first crossing of a level below the
     final maximum; those below PASS_FRACTION of the running maximum are dropped (a level
     the summariser crosses is at least half the final maximum)."""
-    if oi[I_NAN] != 0:
+    if oi[OI_NAN] != 0:
         return
     if y != y:
-        oi[I_NAN] = 1
+        oi[OI_NAN] = 1
         return
     cap = rk.shape[0]
     if k == 0:
-        of[O_M] = y
-        oi[I_J] = 0
-        oi[I_BWD] = 0
-        oi[I_FWD] = 0
-        oi[I_FOPEN] = 1
-        oi[I_PASS] = 0
-        oi[I_OVF] = 0
+        of[OF_MAX] = y
+        oi[OI_ARGMAX] = 0
+        oi[OI_NEAR_BEFORE] = 0
+        oi[OI_NEAR_AFTER] = 0
+        oi[OI_AFTER_OPEN] = 1
+        oi[OI_PASSED] = 0
+        oi[OI_RING_OVERFLOW] = 0
         rk[0] = 0
         rv[0, 0] = y
         rv[0, 1] = y
-        oi[I_RHEAD] = 0
-        oi[I_RCOUNT] = 1
-    elif y > of[O_M]:
-        prev = of[O_H + (k - 1) % PLATEAU_SAMPLES]
-        of[O_M] = y
-        of[O_Y0] = prev
-        oi[I_J] = k
+        oi[OI_RING_HEAD] = 0
+        oi[OI_RING_COUNT] = 1
+    elif y > of[OF_MAX]:
+        prev = of[OF_RECENT + (k - 1) % PLATEAU_SAMPLES]
+        of[OF_MAX] = y
+        of[OF_BEFORE] = prev
+        oi[OI_ARGMAX] = k
         thr = (1.0 - PEAK_TOL) * y
         bwd = 0
         for d in range(1, PLATEAU_SAMPLES + 1):
-            if k - d < 0 or not (of[O_H + (k - d) % PLATEAU_SAMPLES] >= thr):
+            if k - d < 0 or not (of[OF_RECENT + (k - d) % PLATEAU_SAMPLES] >= thr):
                 break
             bwd += 1
-        oi[I_BWD] = bwd
-        oi[I_FWD] = 0
-        oi[I_FOPEN] = 1
-        oi[I_PASS] = 0
-        head = oi[I_RHEAD]
-        count = oi[I_RCOUNT]
+        oi[OI_NEAR_BEFORE] = bwd
+        oi[OI_NEAR_AFTER] = 0
+        oi[OI_AFTER_OPEN] = 1
+        oi[OI_PASSED] = 0
+        head = oi[OI_RING_HEAD]
+        count = oi[OI_RING_COUNT]
         half = PASS_FRACTION * y
         while count > 0 and rv[head, 1] < half:
             head = (head + 1) % cap
             count -= 1
         if count == cap:
-            oi[I_OVF] = 1
+            oi[OI_RING_OVERFLOW] = 1
             head = (head + 1) % cap
             count -= 1
         s = (head + count) % cap
         rk[s] = k
         rv[s, 0] = prev
         rv[s, 1] = y
-        oi[I_RHEAD] = head
-        oi[I_RCOUNT] = count + 1
+        oi[OI_RING_HEAD] = head
+        oi[OI_RING_COUNT] = count + 1
     else:
-        top = of[O_M]
-        if k == oi[I_J] + 1:
-            of[O_Y2] = y
-        if oi[I_FOPEN] != 0:
+        top = of[OF_MAX]
+        if k == oi[OI_ARGMAX] + 1:
+            of[OF_AFTER] = y
+        if oi[OI_AFTER_OPEN] != 0:
             if y >= (1.0 - PEAK_TOL) * top:
-                if oi[I_FWD] < PLATEAU_SAMPLES:
-                    oi[I_FWD] += 1
+                if oi[OI_NEAR_AFTER] < PLATEAU_SAMPLES:
+                    oi[OI_NEAR_AFTER] += 1
             else:
-                oi[I_FOPEN] = 0
+                oi[OI_AFTER_OPEN] = 0
         if y < PASS_FRACTION * top:
-            oi[I_PASS] = 1
-    of[O_H + k % PLATEAU_SAMPLES] = y
+            oi[OI_PASSED] = 1
+    of[OF_RECENT + k % PLATEAU_SAMPLES] = y
 
 
 @njit(cache=True)
@@ -954,8 +965,8 @@ def _obs_crossing(level, oi, rk, rv, sdt):
     """``observables._crossing`` from the record samples: the first sample at or above
     ``level``, linearly interpolated from the sample before it (times k * sdt)."""
     cap = rk.shape[0]
-    head = oi[I_RHEAD]
-    for q in range(oi[I_RCOUNT]):
+    head = oi[OI_RING_HEAD]
+    for q in range(oi[OI_RING_COUNT]):
         s = (head + q) % cap
         if rv[s, 1] >= level:
             j = rk[s]
@@ -972,20 +983,20 @@ def _obs_crossing(level, oi, rk, rv, sdt):
 @njit(cache=True)
 def _obs_finish(S, of, oi, rk, rv, sdt, out):
     """``observables.peak`` of one particle after its S samples, into out (R_*)."""
-    top = of[O_M]
-    if oi[I_NAN] != 0 or not top > 0.0:
-        out[R_VMAX] = 0.0
-        out[R_TPK] = math.nan
-        out[R_TFR] = math.nan
-        out[R_PLAT] = 0.0
-        out[R_TOP] = math.nan if oi[I_NAN] != 0 else top
+    top = of[OF_MAX]
+    if oi[OI_NAN] != 0 or not top > 0.0:
+        out[OUT_VMAX] = 0.0
+        out[OUT_T_PEAK] = math.nan
+        out[OUT_T_FRONT] = math.nan
+        out[OUT_PLATEAU] = 0.0
+        out[OUT_MAX_SAMPLE] = math.nan if oi[OI_NAN] != 0 else top
         return
-    j = oi[I_J]
-    plateau = (oi[I_BWD] + 1 + oi[I_FWD]) > PLATEAU_SAMPLES
+    j = oi[OI_ARGMAX]
+    plateau = (oi[OI_NEAR_BEFORE] + 1 + oi[OI_NEAR_AFTER]) > PLATEAU_SAMPLES
     if not plateau and 0 < j < S - 1:
-        y0 = of[O_Y0]
+        y0 = of[OF_BEFORE]
         y1 = top
-        y2 = of[O_Y2]
+        y2 = of[OF_AFTER]
         den = y0 - 2.0 * y1 + y2
         off = 0.5 * (y0 - y2) / den if den < 0.0 else 0.0
         off = _pymin(_pymax(off, -0.5), 0.5)
@@ -998,11 +1009,11 @@ def _obs_finish(S, of, oi, rk, rv, sdt, out):
     else:
         vmax = top
         tpk = _obs_crossing((1.0 - PEAK_TOL) * top, oi, rk, rv, sdt)
-    out[R_VMAX] = vmax
-    out[R_TPK] = tpk
-    out[R_TFR] = _obs_crossing(0.5 * vmax, oi, rk, rv, sdt)
-    out[R_TOP] = top
-    out[R_PLAT] = 1.0 if plateau else 0.0
+    out[OUT_VMAX] = vmax
+    out[OUT_T_PEAK] = tpk
+    out[OUT_T_FRONT] = _obs_crossing(0.5 * vmax, oi, rk, rv, sdt)
+    out[OUT_MAX_SAMPLE] = top
+    out[OUT_PLATEAU] = 1.0 if plateau else 0.0
 
 
 @njit(cache=True)
@@ -1014,36 +1025,36 @@ def _obs_wall(k, F, wf, wi):
         wi[WI_NAN] = 1
         return
     if k == 0:
-        wf[W_M] = F
-        wi[WI_J] = 0
-        wi[WI_PASS] = 0
-    elif F > wf[W_M]:
-        wf[W_M] = F
-        wf[W_Y0] = wf[W_PREV]
-        wi[WI_J] = k
-        wi[WI_PASS] = 0
+        wf[WF_MAX] = F
+        wi[WI_ARGMAX] = 0
+        wi[WI_PASSED] = 0
+    elif F > wf[WF_MAX]:
+        wf[WF_MAX] = F
+        wf[WF_BEFORE] = wf[WF_PREV]
+        wi[WI_ARGMAX] = k
+        wi[WI_PASSED] = 0
     else:
-        if k == wi[WI_J] + 1:
-            wf[W_Y2] = F
-        if F < PASS_FRACTION * wf[W_M]:
-            wi[WI_PASS] = 1
-    wf[W_PREV] = F
+        if k == wi[WI_ARGMAX] + 1:
+            wf[WF_AFTER] = F
+        if F < PASS_FRACTION * wf[WF_MAX]:
+            wi[WI_PASSED] = 1
+    wf[WF_PREV] = F
 
 
 @njit(cache=True)
 def _obs_wall_finish(S, wf, wi, sdt, wout):
     """``observables.wall_peak`` after S samples, into wout (F_max, t_peak, final)."""
-    top = wf[W_M]
-    if wi[WI_NAN] != 0 or not (top > 0.0 and wi[WI_PASS] != 0):
+    top = wf[WF_MAX]
+    if wi[WI_NAN] != 0 or not (top > 0.0 and wi[WI_PASSED] != 0):
         wout[0] = math.nan
         wout[1] = math.nan
         wout[2] = 0.0
         return
-    j = wi[WI_J]
+    j = wi[WI_ARGMAX]
     tpk = float(j) * sdt
     if 0 < j < S - 1:
-        y0 = wf[W_Y0]
-        y2 = wf[W_Y2]
+        y0 = wf[WF_BEFORE]
+        y2 = wf[WF_AFTER]
         den = y0 - 2.0 * top + y2
         off = _pymin(_pymax(0.5 * (y0 - y2) / den, -0.5), 0.5) if den < 0.0 else 0.0
         top = top - 0.25 * (y0 - y2) * off
@@ -1063,12 +1074,12 @@ def _obs_balance(k, ebuf, l, bal):
     for e in range(3, ebuf.shape[0]):
         work += ebuf[e, l]
     if k == 0:
-        bal[B_E0] = total
-    a = abs(total - bal[B_E0] - work)
+        bal[BAL_E0] = total
+    a = abs(total - bal[BAL_E0] - work)
     if k == 0 or a != a:
-        bal[B_MAX] = a
-    elif a > bal[B_MAX]:
-        bal[B_MAX] = a
+        bal[BAL_MAX] = a
+    elif a > bal[BAL_MAX]:
+        bal[BAL_MAX] = a
 
 
 @njit(cache=True)
@@ -1077,7 +1088,7 @@ def _sample_lane(c, k, y, g, ebuf, l, b, n, LO, P, FL, observe, wall_static, Vou
     """Sample k of the chain in lane l (chain b): into row c of its record, or with
     observe into its on-the-fly observables (row 0 of Vout/Eout keeps sample 0, row 1 the
     latest sample)."""
-    ov = LO[L_V]
+    ov = LO[L_VEL]
     r = c if not observe else (0 if k == 0 else 1)
     for i in range(n):
         Vout[b, r, i] = y[ov + i, l]
@@ -1128,18 +1139,18 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
     this call). With ``observe`` (Vout/Eout of 2 rows: sample 0, then the latest sample)
     each sample updates the chain's on-the-fly observables (samples k * sample_dt apart;
     the wall force less ``wall_static``), and a chain that stops gets them: per particle
-    OUT[b, i] (R_*: the ``observables.peak`` values) and OI[b, i, I_PASS] (the wave has
-    passed it), the wall's WOUT[b] (``observables.wall_peak``), BAL[b, B_E0] and
-    BAL[b, B_MAX] (the energy balance of ``observables.energy_ledger``), and
-    OI[b, i, I_OVF] set where a particle had more record samples than RK.shape[2] (its
+    OUT[b, i] (R_*: the ``observables.peak`` values) and OI[b, i, OI_PASSED] (the wave has
+    passed it), the wall's WOUT[b] (``observables.wall_peak``), BAL[b, BAL_E0] and
+    BAL[b, BAL_MAX] (the energy balance of ``observables.energy_ledger``), and
+    OI[b, i, OI_RING_OVERFLOW] set where a particle had more record samples than RK.shape[2] (its
     crossing times are then not the summariser's). The observe arrays are not read
     without ``observe``.
     """
     nblk, ny, L = Y.shape
     W = Vout.shape[1] if not observe else 2**62
-    n = int(P[P_N])
-    ox = LO[L_X]
-    ov = LO[L_V]
+    n = int(P[P_N_SPHERES])
+    ox = LO[L_DISP]
+    ov = LO[L_VEL]
     wall = Vout.shape[2] > n
     for blk in prange(nblk):
         base = blk * L
@@ -1217,7 +1228,7 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                     _finish_lane(b, n, NS, sample_dt, observe, OF, OI, RK, RV, WF, WI, OUT,
                                  WOUT, wall)
                 elif auto_stop and _left(y[ov + n - 1, l], _overlap_l(y, ox, g, n - 2, l),
-                                         y[ox + n - 1, l], VTHR[b], FL[F_WALL] != 0):
+                                         y[ox + n - 1, l], VTHR[b], FL[F_END_WALL] != 0):
                     _stop_lane(y, acc, l, YF, b, S_PASSED, STATUS)
                     _finish_lane(b, n, NS, sample_dt, observe, OF, OI, RK, RV, WF, WI, OUT,
                                  WOUT, wall)

@@ -88,9 +88,10 @@ METHOD = "lammps-verlet"
 DUMP_READ = ("x", "vx")   # the dump columns read as MDAnalysis additional (float64) columns
 # output path -> (trajectory file, reader)
 READERS = {"binary": ("traj.bin", "read_binary"), "dump": ("traj.dump", "read_dump")}
-(E_KT, E_KR, E_H, E_WG, E_WD, E_WL) = (ENERGY_COLUMNS.index(c) for c in (
-    "kinetic_translational", "kinetic_rotational", "hertz_potential", "work_groove_friction",
-    "work_air_drag", "work_load"))
+(E_KIN_TRANS, E_KIN_ROT, E_HERTZ, E_WORK_GROOVE, E_WORK_DRAG, E_WORK_LOAD) = (
+    ENERGY_COLUMNS.index(c) for c in (
+        "kinetic_translational", "kinetic_rotational", "hertz_potential", "work_groove_friction",
+        "work_air_drag", "work_load"))
 # SI factors of 'units micro' values (docs/explanation/lammps_laws.md section 1)
 UM = 1e-6          # um -> m
 ENERGY = 1e-15     # 1e-15 J -> J
@@ -178,7 +179,7 @@ def _wall_damping(terms, m_last, R_last) -> tuple | None:
     if cd is None or terms.chain.K_wall is None:
         return None
     params, flags = contact_damping.kernel(cd)
-    return (flags["F_DMODEL"], params["P_DMP"], cd.limit_damping, m_last, R_last)
+    return (flags["F_DAMPING_MODEL"], params["P_DAMPING_COEF"], cd.limit_damping, m_last, R_last)
 
 
 def _damped_wall_force(x_last, v_last, geo: Geometry) -> np.ndarray:
@@ -683,10 +684,10 @@ def _new_energies(S: int, B: int) -> np.ndarray:
 def _fill_mechanical(E, KE, EH, WL) -> None:
     """Kinetic translational energy, Hertz energy and the work of the dead load (or None)
     per chain into E (samples, B, len(ENERGY_COLUMNS))."""
-    E[:, :, E_KT] = KE
-    E[:, :, E_H] = EH
+    E[:, :, E_KIN_TRANS] = KE
+    E[:, :, E_HERTZ] = EH
     if WL is not None:
-        E[:, :, E_WL] = WL
+        E[:, :, E_WORK_LOAD] = WL
 
 
 def _fill_ledger(E, WF, pl: "deckmod.DeckPlan", ledger) -> None:
@@ -708,9 +709,9 @@ def _fill_residual(scene: Scene, E) -> None:
     (registry order; the others stay 0)."""
     cols = residual_work(scene.effects)
     if cols:
-        mech = E[:, :, E_KT] + E[:, :, E_KR] + E[:, :, E_H]
-        E[:, :, ENERGY_COLUMNS.index(cols[0])] = (mech - mech[0] - E[:, :, E_WG] - E[:, :, E_WD]
-                                                  - E[:, :, E_WL])
+        mech = E[:, :, E_KIN_TRANS] + E[:, :, E_KIN_ROT] + E[:, :, E_HERTZ]
+        E[:, :, ENERGY_COLUMNS.index(cols[0])] = (mech - mech[0] - E[:, :, E_WORK_GROOVE]
+                                                  - E[:, :, E_WORK_DRAG] - E[:, :, E_WORK_LOAD])
 
 
 def read_ledger(path: Path, pl: "deckmod.DeckPlan", step) -> np.ndarray:

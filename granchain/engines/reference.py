@@ -23,17 +23,18 @@ from ..guards import require_resolved
 from ..scene import Scene
 from ..trajectory import OnTheFly, Trajectory
 from . import backend
-from . import codes as C
-from . import obscodes as K
+from . import codes
+from . import obscodes
 
 M_EVENT = 3
-METHOD_CODES = {"rk4": C.M_RK4, "verlet": C.M_VERLET, "adaptive": C.M_DOP853,
+METHOD_CODES = {"rk4": codes.M_RK4, "verlet": codes.M_VERLET, "adaptive": codes.M_DOP853,
                 "event": M_EVENT}
 # plateau rule of granchain.observables (PLATEAU_SAMPLES sample intervals), for the
 # event method's on-the-fly peaks
 PLATEAU_SAMPLES = 5
-STATUS_NAMES = {C.S_DONE: "done", C.S_PASSED: "passed", C.S_TIMEOUT: "timeout",
-                C.S_NONFINITE: "nonfinite", C.S_STEPFAIL: "stepfail", C.S_RUNNING: "timeout"}
+STATUS_NAMES = {codes.S_DONE: "done", codes.S_PASSED: "passed", codes.S_TIMEOUT: "timeout",
+                codes.S_NONFINITE: "nonfinite", codes.S_STEPFAIL: "stepfail",
+                codes.S_RUNNING: "timeout"}
 WINDOW = 2048                    # samples per kernel call (adaptive method)
 BLOCK_WINDOW = 256               # samples per kernel call (fixed-step blocks)
 CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
@@ -52,40 +53,40 @@ class Layout:
     def of(cls, terms: Terms) -> "Layout":
         n = terms.n
         off = 0
-        LO = np.full(C.L_LEN, -1, dtype=np.int64)
+        LO = np.full(codes.L_LEN, -1, dtype=np.int64)
 
         def take(slot, size):
             nonlocal off
             LO[slot] = off
             off += size
-        take(C.L_X, n)
-        take(C.L_V, n)
+        take(codes.L_DISP, n)
+        take(codes.L_VEL, n)
         # the effects' blocks, then one work entry per effect that does work, in
         # registry order (granchain.effects.MODULES)
         on = [spec for name, spec in SPECS.items() if terms.has(name)]
         for spec in on:
             for slot, per in spec.state:
-                take(getattr(C, slot), n if per == "particle" else n - 1)
+                take(getattr(codes, slot), n if per == "particle" else n - 1)
         for spec in on:
             if spec.work_slot:
-                take(getattr(C, spec.work_slot), 1)
-        LO[C.L_NY] = off
+                take(getattr(codes, spec.work_slot), 1)
+        LO[codes.L_STATE_SIZE] = off
         return cls(LO, off)
 
 
 def pack(terms: Terms) -> tuple[np.ndarray, np.ndarray]:
     """Parameter vector P and flag vector FL of the kernels, from the effect definitions."""
-    P = np.zeros(C.P_LEN)
-    FL = np.zeros(C.F_LEN, dtype=np.int64)
-    P[C.P_N], P[C.P_R], P[C.P_M] = terms.n, terms.R, terms.m
+    P = np.zeros(codes.P_LEN)
+    FL = np.zeros(codes.F_LEN, dtype=np.int64)
+    P[codes.P_N_SPHERES], P[codes.P_RADIUS], P[codes.P_MASS] = terms.n, terms.R, terms.m
     for mod, term in [(chain_mod, terms.chain)] + [(m, getattr(terms, m.SPEC.name))
                                                    for m in MODULES]:
         if term is not None:
             params, flags = mod.kernel(term)
             for slot, value in params.items():
-                P[getattr(C, slot)] = value
+                P[getattr(codes, slot)] = value
             for slot, value in flags.items():
-                FL[getattr(C, slot)] = value
+                FL[getattr(codes, slot)] = value
     return P, FL
 
 
@@ -101,7 +102,7 @@ def chain_rows(terms: Terms, gaps: np.ndarray, scene: Scene | None = None,
                                for r, g in zip(np.atleast_2d(radii), np.atleast_2d(gaps))])
     n = terms.n
     gaps = np.atleast_2d(gaps)
-    G = np.zeros((gaps.shape[0], C.G_LEN * n))
+    G = np.zeros((gaps.shape[0], codes.G_LEN * n))
     G[:, :n] = terms.chain.kernel_gaps(gaps)
     rows = dict(chain_mod.rows(terms.chain))
     for mod in MODULES:
@@ -109,7 +110,7 @@ def chain_rows(terms: Terms, gaps: np.ndarray, scene: Scene | None = None,
         if term is not None and hasattr(mod, "rows"):
             rows.update(mod.rows(term, terms.chain))
     for slot, values in rows.items():
-        o = getattr(C, slot) * n
+        o = getattr(codes, slot) * n
         G[:, o:o + n] = values
     return G
 
@@ -173,7 +174,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
             rc = None if radii is None else np.atleast_2d(radii)[chunk]
             if method == "event":
                 it = _run_chunk_events(scene, terms, gaps[chunk], vs[chunk], dt, rtol, key,
-                                       bool(trace), pair or C.DEFAULT_PAIR, rc, lanes)
+                                       bool(trace), pair or codes.DEFAULT_PAIR, rc, lanes)
             else:
                 it = _run_chunk(scene, terms, gaps[chunk], vs[chunk], method, dt, rtol, key, rc,
                                 trace is not False)
@@ -209,9 +210,10 @@ def _chunks(group, scene, terms, sample_dt, method, observe=False, sampling=None
     blocked = method in ("rk4", "verlet")          # blocks of LANES chains in lockstep
     if blocked and observe:
         n = terms.n
-        per_chain = 8 * (n * (3 * RECORD_RING + K.OBS_F + K.OBS_I + K.OBS_R + 2 * C.G_LEN)
-                         + 2 * (record_width(terms) + C.E_LEN) + K.OBS_WF + K.OBS_WI
-                         + K.OBS_WOUT + 5 * Layout.of(terms).ny)
+        per_chain = 8 * (n * (3 * RECORD_RING + obscodes.OBS_F + obscodes.OBS_I + obscodes.OBS_R
+                              + 2 * codes.G_LEN)
+                         + 2 * (record_width(terms) + codes.E_LEN) + obscodes.OBS_WF
+                         + obscodes.OBS_WI + obscodes.OBS_WOUT + 5 * Layout.of(terms).ny)
     else:
         if scene.t_end is not None:
             t_est = scene.t_end
@@ -223,7 +225,7 @@ def _chunks(group, scene, terms, sample_dt, method, observe=False, sampling=None
             t_est = 4.0 * (planned if planned is not None
                            else expected_duration(scene, max(v, 1e-6)))
         window = BLOCK_WINDOW if blocked else WINDOW
-        per_chain = (t_est / sample_dt + window) * (terms.n + C.E_LEN) * 8
+        per_chain = (t_est / sample_dt + window) * (terms.n + codes.E_LEN) * 8
     size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, CHUNK_CHAINS)))
     threads = backend.num_threads()
     if blocked and observe and size < len(group):
@@ -281,7 +283,7 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
     G = chain_rows(terms, gaps, scene, radii)
     nv = record_width(terms)
     Y = np.zeros((B, ny))
-    Y[:, layout.LO[C.L_V]] = vs            # particle 1 (index 0) is the striker
+    Y[:, layout.LO[codes.L_VEL]] = vs            # particle 1 (index 0) is the striker
     ACC = np.zeros((B, ny))
     T = np.zeros(B)
     H = np.full(B, dt)
@@ -291,7 +293,7 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
     STATUS = np.zeros(B, dtype=np.int64)
     VTHR = arrival_speed(vs)
     mcode = METHOD_CODES[method]
-    if mcode == C.M_DOP853:
+    if mcode == codes.M_DOP853:
         every, sdt = 1, sample_dt
     else:
         every = max(1, int(round(sample_dt / dt)))
@@ -304,16 +306,16 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
         NT = np.array([int(math.ceil(auto_t_max(scene, gaps[b], vs[b]) / sdt)) + 1
                        if vs[b] > 0 else 1 for b in range(B)], dtype=np.int64)
     scale_abs, rel = _error_scales(scene, terms, layout, max(float(vs.max()), 1e-9))
-    observe = mcode != C.M_DOP853 and not trace
+    observe = mcode != codes.M_DOP853 and not trace
     V_parts = [[] for _ in range(B)]
     E_parts = [[] for _ in range(B)]
     counts = np.zeros(B, dtype=np.int64)
     obs = None
     t0 = time.perf_counter()
-    if mcode == C.M_DOP853:
+    if mcode == codes.M_DOP853:
         Vbuf = np.empty((B, WINDOW, nv))
-        Ebuf = np.empty((B, WINDOW, C.E_LEN))
-        while np.any(STATUS == C.S_RUNNING):
+        Ebuf = np.empty((B, WINDOW, codes.E_LEN))
+        while np.any(STATUS == codes.S_RUNNING):
             kern.run_window(mcode, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, G, P, FL,
                          layout.LO, scale_abs, rel, rtol, dt, every, sdt, NT, auto, Vbuf, Ebuf,
                          counts)
@@ -325,7 +327,7 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
         NS = obs.NS if observe else NS
     wall = time.perf_counter() - t0
     eff = tuple(sorted(scene.effects))
-    ox, ov = layout.LO[C.L_X], layout.LO[C.L_V]
+    ox, ov = layout.LO[codes.L_DISP], layout.LO[codes.L_VEL]
     ovf = obs.overflow() if observe else np.zeros(B, dtype=bool)
     redo = {}
     if ovf.any():
@@ -338,8 +340,8 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
             yield redo[b]
             continue
         status = STATUS[b]
-        if auto and status == C.S_DONE and vs[b] > 0:
-            status = C.S_TIMEOUT      # t_end auto hit its cap before the wave left the chain
+        if auto and status == codes.S_DONE and vs[b] > 0:
+            status = codes.S_TIMEOUT      # t_end auto hit its cap before the wave left the chain
         last_overlap = float(Y[b, ox + n - 2] - Y[b, ox + n - 1] - gaps[b, n - 2])
         observed = None
         if observe:
@@ -355,13 +357,13 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
             e = np.concatenate(E_parts[b])
             t = np.arange(rec.shape[0]) * sdt
         v = rec[:, :n].copy() if observe else rec[:, :n]
-        if mcode == C.M_RK4:
+        if mcode == codes.M_RK4:
             nev = 4 * int(STEPS[b])
-        elif mcode == C.M_VERLET:
+        elif mcode == codes.M_VERLET:
             nev = int(STEPS[b]) + 1                  # + the setup call
         else:
             # each DOP853 trial evaluates f(y), 11 stages and f(ynew) (kernels.dop853_try)
-            nev = (C.NST + 1) * int(STEPS[b] + REJ[b])
+            nev = (codes.NST + 1) * int(STEPS[b] + REJ[b])
         yield Trajectory(t=t, v=v, energy=e, gaps=gaps[b].copy(), radius=scene.radius,
                          v_striker=float(vs[b]), effects=eff, steps=int(STEPS[b]),
                          rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
@@ -381,10 +383,10 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
     LO = layout.LO
     B, n, ny = gaps.shape[0], terms.n, layout.ny
     G = chain_rows(terms, gaps, scene, radii)
-    A, Bw, _nodes, E5, E3, qexp, dopnorm = C.PAIRS[pair]   # no step uses the nodes
+    A, Bw, _nodes, E5, E3, qexp, dopnorm = codes.PAIRS[pair]   # no step uses the nodes
     S = Bw.shape[0]
     Y = np.zeros((B, ny))
-    Y[:, LO[C.L_V]] = vs
+    Y[:, LO[codes.L_VEL]] = vs
     KST = np.zeros((B, S + 1, ny))
     T = np.zeros(B)
     H = np.full(B, dt)
@@ -404,13 +406,13 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
                        if vs[b] > 0 else 1 for b in range(B)], dtype=np.int64)
     t_stop = (NT - 1) * sample_dt
     scale_abs, rel = _error_scales(scene, terms, layout, max(float(vs.max()), 1e-9))
-    band = rtol * scale_abs[LO[C.L_X]]           # overlap band of the contact events
-    land = rtol * scale_abs[LO[C.L_V]]           # peak landing threshold
+    band = rtol * scale_abs[LO[codes.L_DISP]]           # overlap band of the contact events
+    land = rtol * scale_abs[LO[codes.L_VEL]]           # peak landing threshold
     VMAX = np.zeros((B, n))
     TPK = np.zeros((B, n))
     PASSED = np.zeros((B, n), dtype=np.int64)
     RUNEND = np.full((B, n), -1.0)
-    RB = np.zeros((B, n, C.RB_SIZE, C.RB_LEN))
+    RB = np.zeros((B, n, codes.RB_SIZE, codes.RB_LEN))
     RBN = np.zeros((B, n), dtype=np.int64)
     DROP = np.full((B, n), -np.inf)
     VINIT = np.zeros((B, n))
@@ -422,7 +424,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
     KP = np.zeros_like(YP)
     TP = np.zeros(B)
     Vbuf = np.empty((B, W, n))
-    Ebuf = np.empty((B, W, C.E_LEN))
+    Ebuf = np.empty((B, W, codes.E_LEN))
     counts = np.zeros(B, dtype=np.int64)
     V_parts = [[] for _ in range(B)]
     E_parts = [[] for _ in range(B)]
@@ -444,7 +446,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
                               VTHR, G, P, FL, LO, scale_abs, rel, rtol, band, land, A, Bw, E5,
                               E3, qexp, dopnorm, t_stop, auto, VMAX, TPK, PASSED, RUNEND, RB,
                               RBN, DROP, VINIT, E0, BAL)
-    while not in_lanes and np.any(STATUS == C.S_RUNNING):
+    while not in_lanes and np.any(STATUS == codes.S_RUNNING):
         kern.run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, G, P, FL, LO,
                       scale_abs, rel, rtol, band, land, A, Bw, E5, E3, qexp, dopnorm,
                       t_stop, auto, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, VINIT,
@@ -456,12 +458,12 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
                 E_parts[b].append(Ebuf[b, :c].copy())
     wall = time.perf_counter() - t0
     eff = tuple(sorted(scene.effects))
-    ox, ov = LO[C.L_X], LO[C.L_V]
-    ebuf = np.empty(C.E_LEN)
+    ox, ov = LO[codes.L_DISP], LO[codes.L_VEL]
+    ebuf = np.empty(codes.E_LEN)
     for b in range(B):
         status = STATUS[b]
-        if auto and status == C.S_DONE and vs[b] > 0:
-            status = C.S_TIMEOUT
+        if auto and status == codes.S_DONE and vs[b] > 0:
+            status = codes.S_TIMEOUT
         last_overlap = float(Y[b, ox + n - 2] - Y[b, ox + n - 1] - gaps[b, n - 2])
         y_end = Y[b]
         kern.energies(y_end, G[b], P, FL, LO, ebuf)
@@ -517,16 +519,16 @@ class _Observed:
         k = n if observe else 1
         ring = RECORD_RING if observe else 1
         self.V = np.zeros((Bp, 2, nv)) if observe else None
-        self.E = np.zeros((Bp, 2, C.E_LEN)) if observe else None
-        self.OF = np.zeros((m, k, K.OBS_F))
-        self.OI = np.zeros((m, k, K.OBS_I), dtype=np.int64)
+        self.E = np.zeros((Bp, 2, codes.E_LEN)) if observe else None
+        self.OF = np.zeros((m, k, obscodes.OBS_F))
+        self.OI = np.zeros((m, k, obscodes.OBS_I), dtype=np.int64)
         self.RK = np.zeros((m, k, ring), dtype=np.int64)
         self.RV = np.zeros((m, k, ring, 2))
-        self.WF = np.zeros((m, K.OBS_WF))
-        self.WI = np.zeros((m, K.OBS_WI), dtype=np.int64)
+        self.WF = np.zeros((m, obscodes.OBS_WF))
+        self.WI = np.zeros((m, obscodes.OBS_WI), dtype=np.int64)
         self.BAL = np.zeros((m, 2))
-        self.OUT = np.zeros((m, k, K.OBS_R))
-        self.WOUT = np.zeros((m, K.OBS_WOUT))
+        self.OUT = np.zeros((m, k, obscodes.OBS_R))
+        self.WOUT = np.zeros((m, obscodes.OBS_WOUT))
         self.NS = None
 
     def args(self):
@@ -535,29 +537,29 @@ class _Observed:
 
     def overflow(self) -> np.ndarray:
         """Chains whose record ring overflowed for some particle."""
-        return np.any(self.OI[:, :, K.I_OVF] != 0, axis=1)
+        return np.any(self.OI[:, :, obscodes.OI_RING_OVERFLOW] != 0, axis=1)
 
     def observed(self, b, v_striker, v_last, last_overlap, walled, samples) -> OnTheFly:
         """Chain b's observables, with ``observables.peak_final``'s rule for which peaks
         are final."""
         out = self.OUT[b]
-        top = out[:, K.R_TOP]
-        vmax, tpk, tfr = (out[:, K.R_VMAX].copy(), out[:, K.R_TPK].copy(),
-                          out[:, K.R_TFR].copy())
-        final = (top > arrival_speed(v_striker)) & (self.OI[b, :, K.I_PASS] != 0)
+        top = out[:, obscodes.OUT_MAX_SAMPLE]
+        vmax, tpk, tfr = (out[:, obscodes.OUT_VMAX].copy(), out[:, obscodes.OUT_T_PEAK].copy(),
+                          out[:, obscodes.OUT_T_FRONT].copy())
+        final = (top > arrival_speed(v_striker)) & (self.OI[b, :, obscodes.OI_PASSED] != 0)
         if not walled:
             final[-1] = bool(top[-1] > arrival_speed(v_striker)
                              and last_detached(v_last, last_overlap, v_striker))
         for a in (vmax, tpk, tfr):
             a[~final] = math.nan
-        e0, bmax = float(self.BAL[b, K.B_E0]), self.BAL[b, K.B_MAX]
+        e0, bmax = float(self.BAL[b, obscodes.BAL_E0]), self.BAL[b, obscodes.BAL_MAX]
         wall = {}
         if walled:
             wall = {"wall_force_max": float(self.WOUT[b, 0]),
                     "t_wall_peak": float(self.WOUT[b, 1]),
                     "wall_peak_final": bool(self.WOUT[b, 2] != 0.0)}
         return OnTheFly(v_max=vmax, t_peak=tpk, t_front=tfr,
-                        plateau=out[:, K.R_PLAT] != 0.0, final=final,
+                        plateau=out[:, obscodes.OUT_PLATEAU] != 0.0, final=final,
                         balance_error=float(bmax / e0) if e0 > 0 else 0.0,
                         samples=int(samples), **wall)
 
@@ -579,7 +581,7 @@ def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V
     chain's sample count; otherwise the records go to V_parts, E_parts)."""
     B, ny = Y0.shape
     ng = gaps.shape[1]
-    n = int(P[C.P_N])
+    n = int(P[codes.P_N_SPHERES])
     Lb = LANES
     nblk = -(-B // Lb)
     Bp = nblk * Lb
@@ -597,8 +599,8 @@ def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V
     T = np.zeros(Bp)
     NS = np.zeros(Bp, dtype=np.int64)
     STEPS = np.zeros(Bp, dtype=np.int64)
-    STATUS = np.full(Bp, C.S_DONE, dtype=np.int64)
-    STATUS[:B] = C.S_RUNNING
+    STATUS = np.full(Bp, codes.S_DONE, dtype=np.int64)
+    STATUS[:B] = codes.S_RUNNING
     VT = np.zeros(Bp)
     VT[:B] = VTHR
     NTp = np.ones(Bp, dtype=np.int64)
@@ -608,9 +610,9 @@ def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V
         Vbuf, Ebuf = obs.V, obs.E
     else:
         Vbuf = np.empty((Bp, BLOCK_WINDOW, nv))
-        Ebuf = np.empty((Bp, BLOCK_WINDOW, C.E_LEN))
+        Ebuf = np.empty((Bp, BLOCK_WINDOW, codes.E_LEN))
     counts = np.zeros(Bp, dtype=np.int64)
-    while np.any(STATUS[:B] == C.S_RUNNING):
+    while np.any(STATUS[:B] == codes.S_RUNNING):
         kern.run_blocks(mcode, YB, ACC, YF, T, NS, STEPS, STATUS, VT, GB, P, FL, layout.LO, dt,
                         every, NTp, auto, Vbuf, Ebuf, counts, observe, float(sample_dt),
                         float(wall_static), *obs.args())
@@ -643,17 +645,17 @@ def _error_scales(scene, terms, layout, v):
     delta = (5.0 * mu_red * v * v / (4.0 * terms.hertz.K)) ** 0.4
     e0 = 0.5 * terms.m * v * v
     # displacements: judged on the overlap scale only (their size grows in free flight)
-    scale[LO[C.L_X]:LO[C.L_X] + n] = delta
-    rel[LO[C.L_X]:LO[C.L_X] + n] = 0
-    scale[LO[C.L_V]:LO[C.L_V] + n] = v
+    scale[LO[codes.L_DISP]:LO[codes.L_DISP] + n] = delta
+    rel[LO[codes.L_DISP]:LO[codes.L_DISP] + n] = 0
+    scale[LO[codes.L_VEL]:LO[codes.L_VEL] + n] = v
     # each effect's history blocks, on the scale the effect declares; its work on E0
     for mod in MODULES:
         term = getattr(terms, mod.SPEC.name)
         if term is None:
             continue
         for slot, per in mod.SPEC.state:
-            o = LO[getattr(C, slot)]
+            o = LO[getattr(codes, slot)]
             scale[o:o + (n if per == "particle" else n - 1)] = mod.error_scale(term, terms, delta, v)
         if mod.SPEC.work_slot:
-            scale[LO[getattr(C, mod.SPEC.work_slot)]] = e0
+            scale[LO[getattr(codes, mod.SPEC.work_slot)]] = e0
     return scale, rel
