@@ -33,7 +33,7 @@ import time
 
 import numpy as np
 
-from granchain import inference as I
+from granchain import inference
 from granchain.scene import scene_from_dict
 
 EFFECTS = ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction"]
@@ -57,7 +57,7 @@ def main() -> None:
     ap.add_argument("--gap-max-nm", type=float, default=500.0)
     ap.add_argument("--gap-points", type=int, default=21)
     ap.add_argument("--cache-dir", default=None)
-    ap.add_argument("--column", default="dt_front_s", choices=I.TIMING_COLUMNS)
+    ap.add_argument("--column", default="dt_front_s", choices=inference.TIMING_COLUMNS)
     ap.add_argument("--truths", nargs="+", default=["uniform", "exponential", "noise-t3",
                                                     "noise-x10"], choices=list(TRUTHS))
     a = ap.parse_args()
@@ -69,11 +69,11 @@ def main() -> None:
                                 "gaps": {"distribution": "uniform", "mean": 50e-9},
                                 "integrator": {"method": "auto", "tolerance": 1e-3}})
         t0 = time.perf_counter()
-        grid = I.simulate_grid(base, a.gap_max_nm * 1e-9, a.gap_points, a.realisations,
-                               a.cache_dir)
+        grid = inference.simulate_grid(base, a.gap_max_nm * 1e-9, a.gap_points, a.realisations,
+                                       a.cache_dir)
         print(f"{material}: grid of {grid.n_chains} chains ({grid.simulated} simulated now) "
               f"in {time.perf_counter() - t0:.1f} s; interpolation error "
-              f"{I.interp_rel_error(grid, a.column):.2e}")
+              f"{inference.interp_rel_error(grid, a.column):.2e}")
         grids[material] = (base, grid)
         k = 0
         for series in (False, True):
@@ -107,14 +107,14 @@ def main() -> None:
                         if (tr["material"], tr["series"], tr["noise"]) != (material, series,
                                                                            noise):
                             continue
-                        t = I.simulate_rows(truth, tr["g"], tr["v"], tr["reals"], a.column,
-                                            engine)
+                        t = inference.simulate_rows(truth, tr["g"], tr["v"], tr["reals"], a.column,
+                                                    engine)
                         eps, err = _noise(tr, noise_model, a.rows)
-                        meas = I.Measurements(tr["v"], t + eps, err,
-                                              np.zeros(a.rows, int) if series
-                                              else np.arange(a.rows), a.column,
-                                              tuple(range(a.rows)), (None,) * a.rows)
-                        r = I.infer(base, meas, grid=grid)
+                        meas = inference.Measurements(tr["v"], t + eps, err,
+                                                      np.zeros(a.rows, int) if series
+                                                      else np.arange(a.rows), a.column,
+                                                      tuple(range(a.rows)), (None,) * a.rows)
+                        r = inference.infer(base, meas, grid=grid)
                         lo, hi = r.ci95_m
                         g = tr["g"]
                         res.append((bool(lo <= g <= hi), hi - lo, (r.gap_mean_m - g) / g,

@@ -68,7 +68,7 @@ from pathlib import Path
 
 import numpy as np
 
-from granchain import inference as I
+from granchain import inference
 from granchain.scene import scene_from_dict
 
 EFFECTS = ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
@@ -96,7 +96,7 @@ def published_alone(grid, g: float) -> dict:
     es = np.linspace(grid.restitutions[0], 1.0, 301)
     med = {k: np.empty((es.size, len(grid.speeds))) for k in PUBLISHED}
     for s, v in enumerate(grid.speeds):
-        X = I.joint_values(grid, COLUMN, float(v), np.full(es.size, g), es)   # (E, R, 3)
+        X = inference.joint_values(grid, COLUMN, float(v), np.full(es.size, g), es)   # (E, R, 3)
         with np.errstate(invalid="ignore"):
             med["vmax_1"][:, s] = np.nanmedian(X[..., 1], axis=1) / v
             med["vmax_2"][:, s] = np.nanmedian(X[..., 2], axis=1) / v
@@ -115,8 +115,8 @@ def chapter_rows(base, g: float, e_timing: float, seed: int):
     rng = np.random.default_rng(seed)
     v = np.repeat(SPEEDS, 2).astype(float)
     reals = list(range(v.size))
-    X = I.simulate_joint_rows(base.derive(gaps={"seed": TRUTH_SEED}), g, e_timing, v, reals,
-                              COLUMN)
+    X = inference.simulate_joint_rows(base.derive(gaps={"seed": TRUTH_SEED}), g, e_timing, v, reals,
+                                      COLUMN)
     t = X[:, 0] + NOISE * rng.standard_normal(v.size)
     v1 = (PUBLISHED["vmax_1"][0] + PUBLISHED["vmax_1"][1] * rng.standard_normal(v.size))
     ratio = (PUBLISHED["ratio"][0] + PUBLISHED["ratio"][1] * rng.standard_normal(v.size))
@@ -147,8 +147,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--realisations", type=int, default=64)
     ap.add_argument("--gap-points", type=int, default=21)
-    ap.add_argument("--e-min", type=float, default=I.E_MIN)
-    ap.add_argument("--e-points", type=int, default=I.E_POINTS)
+    ap.add_argument("--e-min", type=float, default=inference.E_MIN)
+    ap.add_argument("--e-points", type=int, default=inference.E_POINTS)
     ap.add_argument("--timing-e", type=float, default=0.96)
     ap.add_argument("--cache-dir", default=None)
     ap.add_argument("--out-dir", default=None, help="also write the CSVs and figures here")
@@ -159,8 +159,8 @@ def main() -> None:
     for k, (material, (g, gap_max)) in enumerate(CHAINS.items()):
         base = base_scene(material)
         t0 = time.perf_counter()
-        grid = I.simulate_joint_grid(base, gap_max, a.gap_points, a.e_min, a.e_points,
-                                     a.realisations, a.cache_dir)
+        grid = inference.simulate_joint_grid(base, gap_max, a.gap_points, a.e_min, a.e_points,
+                                             a.realisations, a.cache_dir)
         print(f"\n{material}, mean gap {g * 1e9:g} nm: grid of {grid.n_chains} chains "
               f"({grid.simulated} simulated now, {time.perf_counter() - t0:.0f} s)")
         for name, (within, rng) in published_alone(grid, g).items():
@@ -174,11 +174,12 @@ def main() -> None:
         perr = PEAK_ERR * v
         ids = (None,) * v.size
         lines = tuple(range(3, v.size + 3))
-        meas = I.Measurements(v, t, err, np.arange(v.size), COLUMN, lines, ids, v1, v2, perr)
+        meas = inference.Measurements(v, t, err, np.arange(v.size), COLUMN, lines, ids, v1, v2,
+                                      perr)
         print(f"  chapter-like rows: v_max,1 / v_s {np.mean(v1 / v):.3f} +- "
               f"{np.std(v1 / v):.3f}, v_max,2 / v_s {np.mean(v2 / v):.3f} +- "
               f"{np.std(v2 / v):.3f}, ratio {np.mean(v2 / v1):.3f} +- {np.std(v2 / v1):.3f}")
-        res = I.infer_joint(base, meas, grid=grid)
+        res = inference.infer_joint(base, meas, grid=grid)
         show("(a) timing and peaks as published", res)
         if out:
             write_csv(out / f"chapter_like_{material}.csv", material, g, a.timing_e, v, t,
@@ -186,17 +187,17 @@ def main() -> None:
             from granchain.figures.inference import plot_joint_inference
             plot_joint_inference(res, meas, base, out / f"chapter_like_{material}.png",
                                  force=True)
-        flat = I.Measurements(v, t, 10 * t, np.arange(v.size), COLUMN, lines, ids, v1, v2,
-                              perr)
-        show("(b) the peaks alone (dt_err_s = 10 x the timing)", I.infer_joint(
+        flat = inference.Measurements(v, t, 10 * t, np.arange(v.size), COLUMN, lines, ids, v1, v2,
+                                      perr)
+        show("(b) the peaks alone (dt_err_s = 10 x the timing)", inference.infer_joint(
             base, flat, grid=grid))
         # (c) both peaks scaled by one factor so that v_max,1 matches the model's at the
         # chapter's gap and the ratio's e: what remains of e is the ratio's and the timing's
-        X = I.joint_values(grid, COLUMN, 0.1, [g], [a.timing_e])[0]
+        X = inference.joint_values(grid, COLUMN, 0.1, [g], [a.timing_e])[0]
         scale = float(np.nanmedian(X[:, 1]) / 0.1) / PUBLISHED["vmax_1"][0]
-        scaled = I.Measurements(v, t, err, np.arange(v.size), COLUMN, lines, ids, v1 * scale,
-                                v2 * scale, perr * scale)
-        res_c = I.infer_joint(base, scaled, grid=grid)
+        scaled = inference.Measurements(v, t, err, np.arange(v.size), COLUMN, lines, ids,
+                                        v1 * scale, v2 * scale, perr * scale)
+        res_c = inference.infer_joint(base, scaled, grid=grid)
         show(f"(c) both peaks x {scale:.3f} (one instrument factor; a consistency check)",
              res_c)
         if out:

@@ -35,7 +35,7 @@ import time
 
 import numpy as np
 
-from granchain import inference as I
+from granchain import inference
 from granchain.scene import scene_from_dict
 
 EFFECTS = ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
@@ -81,25 +81,25 @@ def truth_rows(base, tr, law: str) -> tuple[np.ndarray, float]:
     """(rows x 3 noise-free (timing, vmax_1, vmax_2), eta or NaN) of an experiment."""
     truth = base.derive(gaps={"seed": TRUTH_SEED})
     if law == "restitution":
-        return I.simulate_joint_rows(truth, tr["g"], tr["e"], tr["v"], tr["reals"],
-                                     COLUMN), float("nan")
+        return inference.simulate_joint_rows(truth, tr["g"], tr["e"], tr["v"], tr["reals"],
+                                             COLUMN), float("nan")
     v_ref = float(np.exp(np.mean(np.log(tr["v"]))))
-    eta = I.matching_eta(base, tr["e"], v_ref)
+    eta = inference.matching_eta(base, tr["e"], v_ref)
     truth = truth.derive(damping={"model": "viscoelastic", "eta": eta, "e": None})
-    return I.simulate_joint_rows(truth, tr["g"], None, tr["v"], tr["reals"], COLUMN), eta
+    return inference.simulate_joint_rows(truth, tr["g"], None, tr["v"], tr["reals"], COLUMN), eta
 
 
-def measurements(tr, X: np.ndarray) -> I.Measurements:
+def measurements(tr, X: np.ndarray) -> inference.Measurements:
     """The experiment's rows with its noise added (and stated)."""
     rows = len(tr["v"])
     err = np.full(rows, NOISE)
     perr = tr["level"] * tr["v"]
     sd = np.stack([err, perr, perr], axis=1)
     Y = X + sd * tr["z"]
-    return I.Measurements(np.asarray(tr["v"], float), Y[:, 0], err,
-                          np.zeros(rows, int) if tr["series"] else np.arange(rows), COLUMN,
-                          tuple(range(2, rows + 2)), ("A",) * rows if tr["series"]
-                          else (None,) * rows, Y[:, 1], Y[:, 2], perr)
+    return inference.Measurements(np.asarray(tr["v"], float), Y[:, 0], err,
+                                  np.zeros(rows, int) if tr["series"] else np.arange(rows), COLUMN,
+                                  tuple(range(2, rows + 2)), ("A",) * rows if tr["series"]
+                                  else (None,) * rows, Y[:, 1], Y[:, 2], perr)
 
 
 def outcome(tr, res) -> dict:
@@ -137,8 +137,8 @@ def main() -> None:
     ap.add_argument("--realisations", type=int, default=64)
     ap.add_argument("--gap-max-nm", type=float, default=500.0)
     ap.add_argument("--gap-points", type=int, default=21)
-    ap.add_argument("--e-min", type=float, default=I.E_MIN)
-    ap.add_argument("--e-points", type=int, default=I.E_POINTS)
+    ap.add_argument("--e-min", type=float, default=inference.E_MIN)
+    ap.add_argument("--e-points", type=int, default=inference.E_POINTS)
     ap.add_argument("--peak-noise", type=float, nargs="+", default=[0.02, 0.08])
     ap.add_argument("--materials", nargs="+", default=["ss440c", "ss316"])
     ap.add_argument("--cache-dir", default=None)
@@ -149,9 +149,9 @@ def main() -> None:
     for material in a.materials:
         base = base_scene(material)
         t0 = time.perf_counter()
-        grid = I.simulate_joint_grid(base, a.gap_max_nm * 1e-9, a.gap_points, a.e_min,
-                                     a.e_points, a.realisations, a.cache_dir)
-        errs = I.joint_interp_errors(grid, COLUMN)
+        grid = inference.simulate_joint_grid(base, a.gap_max_nm * 1e-9, a.gap_points, a.e_min,
+                                             a.e_points, a.realisations, a.cache_dir)
+        errs = inference.joint_interp_errors(grid, COLUMN)
         print(f"{material}: grid of {grid.n_chains} chains ({grid.simulated} simulated now) "
               f"in {time.perf_counter() - t0:.1f} s; interpolation error (largest over the "
               "gaps / e / speed): " + ", ".join(
@@ -176,7 +176,7 @@ def main() -> None:
                         X, eta = truth_rows(base, tr, law)
                         etas.append(eta)
                         t1 = time.perf_counter()
-                        r = I.infer_joint(base, measurements(tr, X), grid=grid)
+                        r = inference.infer_joint(base, measurements(tr, X), grid=grid)
                         t_inf += time.perf_counter() - t1
                         res.append(outcome(tr, r))
                     allres += res

@@ -138,7 +138,7 @@ def peak_ops():
 def lammps(chains, nprocs, wd: Path):
     import numpy as np  # noqa: F401
     sys.path.insert(0, str(REPO))
-    from granchain.lammps import deck as D
+    from granchain.lammps import deck as lammps_deck
     from granchain.lammps.runner import run_lammps
     from granchain.scene import load_scene
     from granchain.simulate import member_gaps, members
@@ -148,7 +148,7 @@ def lammps(chains, nprocs, wd: Path):
     gaps = member_gaps(sc, mem)
     vs = [m.v_striker for m in mem]
     wd.mkdir(parents=True)
-    deck = D.write_deck(sc, wd, gaps=gaps, v_striker=vs, output="none")
+    deck = lammps_deck.write_deck(sc, wd, gaps=gaps, v_striker=vs, output="none")
     t0 = time.perf_counter()
     run_lammps(deck, wd, nprocs=nprocs)
     wall = time.perf_counter() - t0

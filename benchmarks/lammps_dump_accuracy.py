@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from granchain.engines.lammps import read_dump  # noqa: E402
 from granchain.schedule import sample_interval  # noqa: E402
 from granchain.gaps import realise  # noqa: E402
-from granchain.lammps import deck as D  # noqa: E402
+from granchain.lammps import deck as lammps_deck  # noqa: E402
 from granchain.lammps.runner import run_lammps  # noqa: E402
 from granchain.observables import summarize  # noqa: E402
 from granchain.scene import scene_from_dict  # noqa: E402
@@ -74,12 +74,12 @@ def main():
         every_default = int(round(sample_interval(sc, 0.1) / sc.dt))
         default_every = every_default
         fine = sc.derive(**{"output.sample_dt": sc.dt})
-        pl = D.plan(fine, gaps=gaps, v_striker=[0.1])
+        pl = lammps_deck.plan(fine, gaps=gaps, v_striker=[0.1])
         with tempfile.TemporaryDirectory(prefix="granchain-cadence-") as wd:
-            deck = D.write_deck(fine, Path(wd), gaps=gaps, v_striker=[0.1])
+            deck = lammps_deck.write_deck(fine, Path(wd), gaps=gaps, v_striker=[0.1])
             run_lammps(deck, Path(wd))
-            d64 = read_dump(Path(wd) / D.DUMP_NAME, fine, pl)
-            d32 = read_dump(Path(wd) / D.DUMP_NAME, fine, pl, velocities="float32")
+            d64 = read_dump(Path(wd) / lammps_deck.DUMP_NAME, fine, pl)
+            d32 = read_dump(Path(wd) / lammps_deck.DUMP_NAME, fine, pl, velocities="float32")
         t = d64["step"] * sc.dt
         v64, v32 = d64["v"][:, 0, :], d32["v"][:, 0, :]
         vm_true, tp_true = truth(t, v64)

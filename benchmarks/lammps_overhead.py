@@ -45,8 +45,8 @@ import json, sys, time
 t0 = time.perf_counter()
 import granchain.cli as cli
 t_imp = time.perf_counter() - t0
-from granchain.engines import lammps as L
-from granchain.lammps import deck as D, plugin as P, runner as R
+from granchain.engines import lammps as lammps_engine
+from granchain.lammps import deck as lammps_deck, plugin as lammps_plugin, runner as lammps_runner
 acc = {}
 def timed(mod, name, key):
     f = getattr(mod, name)
@@ -57,11 +57,11 @@ def timed(mod, name, key):
         finally:
             acc[key] = acc.get(key, 0.0) + time.perf_counter() - t
     setattr(mod, name, w)
-timed(D, "write_deck", "deck (plugin check included)")
-timed(P, "build_plugin", "plugin check")
-timed(R, "run_lammps", "LAMMPS process")
-timed(R, "lammps_version", "LAMMPS version")
-timed(L, "read_binary", "read output")
+timed(lammps_deck, "write_deck", "deck (plugin check included)")
+timed(lammps_plugin, "build_plugin", "plugin check")
+timed(lammps_runner, "run_lammps", "LAMMPS process")
+timed(lammps_runner, "lammps_version", "LAMMPS version")
+timed(lammps_engine, "read_binary", "read output")
 t1 = time.perf_counter()
 rc = cli.main(sys.argv[1:])
 acc["imports (granchain.cli)"] = t_imp
@@ -90,7 +90,7 @@ def main(argv=None):
     sys.path.insert(0, str(ROOT))
     import numpy as np
 
-    from granchain.lammps import deck as D
+    from granchain.lammps import deck as lammps_deck
     from granchain.lammps.runner import lmp_command, lmp_executable
     from granchain.scene import load_scene
     from granchain.simulate import member_gaps, members
@@ -108,7 +108,7 @@ def main(argv=None):
               "--json", *setargs]
     with tempfile.TemporaryDirectory(prefix="granchain-overhead-") as tmp:
         wd = Path(tmp)
-        deck = D.write_deck(scene, wd, gaps=gaps, v_striker=vs, output="none")
+        deck = lammps_deck.write_deck(scene, wd, gaps=gaps, v_striker=vs, output="none")
         lmp_args = ["-in", deck.name, "-log", "none", "-nocite"]
         direct, direct_env = lmp_command()
         cmds = {

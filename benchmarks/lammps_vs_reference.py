@@ -40,9 +40,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from granchain.engines import lammps as L  # noqa: E402
+from granchain.engines import lammps as lammps_engine  # noqa: E402
 from granchain.engines import reference  # noqa: E402
-from granchain.lammps import deck as D  # noqa: E402
+from granchain.lammps import deck as lammps_deck  # noqa: E402
 from granchain.lammps.runner import run_lammps  # noqa: E402
 from granchain.observables import summarize  # noqa: E402
 from granchain.scene import load_scene  # noqa: E402
@@ -76,7 +76,7 @@ def sections(log: Path) -> str:
 def lammps_alone(scene, gaps, vs, nprocs, wd):
     """The deck without per-sample output, run once: wall time of the LAMMPS process."""
     wd.mkdir(parents=True)
-    deck = D.write_deck(scene, wd, gaps=gaps, v_striker=vs, output="none")
+    deck = lammps_deck.write_deck(scene, wd, gaps=gaps, v_striker=vs, output="none")
     t0 = time.perf_counter()
     run_lammps(deck, wd, nprocs=nprocs)
     wall = time.perf_counter() - t0
@@ -85,7 +85,7 @@ def lammps_alone(scene, gaps, vs, nprocs, wd):
 
 def engine(scene, gaps, vs, nprocs, output, wd):
     t0 = time.perf_counter()
-    trajs = list(L.run(scene, gaps, vs, nprocs=nprocs, output=output, workdir=wd))
+    trajs = list(lammps_engine.run(scene, gaps, vs, nprocs=nprocs, output=output, workdir=wd))
     wall = time.perf_counter() - t0
     size = sum(f.stat().st_size for f in wd.iterdir()) / 1e6
     note = (f"LAMMPS process {trajs[0].meta['lammps_wall_s']:.2f} s, deck and read "
@@ -109,7 +109,7 @@ def main(argv=None):
     gaps = member_gaps(scene, mem)
     vs = np.array([m.v_striker for m in mem])
     B, n = len(vs), scene.n
-    pl = D.plan(scene, gaps=gaps, v_striker=vs)
+    pl = lammps_deck.plan(scene, gaps=gaps, v_striker=vs)
     print(f"scene {scene.name}: {B} chains x {n} particles, effects {','.join(sorted(scene.effects))}, "
           f"verlet dt {scene.dt:g} s, t_end auto (at most {pl.nsteps} steps), samples every "
           f"{pl.every} steps; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores",

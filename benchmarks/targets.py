@@ -66,13 +66,13 @@ def _env():
 def _deck(sets, wd):
     import numpy as np
 
-    from granchain.lammps import deck as D
+    from granchain.lammps import deck as lammps_deck
     from granchain.scene import load_scene
     from granchain.simulate import member_gaps, members
     scene = load_scene(SCENE, sets)
     mem = members(scene)
-    deck = D.write_deck(scene, wd, gaps=member_gaps(scene, mem),
-                        v_striker=np.array([m.v_striker for m in mem]), output="none")
+    deck = lammps_deck.write_deck(scene, wd, gaps=member_gaps(scene, mem),
+                                  v_striker=np.array([m.v_striker for m in mem]), output="none")
     return deck.name
 
 

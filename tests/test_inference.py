@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from granchain import inference as I
+from granchain import inference
 from granchain.cli import main
 from granchain.scene import load_scene, scene_from_dict
 
@@ -51,8 +51,8 @@ def base_scene(material):
 def grids(tmp_path_factory):
     """The calibration grid of both materials (8,064 chains)."""
     cache = tmp_path_factory.mktemp("infer-cache")
-    return {m: (base_scene(m), I.simulate_grid(base_scene(m), GAP_MAX, GAP_POINTS,
-                                               REALISATIONS, cache))
+    return {m: (base_scene(m), inference.simulate_grid(base_scene(m), GAP_MAX, GAP_POINTS,
+                                                       REALISATIONS, cache))
             for m in ("ss440c", "ss316")}
 
 
@@ -60,7 +60,7 @@ def grids(tmp_path_factory):
 def small_grid():
     """A coarse 440C grid (336 chains) for properties that do not need calibration."""
     base = base_scene("ss440c")
-    return base, I.simulate_grid(base, SMALL_MAX, SMALL_POINTS, SMALL_REALISATIONS)
+    return base, inference.simulate_grid(base, SMALL_MAX, SMALL_POINTS, SMALL_REALISATIONS)
 
 
 def synthetic(base, rng, trial, series, noise, rows=ROWS, column=COLUMN):
@@ -68,7 +68,7 @@ def synthetic(base, rng, trial, series, noise, rows=ROWS, column=COLUMN):
     g = float(rng.uniform(10e-9, 200e-9))
     v = rng.uniform(SPEEDS[0], SPEEDS[-1], size=rows)
     reals = [trial * rows] * rows if series else [trial * rows + k for k in range(rows)]
-    t = I.simulate_rows(base.derive(gaps={"seed": TRUTH_SEED}), g, v, reals, column)
+    t = inference.simulate_rows(base.derive(gaps={"seed": TRUTH_SEED}), g, v, reals, column)
     err = np.full(rows, NOISE if noise else 0.0)
     t = t + err * rng.standard_normal(rows)
     return g, measurements(v, t, err, series, column)
@@ -77,9 +77,9 @@ def synthetic(base, rng, trial, series, noise, rows=ROWS, column=COLUMN):
 def measurements(v, t, err, series, column=COLUMN):
     rows = len(v)
     group = np.zeros(rows, int) if series else np.arange(rows)
-    return I.Measurements(np.asarray(v, float), np.asarray(t, float), np.asarray(err, float),
-                          group, column, tuple(range(2, rows + 2)),
-                          ("A",) * rows if series else (None,) * rows)
+    return inference.Measurements(np.asarray(v, float), np.asarray(t, float),
+                                  np.asarray(err, float), group, column, tuple(range(2, rows + 2)),
+                                  ("A",) * rows if series else (None,) * rows)
 
 
 # ---------------------------------------------------------------------------------------
@@ -129,7 +129,7 @@ def truth_timings(base, trial, law="uniform", engine="reference", **integrator):
     truth = base.derive(gaps={"seed": TRUTH_SEED, "distribution": law})
     if integrator:
         truth = truth.derive(integrator={"tolerance": None, **integrator})
-    return I.simulate_rows(truth, trial.g, trial.v, trial.reals, COLUMN, engine)
+    return inference.simulate_rows(truth, trial.g, trial.v, trial.reals, COLUMN, engine)
 
 
 def calibration_noise(trial):
@@ -141,7 +141,7 @@ def calibration_noise(trial):
 @dataclass(frozen=True)
 class Outcome:
     trial: Trial
-    res: I.Inference
+    res: inference.Inference
 
     @property
     def covered(self) -> bool:          # a flagged interval (NaN) counts as a miss
@@ -171,8 +171,8 @@ def infer_trials(grids, trials, timings, noise=calibration_noise):
     for tr, t in zip(trials, timings):
         eps, err = noise(tr)
         base, grid = grids[tr.material]
-        out.append(Outcome(tr, I.infer(base, measurements(tr.v, t + eps, err, tr.series),
-                                       grid=grid)))
+        out.append(Outcome(tr, inference.infer(base, measurements(tr.v, t + eps, err, tr.series),
+                                               grid=grid)))
     return out
 
 
@@ -340,9 +340,10 @@ def test_a_chain_series_is_not_treated_as_independent_rows(small_grid):
     timings would claim more evidence (a narrower interval) than they carry."""
     base, grid = small_grid
     g, meas = synthetic(base, np.random.default_rng(3), 500, True, False, rows=4)
-    as_chain = I.infer(base, meas, grid=grid)
-    apart = I.infer(base, I.Measurements(meas.v, meas.t, meas.err, np.arange(4), meas.column,
-                                         meas.lines, (None,) * 4), grid=grid)
+    as_chain = inference.infer(base, meas, grid=grid)
+    apart = inference.infer(base, inference.Measurements(meas.v, meas.t, meas.err, np.arange(4),
+                                                         meas.column, meas.lines, (None,) * 4),
+                            grid=grid)
     w_chain = as_chain.ci95_m[1] - as_chain.ci95_m[0]
     w_apart = apart.ci95_m[1] - apart.ci95_m[0]
     assert w_apart < 0.8 * w_chain
@@ -353,45 +354,46 @@ def test_more_data_narrows_the_interval_and_noise_widens_it(small_grid):
     widths = {}
     for rows in (2, 12):
         _, meas = synthetic(base, np.random.default_rng(11), 600, False, False, rows=rows)
-        r = I.infer(base, meas, grid=grid)
+        r = inference.infer(base, meas, grid=grid)
         widths[rows] = r.ci95_m[1] - r.ci95_m[0]
     assert widths[12] < 0.6 * widths[2]
     _, meas = synthetic(base, np.random.default_rng(11), 600, False, False, rows=12)
-    noisy = I.Measurements(meas.v, meas.t, np.full(12, 5e-6), meas.group, meas.column,
-                           meas.lines, meas.chain_ids)
-    r = I.infer(base, noisy, grid=grid)
+    noisy = inference.Measurements(meas.v, meas.t, np.full(12, 5e-6), meas.group, meas.column,
+                                   meas.lines, meas.chain_ids)
+    r = inference.infer(base, noisy, grid=grid)
     assert r.ci95_m[1] - r.ci95_m[0] > 1.3 * widths[12]
 
 
 def test_a_gap_beyond_the_grid_is_flagged_not_reported(small_grid):
     base, grid = small_grid
     k = int(np.searchsorted(grid.gaps, 100e-9, side="right"))   # simulated up to 100 nm only
-    small = I.Grid(grid.gaps[:k], grid.speeds, {c: a[:k] for c, a in grid.timings.items()},
-                   grid.hashes[:k], 0)
+    small = inference.Grid(grid.gaps[:k], grid.speeds, {c: a[:k] for c, a in grid.timings.items()},
+                           grid.hashes[:k], 0)
     _, meas = synthetic(base, np.random.default_rng(5), 700, False, False)
-    meas = I.Measurements(meas.v, I.simulate_rows(base.derive(gaps={"seed": TRUTH_SEED}),
-                                                  180e-9, meas.v, [1, 2, 3], meas.column),
-                          meas.err, meas.group, meas.column, meas.lines, meas.chain_ids)
-    res = I.infer(base, meas, grid=small)
+    truth = base.derive(gaps={"seed": TRUTH_SEED})
+    meas = inference.Measurements(meas.v, inference.simulate_rows(truth, 180e-9, meas.v, [1, 2, 3],
+                                                                  meas.column),
+                                  meas.err, meas.group, meas.column, meas.lines, meas.chain_ids)
+    res = inference.infer(base, meas, grid=small)
     assert "posterior_at_grid_end" in res.flags
     assert np.isnan(res.gap_mean_m) and np.isnan(res.ci95_m[1])
     # the same chains at 40 nm, inside the truncated grid, are read, not flagged
-    inside = I.Measurements(meas.v, I.simulate_rows(base.derive(gaps={"seed": TRUTH_SEED}),
-                                                    40e-9, meas.v, [1, 2, 3], meas.column),
-                            meas.err, meas.group, meas.column, meas.lines, meas.chain_ids)
-    res = I.infer(base, inside, grid=small)
+    inside = inference.Measurements(meas.v, inference.simulate_rows(truth, 40e-9, meas.v, [1, 2, 3],
+                                                                    meas.column),
+                                    meas.err, meas.group, meas.column, meas.lines, meas.chain_ids)
+    res = inference.infer(base, inside, grid=small)
     assert not res.flags and np.isfinite(res.gap_mean_m) and res.ci95_m[1] < 100e-9
 
 
 def test_the_grid_is_cached_by_scene_hash(tmp_path):
     base = base_scene("ss440c").derive(striker={"velocity": [0.05]})
-    a = I.simulate_grid(base, 40e-9, 3, 2, tmp_path)
+    a = inference.simulate_grid(base, 40e-9, 3, 2, tmp_path)
     files = sorted(p.name for p in tmp_path.iterdir())
     assert a.simulated == 6 and len(files) == 3 and all(h in " ".join(files) for h in a.hashes)
-    b = I.simulate_grid(base, 40e-9, 3, 2, tmp_path)
+    b = inference.simulate_grid(base, 40e-9, 3, 2, tmp_path)
     assert b.simulated == 0
     np.testing.assert_array_equal(a.timings["dt_peak_s"], b.timings["dt_peak_s"])
-    c = I.simulate_grid(base.derive(material="ss316"), 40e-9, 3, 2, tmp_path)
+    c = inference.simulate_grid(base.derive(material="ss316"), 40e-9, 3, 2, tmp_path)
     assert c.simulated == 6          # another scene, another key
 
 
@@ -467,8 +469,8 @@ def test_infer_command_json_and_plot(tmp_path, capsys):
     scene = tmp_path / "s.yaml"
     scene.write_text(SCENE)
     base = scene_from_dict({**__import__("yaml").safe_load(SCENE)})
-    t = I.simulate_rows(base.derive(gaps={"seed": 5}), 20e-9, [0.045, 0.055], [0, 0],
-                        "dt_peak_s")
+    t = inference.simulate_rows(base.derive(gaps={"seed": 5}), 20e-9, [0.045, 0.055], [0, 0],
+                                "dt_peak_s")
     csv_path = tmp_path / "m.csv"
     csv_path.write_text("v_striker_m_s,dt_peak_s,chain_id\n"
                         f"0.045,{float(t[0])!r},a\n0.055,{float(t[1])!r},a\n")
@@ -493,7 +495,7 @@ def test_infer_command_json_and_plot(tmp_path, capsys):
 def test_shipped_example_is_labelled_synthetic(repo):
     text = (repo / "measurements" / "example_synthetic.csv").read_text()
     assert text.startswith("# SYNTHETIC")
-    meas = I.read_measurements(repo / "measurements" / "example_synthetic.csv")
+    meas = inference.read_measurements(repo / "measurements" / "example_synthetic.csv")
     assert len(meas) == 8 and len(meas.groups) == 5
 
 
@@ -530,22 +532,22 @@ def test_a_bare_base_scene_runs_with_the_chapter_law_at_the_data_speeds(tmp_path
 def test_what_the_base_scene_gives_is_kept(tmp_path):
     """complete_base fills in only what the base scene (file or --set) leaves out: its own
     gap law and speeds stay, the sources say so, and completing twice changes nothing."""
-    meas = I.read_measurements(_write(tmp_path / "m.csv", ROWS_CSV))
+    meas = inference.read_measurements(_write(tmp_path / "m.csv", ROWS_CSV))
     path = _write(tmp_path / "s.yaml", BARE + "gaps: {distribution: exponential, mean: 1.0e-8}\n"
                   "striker: {velocity: [0.03, 0.06]}\n")
     given = load_scene(path)
-    base, src = I.complete_base(given, meas)
+    base, src = inference.complete_base(given, meas)
     assert base.hash == given.hash and src == {"gap_law": "scene", "speeds": "scene"}
     law_only = load_scene(_write(tmp_path / "b.yaml", BARE), ["gaps.distribution=exponential",
                                                              "gaps.mean=1e-8"])
-    base, src = I.complete_base(law_only, meas)
+    base, src = inference.complete_base(law_only, meas)
     assert base.gap_distribution == "exponential" and base.striker_velocities == (0.035, 0.05)
     assert src == {"gap_law": "scene", "speeds": "data"}
     speeds_only = load_scene(_write(tmp_path / "c.yaml", BARE + "striker: {velocity: 0.04}\n"))
-    base, src = I.complete_base(speeds_only, meas)
+    base, src = inference.complete_base(speeds_only, meas)
     assert base.gap_distribution == "uniform" and base.striker_velocities == (0.04,)
     assert src == {"gap_law": "default", "speeds": "scene"}
-    again, src_again = I.complete_base(base, meas)
+    again, src_again = inference.complete_base(base, meas)
     assert again is base and src_again == src
 
 

@@ -19,7 +19,7 @@ import sys
 import numpy as np
 import pytest
 
-from granchain import inference as I
+from granchain import inference
 from granchain.cli import main
 from granchain.fileio import json_text
 from granchain.scene import load_scene, scene_from_dict
@@ -50,7 +50,7 @@ def synthetic_grid(base, gap_max, gap_points, realisations, cache_dir=None,
          + 11 * gaps[:, None, None] * u[None, None, :] * w[None] / speeds[None, :, None] * 0.6)
     timings = {"dt_peak_s": T, "dt_front_s": 0.97 * T}
     hashes = tuple(f"{k:016x}" for k in range(gaps.size))
-    return I.Grid(gaps, speeds, timings, hashes, gaps.size * speeds.size * R)
+    return inference.Grid(gaps, speeds, timings, hashes, gaps.size * speeds.size * R)
 
 
 def run_cli(argv) -> tuple[int, str]:
@@ -90,7 +90,7 @@ def test_gap_only_output_is_todays_to_the_byte(tmp_path, monkeypatch, name, extr
     for f in ("base.yaml", "m.csv"):
         shutil.copy(GOLDEN / f, tmp_path / f)
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(I, "simulate_grid", synthetic_grid)
+    monkeypatch.setattr(inference, "simulate_grid", synthetic_grid)
     code, out = run_cli(["infer", "m.csv", "--scene", "base.yaml", *GOLDEN_ARGS, *extra, *fit])
     assert code == 0
     assert without_sources(out, name) == (GOLDEN / f"{name}.out").read_text()
@@ -104,7 +104,7 @@ def test_gap_only_fit_ignores_the_peak_columns(tmp_path, monkeypatch):
              "0.078,0.061,0.002", "0.092,0.072,0.002"]
     (tmp_path / "m.csv").write_text("\n".join(f"{a},{b}" for a, b in zip(rows, peaks)) + "\n")
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(I, "simulate_grid", synthetic_grid)
+    monkeypatch.setattr(inference, "simulate_grid", synthetic_grid)
     code, out = run_cli(["infer", "m.csv", "--scene", "base.yaml", *GOLDEN_ARGS, "--json"])
     assert code == 0
     assert without_sources(out, "json") == (GOLDEN / "json.out").read_text()
@@ -126,8 +126,8 @@ def test_gap_only_fit_is_the_same_with_and_without_fit_on_a_simulated_grid(tmp_p
     scene = tmp_path / "s.yaml"
     scene.write_text(SCENE)
     base = load_scene(scene)
-    t = I.simulate_rows(base.derive(gaps={"seed": 5}), 30e-9, [0.05, 0.07], [0, 1],
-                        "dt_front_s")
+    t = inference.simulate_rows(base.derive(gaps={"seed": 5}), 30e-9, [0.05, 0.07], [0, 1],
+                                "dt_front_s")
     csv_path = tmp_path / "m.csv"
     csv_path.write_text("v_striker_m_s,dt_front_s,dt_err_s\n"
                         f"0.05,{float(t[0])!r},2e-7\n0.07,{float(t[1])!r},2e-7\n")
@@ -156,9 +156,9 @@ TRUTH_SEED = 9001
 def small_joint(tmp_path_factory):
     """A coarse 440C joint grid (432 chains) and its base scene."""
     base = scene_from_dict(__import__("yaml").safe_load(SCENE))
-    grid = I.simulate_joint_grid(base, SMALL["gap_max"], SMALL["gap_points"],
-                                 SMALL["e_min"], SMALL["e_points"], SMALL["realisations"],
-                                 tmp_path_factory.mktemp("joint-cache"))
+    grid = inference.simulate_joint_grid(base, SMALL["gap_max"], SMALL["gap_points"],
+                                         SMALL["e_min"], SMALL["e_points"], SMALL["realisations"],
+                                         tmp_path_factory.mktemp("joint-cache"))
     return base, grid
 
 
@@ -166,15 +166,16 @@ def joint_measurements(base, g, e, v, reals, series, err=0.3e-6, level=0.02, see
                        column="dt_front_s"):
     """Synthetic rows at (g, e) on realisations the grid never saw, with noise as stated."""
     v = np.asarray(v, float)
-    X = I.simulate_joint_rows(base.derive(gaps={"seed": TRUTH_SEED}), g, e, v, reals, column)
+    X = inference.simulate_joint_rows(base.derive(gaps={"seed": TRUTH_SEED}), g, e, v, reals,
+                                      column)
     rows = v.size
     perr = level * v
     sd = np.stack([np.full(rows, err), perr, perr], axis=1)
     Y = X + sd * np.random.default_rng(seed).standard_normal(X.shape)
-    return I.Measurements(v, Y[:, 0], np.full(rows, err),
-                          np.zeros(rows, int) if series else np.arange(rows), column,
-                          tuple(range(2, rows + 2)), ("A",) * rows if series
-                          else (None,) * rows, Y[:, 1], Y[:, 2], perr)
+    return inference.Measurements(v, Y[:, 0], np.full(rows, err),
+                                  np.zeros(rows, int) if series else np.arange(rows), column,
+                                  tuple(range(2, rows + 2)), ("A",) * rows if series
+                                  else (None,) * rows, Y[:, 1], Y[:, 2], perr)
 
 
 def test_joint_fit_reads_both_parameters(small_joint):
@@ -185,7 +186,7 @@ def test_joint_fit_reads_both_parameters(small_joint):
     base, grid = small_joint
     meas = joint_measurements(base, 60e-9, 0.9, [0.045, 0.055, 0.065, 0.075], [0, 1, 2, 3],
                               series=False)
-    res = I.infer_joint(base, meas, grid=grid)
+    res = inference.infer_joint(base, meas, grid=grid)
     assert not res.flags
     assert abs(res.gap_mean_m / 60e-9 - 1) < 0.35
     assert res.ci95_m[0] < res.gap_mean_m < res.ci95_m[1]
@@ -207,8 +208,8 @@ def test_a_joint_series_is_not_treated_as_independent_rows(small_joint):
     base, grid = small_joint
     meas = joint_measurements(base, 80e-9, 0.95, [0.042, 0.05, 0.06, 0.075], [7] * 4,
                               series=True)
-    chain = I.infer_joint(base, meas, grid=grid)
-    apart = I.infer_joint(base, I.Measurements(
+    chain = inference.infer_joint(base, meas, grid=grid)
+    apart = inference.infer_joint(base, inference.Measurements(
         meas.v, meas.t, meas.err, np.arange(4), meas.column, meas.lines, (None,) * 4,
         meas.vmax_1, meas.vmax_2, meas.vmax_err), grid=grid)
     w = lambda r: r.ci95_m[1] - r.ci95_m[0]        # noqa: E731
@@ -221,7 +222,7 @@ def test_restitution_below_the_grid_is_flagged_not_reported(small_joint):
     base, grid = small_joint
     meas = joint_measurements(base, 60e-9, 0.7, [0.045, 0.06, 0.075], [0, 1, 2],
                               series=False)
-    res = I.infer_joint(base, meas, grid=grid)
+    res = inference.infer_joint(base, meas, grid=grid)
     assert "restitution_at_grid_end" in res.flags
     assert np.isnan(res.restitution) and np.isnan(res.restitution_ci95[0])
     assert res.restitution_ci95[1] < 0.85
@@ -231,7 +232,7 @@ def test_joint_interpolation_errors_are_measured_on_the_grid(small_joint):
     """Each observable's interpolation error is measured per mean-gap node and along e
     and the speed (here 2 speeds: none measured); the peaks change fastest near g = 0."""
     _, grid = small_joint
-    errs = I.joint_interp_errors(grid, "dt_front_s")
+    errs = inference.joint_interp_errors(grid, "dt_front_s")
     assert set(errs) == {"dt_front_s", "v_max_1", "v_max_2"}
     for d in errs.values():
         assert d["g"].shape == grid.gaps.shape and np.all(d["g"] >= 0)
@@ -243,13 +244,13 @@ def test_joint_interpolation_errors_are_measured_on_the_grid(small_joint):
 def test_the_joint_grid_is_cached_by_scene_hash(tmp_path):
     base = scene_from_dict(__import__("yaml").safe_load(SCENE)).derive(
         striker={"velocity": [0.05]})
-    a = I.simulate_joint_grid(base, 40e-9, 3, 0.9, 2, 2, tmp_path)
+    a = inference.simulate_joint_grid(base, 40e-9, 3, 0.9, 2, 2, tmp_path)
     files = sorted(p.name for p in tmp_path.iterdir())
     assert a.simulated == 12 and len(files) == 6
     assert all(h in " ".join(files) for h in a.hashes)
-    b = I.simulate_joint_grid(base, 40e-9, 3, 0.9, 2, 2, tmp_path)
+    b = inference.simulate_joint_grid(base, 40e-9, 3, 0.9, 2, 2, tmp_path)
     assert b.simulated == 0
-    for c in I.JOINT_OBS:
+    for c in inference.JOINT_OBS:
         np.testing.assert_array_equal(a.values[c], b.values[c])
 
 
@@ -257,11 +258,11 @@ def test_viscoelastic_eta_matches_a_restitution_at_one_speed():
     """matching_eta: the viscoelastic law's eta with the given e at the given speed;
     above that speed it loses more (1 - e ~ v^(1/5))."""
     base = scene_from_dict(__import__("yaml").safe_load(SCENE))
-    eta = I.matching_eta(base, 0.9, 0.05)
+    eta = inference.matching_eta(base, 0.9, 0.05)
     visco = {"model": "viscoelastic", "eta": eta, "e": None}
-    assert I.collision_restitution(base, 0.05, visco) == pytest.approx(0.9, abs=2e-5)
-    assert I.collision_restitution(base, 0.5, visco) < 0.9 - 0.02
-    assert I.collision_restitution(base, 0.05, {"model": "coeff_restitution", "e": 0.9}) \
+    assert inference.collision_restitution(base, 0.05, visco) == pytest.approx(0.9, abs=2e-5)
+    assert inference.collision_restitution(base, 0.5, visco) < 0.9 - 0.02
+    assert inference.collision_restitution(base, 0.05, {"model": "coeff_restitution", "e": 0.9}) \
         == pytest.approx(0.9, abs=1e-6)
 
 
@@ -270,7 +271,8 @@ def test_viscoelastic_eta_matches_a_restitution_at_one_speed():
 # ---------------------------------------------------------------------------------------
 def joint_csv(tmp_path, base, g=30e-9, e=0.93, speeds=(0.045, 0.055), reals=(0, 0),
               chain="a", err=0.001):
-    X = I.simulate_joint_rows(base.derive(gaps={"seed": 5}), g, e, speeds, reals, "dt_peak_s")
+    X = inference.simulate_joint_rows(base.derive(gaps={"seed": 5}), g, e, speeds, reals,
+                                      "dt_peak_s")
     path = tmp_path / "m.csv"
     lines = ["v_striker_m_s,dt_peak_s,chain_id,vmax_1_m_s,vmax_2_m_s,vmax_err_m_s"]
     lines += [f"{v},{float(x[0])!r},{chain},{float(x[1])!r},{float(x[2])!r},{err}"
@@ -367,10 +369,10 @@ def calibration_grids(tmp_path_factory):
     flagged a third of the one-chain series, whose posteriors reach far above their
     truths)."""
     cache = tmp_path_factory.mktemp("joint-cal-cache")
-    return {m: (cal_scene(m), I.simulate_joint_grid(cal_scene(m), CAL["gap_max"],
-                                                    CAL["gap_points"], CAL["e_min"],
-                                                    CAL["e_points"], CAL["realisations"],
-                                                    cache))
+    return {m: (cal_scene(m), inference.simulate_joint_grid(cal_scene(m), CAL["gap_max"],
+                                                            CAL["gap_points"], CAL["e_min"],
+                                                            CAL["e_points"], CAL["realisations"],
+                                                            cache))
             for m in ("ss440c", "ss316")}
 
 
@@ -404,20 +406,21 @@ def cal_infer(grids, tr, law="restitution"):
     truth = base.derive(gaps={"seed": TRUTH_SEED})
     eta = float("nan")
     if law == "restitution":
-        X = I.simulate_joint_rows(truth, tr["g"], tr["e"], tr["v"], tr["reals"], "dt_front_s")
+        X = inference.simulate_joint_rows(truth, tr["g"], tr["e"], tr["v"], tr["reals"],
+                                          "dt_front_s")
     else:
-        eta = I.matching_eta(base, tr["e"], float(np.exp(np.mean(np.log(tr["v"])))))
-        X = I.simulate_joint_rows(truth.derive(damping={"model": "viscoelastic", "eta": eta,
-                                                        "e": None}),
+        eta = inference.matching_eta(base, tr["e"], float(np.exp(np.mean(np.log(tr["v"])))))
+        X = inference.simulate_joint_rows(truth.derive(damping={"model": "viscoelastic", "eta": eta,
+                                                                "e": None}),
                                   tr["g"], None, tr["v"], tr["reals"], "dt_front_s")
     perr = CAL_PEAK_NOISE * tr["v"]
     sd = np.stack([np.full(CAL_ROWS, CAL_NOISE), perr, perr], axis=1)
     Y = X + sd * tr["z"]
-    meas = I.Measurements(tr["v"], Y[:, 0], np.full(CAL_ROWS, CAL_NOISE),
-                          np.zeros(CAL_ROWS, int) if tr["series"] else np.arange(CAL_ROWS),
-                          "dt_front_s", tuple(range(2, CAL_ROWS + 2)), (None,) * CAL_ROWS,
-                          Y[:, 1], Y[:, 2], perr)
-    return I.infer_joint(base, meas, grid=grid)
+    meas = inference.Measurements(tr["v"], Y[:, 0], np.full(CAL_ROWS, CAL_NOISE),
+                                  np.zeros(CAL_ROWS, int) if tr["series"] else np.arange(CAL_ROWS),
+                                  "dt_front_s", tuple(range(2, CAL_ROWS + 2)), (None,) * CAL_ROWS,
+                                  Y[:, 1], Y[:, 2], perr)
+    return inference.infer_joint(base, meas, grid=grid)
 
 
 def covered(res, tr):
@@ -497,11 +500,11 @@ EXAMPLE_SCENE = REPO / "measurements" / "example_restitution.yaml"
 
 def test_shipped_restitution_example_is_labelled_synthetic():
     assert EXAMPLE_CSV.read_text().startswith("# SYNTHETIC")
-    meas = I.read_measurements(EXAMPLE_CSV, peaks=True)
+    meas = inference.read_measurements(EXAMPLE_CSV, peaks=True)
     assert len(meas) == 8 and len(meas.groups) == 5 and meas.has_peaks
     base = load_scene(EXAMPLE_SCENE)
-    I.check_restitution_base(base)
-    I.check_peaks(meas, base)
+    inference.check_restitution_base(base)
+    inference.check_peaks(meas, base)
 
 
 @pytest.mark.slow

@@ -26,10 +26,10 @@ import pytest
 from granchain.compare import compare, comparison_scene
 from granchain.effects import contact_damping as cd
 from granchain.effects import ENERGY_COLUMNS, physics_terms, residual_work
-from granchain.engines import lammps as L
+from granchain.engines import lammps as lammps_engine
 from granchain.engines import reference
 from granchain.gaps import member_gaps, members
-from granchain.lammps import deck as D
+from granchain.lammps import deck as lammps_deck
 from granchain.lammps import run_lammps
 from granchain.lammps.plan import ledger_binary_columns
 from granchain.materials import effective_modulus, library
@@ -95,7 +95,7 @@ def test_every_pair_coeff_and_the_wall_carry_the_damping():
     for (model, e, eta, lim), (coef, words) in cases.items():
         over = {"damping.model": model, "damping.limit_damping": str(lim).lower(), **base}
         over.update({"damping.e": e} if e is not None else {"damping.eta": eta})
-        deck = D.render(packed(effects=DAMPED, **over), plugin=PLUGIN)[0]
+        deck = lammps_deck.render(packed(effects=DAMPED, **over), plugin=PLUGIN)[0]
         normals = re.findall(r"^(?:pair_coeff +\d \d|fix +wall lasts wall/gran granular) "
                              r"hertz/material (\S+) (\S+) (\S+) (damping [a-z_]+(?: limit_damping)?)",
                              deck, re.M)
@@ -104,7 +104,7 @@ def test_every_pair_coeff_and_the_wall_carry_the_damping():
         assert "tangential" in deck and "Hertz with contact damping" in deck
     assert c_restitution(float(cases[("tsuji", 0.7, None, False)][0])) == pytest.approx(
         math.sqrt(2) * marshall(0.7), rel=1e-14)
-    plain = D.render(packed(**base), plugin=PLUGIN)[0]
+    plain = lammps_deck.render(packed(**base), plugin=PLUGIN)[0]
     assert plain.count(" 0.0 0.28 damping viscoelastic &") == 1
     assert "contact damping" not in plain and "limit_damping" not in plain
 
@@ -211,7 +211,8 @@ def restitution(scene, engine="lammps", **kw):
     """e = (v2' - v1')/v of every member, LAMMPS or the reference engine."""
     mem = members(scene)
     g, vs = member_gaps(scene, mem), np.array([m.v_striker for m in mem])
-    run = L.run(scene, g, vs) if engine == "lammps" else reference.run(scene, g, vs, **kw)
+    run = (lammps_engine.run(scene, g, vs) if engine == "lammps"
+           else reference.run(scene, g, vs, **kw))
     return np.array([(t.v[-1, 1] - t.v[-1, 0]) / v for t, v in zip(run, vs)])
 
 
@@ -269,7 +270,8 @@ def test_wall_force_is_fix_wall_gran_whole_force(tmp_path):
     pl, step, c = run_deck(sc, tmp_path, lambda t: set_velocities(t, [0.0, 0.0, v]))
     x, vx = c["x"][:, 2], c["vx"][:, 2]
     cols = ledger_binary_columns(pl)
-    _, led = L.read_binary_dump(tmp_path / D.LEDGER_BINARY_NAME, cols, 1, pl.nsamples, "ledger")
+    _, led = lammps_engine.read_binary_dump(tmp_path / lammps_deck.LEDGER_BINARY_NAME, cols, 1,
+                                            pl.nsamples, "ledger")
     F = -led[cols[-1]][:, 0] * 1e-9                              # N, compression > 0
     s440, R = MAT["ss440c"], 150e-6
     Kw = 4.0 / 3.0 * effective_modulus(s440, MAT["ss316"]) * math.sqrt(R)
@@ -285,7 +287,7 @@ def test_wall_force_is_fix_wall_gran_whole_force(tmp_path):
     # the engine records the force at each sample's state, F_el + eta w of x_k and v_k (as
     # the reference engine does): it differs from fix wall/gran's, the step's force with the
     # half-step velocity, by O(dt) (measured 1.5e-4 of the peak)
-    rec = L.read_binary(tmp_path / D.BINARY_NAME, sc, pl)["wall_force"][:, 0]
+    rec = lammps_engine.read_binary(tmp_path / lammps_deck.BINARY_NAME, sc, pl)["wall_force"][:, 0]
     dd = np.maximum(d, 0.0)
     at_k = np.where(dd > 0, Kw * dd ** 1.5 + c_restitution(e) * np.sqrt(m * Kw * np.sqrt(dd)) * vx,
                     0.0)

@@ -317,21 +317,21 @@ def test_long_run_with_propulsive_drag_loses_no_atom(tmp_path, monkeypatch):
     """1 m/s striker, air drag only, 2.4 ms: the spheres that leave the chain are sped up
     to ~15 m/s and travel ~7 mm, beyond the previous margin (2 v_max t_run = 4.8 mm).
     The box sized by max_travel holds them; the previous margin loses atoms."""
-    from granchain.engines import lammps as L
-    from granchain.lammps import deck as D
+    from granchain.engines import lammps as lammps_engine
+    from granchain.lammps import deck as lammps_deck
     scene = packed(effects="[hertz, air_drag]", t_end=2.4e-3,
                    **{"striker.velocity": 1.0, "integrator.method": "verlet", "integrator.dt": 1e-8,
                       "output.sample_dt": 1e-7})
     gaps, vs = np.zeros((1, scene.n - 1)), np.array([1.0])
-    t = next(L.run(scene, gaps, vs, workdir=tmp_path / "ok"))
+    t = next(lammps_engine.run(scene, gaps, vs, workdir=tmp_path / "ok"))
     assert t.status == "done" and np.all(np.isfinite(t.v))
     assert t.t[-1] == pytest.approx(2.4e-3, rel=1e-9) and t.v.max() > 10.0
-    pl = D.plan(scene, gaps=gaps, v_striker=vs, output="binary")
-    _, cols = L.read_binary_dump(tmp_path / "ok" / D.BINARY_NAME, ("x", "vx"), scene.n,
-                                 pl.nsamples, "traj")
+    pl = lammps_deck.plan(scene, gaps=gaps, v_striker=vs, output="binary")
+    _, cols = lammps_engine.read_binary_dump(tmp_path / "ok" / lammps_deck.BINARY_NAME, ("x", "vx"),
+                                             scene.n, pl.nsamples, "traj")
     travel = np.abs(cols["x"][-1] - cols["x"][0]).max() * 1e-6
     assert travel > 2.0 * 1.0 * pl.t_run                      # the previous margin's room
-    assert travel < D.max_travel(scene, 1.0, pl.t_run)
-    monkeypatch.setattr(D, "max_travel", lambda scene, v, t: v * t)     # the previous margin
+    assert travel < lammps_deck.max_travel(scene, 1.0, pl.t_run)
+    monkeypatch.setattr(lammps_deck, "max_travel", lambda scene, v, t: v * t)  # the previous margin
     with pytest.raises(GranchainError, match="Lost atoms"):
-        next(L.run(scene, gaps, vs, workdir=tmp_path / "old"))
+        next(lammps_engine.run(scene, gaps, vs, workdir=tmp_path / "old"))

@@ -16,10 +16,10 @@ import pytest
 from granchain.cli import main as cli_main
 from granchain.compare import compare
 from granchain.effects import residual_work
-from granchain.engines import lammps as L
+from granchain.engines import lammps as lammps_engine
 from granchain.engines import reference
 from granchain.errors import GranchainError
-from granchain.lammps import deck as D
+from granchain.lammps import deck as lammps_deck
 from granchain.observables import summarize
 from granchain.simulate import member_gaps, members
 from tests.conftest import packed
@@ -73,7 +73,7 @@ def test_cross_validation_lammps_equals_reference_verlet(name, tmp_path):
     # and sample by sample
     gaps, vs = _members(cmp.scene)
     for r, lt in zip(reference.run(cmp.scene, gaps, vs, method="verlet", trace=True),
-                     L.run(cmp.scene, gaps, vs)):
+                     lammps_engine.run(cmp.scene, gaps, vs)):
         assert lt.meta["method"] == "lammps-verlet" and lt.status == r.status == "passed"
         np.testing.assert_allclose(lt.t, r.t, rtol=1e-12, atol=0)
         assert np.abs(lt.v - r.v).max() < DV_BOUND
@@ -103,9 +103,9 @@ def test_per_chain_ledger_matches_lammps_global_ledger(tmp_path):
     scene = packed(effects=ALL_BUT_ROLLING, t_end=3e-6,
                    **{"gaps.distribution": "uniform", "gaps.mean": 20e-9, "ensemble.realisations": 3})
     gaps, vs = _members(scene)
-    trajs = list(L.run(scene, gaps, vs, workdir=tmp_path))
+    trajs = list(lammps_engine.run(scene, gaps, vs, workdir=tmp_path))
     total = sum(t.energy for t in trajs)
-    en = np.loadtxt(tmp_path / D.ENERGY_NAME)          # step ke erot groove drag (1e-15 J)
+    en = np.loadtxt(tmp_path / lammps_deck.ENERGY_NAME)    # step ke erot groove drag (1e-15 J)
     assert en[:, 0].tolist() == [round(t / scene.dt) for t in trajs[0].t]
     for col, k in ((1, 0), (2, 1), (3, 3), (4, 4)):
         np.testing.assert_allclose(total[:, k], en[:, col] * 1e-15, rtol=1e-12,
@@ -128,19 +128,20 @@ def test_float64_columns_are_the_dumped_values(tmp_path):
     as MDAnalysis' own float32 parsing would (relative rounding <= 2^-24)."""
     scene = packed(t_end=2e-6)
     gaps, vs = _members(scene)
-    pl = D.plan(scene, gaps=gaps, v_striker=vs)
-    next(L.run(scene, gaps, vs, workdir=tmp_path, output="dump"))
-    lines = (tmp_path / D.DUMP_NAME).read_text().splitlines()
+    pl = lammps_deck.plan(scene, gaps=gaps, v_striker=vs)
+    next(lammps_engine.run(scene, gaps, vs, workdir=tmp_path, output="dump"))
+    lines = (tmp_path / lammps_deck.DUMP_NAME).read_text().splitlines()
     cols = lines[8].split()[2:]
     last = np.array([[float(x) for x in ln.split()] for ln in lines[-scene.n:]])
-    d64 = L.read_dump(tmp_path / D.DUMP_NAME, scene, pl)
-    d32 = L.read_dump(tmp_path / D.DUMP_NAME, scene, pl, velocities="float32")
+    d64 = lammps_engine.read_dump(tmp_path / lammps_deck.DUMP_NAME, scene, pl)
+    d32 = lammps_engine.read_dump(tmp_path / lammps_deck.DUMP_NAME, scene, pl, velocities="float32")
     vx = last[:, cols.index("vx")]
     assert d64["v"][-1, 0].tolist() == vx.tolist()                 # bit for bit
     assert d32["v"][-1, 0].tolist() == vx.astype(np.float32).astype(float).tolist()
     assert np.any(d32["v"][-1, 0] != vx)
     np.testing.assert_allclose(d32["v"], d64["v"], rtol=2.0**-24, atol=0)
-    two = L.read_dump(tmp_path / D.DUMP_NAME, scene, pl, readers=2)   # frames split in two
+    # frames split in two
+    two = lammps_engine.read_dump(tmp_path / lammps_deck.DUMP_NAME, scene, pl, readers=2)
     for k in ("step", "v", "energy"):
         assert np.array_equal(two[k], d64[k])
 
@@ -152,8 +153,8 @@ def test_two_mpi_ranks_give_the_same_observables(tmp_path):
                       "striker.velocity": "[0.07, 0.1]", "output.sample_dt": 36e-9})
     gaps, vs = _members(scene)
     assert len(vs) == 50
-    one = list(L.run(scene, gaps, vs, nprocs=1))
-    two = list(L.run(scene, gaps, vs, nprocs=2, workdir=tmp_path))
+    one = list(lammps_engine.run(scene, gaps, vs, nprocs=1))
+    two = list(lammps_engine.run(scene, gaps, vs, nprocs=2, workdir=tmp_path))
     assert "1 by 2 by 1 MPI processor grid" in (tmp_path / "log.lammps").read_text()
     assert two[0].meta["nprocs"] == 2
     for a, b in zip(one, two):
@@ -175,11 +176,13 @@ def test_binary_and_text_dump_paths_give_identical_trajectories(nprocs, tmp_path
                                    "striker.velocity": "[0.07, 0.1]", "output.sample_dt": 36e-9,
                                    "integrator.method": "verlet"})
     gaps, vs = _members(scene)
-    runs = {out: list(L.run(scene, gaps, vs, nprocs=nprocs, output=out, workdir=tmp_path / out))
+    runs = {out: list(lammps_engine.run(scene, gaps, vs, nprocs=nprocs, output=out,
+                                        workdir=tmp_path / out))
             for out in ("binary", "dump")}
-    assert (tmp_path / "binary" / D.BINARY_NAME).is_file() and not (tmp_path / "binary" / D.DUMP_NAME).exists()
-    assert (tmp_path / "binary" / D.LEDGER_BINARY_NAME).is_file()
-    assert not (tmp_path / "binary" / D.LEDGER_NAME).exists()
+    assert (tmp_path / "binary" / lammps_deck.BINARY_NAME).is_file()
+    assert not (tmp_path / "binary" / lammps_deck.DUMP_NAME).exists()
+    assert (tmp_path / "binary" / lammps_deck.LEDGER_BINARY_NAME).is_file()
+    assert not (tmp_path / "binary" / lammps_deck.LEDGER_NAME).exists()
     assert len(runs["binary"]) == len(runs["dump"]) == 6
     for a, b in zip(runs["binary"], runs["dump"]):
         assert a.meta["output"] == "binary" and b.meta["output"] == "dump"
@@ -198,64 +201,67 @@ def test_binary_reader_reads_what_lammps_holds(tmp_path, monkeypatch):
     scene = packed(effects="[hertz, groove_friction, air_drag]", t_end=2e-6,
                    **{"gaps.distribution": "uniform", "gaps.mean": 20e-9, "ensemble.realisations": 2})
     gaps, vs = _members(scene)
-    pl = D.plan(scene, gaps=gaps, v_striker=vs, output="binary")
-    next(L.run(scene, gaps, vs, workdir=tmp_path / "b"))
-    next(L.run(scene, gaps, vs, workdir=tmp_path / "d", output="dump"))
-    step, cols = L.read_binary_dump(tmp_path / "b" / D.BINARY_NAME, ("x", "vx"), 2 * scene.n,
-                                    pl.nsamples, "traj")
+    pl = lammps_deck.plan(scene, gaps=gaps, v_striker=vs, output="binary")
+    next(lammps_engine.run(scene, gaps, vs, workdir=tmp_path / "b"))
+    next(lammps_engine.run(scene, gaps, vs, workdir=tmp_path / "d", output="dump"))
+    step, cols = lammps_engine.read_binary_dump(tmp_path / "b" / lammps_deck.BINARY_NAME,
+                                                ("x", "vx"), 2 * scene.n, pl.nsamples, "traj")
     assert step.tolist() == list(range(0, pl.nsteps + 1, pl.every))
-    assert cols["x"][0].tolist() == np.concatenate([D.chain_positions(scene, g) for g in gaps]).tolist()
+    assert cols["x"][0].tolist() == np.concatenate(
+        [lammps_deck.chain_positions(scene, g) for g in gaps]).tolist()
     assert cols["vx"][0].tolist() == [0.1 if i % scene.n == 0 else 0.0 for i in range(2 * scene.n)]
-    pld = D.plan(scene, gaps=gaps, v_striker=vs)
-    ledger_txt = L.read_ledger(tmp_path / "d" / D.LEDGER_NAME, pld, step)
-    lstep, lcols = L.read_binary_dump(tmp_path / "b" / D.LEDGER_BINARY_NAME,
-                                      D.ledger_binary_columns(pl), 2, pl.nsamples, "ledger")
+    pld = lammps_deck.plan(scene, gaps=gaps, v_striker=vs)
+    ledger_txt = lammps_engine.read_ledger(tmp_path / "d" / lammps_deck.LEDGER_NAME, pld, step)
+    lstep, lcols = lammps_engine.read_binary_dump(tmp_path / "b" / lammps_deck.LEDGER_BINARY_NAME,
+                                                  lammps_deck.ledger_binary_columns(pl), 2,
+                                                  pl.nsamples, "ledger")
     assert lstep.tolist() == step.tolist()
-    assert np.stack([lcols[c] for c in D.ledger_binary_columns(pl)], axis=2).tobytes() == ledger_txt.tobytes()
+    assert np.stack([lcols[c] for c in lammps_deck.ledger_binary_columns(pl)],
+                    axis=2).tobytes() == ledger_txt.tobytes()
     # frames read one by one (the reader's path for files whose frames differ in layout)
     # and in blocks of strided views (the regular layout LAMMPS writes): the same arrays
-    whole = L.read_binary(tmp_path / "b" / D.BINARY_NAME, scene, pl)
-    monkeypatch.setattr(L, "_frame_layout", lambda *a: None)
-    frames = L.read_binary(tmp_path / "b" / D.BINARY_NAME, scene, pl)
+    whole = lammps_engine.read_binary(tmp_path / "b" / lammps_deck.BINARY_NAME, scene, pl)
+    monkeypatch.setattr(lammps_engine, "_frame_layout", lambda *a: None)
+    frames = lammps_engine.read_binary(tmp_path / "b" / lammps_deck.BINARY_NAME, scene, pl)
     for k in ("step", "v", "energy", "last_overlap"):
         assert frames[k].tobytes() == whole[k].tobytes()
-    step2, cols2 = L.read_binary_dump(tmp_path / "b" / D.BINARY_NAME, ("x", "vx"), 2 * scene.n,
-                                      pl.nsamples, "traj")
+    step2, cols2 = lammps_engine.read_binary_dump(tmp_path / "b" / lammps_deck.BINARY_NAME,
+                                                  ("x", "vx"), 2 * scene.n, pl.nsamples, "traj")
     assert step2.tolist() == step.tolist() and cols2["x"].tobytes() == cols["x"].tobytes()
 
 
 def test_missing_and_truncated_binary_output(tmp_path):
     scene = packed(t_end=2e-6, effects="[hertz, groove_friction, air_drag]")
     gaps, vs = _members(scene)
-    pl = D.plan(scene, gaps=gaps, v_striker=vs, output="binary")
-    traj, ledger = tmp_path / D.BINARY_NAME, tmp_path / D.LEDGER_BINARY_NAME
+    pl = lammps_deck.plan(scene, gaps=gaps, v_striker=vs, output="binary")
+    traj, ledger = tmp_path / lammps_deck.BINARY_NAME, tmp_path / lammps_deck.LEDGER_BINARY_NAME
     with pytest.raises(GranchainError, match=f"LAMMPS binary dump {traj} is missing") as exc:
-        L.read_binary(traj, scene, pl)
+        lammps_engine.read_binary(traj, scene, pl)
     _one_line(exc.value)
-    next(L.run(scene, gaps, vs, workdir=tmp_path))
-    assert L.read_binary(traj, scene, pl)["energy"][-1, 0, 3] < 0
+    next(lammps_engine.run(scene, gaps, vs, workdir=tmp_path))
+    assert lammps_engine.read_binary(traj, scene, pl)["energy"][-1, 0, 3] < 0
     data = traj.read_bytes()
     frame = len(data) // pl.nsamples
     traj.write_bytes(data[:-frame])                                # last frame missing
     with pytest.raises(GranchainError, match=r"is truncated: \d+ of \d+ samples") as exc:
-        L.read_binary(traj, scene, pl)
+        lammps_engine.read_binary(traj, scene, pl)
     _one_line(exc.value)
     traj.write_bytes(data[:-20])                                   # cut inside a frame
     with pytest.raises(GranchainError, match=f"LAMMPS binary dump {traj} is truncated or unreadable") as exc:
-        L.read_binary(traj, scene, pl)
+        lammps_engine.read_binary(traj, scene, pl)
     _one_line(exc.value)
     traj.write_bytes(data)
     ldata = ledger.read_bytes()
     ledger.write_bytes(ldata[:-len(ldata) // pl.nsamples])
     with pytest.raises(GranchainError, match=f"LAMMPS ledger {ledger} does not match the trajectory") as exc:
-        L.read_binary(traj, scene, pl)
+        lammps_engine.read_binary(traj, scene, pl)
     _one_line(exc.value)
     ledger.unlink()
     with pytest.raises(GranchainError, match=f"LAMMPS ledger {ledger} is missing") as exc:
-        L.read_binary(traj, scene, pl)
+        lammps_engine.read_binary(traj, scene, pl)
     _one_line(exc.value)
     with pytest.raises(GranchainError, match="does not match the deck") as exc:
-        L.read_binary_dump(traj, ("x", "vx"), 2 * scene.n, pl.nsamples, "traj")
+        lammps_engine.read_binary_dump(traj, ("x", "vx"), 2 * scene.n, pl.nsamples, "traj")
     _one_line(exc.value)
 
 
@@ -272,7 +278,7 @@ def test_bad_plugin_parameter_names_the_deck(tmp_path):
     scene = dataclasses.replace(sc, settings=tuple((k, bad if k == "groove_friction" else v)
                                                    for k, v in sc.settings))
     with pytest.raises(GranchainError) as exc:
-        list(L.run(scene, np.zeros((1, 14)), [0.1], workdir=tmp_path))
+        list(lammps_engine.run(scene, np.zeros((1, 14)), [0.1], workdir=tmp_path))
     msg = _one_line(exc.value)
     assert f"LAMMPS deck {tmp_path / 'deck.lmp'}:" in msg
     assert "Fix groove/drag: value of 'mu' must be >= 0 (got '-0.1')" in msg
@@ -282,7 +288,7 @@ def test_failing_run_lost_atoms_names_the_deck_and_keeps_it():
     # a step far above the scene check (20 steps per contact) blows the chain apart
     scene = dataclasses.replace(packed(t_end=200e-6, **{"output.sample_dt": 1e-7}), dt=1e-6)
     with pytest.raises(GranchainError) as exc:
-        list(L.run(scene, np.zeros((1, 14)), [1.0]))
+        list(lammps_engine.run(scene, np.zeros((1, 14)), [1.0]))
     msg = _one_line(exc.value)
     m = re.match(r"LAMMPS deck (\S+deck\.lmp): ERROR: Lost atoms", msg)
     assert m, msg
@@ -296,58 +302,58 @@ def test_failing_run_lost_atoms_names_the_deck_and_keeps_it():
 def test_missing_and_truncated_dump(tmp_path):
     scene = packed(t_end=2e-6)
     gaps, vs = _members(scene)
-    pl = D.plan(scene, gaps=gaps, v_striker=vs)
-    dump = tmp_path / D.DUMP_NAME
+    pl = lammps_deck.plan(scene, gaps=gaps, v_striker=vs)
+    dump = tmp_path / lammps_deck.DUMP_NAME
     with pytest.raises(GranchainError, match=f"LAMMPS dump {dump} is missing") as exc:
-        L.read_dump(dump, scene, pl)
+        lammps_engine.read_dump(dump, scene, pl)
     _one_line(exc.value)
-    next(L.run(scene, gaps, vs, workdir=tmp_path, output="dump"))
+    next(lammps_engine.run(scene, gaps, vs, workdir=tmp_path, output="dump"))
     text = dump.read_text()
     lines = text.splitlines(keepends=True)
     frame = 9 + scene.n
     dump.write_text("".join(lines[:-frame]))                    # last frame missing
     with pytest.raises(GranchainError, match=r"is truncated: \d+ of \d+ samples") as exc:
-        L.read_dump(dump, scene, pl)
+        lammps_engine.read_dump(dump, scene, pl)
     _one_line(exc.value)
     dump.write_text("".join(lines[:-3]))                        # cut inside a frame
     with pytest.raises(GranchainError, match=f"LAMMPS dump {dump} is truncated") as exc:
-        L.read_dump(dump, scene, pl)
+        lammps_engine.read_dump(dump, scene, pl)
     _one_line(exc.value)
 
 
 def test_missing_and_truncated_ledger(tmp_path):
     scene = packed(t_end=2e-6, effects="[hertz, groove_friction, air_drag]")
     gaps, vs = _members(scene)
-    pl = D.plan(scene, gaps=gaps, v_striker=vs)
+    pl = lammps_deck.plan(scene, gaps=gaps, v_striker=vs)
     assert pl.ledger_columns == ("work_groove_friction", "work_air_drag")
-    next(L.run(scene, gaps, vs, workdir=tmp_path, output="dump"))
-    dump, ledger = tmp_path / D.DUMP_NAME, tmp_path / D.LEDGER_NAME
-    assert L.read_dump(dump, scene, pl)["energy"][-1, 0, 3] < 0
+    next(lammps_engine.run(scene, gaps, vs, workdir=tmp_path, output="dump"))
+    dump, ledger = tmp_path / lammps_deck.DUMP_NAME, tmp_path / lammps_deck.LEDGER_NAME
+    assert lammps_engine.read_dump(dump, scene, pl)["energy"][-1, 0, 3] < 0
     text = ledger.read_text()
     ledger.write_text(text[:-40])                               # cut inside a row
     with pytest.raises(GranchainError, match=f"LAMMPS ledger {ledger} is truncated") as exc:
-        L.read_dump(dump, scene, pl)
+        lammps_engine.read_dump(dump, scene, pl)
     _one_line(exc.value)
     lines = text.splitlines(keepends=True)
     ledger.write_text("".join(lines[:-2]))                      # last sample missing
     with pytest.raises(GranchainError, match=f"LAMMPS ledger {ledger} does not match the dump") as exc:
-        L.read_dump(dump, scene, pl)
+        lammps_engine.read_dump(dump, scene, pl)
     _one_line(exc.value)
     ledger.unlink()
     with pytest.raises(GranchainError, match=f"LAMMPS ledger {ledger} is missing") as exc:
-        L.read_dump(dump, scene, pl)
+        lammps_engine.read_dump(dump, scene, pl)
     _one_line(exc.value)
 
 
 def test_cli_prints_lammps_errors_in_one_line(repo, tmp_path, monkeypatch, capsys):
     scene = str(repo / "granchain/scenes/packed-440c.yaml")
-    real = D.write_deck
+    real = lammps_deck.write_deck
 
     def broken(*a, **k):                                        # a deck LAMMPS rejects
         path = real(*a, **k)
         path.write_text(path.read_text().replace("run             ", "fix bad all nonsense\nrun "))
         return path
-    monkeypatch.setattr(D, "write_deck", broken)
+    monkeypatch.setattr(lammps_deck, "write_deck", broken)
     assert cli_main(["run", scene, "--engine", "lammps", "--workdir", str(tmp_path / "w"),
                      "--set", "t_end=1e-6"]) == 2
     err = capsys.readouterr().err
@@ -359,15 +365,15 @@ def test_workdir_and_options(repo, tmp_path, capsys):
     scene = packed(t_end=1e-6)
     (tmp_path / "junk").write_text("x")
     with pytest.raises(GranchainError, match="not empty") as exc:
-        list(L.run(scene, np.zeros((1, 14)), [0.1], workdir=tmp_path))
+        list(lammps_engine.run(scene, np.zeros((1, 14)), [0.1], workdir=tmp_path))
     _one_line(exc.value)
-    t = next(L.run(scene, np.zeros((1, 14)), [0.1], workdir=tmp_path, force=True))
+    t = next(lammps_engine.run(scene, np.zeros((1, 14)), [0.1], workdir=tmp_path, force=True))
     assert t.status == "done" and (tmp_path / "junk").exists() and (tmp_path / "traj.bin").exists()
     assert t.meta["output"] == "binary" and not (tmp_path / "traj.dump").exists()
     with pytest.raises(GranchainError, match="output must be one of") as exc:
-        list(L.run(scene, np.zeros((1, 14)), [0.1], output="none"))
+        list(lammps_engine.run(scene, np.zeros((1, 14)), [0.1], output="none"))
     _one_line(exc.value)
-    t = next(L.run(scene, np.zeros((1, 14)), [0.1]))             # temporary dir: removed
+    t = next(lammps_engine.run(scene, np.zeros((1, 14)), [0.1]))     # temporary dir: removed
     assert "deck" not in t.meta
     y = str(repo / "granchain/scenes/packed-440c.yaml")
     assert cli_main(["run", y, "--np", "2"]) == 2
@@ -379,7 +385,7 @@ def test_cli_lammps_output_selects_the_path(repo, tmp_path, capsys):
     dumps; the results are the same."""
     y = str(repo / "granchain/scenes/packed-440c.yaml")
     docs = {}
-    for out, name in (("dump", D.DUMP_NAME), (None, D.BINARY_NAME)):
+    for out, name in (("dump", lammps_deck.DUMP_NAME), (None, lammps_deck.BINARY_NAME)):
         wd = tmp_path / str(out)
         extra = ["--lammps-output", out] if out else []
         assert cli_main(["run", y, "--engine", "lammps", "--json", "--set", "t_end=3e-6",

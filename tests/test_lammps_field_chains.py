@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from granchain.compare import comparison_scene, member_rows
-from granchain.engines import lammps as L
+from granchain.engines import lammps as lammps_engine
 from granchain.engines import reference
-from granchain.lammps import deck as D
+from granchain.lammps import deck as lammps_deck
 from granchain.lammps import run_lammps
 from granchain.lammps.plan import ledger_binary_columns
 from granchain.materials import library
@@ -64,7 +64,7 @@ def test_chapter_chains_keep_their_decks_byte_for_byte(name):
     sc = chapter_scene(name)
     h = hashlib.sha256()
     for output in ("dump", "binary", "none"):
-        for text in D.render(sc, plugin=PLUGIN, output=output):
+        for text in lammps_deck.render(sc, plugin=PLUGIN, output=output):
             h.update(text.replace(sc.hash, "<hash>").encode() + b"\0")
     assert h.hexdigest()[:32] == CHAPTER_DECKS[name]
 
@@ -103,14 +103,14 @@ def peak(y):
 def run_deck(sc, tmp_path, edit_data=None):
     """Write the scene's deck (binary output, every step sampled), optionally edit its
     chain.data, run it; return (plan, step, {x, vx} (S, natoms) in um and m/s)."""
-    deck = D.write_deck(sc, tmp_path, output="binary")
+    deck = lammps_deck.write_deck(sc, tmp_path, output="binary")
     if edit_data:
-        data = tmp_path / D.DATA_NAME
+        data = tmp_path / lammps_deck.DATA_NAME
         data.write_text(edit_data(data.read_text()))
     run_lammps(deck, tmp_path, timeout=600)
-    pl = D.plan(sc, output="binary")
-    step, cols = L.read_binary_dump(tmp_path / D.BINARY_NAME, pl.dump_columns, pl.n_chains * sc.n,
-                                    pl.nsamples, "traj")
+    pl = lammps_deck.plan(sc, output="binary")
+    step, cols = lammps_engine.read_binary_dump(tmp_path / lammps_deck.BINARY_NAME, pl.dump_columns,
+                                                pl.n_chains * sc.n, pl.nsamples, "traj")
     return pl, step, cols
 
 
@@ -140,8 +140,8 @@ def test_binary_collisions_of_unlike_spheres_follow_hertz(tmp_path):
                                 "chain.materials": "[brass, ss440c, ptfe]",
                                 "chain.radius": str(R), "gaps.distribution": "list",
                                 "gaps.values": "[0.0, 0.5e-6]", "output.sample_dt": 1e-9})
-    deck = D.render(sc, plugin=PLUGIN)[0]
-    assert "3 atom types" in D.render(sc, plugin=PLUGIN)[1]
+    deck = lammps_deck.render(sc, plugin=PLUGIN)[0]
+    assert "3 atom types" in lammps_deck.render(sc, plugin=PLUGIN)[1]
     assert re.search(r"pair_coeff +1 2 hertz/material \S+ 0\.0 0\.0 ", deck)
     _, step, c = run_deck(sc, tmp_path)
     x, vx = c["x"], c["vx"]
@@ -187,7 +187,8 @@ def test_sphere_bouncing_off_the_end_wall(wall, tmp_path):
     dw = (x[:, 2] + 150.0) * 1e-6                  # the wall plane is x = 0
     assert x[0, 2] == -150.0 and peak(dw) == pytest.approx(dm, rel=3e-6)
     cols = ledger_binary_columns(pl)
-    lstep, led = L.read_binary_dump(tmp_path / D.LEDGER_BINARY_NAME, cols, 1, pl.nsamples, "ledger")
+    lstep, led = lammps_engine.read_binary_dump(tmp_path / lammps_deck.LEDGER_BINARY_NAME, cols, 1,
+                                                pl.nsamples, "ledger")
     assert np.array_equal(lstep, step)
     F = -led[cols[-1]][:, 0] * 1e-9                 # N, compression > 0
     assert peak(F) == pytest.approx(Kw * dm ** 1.5, rel=3e-6)
@@ -212,7 +213,7 @@ def test_preloaded_chain_at_rest_stays_static(wall, tmp_path):
                                 "chain.radius": "[150e-6, 189e-6, 150e-6, 120e-6, 150e-6, 200e-6]",
                                 "walls.end": wall, "precompression.force": F0})
     gaps, vs = member_gaps(sc, members(sc)), np.zeros(1)
-    (t,) = L.run(sc, gaps, vs, workdir=tmp_path)
+    (t,) = lammps_engine.run(sc, gaps, vs, workdir=tmp_path)
     assert t.t[-1] >= 20e-6 and np.abs(t.v).max() < 1e-9
     np.testing.assert_allclose(t.wall_force, F0, rtol=1e-11)
     assert t.wall_static == pytest.approx(F0, rel=1e-14)
@@ -220,9 +221,9 @@ def test_preloaded_chain_at_rest_stays_static(wall, tmp_path):
     e_h = E[0, 2]
     assert e_h > 0 and np.abs(E[:, 2] - e_h).max() < 1e-10 * e_h
     assert np.abs(E[:, -1]).max() < 1e-10 * e_h          # the load does no work
-    data = (tmp_path / D.DATA_NAME).read_text()
+    data = (tmp_path / lammps_deck.DATA_NAME).read_text()
     assert "fix             load second addforce 1000000000.0 0.0 0.0" in (
-        tmp_path / D.DECK_NAME).read_text()
+        tmp_path / lammps_deck.DECK_NAME).read_text()
     assert "5 atom types" in data
 
 
@@ -257,9 +258,9 @@ def test_field_chains_match_the_reference_engine(name, tmp_path):
     mem = members(cs)
     gaps, vs = member_gaps(cs, mem), np.array([m.v_striker for m in mem])
     ref = list(reference.run(cs, gaps, vs, method="verlet", dt=cs.dt, trace=True))
-    lmp = list(L.run(cs, gaps, vs, workdir=tmp_path))
+    lmp = list(lammps_engine.run(cs, gaps, vs, workdir=tmp_path))
     if cs.wall is not None:
-        x_last = [ln for ln in (tmp_path / D.DATA_NAME).read_text().splitlines()
+        x_last = [ln for ln in (tmp_path / lammps_deck.DATA_NAME).read_text().splitlines()
                   if re.match(rf"\d+ \d+ ", ln) and int(ln.split()[0]) % cs.n == 0]
         assert len({ln.split()[4] for ln in x_last}) == 1     # one wall plane for all
     for r, lt in zip(ref, lmp):
@@ -289,9 +290,9 @@ def test_wall_and_load_give_the_same_record_on_every_output_path_and_rank_count(
     cs = comparison_scene(FIELD["preloaded"]())
     mem = members(cs)
     gaps, vs = member_gaps(cs, mem), np.array([m.v_striker for m in mem])
-    (a,) = L.run(cs, gaps, vs)
+    (a,) = lammps_engine.run(cs, gaps, vs)
     for kw in ({"output": "dump"}, {"nprocs": 2}):
-        (b,) = L.run(cs, gaps, vs, **kw)
+        (b,) = lammps_engine.run(cs, gaps, vs, **kw)
         for f in ("v", "wall_force"):
             np.testing.assert_array_equal(getattr(b, f), getattr(a, f))
         e0 = a.energy[0, :3].sum()
@@ -348,12 +349,12 @@ def test_radius_spread_ensembles_match_the_reference_engine(name, tmp_path):
     gaps, vs, radii = spread_members(cs)
     B, n = radii.shape
     ref = list(reference.run(cs, gaps, vs, method="verlet", dt=cs.dt, trace=True, radii=radii))
-    lmp = list(L.run(cs, gaps, vs, radii=radii, workdir=tmp_path))
-    atoms = data_atoms(tmp_path / D.DATA_NAME)
+    lmp = list(lammps_engine.run(cs, gaps, vs, radii=radii, workdir=tmp_path))
+    atoms = data_atoms(tmp_path / lammps_deck.DATA_NAME)
     np.testing.assert_allclose(atoms[:, 2].reshape(B, n) * 0.5e-6, radii, rtol=1e-15)
-    groove = data_groove(tmp_path / D.DATA_NAME)[:, 1:].reshape(B, n, 2)
+    groove = data_groove(tmp_path / lammps_deck.DATA_NAME)[:, 1:].reshape(B, n, 2)
     assert np.all(groove[0] != groove[1]) and np.all(groove[1] != groove[2])
-    deck = (tmp_path / D.DECK_NAME).read_text()
+    deck = (tmp_path / lammps_deck.DECK_NAME).read_text()
     assert "kt d_groove_kt gamma d_groove_gamma" in deck
     if cs.wall is not None:
         x_last = atoms[n - 1::n, 4]
@@ -396,7 +397,7 @@ def test_preloaded_spread_chains_at_rest_stay_static(wall, tmp_path):
                                 "ensemble.realisations": 3,
                                 "walls.end": wall, "precompression.force": F0})
     gaps, vs, radii = spread_members(sc)
-    trajs = list(L.run(sc, gaps, vs, radii=radii, workdir=tmp_path))
+    trajs = list(lammps_engine.run(sc, gaps, vs, radii=radii, workdir=tmp_path))
     assert len(trajs) == 3
     for b, t in enumerate(trajs):
         assert t.t[-1] >= 20e-6 and np.abs(t.v).max() < 1e-9
@@ -419,11 +420,11 @@ def test_deck_of_a_spread_scene_holds_each_members_radii(tmp_path):
     assert cli_main(["deck", str(scene_file), "-o", str(tmp_path / "d")]) == 0
     sc = load_scene(scene_file)
     radii = member_radii(sc, members(sc))
-    atoms = data_atoms(tmp_path / "d" / D.DATA_NAME)
+    atoms = data_atoms(tmp_path / "d" / lammps_deck.DATA_NAME)
     np.testing.assert_allclose(atoms[:, 2].reshape(4, 15) * 0.5e-6, radii, rtol=1e-15)
     assert len(set(atoms[:, 2])) == 60
-    one = data_atoms_text(D.render(sc, gaps=member_gaps(sc, members(sc, [2])),
-                                   radii=member_radii(sc, members(sc, [2])))[1])
+    one = data_atoms_text(lammps_deck.render(sc, gaps=member_gaps(sc, members(sc, [2])),
+                                             radii=member_radii(sc, members(sc, [2])))[1])
     np.testing.assert_array_equal(one[:, 2], atoms[30:45, 2])
 
 

@@ -142,7 +142,7 @@ def test_scene_layer_does_not_import_the_accuracy_study(tmp_path):
     """Loading a scene with method auto loads neither the cost model nor the study."""
     path = tmp_path / "auto.yaml"
     path.write_text("integrator: {method: auto, tolerance: 1.0e-5}\n")
-    code = ("import sys, granchain.scene as s; sc = s.load_scene(sys.argv[1]); "
+    code = ("import sys; from granchain.scene import load_scene; sc = load_scene(sys.argv[1]); "
             "assert sc.method == 'auto', sc.method; "
             "print(sorted(m for m in sys.modules if m.startswith('granchain.')))")
     p = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True,
