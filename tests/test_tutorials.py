@@ -32,7 +32,7 @@ COMMAND_TIMEOUT_S = 900
 _slow, _workflow, _lammps = pytest.mark.slow, pytest.mark.workflow, pytest.mark.lammps
 MARKS = {
     "reproduce-the-chapter": (_slow, _workflow, _lammps),
-    "build-your-own-chain": (),
+    "build-your-own-chain": (_slow,),
     "bring-your-measurements": (_slow,),
     "run-on-a-slurm-cluster": (_workflow,),
     "cross-validate-with-lammps": (_lammps,),
