@@ -26,7 +26,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from granchain.engines.lammps import read_dump  # noqa: E402
-from granchain.schedule import sample_interval  # noqa: E402
+from granchain.stoprule import sample_interval  # noqa: E402
 from granchain.gaps import realise  # noqa: E402
 from granchain.lammps import deck as lammps_deck  # noqa: E402
 from granchain.lammps.runner import run_lammps  # noqa: E402

@@ -18,7 +18,7 @@ from .errors import GranchainError
 from .fileio import atomic_write_text, check_output_path, json_text
 from .guards import check_run, run_size, scene_warnings
 from .progress import bar
-from .schedule import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost
+from .costmodel import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost
 from .scene import load_scene
 
 

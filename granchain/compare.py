@@ -34,7 +34,7 @@ from .costmodel import resolve_auto
 from .effects import residual_work
 from .errors import GranchainError
 from .observables import summarize
-from .schedule import arrival_speed
+from .stoprule import arrival_speed
 from .scene import Scene
 from .trajectory import ENERGY_COLUMNS
 

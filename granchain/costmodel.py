@@ -37,8 +37,14 @@ import numpy as np
 from .errors import GranchainError, SceneError
 from .scene import TOLERANCE_METHODS, Scene
 from .guards import require_resolved
-from .schedule import (RECORD_EXTRA_COLUMNS, cost_estimate, expected_duration,
-                       sample_interval)
+from .effects import ENERGY_COLUMNS
+from .stoprule import expected_duration, sample_interval
+
+# default cost limits (per chain), raised with granchain run --max-steps / --max-memory-gb
+DEFAULT_MAX_STEPS = 1e8
+DEFAULT_MAX_MEMORY_GB = 4.0
+# columns of a chain's sample record besides the n velocities: the energy ledger's and time
+RECORD_EXTRA_COLUMNS = len(ENERGY_COLUMNS) + 1
 
 SCENE_METHODS = ("rk4", "verlet", "adaptive", "event")   # what ``method: auto`` may resolve to
 SCENE_CLASSES = ("packed", "gapped")
@@ -182,6 +188,69 @@ class CostModel:
         return max(min(r["envelope"] for r in env), max(r["ref_uncertainty"] for r in env))
 
 
+
+# ---------------------------------------------------------------------------------------
+# what one chain needs: steps, samples, record; the per-chain cost guard
+# ---------------------------------------------------------------------------------------
+def cost_estimate(scene, v: float, *, duration: float | None = None,
+                  sample_dt: float | None = None) -> dict:
+    """Estimated duration (s), integration steps, samples and record bytes of one chain
+    (of a resolved scene: method auto has no step yet). ``duration`` and ``sample_dt``:
+    :func:`expected_duration` and :func:`sample_interval` at v, if already known (neither
+    depends on the integrator)."""
+    require_resolved(scene, "cost_estimate")
+    dur = expected_duration(scene, v) if duration is None else duration
+    sdt = sample_interval(scene, v) if sample_dt is None else sample_dt
+    samples = dur / sdt + 1.0 if (v > 0 or scene.t_end is not None) else 1.0
+    if scene.method == "adaptive":
+        steps = samples                 # at least one step per sample
+    elif scene.method == "event":
+        steps = samples                 # bounded by the adaptive method's count
+    else:
+        steps = dur / scene.dt
+    return {"duration_s": dur, "steps": steps, "samples": samples,
+            "record_bytes": samples * (scene.n + RECORD_EXTRA_COLUMNS) * 8.0}
+
+
+def check_cost(scene, max_steps: float = DEFAULT_MAX_STEPS,
+               max_memory_gb: float = DEFAULT_MAX_MEMORY_GB, estimates=None) -> None:
+    """Refuse (one line) a scene whose chains exceed the step or memory limit;
+    ``estimates``: the :func:`cost_estimate` of each striker speed, if already known (a
+    run plan's)."""
+    if not (max_steps > 0) or not (max_memory_gb > 0):
+        raise GranchainError(f"--max-steps / --max-memory-gb: limits must be > 0 (got "
+                             f"{max_steps:g}, {max_memory_gb:g}); give positive numbers")
+    if estimates is None:
+        estimates = [cost_estimate(scene, v) for v in scene.striker_velocities]
+    worst = max(estimates, key=lambda c: (c["steps"], c["record_bytes"]))
+    how = ("t_end" if scene.t_end is not None else
+           "t_end auto: until the wave has left particle n")
+    if worst["steps"] > max_steps:
+        step = (f"dt = {scene.dt:g} s" if scene.method not in ("adaptive", "event")
+                else "one adaptive step per sample")
+        raise GranchainError(
+            f"--max-steps: scene '{scene.name}' needs an estimated {worst['steps']:.3g} "
+            f"integration steps per chain ({worst['duration_s']:.3g} s simulated, {how}; {step}), "
+            f"above the limit {max_steps:.3g}; pass --max-steps {_ceil_sig(worst['steps'])} "
+            "if you mean it, or shorten the run (t_end, gaps, chain.n)")
+    gb = worst["record_bytes"] / 1e9
+    if gb > max_memory_gb:
+        raise GranchainError(
+            f"--max-memory-gb: scene '{scene.name}' needs an estimated {gb:.3g} GB per chain "
+            f"for its sample record ({worst['samples']:.3g} samples x {scene.n + RECORD_EXTRA_COLUMNS} "
+            f"values), above the limit {max_memory_gb:g} GB; pass --max-memory-gb "
+            f"{_ceil_sig(gb)} if you mean it, or sample less often (output.sample_dt) or "
+            "shorten the run (t_end, chain.n)")
+
+
+def _ceil_sig(x: float) -> str:
+    """x rounded up to 2 significant digits, as text (a limit that accepts x)."""
+    if not (x > 0 and math.isfinite(x)):
+        return f"{x:g}"
+    e = math.floor(math.log10(x)) - 1
+    return f"{math.ceil(x / 10.0**e) * 10.0**e:.2g}"
+
+
 def read_model_csv(path) -> dict:
     """The columns of a cost-model CSV (``MODEL_COLUMNS``, in any order)."""
     with open(path, newline="") as fh:
@@ -238,7 +307,7 @@ def fixed_step(scene, steps_per_contact: int) -> float:
 
 def speed_work(scene, method: str, v: float, duration: float | None = None) -> float:
     """The share of striker speed ``v`` in :func:`chain_work` (``duration``: its
-    ``schedule.expected_duration`` if already known)."""
+    ``stoprule.expected_duration`` if already known)."""
     if not v > 0:
         return 0.0
     if method == "event":
@@ -254,7 +323,7 @@ def chain_work(scene, method: str, durations: dict | None = None) -> float:
     ``method``: what carries the model's wall times from its measurement scenes to
     another scene. Fixed steps (t_c / N at the fastest striker) and the adaptive method
     (its steps held to the sample grid, a fixed fraction of t_c) cost the simulated time
-    (``schedule.expected_duration``: wave travel plus flight over the gaps) over the
+    (``stoprule.expected_duration``: wave travel plus flight over the gaps) over the
     contact time. The event method's steps follow the contacts and skip the flight:
     within a factor of about 5 the same per contact over 20 nm to 1 um gaps and 0.01 to
     0.1 m/s (benchmarks/gapped.py), so its work is the n - 1 contacts per speed.
@@ -295,7 +364,7 @@ def member_seconds(scene, v: float, engine: str = "reference", model: CostModel 
     model's scenes' (:func:`speed_work`, the per-speed share of :func:`work_ratio`): at
     a setting auto picked, exactly the cost auto ranked it by. LAMMPS:
     ``LAMMPS_STEP_SECONDS`` per integration step (``steps``: the
-    ``schedule.cost_estimate`` steps). ``duration``: ``schedule.expected_duration``, if
+    ``costmodel.cost_estimate`` steps). ``duration``: ``stoprule.expected_duration``, if
     already known."""
     require_resolved(scene, "member_seconds")
     if not v > 0:
@@ -339,8 +408,8 @@ def auto_setting(scene: Scene, model: CostModel | None = None, *,
     auto sampling) that cannot hold for every member, so when the target is below the
     measured misalignment floor only the tolerance methods are used. They keep the
     scene's dt as their first step and get the model's tolerance as their rtol.
-    ``durations`` and ``sample_dts`` (striker speed -> ``schedule.expected_duration``,
-    ``schedule.sample_interval``): the run plan's, if already computed
+    ``durations`` and ``sample_dts`` (striker speed -> ``stoprule.expected_duration``,
+    ``stoprule.sample_interval``): the run plan's, if already computed
     (:func:`granchain.plan.plan_run`)."""
     model = model or load_model()
     tol = float(scene.tolerance)
@@ -467,7 +536,7 @@ def run_estimate(scene, realisations=None, engine: str = "reference", *,
 def estimate_run(scene, per_v: list[dict], seconds: list[float], realisations=None,
                  engine: str = "reference", *, trace: bool = False,
                  speeds_apart: bool = False) -> dict:
-    """:func:`run_estimate` from each striker speed's ``schedule.cost_estimate``
+    """:func:`run_estimate` from each striker speed's ``costmodel.cost_estimate``
     (``per_v``) and :func:`member_seconds` (``seconds``) on ``engine``."""
     if realisations is None:
         reals = scene.realisations

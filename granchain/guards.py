@@ -1,5 +1,5 @@
 """Guards on a scene before it runs: sampling accuracy and physics warnings (the cost
-guard, which needs the run plan, is ``granchain.schedule.check_cost``).
+guard, which needs the run plan, is ``granchain.costmodel.check_cost``).
 
 No numba or scipy, so ``granchain validate`` stays light. The solitary wave comes from
 ``granchain.analytic``.

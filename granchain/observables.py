@@ -9,7 +9,7 @@ Peak of particle i: v_max,i = max_t v_i(t), refined below the sample spacing:
 Arrival (front) time of particle i: first crossing of v_max,i / 2 on the rising edge,
 linearly interpolated. It is defined whether the peak is sharp or a plateau.
 
-A peak is reported only when it is *final* (``granchain.schedule``: the wave has passed
+A peak is reported only when it is *final* (``granchain.stoprule``: the wave has passed
 an inner particle, the last particle has left): otherwise v_max, t_peak and t_front of
 that particle are NaN and ``final`` is False for it. A maximum at the end of the record
 is not a peak.
@@ -38,12 +38,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import schedule
+from . import stoprule
 from .effects import SPECS
 from .trajectory import ENERGY_COLUMNS, Trajectory
 
-PEAK_TOL = schedule.PEAK_TOL
-PLATEAU_SAMPLES = schedule.PLATEAU_SAMPLES
+PEAK_TOL = stoprule.PEAK_TOL
+PLATEAU_SAMPLES = stoprule.PLATEAU_SAMPLES
 
 
 def _crossing(t, y, level, stop):
@@ -91,22 +91,22 @@ def peak(t: np.ndarray, y: np.ndarray) -> tuple[float, float, float, bool]:
 
 
 def peak_final(traj: Trajectory, i: int) -> bool:
-    """Is the peak of particle i (0-based) inside the record? (``granchain.schedule``)"""
+    """Is the peak of particle i (0-based) inside the record? (``granchain.stoprule``)"""
     y = traj.v[:, i]
     j = int(np.argmax(y))
     top = float(y[j])
-    if not top > schedule.arrival_speed(traj.v_striker):
+    if not top > stoprule.arrival_speed(traj.v_striker):
         return False            # the wave never reached it
     if i == traj.n - 1 and traj.wall_force is None:
-        return bool(schedule.last_detached(y[-1], traj.last_overlap, traj.v_striker))
+        return bool(stoprule.last_detached(y[-1], traj.last_overlap, traj.v_striker))
     # an inner particle, or the last one pressed against an end wall
-    return schedule.inner_passed(y[j + 1:], top)
+    return stoprule.inner_passed(y[j + 1:], top)
 
 
 def wall_peak(traj: Trajectory) -> tuple[float, float, bool]:
     """(F_max, t_peak, final) of the end wall's dynamic force F_w(t) - F_w(0): its
     maximum, refined by the parabola through the samples around it, and whether it is
-    final (``schedule.wall_passed``: the force has fallen below half its dynamic peak
+    final (``stoprule.wall_passed``: the force has fallen below half its dynamic peak
     after it). NaN values when not final. Taken from the engine's on-the-fly measurement
     when the trajectory carries one (``traj.observed.wall_peak_final`` set)."""
     o = traj.observed
@@ -115,7 +115,7 @@ def wall_peak(traj: Trajectory) -> tuple[float, float, bool]:
     F = np.asarray(traj.wall_force, dtype=float) - traj.wall_static
     j = int(np.argmax(F))
     top = float(F[j])
-    if not (top > 0.0 and schedule.wall_passed(F[j + 1:], top)):
+    if not (top > 0.0 and stoprule.wall_passed(F[j + 1:], top)):
         return math.nan, math.nan, False
     tpk = float(traj.t[j])
     if 0 < j < len(F) - 1:
@@ -323,7 +323,7 @@ class ChainResult:
             "status": self.status,
             "wave_arrived": bool(self.wave_arrived),
             # particles (1-based, ';'-separated) whose peak the run did not measure: their
-            # vmax_p columns are NaN (granchain.schedule)
+            # vmax_p columns are NaN (granchain.stoprule)
             "peaks_not_final": ";".join(str(i) for i in self.not_final),
             "v_max_1_m_s": float(self.v_max_1),
             "v_max_2_m_s": float(self.v_max_2),

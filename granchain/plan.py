@@ -8,7 +8,7 @@ estimate) and physics warnings. ``simulate.run_scene`` runs from it (cost guard,
 warnings), the workflow's batches balance and time their jobs with it, and auto's choice
 reads its durations and sample intervals.
 
-numpy only (no numba, scipy or engine), like the modules it draws on: ``schedule``
+numpy only (no numba, scipy or engine), like the modules it draws on: ``stoprule``
 (sampling, duration, steps), ``costmodel`` (auto, wall time), ``guards`` (warnings).
 """
 from __future__ import annotations
@@ -18,8 +18,8 @@ from dataclasses import dataclass
 from . import costmodel
 from .guards import physics_warnings
 from .scene import TOLERANCE_METHODS, Scene
-from .schedule import (DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost, cost_estimate,
-                       expected_duration, sample_interval)
+from .stoprule import expected_duration, sample_interval
+from .costmodel import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost, cost_estimate
 
 ENGINES = ("reference", "lammps")
 
@@ -31,16 +31,16 @@ class SpeedPlan:
     the setting chosen for this speed alone)."""
     scene: Scene
     v_striker: float
-    sample_dt: float            # s, schedule.sample_interval
-    duration_s: float           # simulated time, schedule.expected_duration
-    steps: float                # integration steps (schedule.cost_estimate)
+    sample_dt: float            # s, stoprule.sample_interval
+    duration_s: float           # simulated time, stoprule.expected_duration
+    steps: float                # integration steps (costmodel.cost_estimate)
     samples: float
     record_bytes: float         # its sample record
     seconds: tuple[float, ...]  # estimated wall time of one chain, per engine (ENGINES)
     warnings: tuple[str, ...]   # guards.physics_warnings
 
     def estimate(self) -> dict:
-        """Its ``schedule.cost_estimate`` (duration_s, steps, samples, record_bytes)."""
+        """Its ``costmodel.cost_estimate`` (duration_s, steps, samples, record_bytes)."""
         return {"duration_s": self.duration_s, "steps": self.steps, "samples": self.samples,
                 "record_bytes": self.record_bytes}
 
@@ -113,7 +113,7 @@ class RunPlan:
 
     def check(self, max_steps: float = DEFAULT_MAX_STEPS,
               max_memory_gb: float = DEFAULT_MAX_MEMORY_GB) -> None:
-        """The per-chain cost guard (``schedule.check_cost``) on this plan's estimates."""
+        """The per-chain cost guard (``costmodel.check_cost``) on this plan's estimates."""
         check_cost(self.scene, max_steps, max_memory_gb,
                    estimates=[sp.estimate() for sp in self.speeds])
 

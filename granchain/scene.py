@@ -209,7 +209,7 @@ KEYS: tuple[Key, ...] = (
         "arrived and is behind its starting position).", positive=True, allowed="or `auto`"),
     Key("output.sample_dt", "s", "The interval of the recorded samples. It must give at least "
         f"{MIN_SAMPLES_PER_PULSE} samples per solitary-wave width at the fastest striker, and "
-        "be no shorter than the step. `auto`: `granchain.schedule.SAMPLES_PER_PULSE` samples "
+        "be no shorter than the step. `auto`: `granchain.stoprule.SAMPLES_PER_PULSE` samples "
         "per width.", positive=True, allowed="or `auto`"),
     Key("ensemble.realisations", "1", "The number of gap realisations; realisation r draws "
         "from rng([gaps.seed, r]).", integer=True, lo=1),

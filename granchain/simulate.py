@@ -17,7 +17,7 @@ from .gaps import Member, member_gaps, member_radii, members
 from .vibrometer import measure, needs_trace
 from .observables import ChainResult, summarize
 from .plan import RunPlan, plan_run
-from .schedule import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS
+from .costmodel import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS
 from .scene import Scene
 
 ENGINES = ("reference", "lammps")

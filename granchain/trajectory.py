@@ -50,7 +50,7 @@ class Trajectory:
     wall_s: float = 0.0
     meta: dict = field(default_factory=dict)
     # Hertz overlap (m, > 0 in contact) of the last contact (particles n-1, n) at the last
-    # sample: tells whether the last particle has left (granchain.schedule). NaN: unknown.
+    # sample: tells whether the last particle has left (granchain.stoprule). NaN: unknown.
     last_overlap: float = float("nan")
     # right-hand-side (force routine) evaluations of the integration
     force_evaluations: int = 0

@@ -26,7 +26,7 @@ each probe (v_max,1, v_max,2), the delay between the peak times (dt) and the del
 between the half-peak front times, with the peak refined between samples by
 :func:`granchain.observables.peak` (the same rule as the true observables). A recorded
 peak is *final* when the true peak of that probe is final and the recorded signal has
-fallen below half its peak after it (``schedule.inner_passed``: the filtered pulse has
+fallen below half its peak after it (``stoprule.inner_passed``: the filtered pulse has
 passed the instrument inside the record); otherwise its values are NaN and the probe is
 listed in ``not_final``.
 
@@ -42,7 +42,7 @@ import numpy as np
 
 from .observables import peak, probe_span
 from .scene import Measurement
-from .schedule import inner_passed
+from .stoprule import inner_passed
 from .trajectory import Trajectory
 
 

@@ -368,7 +368,7 @@ def test_auto_step_sits_on_the_sample_grid_and_is_pure():
     sc = _scene316(0.0, 1e-5)
     again = _scene316(0.0, 1e-5)
     assert (sc.method, sc.dt, sc.tolerance) == (again.method, again.dt, again.tolerance)
-    from granchain.schedule import sample_interval
+    from granchain.stoprule import sample_interval
     if sc.method not in TOLERANCE_METHODS:
         assert sc.dt <= sc.contact_time(0.05) / 20
         k = sample_interval(sc, 0.05) / sc.dt

@@ -106,7 +106,7 @@ LAYERS = (
               "granchain.lammps.units", "granchain.lammps")),
     ("physics", ("granchain.effects",)),
     ("data", ("granchain.scene", "granchain.scenekeys", "granchain.gaps", "granchain.guards")),
-    ("run plan", ("granchain.schedule",)),
+    ("run plan", ("granchain.stoprule",)),
     ("engines", ("granchain.trajectory", "granchain.engines", "granchain.lammps.plan",
                  "granchain.lammps.field",
                  "granchain.lammps.deck", "granchain.lammps.plugin", "granchain.lammps.runner")),

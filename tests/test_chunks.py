@@ -12,7 +12,7 @@ from granchain.effects import physics_terms
 from granchain.engines import reference
 from granchain.observables import summarize
 from granchain.scene import load_scene
-from granchain.schedule import sample_interval
+from granchain.stoprule import sample_interval
 
 from conftest import SCENES
 

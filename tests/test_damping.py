@@ -112,13 +112,13 @@ def test_a_damped_chain_on_a_wall_ends_at_its_tighter_cap_with_final_peaks():
     """A damped chain against a rigid wall whose last sphere does not come back behind its
     start runs to its (tighter) time cap, flagged timeout, with every peak and the wall's
     peak final."""
-    from granchain import schedule
+    from granchain import stoprule
     from granchain.simulate import run_scene
     sc = scene_from_dict({"name": "w", "walls": {"end": "rigid"},
                           "effects": ["hertz", "contact_damping"], "damping": {"e": 0.5}})
     r = run_scene(sc)[0]
-    cap = schedule.auto_t_max(sc, np.zeros(14), 0.1)
-    undamped = schedule.auto_t_max(scene_from_dict({"name": "u", "walls": {"end": "rigid"}}),
+    cap = stoprule.auto_t_max(sc, np.zeros(14), 0.1)
+    undamped = stoprule.auto_t_max(scene_from_dict({"name": "u", "walls": {"end": "rigid"}}),
                                    np.zeros(14), 0.1)
     assert cap < undamped / 3            # measured 6.9e-5 s against 2.5e-4 s
     assert r.wall_peak_final and not r.not_final and r.t_end <= cap * (1 + 1e-9)

@@ -18,7 +18,7 @@ import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from granchain import analytic, guards, schedule
+from granchain import analytic, costmodel, guards, stoprule
 from granchain.cli import main
 from granchain.errors import GranchainError, SceneError
 from granchain.fileio import atomic_write_text
@@ -527,8 +527,8 @@ def test_runaway_scenes_are_refused_at_once(tmp_path, capsys, no_compute, text, 
 def test_cost_limits_can_be_raised():
     sc = load_scene(SCENES / "packed-440c.yaml", ["gaps={distribution: fixed, mean: 1.0e-3}"])
     with pytest.raises(GranchainError, match="--max-steps"):
-        schedule.check_cost(sc)
-    schedule.check_cost(sc, max_steps=2e8)
+        costmodel.check_cost(sc)
+    costmodel.check_cost(sc, max_steps=2e8)
     from granchain.simulate import run_scene
     with pytest.raises(GranchainError, match="--max-steps"):
         run_scene(packed(), max_steps=10)
@@ -558,7 +558,7 @@ def test_whole_runs_beyond_the_memory_limit_are_refused(tmp_path, capsys, no_com
     one line naming the keys that set its size and the limit, before any engine runs."""
     scene = write(tmp_path, text)
     sc = load_scene(scene)
-    schedule.check_cost(sc)                          # every chain alone is acceptable
+    costmodel.check_cost(sc)                          # every chain alone is acceptable
     err = refused(capsys, [cmd, scene], "--max-memory-gb")
     for w in words:
         assert w in err, (w, err)
@@ -602,7 +602,7 @@ def test_whole_run_estimate_counts_every_member():
     observables' arrays, not the records."""
     from granchain.costmodel import run_estimate
     sc = load_scene(SCENES / "striker-sweep-440c.yaml", ["ensemble.realisations=3"])
-    one = [schedule.cost_estimate(sc, v) for v in sc.striker_velocities]
+    one = [costmodel.cost_estimate(sc, v) for v in sc.striker_velocities]
     short, long_ = (load_scene(SCENES / "striker-sweep-440c.yaml",
                                ["ensemble.realisations=3", f"t_end={t}"])
                     for t in ("1.0e-4", "4.0e-4"))
@@ -661,7 +661,7 @@ def test_estimate_mirrors_the_reference_engines_chunks():
     from granchain import costmodel
     from granchain.engines import reference
     from granchain.engines import codes
-    from granchain.schedule import RECORD_EXTRA_COLUMNS
+    from granchain.costmodel import RECORD_EXTRA_COLUMNS
     assert costmodel.RECORD_CHUNK_BYTES == reference.CHUNK_BYTES
     assert costmodel.CHUNK_CHAINS == reference.CHUNK_CHAINS
     assert costmodel.WINDOW_SAMPLES == {"rk4": reference.BLOCK_WINDOW,
@@ -915,8 +915,8 @@ def test_auto_duration_covers_the_whole_chain():
     sc = packed(**{"gaps": "{distribution: fixed, mean: 1.0e-8}"})
     v = 0.1
     travel = 14 * 2 * sc.radius / float(analytic.nesterenko_speed(sc.material, 0.05))
-    assert schedule.expected_duration(sc, v) == pytest.approx(travel + 14 * 1e-8 / v)
-    est = schedule.cost_estimate(sc, v)
+    assert stoprule.expected_duration(sc, v) == pytest.approx(travel + 14 * 1e-8 / v)
+    est = costmodel.cost_estimate(sc, v)
     assert est["steps"] == pytest.approx(est["duration_s"] / sc.dt)
     from granchain.effects import ENERGY_COLUMNS
     # the 15 velocities, every ledger column and the time, 8 bytes each
@@ -929,10 +929,10 @@ def test_workflow_presets_pass_the_default_limits():
         _, preset = workflow.load_config(REPO / "config" / "config.yaml", name)
         for study in workflow.preset_studies(preset):
             for ss in workflow.study_scenes(preset, study):
-                schedule.check_cost(ss.scene)
-                schedule.check_cost(workflow.packed_scene(ss))
+                costmodel.check_cost(ss.scene)
+                costmodel.check_cost(workflow.packed_scene(ss))
         for ss in workflow.check_chain_scenes(preset):
-            schedule.check_cost(ss.scene)
+            costmodel.check_cost(ss.scene)
 
 
 # ---------------------------------------------------------------------------------------

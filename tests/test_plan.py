@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from granchain import costmodel, schedule
+from granchain import costmodel, stoprule
 from granchain import workflow as gw
 from granchain.errors import GranchainError
 from granchain.plan import plan_run
@@ -40,13 +40,13 @@ def test_plan_resolves_auto_as_resolve_auto_does():
 
 
 def test_plan_estimates_match_the_planning_modules():
-    """Per striker speed the plan holds schedule's sampling, duration, steps and record,
+    """Per striker speed the plan holds the stop rule's sampling, duration, steps and record,
     guards' warnings; its whole-run estimate is costmodel.run_estimate's."""
     sc = _scene("verlet", dt=1e-9, v=(0.05, 0.1, 20.0))
     p = plan_run(sc)
     for sp in p.speeds:
-        c = schedule.cost_estimate(sc, sp.v_striker)
-        assert sp.sample_dt == schedule.sample_interval(sc, sp.v_striker)
+        c = costmodel.cost_estimate(sc, sp.v_striker)
+        assert sp.sample_dt == stoprule.sample_interval(sc, sp.v_striker)
         assert sp.estimate() == pytest.approx(c, rel=1e-12)
     assert any(p.at(20.0).warnings) and not p.at(0.1).warnings
     for eng in ("reference", "lammps"):
@@ -106,7 +106,7 @@ def test_setting_seconds_interpolates_between_measured_settings():
 
 def test_run_scene_plans_once(monkeypatch):
     """run_scene of an auto scene asks the cost model for auto's settings once (the
-    sweep's, and each speed's) and computes each striker speed's schedule once (the engine aside); given a plan, not
+    sweep's, and each speed's) and computes each striker speed's sampling and duration once (the engine aside); given a plan, not
     at all."""
     from granchain import plan as plan_mod
     from granchain import simulate

@@ -1,4 +1,4 @@
-"""The stop rule and peak finality (granchain.schedule): a run reports a particle's peak
+"""The stop rule and peak finality (granchain.stoprule): a run reports a particle's peak
 only when the peak lies inside the run, and t_end auto runs until the wave has left the
 whole chain, whichever particle the probes name."""
 from __future__ import annotations

@@ -180,7 +180,7 @@ def reference_runs(raw: dict, cost: dict, batch: int, log=_log, *,
     adaptive at ``reference_tolerance`` against RK4 at the finest N of the grid. With
     ``memo`` (see ``_run``), runs already made (the grid's RK4 at the finest N, the
     reference itself) are reused, not repeated."""
-    from ..schedule import sample_interval
+    from ..stoprule import sample_interval
     ref_set = Setting("adaptive", None, float(cost["reference_tolerance"]))
     ref_scene = scene_for(raw, ref_set, batch=batch)
     memo = {} if memo is None else memo

@@ -21,7 +21,7 @@ numba at run time.
 
 The cache directory is ``granchain.fileio.cache_dir()``. The module's name carries a hash of everything it was compiled
 from (:func:`kernel_sources`: the package's modules the kernels import, transitively, found
-from their import statements, so the effects' laws, ``codes`` and ``schedule`` included;
+from their import statements, so the effects' laws, ``codes`` and ``stoprule`` included;
 the Runge-Kutta tableaux they embed as constants, by value, whatever file they are read
 from; Python, numpy and numba versions; CPU model and flags): a stale module is never
 loaded; it is simply not found. Without ``numba.pycc`` (it is
@@ -158,7 +158,7 @@ def jit_cache_dir() -> Path:
     """Where numba caches the JIT kernels: a folder named by :func:`_sources_hash`.
 
     numba keys its cache by the stamp of the file that defines each kernel only, but the
-    kernels inline the effects' laws and freeze ``codes`` and ``schedule`` constants from
+    kernels inline the effects' laws and freeze ``codes`` and ``stoprule`` constants from
     other files: an edit there would otherwise load machine code of the old physics. The
     folder sits in the package's ``__pycache__`` (kept across test sessions and runs),
     under ``$NUMBA_CACHE_DIR`` if the user set one, else in :func:`cache_dir` when the

@@ -29,7 +29,7 @@ set a record (their interpolants; steps whose maximum is below half the running 
 are dropped, since the half-peak level can only rise; when RB_SIZE are kept, the two
 shortest adjacent ones of the older half are merged into one cubic Hermite), whether the velocity has fallen
 below PASS_FRACTION of the running maximum after it (the wave has passed:
-``granchain.schedule``) and when it first fell below (1 - PEAK_TOL) of it (end of the
+``granchain.stoprule``) and when it first fell below (1 - PEAK_TOL) of it (end of the
 near-peak run). At the end, ``finalize`` gives per particle: v_max; the front time
 t_front, the first crossing of v_max / 2 (found in the first record step whose maximum
 reaches it: before that step the velocity never exceeded it); the plateau flag, set when
@@ -49,7 +49,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..schedule import PASS_FRACTION, PEAK_TOL
+from ..stoprule import PASS_FRACTION, PEAK_TOL
 from . import kernels
 from .codes import DEFAULT_PAIR, PAIRS, RB_C, RB_H, RB_LEN, RB_MAX, RB_SIZE, RB_T0  # noqa: F401
 from .kernels import energies, forces, project
@@ -486,7 +486,7 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
     status in FIN[b] until its last trace samples are out), INIT[b] 0 before the first
     call. A chain stops at t_stop[b] (S_DONE) or, with auto_stop, at the first step end
     at which its last particle has taken the wave and left (S_PASSED,
-    ``schedule.last_detached``).
+    ``stoprule.last_detached``).
     """
     B = Y.shape[0]
     n = int(P[kernels.P_N_SPHERES])

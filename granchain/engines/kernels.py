@@ -29,8 +29,8 @@ from .backend import use_jit_cache
 
 use_jit_cache()   # before the first @njit(cache=True): a cache keyed by every source compiled in
 
-from ..schedule import PEAK_TOL, PLATEAU_SAMPLES  # noqa: E402  (the sampled peak rules)
-from ..schedule import PASS_FRACTION  # noqa: E402
+from ..stoprule import PEAK_TOL, PLATEAU_SAMPLES  # noqa: E402  the sampled peak rules
+from ..stoprule import PASS_FRACTION  # noqa: E402
 from .obscodes import (BAL_E0, BAL_MAX, OF_AFTER, OF_BEFORE, OF_MAX, OF_RECENT,  # noqa: E402
                        OI_AFTER_OPEN, OI_ARGMAX, OI_NAN, OI_NEAR_AFTER, OI_NEAR_BEFORE, OI_PASSED,
                        OI_RING_COUNT, OI_RING_HEAD, OI_RING_OVERFLOW, OUT_MAX_SAMPLE, OUT_PLATEAU,
@@ -720,10 +720,10 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
 
     Per chain b: Y[b] state, ACC[b] last derivative (Verlet), T[b] time, H[b] adaptive
     step, NS[b] samples recorded so far, STEPS/REJ counters, STATUS[b] (S_*), VTHR[b]
-    the arrival speed of chain b (``schedule.arrival_speed``). A sample is taken every
+    the arrival speed of chain b (``stoprule.arrival_speed``). A sample is taken every
     ``every`` fixed steps (rk4, verlet) or exactly every ``sample_dt`` (dop853). A chain
     stops after NT[b] samples, or (auto_stop) at the first sample at which its last
-    particle has taken the wave and left (``schedule.last_detached``: velocity above
+    particle has taken the wave and left (``stoprule.last_detached``: velocity above
     VTHR[b], contact with its neighbour open), with status S_PASSED.
     """
     B = Y.shape[0]
@@ -819,7 +819,7 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
 
 @njit(cache=True, inline="always")
 def _left(v_last, overlap_last, x_last, vthr, wall):
-    """Has the wave left the chain (``schedule.last_detached``, ``schedule.wall_left``)?
+    """Has the wave left the chain (``stoprule.last_detached``, ``stoprule.wall_left``)?
     Free end: the last
     sphere moves faster than the arrival speed with its contact open. End wall: the last
     sphere moves back from the wall faster than the arrival speed and is back at (or

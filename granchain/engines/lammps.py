@@ -81,7 +81,7 @@ from ..errors import GranchainError
 from ..guards import require_resolved
 from ..lammps import deck as deckmod
 from ..scene import Scene
-from ..schedule import auto_t_max, last_detached, wall_left
+from ..stoprule import auto_t_max, last_detached, wall_left
 from ..trajectory import ENERGY_COLUMNS, Trajectory
 
 METHOD = "lammps-verlet"
@@ -852,7 +852,7 @@ def _trajectories(scene, pl, data, wall_each, meta_common):
 def auto_stop(scene: Scene, gaps, v_striker: float, vlast, overlap_last,
               sample_dt: float, last_disp=None) -> tuple[int, str]:
     """(samples kept, status) of a t_end auto chain, by the stop rule of
-    ``granchain.schedule`` as ``engines.kernels.run_window`` applies it.
+    ``granchain.stoprule`` as ``engines.kernels.run_window`` applies it.
 
     vlast, overlap_last: the last particle's velocity (m/s) and its contact's overlap (m)
     at every sample; last_disp: with an end wall, the last particle's displacement (m)

@@ -17,7 +17,7 @@ mechanical energy of sample 0 (BAL_E0), the largest |balance| so far (BAL_MAX).
 """
 from __future__ import annotations
 
-from ..schedule import PLATEAU_SAMPLES
+from ..stoprule import PLATEAU_SAMPLES
 
 OF_MAX, OF_BEFORE, OF_AFTER, OF_RECENT = 0, 1, 2, 3
 OBS_F = OF_RECENT + PLATEAU_SAMPLES

@@ -5,7 +5,7 @@ speed each) and yields a :class:`~granchain.trajectory.Trajectory` per chain, in
 Chains are processed in chunks (bounded memory) and, inside a chunk, in parallel over
 chains with numba's prange; each chain advances window by window of samples until it
 stops (t_end reached, or with t_end auto once the wave has left the whole chain: the
-stop rule of ``granchain.schedule``).
+stop rule of ``granchain.stoprule``).
 """
 from __future__ import annotations
 
@@ -16,8 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..schedule import (arrival_speed, auto_t_max, expected_duration, last_detached,
-                        sample_interval)
+from ..stoprule import arrival_speed, auto_t_max, expected_duration, last_detached, sample_interval
 from ..effects import MODULES, SPECS, Terms, chain as chain_mod, physics_terms
 from ..guards import require_resolved
 from ..scene import Scene
@@ -142,7 +141,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
     one chain per thread (``events.run_events``), with the same result bit for bit.
     ``sampling``: striker speed -> (sample interval, expected duration) of the run plan
     (``granchain.plan.RunPlan.sampling``), computed once there; speeds it lacks are
-    computed here (``schedule.sample_interval``, ``schedule.expected_duration``)."""
+    computed here (``stoprule.sample_interval``, ``stoprule.expected_duration``)."""
     require_resolved(scene, "reference engine")
     terms = physics_terms(scene)
     gaps = np.ascontiguousarray(np.atleast_2d(np.asarray(gaps, dtype=float)))

@@ -27,12 +27,12 @@ Choices (also stated in the deck's comments):
   tangential law is then ``linear_history 0.0 0.0 0.0`` (k_t = 0, mu = 0: the force
   -k_t xi is exactly zero, and the cap test 0 > 0 never fires, so no division by k_t).
   Rotation on: ``fix nve/sphere``.
-* Run length: ``scene.t_end``, else ``schedule.auto_t_max`` of the slowest
+* Run length: ``scene.t_end``, else ``stoprule.auto_t_max`` of the slowest
   member (the largest cap over all members); rounded up to whole samples as the
   reference engine does, so the last sample falls at the same time. With t_end auto
   the run also stops (``fix halt``) at the first sample at which the wave has left
   every moving chain (its last particle moves and has no contact left,
-  ``granchain.schedule``): the reference engine's stop rule, applied to the whole batch. ``granchain.engines.lammps`` then cuts each chain's
+  ``granchain.stoprule``): the reference engine's stop rule, applied to the whole batch. ``granchain.engines.lammps`` then cuts each chain's
   record where the reference engine would have stopped that chain.
 * Cadence: every = round(sample_interval / dt) (as the reference engine), from the
   member with the finest sampling.
@@ -81,7 +81,7 @@ from granchain.lammps.plan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, DECK_
                                    ledger_binary_columns, max_travel, plan)
 from granchain.lammps import field
 from granchain.lammps.units import MICRO_EXPONENT, lmp_float as _r, to_micro
-from granchain.schedule import ARRIVAL_FRACTION, arrival_speed
+from granchain.stoprule import ARRIVAL_FRACTION, arrival_speed
 
 __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "write_deck",
            "plan", "DeckPlan", "DECK_NAME", "DATA_NAME", "DUMP_NAME", "ENERGY_NAME",
@@ -246,7 +246,7 @@ def _trajectory_block(pl: DeckPlan, spacing: str) -> str:
 
 
 def _halt_block(n: int, vs: np.ndarray, every: int, x_last: str | None = None) -> str:
-    """Deck lines of the t_end auto stop rule (granchain.schedule): halt at the first
+    """Deck lines of the t_end auto stop rule (granchain.stoprule): halt at the first
     sample at which the wave has left every moving chain. Free end: its last particle
     moves forward faster than the arrival speed with no contact left; end wall: its last
     particle moves back from the wall faster than the arrival speed and is back at or

@@ -1,6 +1,6 @@
 """What a LAMMPS deck runs: its members (chains), run length and sample cadence.
 
-The plan is the reference engine's run plan (``granchain.schedule``: sample grid, time
+The plan is the reference engine's run plan (``granchain.stoprule``: sample grid, time
 cap) applied to a batch of chains; the engine needs it again to read the output back.
 """
 from __future__ import annotations
@@ -15,7 +15,7 @@ from granchain.errors import GranchainError
 from granchain.guards import require_resolved
 from granchain.gaps import member_gaps, member_radii, members, realise
 from granchain.scene import Scene
-from granchain.schedule import auto_t_max, sample_interval
+from granchain.stoprule import auto_t_max, sample_interval
 
 # The files a deck writes, and what the engine reads back from them.
 DECK_NAME = "deck.lmp"
@@ -194,7 +194,7 @@ def plan(scene: Scene, *, gaps=None, v_striker=None, radii=None,
     else:
         caps = [auto_t_max(scene, gaps[b], float(vs[b])) for b in range(B) if vs[b] > 0]
         t_si = max(caps) if caps else 0.0
-        t_note = ("t_end auto: the auto_t_max cap (granchain.schedule) of the slowest member; "
+        t_note = ("t_end auto: the auto_t_max cap (granchain.stoprule) of the slowest member; "
                   "fix halt stops earlier once the wave has left every chain"
                   if caps else "t_end auto: no striker moves")
     nsamples = int(math.ceil(t_si / sdt - 1e-9)) if t_si > 0 else 0

@@ -1,10 +1,10 @@
-"""How a run samples, when it stops, and which peaks it has measured: one rule for both
-engines and the observables.
+"""The stop rule: how a run samples, when it stops, and which peaks it has measured; one
+rule for both engines and the observables.
 
 Sampling: ``sample_interval`` (the scene's, or 400 samples per solitary-wave width).
-Cost: ``cost_estimate`` / ``check_cost``, the steps and sample record a run will need,
-refused above limits the caller can raise. A run computes them once, in its run plan
-(``granchain.plan.RunPlan``).
+Run length: ``expected_duration`` (what a chain is expected to need) and ``auto_t_max``
+(the cap of a ``t_end: auto`` run). A run computes the sampling and the expected length
+once, in its run plan (``granchain.plan.RunPlan``).
 
 A particle has *seen the wave* once its velocity exceeds ``ARRIVAL_FRACTION * v_s``.
 Its peak velocity is *final* (a measured maximum, inside the run) when:
@@ -34,16 +34,9 @@ import math
 import numpy as np
 
 from . import analytic
-from .effects import ENERGY_COLUMNS
-from .errors import GranchainError
 from .guards import crossing_time, require_resolved
 
 SAMPLES_PER_PULSE = 400    # auto sampling: samples per solitary-wave width
-# default cost limits (per chain), raised with granchain run --max-steps / --max-memory-gb
-DEFAULT_MAX_STEPS = 1e8
-DEFAULT_MAX_MEMORY_GB = 4.0
-# columns of a chain's sample record besides the n velocities: the energy ledger's and time
-RECORD_EXTRA_COLUMNS = len(ENERGY_COLUMNS) + 1
 ARRIVAL_FRACTION = 1e-3    # a particle has seen the wave once v > ARRIVAL_FRACTION * v_s
 PASS_FRACTION = 0.5        # the wave has passed an inner particle once v < this * its peak
 PEAK_TOL = 1e-4            # a peak: samples within PEAK_TOL of the maximum (observables.peak)
@@ -128,62 +121,3 @@ def expected_duration(scene, v: float) -> float:
     if scene.wall is not None:
         t += scene.pulse_width(0.5 * v)
     return t
-
-
-def cost_estimate(scene, v: float, *, duration: float | None = None,
-                  sample_dt: float | None = None) -> dict:
-    """Estimated duration (s), integration steps, samples and record bytes of one chain
-    (of a resolved scene: method auto has no step yet). ``duration`` and ``sample_dt``:
-    :func:`expected_duration` and :func:`sample_interval` at v, if already known (neither
-    depends on the integrator)."""
-    require_resolved(scene, "cost_estimate")
-    dur = expected_duration(scene, v) if duration is None else duration
-    sdt = sample_interval(scene, v) if sample_dt is None else sample_dt
-    samples = dur / sdt + 1.0 if (v > 0 or scene.t_end is not None) else 1.0
-    if scene.method == "adaptive":
-        steps = samples                 # at least one step per sample
-    elif scene.method == "event":
-        steps = samples                 # bounded by the adaptive method's count
-    else:
-        steps = dur / scene.dt
-    return {"duration_s": dur, "steps": steps, "samples": samples,
-            "record_bytes": samples * (scene.n + RECORD_EXTRA_COLUMNS) * 8.0}
-
-
-def check_cost(scene, max_steps: float = DEFAULT_MAX_STEPS,
-               max_memory_gb: float = DEFAULT_MAX_MEMORY_GB, estimates=None) -> None:
-    """Refuse (one line) a scene whose chains exceed the step or memory limit;
-    ``estimates``: the :func:`cost_estimate` of each striker speed, if already known (a
-    run plan's)."""
-    if not (max_steps > 0) or not (max_memory_gb > 0):
-        raise GranchainError(f"--max-steps / --max-memory-gb: limits must be > 0 (got "
-                             f"{max_steps:g}, {max_memory_gb:g}); give positive numbers")
-    if estimates is None:
-        estimates = [cost_estimate(scene, v) for v in scene.striker_velocities]
-    worst = max(estimates, key=lambda c: (c["steps"], c["record_bytes"]))
-    how = ("t_end" if scene.t_end is not None else
-           "t_end auto: until the wave has left particle n")
-    if worst["steps"] > max_steps:
-        step = (f"dt = {scene.dt:g} s" if scene.method not in ("adaptive", "event")
-                else "one adaptive step per sample")
-        raise GranchainError(
-            f"--max-steps: scene '{scene.name}' needs an estimated {worst['steps']:.3g} "
-            f"integration steps per chain ({worst['duration_s']:.3g} s simulated, {how}; {step}), "
-            f"above the limit {max_steps:.3g}; pass --max-steps {_ceil_sig(worst['steps'])} "
-            "if you mean it, or shorten the run (t_end, gaps, chain.n)")
-    gb = worst["record_bytes"] / 1e9
-    if gb > max_memory_gb:
-        raise GranchainError(
-            f"--max-memory-gb: scene '{scene.name}' needs an estimated {gb:.3g} GB per chain "
-            f"for its sample record ({worst['samples']:.3g} samples x {scene.n + RECORD_EXTRA_COLUMNS} "
-            f"values), above the limit {max_memory_gb:g} GB; pass --max-memory-gb "
-            f"{_ceil_sig(gb)} if you mean it, or sample less often (output.sample_dt) or "
-            "shorten the run (t_end, chain.n)")
-
-
-def _ceil_sig(x: float) -> str:
-    """x rounded up to 2 significant digits, as text (a limit that accepts x)."""
-    if not (x > 0 and math.isfinite(x)):
-        return f"{x:g}"
-    e = math.floor(math.log10(x)) - 1
-    return f"{math.ceil(x / 10.0**e) * 10.0**e:.2g}"
