@@ -26,7 +26,7 @@ w = R (omega_k + omega_{k+1}).
 
 The kernels' numbering (P, FL, G, LO, the energy columns) is generated from the SPECs
 (``engines/codes.py``). To add an effect: a module here with these parts, its entry in
-``MODULES`` and ``Terms``, its block in ``engines/kernels.py`` (``forces``, and
+``MODULES`` (``Terms`` gets its field from there), its block in ``engines/kernels.py`` (``forces``, and
 ``project`` if it has a history), and, for an effect with parameters, its scene section
 (``SECTION``, ``DEFAULTS``, ``KEYS`` declaring each key's unit, bounds and meaning, and
 ``settings``, which validates the section against those declarations).
