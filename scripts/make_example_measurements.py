@@ -6,11 +6,10 @@ Chains of measurements/example_synthetic.yaml at a mean gap of 47 nm (the chapte
 reading), drawn with gap seed 2024 (the inference's grid uses the scene's seed 0, so these
 realisations are not in it): one chain measured at four striker speeds (chain_id A) and
 four independent chains, arrival (half-peak) delays with Gaussian noise of 0.2 us
-(dt_err_s). Usage: python scripts/make_example_measurements.py [--force]
+(dt_err_s). Usage: python scripts/make_example_measurements.py [--out FILE] [--force]
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +24,7 @@ NOISE = 0.2e-6
 SEED = 2024
 
 
-def main(force: bool = False) -> Path:
+def main(out: Path = REPO / "measurements" / "example_synthetic.csv", force: bool = False) -> Path:
     base = load_scene(REPO / "measurements" / "example_synthetic.yaml").derive(
         {"gaps": {"seed": SEED}})
     rng = np.random.default_rng(7)
@@ -39,9 +38,9 @@ def main(force: bool = False) -> Path:
              f"noise {NOISE * 1e6:g} us",
              "v_striker_m_s,dt_front_s,dt_err_s,chain_id"]
     lines += [f"{v:.6g},{x:.6e},{NOISE:.1e},{c}" for v, x, c in zip(speeds, t, ids)]
-    return atomic_write_text(REPO / "measurements" / "example_synthetic.csv",
-                             "\n".join(lines) + "\n", force, "example_synthetic.csv")
+    return atomic_write_text(out, "\n".join(lines) + "\n", force, "--out")
 
 
 if __name__ == "__main__":
-    print(main(force="--force" in sys.argv[1:]))
+    from _synthetic import cli
+    cli(main, __doc__, REPO / "measurements" / "example_synthetic.csv")

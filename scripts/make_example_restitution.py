@@ -8,11 +8,10 @@ reading) with contact damping of coefficient of restitution e = 0.92, drawn with
 one chain measured at four striker speeds (chain_id A) and four independent chains;
 arrival (half-peak) delays with Gaussian noise of 0.2 us (dt_err_s) and both probes' peaks
 with Gaussian noise of 2 % of the striker speed (vmax_err_m_s).
-Usage: python scripts/make_example_restitution.py [--force]
+Usage: python scripts/make_example_restitution.py [--out FILE] [--force]
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +28,7 @@ PEAK_NOISE = 0.02          # x v_s
 SEED = 2024
 
 
-def main(force: bool = False) -> Path:
+def main(out: Path = REPO / "measurements" / "example_restitution.csv", force: bool = False) -> Path:
     base = load_scene(REPO / "measurements" / "example_restitution.yaml").derive(
         {"gaps": {"seed": SEED}})
     rng = np.random.default_rng(7)
@@ -48,9 +47,9 @@ def main(force: bool = False) -> Path:
              "v_striker_m_s,dt_front_s,dt_err_s,vmax_1_m_s,vmax_2_m_s,vmax_err_m_s,chain_id"]
     lines += [f"{v:.6g},{x[0]:.6e},{NOISE:.1e},{x[1]:.6e},{x[2]:.6e},{e:.2e},{c}"
               for v, x, e, c in zip(speeds, X, perr, ids)]
-    return atomic_write_text(REPO / "measurements" / "example_restitution.csv",
-                             "\n".join(lines) + "\n", force, "example_restitution.csv")
+    return atomic_write_text(out, "\n".join(lines) + "\n", force, "--out")
 
 
 if __name__ == "__main__":
-    print(main(force="--force" in sys.argv[1:]))
+    from _synthetic import cli
+    cli(main, __doc__, REPO / "measurements" / "example_restitution.csv")
