@@ -88,8 +88,8 @@ def engine(scene, gaps, vs, nprocs, output, wd):
     trajs = list(lammps_engine.run(scene, gaps, vs, nprocs=nprocs, output=output, workdir=wd))
     wall = time.perf_counter() - t0
     size = sum(f.stat().st_size for f in wd.iterdir()) / 1e6
-    note = (f"LAMMPS process {trajs[0].meta['lammps_wall_s']:.2f} s, deck and read "
-            f"{trajs[0].meta['read_wall_s']:.2f} s, files {size:.0f} MB; "
+    note = (f"LAMMPS process {trajs[0].info.lammps_wall_s:.2f} s, deck and read "
+            f"{trajs[0].info.read_wall_s:.2f} s, files {size:.0f} MB; "
             + sections(wd / "log.lammps"))
     return wall, note, trajs
 

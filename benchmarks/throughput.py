@@ -51,7 +51,7 @@ def main(argv=None):
     ps_serial = particle_steps(serial, scene.n) / t_serial
     same = all(np.array_equal(a.v, b.v) for a, b in zip(batch[:k], serial))
     print(f"scene {scene.name}: {len(mem)} chains x {scene.n} particles, effects "
-          f"{','.join(sorted(scene.effects))}, method {batch[0].meta['method']}, dt {batch[0].meta['dt']:g} s")
+          f"{','.join(sorted(scene.effects))}, method {batch[0].info.method}, dt {batch[0].info.dt:g} s")
     print(f"batched : {len(mem)} chains in {t_batch:.2f} s, {sum(t.steps for t in batch) / len(mem):.0f} steps/chain, "
           f"{ps_batch:.3g} particle-steps/s")
     print(f"serial  : {k} chains in {t_serial:.2f} s, {ps_serial:.3g} particle-steps/s")

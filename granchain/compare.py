@@ -156,11 +156,11 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
                                      "reference", "lammps", "diff", "measure", "tolerance",
                                      "ok", "why"])
     meta = {"scene": scene.name, "scene_hash": scene.hash, "compared_scene_hash": cs.hash,
-            "chains": len(mem), "traced_chains": k, "dt": cs.dt, "sample_dt": lmp[0].meta.get("sample_dt"),
+            "chains": len(mem), "traced_chains": k, "dt": cs.dt, "sample_dt": lmp[0].info.sample_dt,
             "nprocs": nprocs, "reference_wall_s": t1 - t0, "lammps_wall_s": t2 - t1,
             "lammps_output": "dump (MDAnalysis)" if trajectory else "binary",
-            "lammps_version": lmp[0].meta.get("lammps_version"),
-            "balance": lmp[0].meta.get("balance"), "deck": lmp[0].meta.get("deck"),
+            "lammps_version": lmp[0].info.lammps_version,
+            "balance": lmp[0].info.balance, "deck": lmp[0].info.deck,
             "tolerances": {"v": V_TOL, "t": T_TOL, "energy_over_E0": E_TOL}}
     if cs.wall is not None:
         meta["tolerances"]["wall_force"] = W_TOL
@@ -227,7 +227,7 @@ def member_rows(scene: Scene, ref, lmp, *, trace=None) -> list[dict]:
         out += wall_rows(sr, sl)
     er, el = sr.energy, sl.energy
     e0 = er.initial if er.initial > 0 else 1.0
-    residual = lmp.meta.get("balance") == "residual"
+    residual = lmp.info.balance == "residual"
     # the works LAMMPS has no output of (effects.residual_work: contact friction, rolling
     # friction, contact damping, those of the scene's effects): on the LAMMPS side their
     # sum is the balance residual, so they are compared as one sum, not independent

@@ -72,10 +72,6 @@ def _reference(scene: Scene, sampling: dict, mem: list[Member], kw: dict):
                          sampling=sampling, **kw)
 
 
-def _float_or_none(x) -> float | None:
-    return None if x is None else float(x)
-
-
 def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=None, *,
               max_steps: float = DEFAULT_MAX_STEPS, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
               progress: Callable[[int], None] | None = None, **kw) -> list[ChainResult]:
@@ -120,7 +116,7 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
                             true_final=final).result_fields(scene.probes)
         out.append(dataclasses.replace(
             s, member=m.index, realisation=m.realisation, engine=engine,
-            method=traj.meta.get("method"), dt=_float_or_none(traj.meta.get("dt")),
+            method=traj.info.method, dt=float(traj.info.dt),
             warnings=warn[m.v_striker], **extra))
         if progress is not None:
             progress(1)

@@ -1,7 +1,7 @@
 """The engine-neutral trajectory: what every engine produces and observables read."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -29,6 +29,42 @@ class OnTheFly:
     wall_peak_final: bool | None = None
 
 
+@dataclass(frozen=True)
+class RunInfo:
+    """How an engine produced a trajectory.
+
+    method: the integrator (rk4, verlet, adaptive, event, or LAMMPS' lammps-verlet);
+    dt: its step (s; the tolerance methods' first step); sample_dt: the sample interval
+    (s); rtol: the tolerance methods' relative tolerance (None for a fixed step); trace:
+    whether the sampled record was kept (False: observables measured on the fly, only
+    the first and last states kept); pair: the event method's Runge-Kutta pair; t_last:
+    the event method's time of its last state (s).
+
+    LAMMPS runs only (None otherwise): nprocs (MPI ranks), lammps_version, lammps_wall_s
+    (the LAMMPS process), batch_wall_s (deck, run and read-back of the whole batch),
+    read_wall_s, readers and velocities (the text dump's reader options), output (binary
+    or dump), balance ("independent": LAMMPS reports every work of the ledger;
+    "residual": some work has no per-atom output and is the balance's residual), deck
+    (the deck's path when its directory is kept)."""
+    method: str
+    dt: float
+    sample_dt: float | None = None
+    rtol: float | None = None
+    trace: bool = True
+    pair: str | None = None
+    t_last: float | None = None
+    nprocs: int | None = None
+    lammps_version: str | None = None
+    lammps_wall_s: float | None = None
+    batch_wall_s: float | None = None
+    read_wall_s: float | None = None
+    readers: int | None = None
+    velocities: str | None = None
+    output: str | None = None
+    balance: str | None = None
+    deck: str | None = None
+
+
 @dataclass
 class Trajectory:
     """Sampled history of one chain.
@@ -48,7 +84,8 @@ class Trajectory:
     rejected: int = 0
     status: str = "done"
     wall_s: float = 0.0
-    meta: dict = field(default_factory=dict)
+    # how the engine produced it (method, step, sampling; LAMMPS' run)
+    info: RunInfo | None = None
     # Hertz overlap (m, > 0 in contact) of the last contact (particles n-1, n) at the last
     # sample: tells whether the last particle has left (granchain.stoprule). NaN: unknown.
     last_overlap: float = float("nan")

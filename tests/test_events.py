@@ -63,10 +63,10 @@ def test_event_agrees_with_dop853_truth(case):
 def test_on_the_fly_observables_match_its_own_trace(case):
     sc = _event(CASES[case])
     (_, traj), = list(trajectories(sc, members(sc), trace=True))
-    assert traj.t.size > 100 and np.allclose(np.diff(traj.t), traj.meta["sample_dt"])
+    assert traj.t.size > 100 and np.allclose(np.diff(traj.t), traj.info.sample_dt)
     r = summarize(traj, sc.probes)
     vm, tp, tf, pl, fi = sampled_peaks(traj)
-    sdt = traj.meta["sample_dt"]
+    sdt = traj.info.sample_dt
     assert list(fi) == list(r.final)
     assert list(pl[:-1]) == list(r.plateau[:-1])
     ok = np.isfinite(vm)
@@ -77,7 +77,7 @@ def test_on_the_fly_observables_match_its_own_trace(case):
     assert np.all(np.abs(np.array(r.t_peak)[ok] - tp[ok]) < sdt)
     # without a trace the record holds only the first and last states
     (_, bare), = list(trajectories(sc, members(sc)))
-    assert bare.t.size == 2 and bare.t[-1] == pytest.approx(traj.meta["t_last"])
+    assert bare.t.size == 2 and bare.t[-1] == pytest.approx(traj.info.t_last)
     rb = summarize(bare, sc.probes)
     assert rb.v_max == r.v_max and rb.t_front == r.t_front
     assert rb.energy.balance_error == r.energy.balance_error
@@ -184,7 +184,7 @@ def test_a_chain_longer_than_the_record_buffer_keeps_its_observables():
     (_, traj), = list(trajectories(sc, members(sc), trace=True))
     r = summarize(traj, sc.probes)
     vm, tp, tf, pl, fi = sampled_peaks(traj)
-    sdt = traj.meta["sample_dt"]
+    sdt = traj.info.sample_dt
     ok = np.isfinite(vm)
     assert ok.sum() > RB_SIZE
     assert np.all(np.abs(np.array(r.v_max)[ok] / vm[ok] - 1) < 1e-5)

@@ -74,7 +74,7 @@ def test_cross_validation_lammps_equals_reference_verlet(name, tmp_path):
     gaps, vs = _members(cmp.scene)
     for r, lt in zip(reference.run(cmp.scene, gaps, vs, method="verlet", trace=True),
                      lammps_engine.run(cmp.scene, gaps, vs)):
-        assert lt.meta["method"] == "lammps-verlet" and lt.status == r.status == "passed"
+        assert lt.info.method == "lammps-verlet" and lt.status == r.status == "passed"
         np.testing.assert_allclose(lt.t, r.t, rtol=1e-12, atol=0)
         assert np.abs(lt.v - r.v).max() < DV_BOUND
         e0 = r.energy[0, :3].sum()
@@ -120,7 +120,7 @@ def test_per_chain_ledger_matches_lammps_global_ledger(tmp_path):
         np.testing.assert_allclose(e[:, 5], mech - mech[0] - e[:, 3] - e[:, 4], rtol=0,
                                    atol=1e-15 * mech[0])
         assert summarize(t).energy.balance_error < 1e-12
-        assert t.meta["balance"] == "residual" and t.meta["deck"] == str(tmp_path / "deck.lmp")
+        assert t.info.balance == "residual" and t.info.deck == str(tmp_path / "deck.lmp")
 
 
 def test_float64_columns_are_the_dumped_values(tmp_path):
@@ -156,7 +156,7 @@ def test_two_mpi_ranks_give_the_same_observables(tmp_path):
     one = list(lammps_engine.run(scene, gaps, vs, nprocs=1))
     two = list(lammps_engine.run(scene, gaps, vs, nprocs=2, workdir=tmp_path))
     assert "1 by 2 by 1 MPI processor grid" in (tmp_path / "log.lammps").read_text()
-    assert two[0].meta["nprocs"] == 2
+    assert two[0].info.nprocs == 2
     for a, b in zip(one, two):
         sa, sb = summarize(a, scene.probes), summarize(b, scene.probes)
         assert sa.wave_arrived and sa.status == sb.status == "passed"
@@ -185,8 +185,8 @@ def test_binary_and_text_dump_paths_give_identical_trajectories(nprocs, tmp_path
     assert not (tmp_path / "binary" / lammps_deck.LEDGER_NAME).exists()
     assert len(runs["binary"]) == len(runs["dump"]) == 6
     for a, b in zip(runs["binary"], runs["dump"]):
-        assert a.meta["output"] == "binary" and b.meta["output"] == "dump"
-        assert a.meta["nprocs"] == nprocs and a.status == b.status == "passed"
+        assert a.info.output == "binary" and b.info.output == "dump"
+        assert a.info.nprocs == nprocs and a.status == b.status == "passed"
         assert a.t.tolist() == b.t.tolist() and a.steps == b.steps
         assert a.v.tobytes() == b.v.tobytes()                     # bit for bit
         assert a.last_overlap == b.last_overlap
@@ -369,12 +369,12 @@ def test_workdir_and_options(repo, tmp_path, capsys):
     _one_line(exc.value)
     t = next(lammps_engine.run(scene, np.zeros((1, 14)), [0.1], workdir=tmp_path, force=True))
     assert t.status == "done" and (tmp_path / "junk").exists() and (tmp_path / "traj.bin").exists()
-    assert t.meta["output"] == "binary" and not (tmp_path / "traj.dump").exists()
+    assert t.info.output == "binary" and not (tmp_path / "traj.dump").exists()
     with pytest.raises(GranchainError, match="output must be one of") as exc:
         list(lammps_engine.run(scene, np.zeros((1, 14)), [0.1], output="none"))
     _one_line(exc.value)
     t = next(lammps_engine.run(scene, np.zeros((1, 14)), [0.1]))     # temporary dir: removed
-    assert "deck" not in t.meta
+    assert t.info.deck is None
     y = str(repo / "granchain/scenes/packed-440c.yaml")
     assert cli_main(["run", y, "--np", "2"]) == 2
     assert "--engine lammps" in capsys.readouterr().err

@@ -5,7 +5,7 @@
 ``granchain.lammps.runner.run_lammps`` (``nprocs`` MPI ranks), reads its output back and
 yields a :class:`~granchain.trajectory.Trajectory` per chain, in order, like
 ``granchain.engines.reference.run``. LAMMPS always integrates with velocity Verlet
-(``fix nve`` / ``nve/sphere``) at the scene's dt; ``meta["method"] = "lammps-verlet"``.
+(``fix nve`` / ``nve/sphere``) at the scene's dt; ``info.method = "lammps-verlet"``.
 
 Two output paths, the same Trajectory objects (tested bit for bit on v):
 
@@ -46,7 +46,7 @@ sample:
   have no per-atom work output in LAMMPS (``effects.residual_work``): their sum is
   reported as the residual of the energy balance in the first of their columns (registry
   order: ``work_particle_friction``, ``work_rolling_friction``, ``work_contact_damping``),
-  the others 0. Such a ledger balances by construction: ``meta["balance"] = "residual"``
+  the others 0. Such a ledger balances by construction: ``info.balance = "residual"``
   (``"independent"`` otherwise).
 
 End wall: ``Trajectory.wall_force`` is the force fix wall/gran applied to the last
@@ -82,7 +82,7 @@ from ..guards import require_resolved
 from ..lammps import deck as deckmod
 from ..scene import Scene
 from ..stoprule import auto_t_max, last_detached, wall_left
-from ..trajectory import ENERGY_COLUMNS, Trajectory
+from ..trajectory import ENERGY_COLUMNS, RunInfo, Trajectory
 
 METHOD = "lammps-verlet"
 DUMP_READ = ("x", "vx")   # the dump columns read as MDAnalysis additional (float64) columns
@@ -283,15 +283,13 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
             data = read_dump(wd / deckmod.DUMP_NAME, scene, pl, velocities=velocities,
                              readers=readers)
         wall = time.perf_counter() - t0
-        meta_common = {"method": METHOD, "dt": scene.dt, "sample_dt": pl.sample_dt,
-                       "nprocs": nprocs, "lammps_version": lammps_version(),
-                       "lammps_wall_s": lrun.wall_time, "batch_wall_s": wall,
-                       "read_wall_s": wall - lrun.wall_time, "readers": readers,
-                       "velocities": velocities, "output": output,
-                       "balance": "residual" if residual_balance(scene) else "independent"}
-        if keep or not tmp:
-            meta_common["deck"] = str(deck)
-        trajs = list(_trajectories(scene, pl, data, wall / B, meta_common))
+        info = RunInfo(METHOD, scene.dt, pl.sample_dt, nprocs=nprocs,
+                       lammps_version=lammps_version(), lammps_wall_s=lrun.wall_time,
+                       batch_wall_s=wall, read_wall_s=wall - lrun.wall_time, readers=readers,
+                       velocities=velocities, output=output,
+                       balance="residual" if residual_balance(scene) else "independent",
+                       deck=str(deck) if keep or not tmp else None)
+        trajs = list(_trajectories(scene, pl, data, wall / B, info))
     except GranchainError:
         # a failed run keeps its directory: the error message names its deck or dump
         if tmp and not keep and not (wd / deckmod.DECK_NAME).exists():
@@ -810,7 +808,7 @@ def _read_part(job: dict, part: int, nparts: int):
     return S, step, V, EH, OL, KE, WL if geo.load > 0 else None, XL, WD
 
 
-def _trajectories(scene, pl, data, wall_each, meta_common):
+def _trajectories(scene, pl, data, wall_each, info):
     step, V, E, OL = data["step"], data["v"], data["energy"], data["last_overlap"]
     WF, XL = data.get("wall_force"), data.get("last_disp")
     eff = tuple(sorted(scene.effects))
@@ -844,7 +842,7 @@ def _trajectories(scene, pl, data, wall_each, meta_common):
             t=step[:keep] * scene.dt, v=v[:keep], energy=E[:keep, b, :],
             gaps=pl.gaps[b].copy(), radius=scene.radius, v_striker=vsb, effects=eff,
             steps=int(step[keep - 1]), rejected=0, status=status, wall_s=wall_each,
-            meta=dict(meta_common), last_overlap=float(OL[keep - 1, b]),
+            info=info, last_overlap=float(OL[keep - 1, b]),
             # one force computation per step, plus the one of LAMMPS's setup
             force_evaluations=int(step[keep - 1]) + 1, **extra)
 

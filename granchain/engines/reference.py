@@ -20,7 +20,7 @@ from ..stoprule import arrival_speed, auto_t_max, expected_duration, last_detach
 from ..effects import MODULES, SPECS, Terms, chain as chain_mod, physics_terms
 from ..guards import require_resolved
 from ..scene import Scene
-from ..trajectory import OnTheFly, Trajectory
+from ..trajectory import OnTheFly, RunInfo, Trajectory
 from . import backend
 from . import codes
 from . import obscodes
@@ -368,8 +368,7 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
                          rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
                          wall_s=wall / B, last_overlap=last_overlap, force_evaluations=nev,
                          observed=observed,
-                         meta={"method": method, "dt": dt, "rtol": rtol, "sample_dt": sdt,
-                               "trace": not observe},
+                         info=RunInfo(method, dt, sdt, rtol, trace=not observe),
                          **_chain_fields(terms, rec, None if radii is None else radii[b]))
 
 
@@ -494,8 +493,8 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
                          rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
                          wall_s=wall / B, last_overlap=last_overlap,
                          force_evaluations=int(NEV[b]), observed=obs,
-                         meta={"method": "event", "dt": dt, "rtol": rtol, "sample_dt": sample_dt,
-                               "pair": pair, "trace": bool(trace), "t_last": float(T[b])},
+                         info=RunInfo("event", dt, sample_dt, rtol, trace=bool(trace),
+                                      pair=pair, t_last=float(T[b])),
                          **_chain_fields(terms, None, None if radii is None else radii[b]))
 
 

@@ -68,7 +68,7 @@ def _rows(ss: StudyScene, settings, m, traj) -> list[dict]:
             "gap_distribution": sc.gap_distribution, "gap_mean_nm": ss.gap_mean_nm,
             "v_striker_m_s": float(m.v_striker), "realisation": int(m.realisation),
             "seed": int(sc.gap_seed), "scene_hash": sc.hash,
-            "method": traj.meta.get("method"), "dt_s": float(traj.meta.get("dt", sc.dt)),
+            "method": traj.info.method, "dt_s": float(traj.info.dt),
             "status": s.status, "wave_arrived": bool(s.wave_arrived),
             "filter": st.filter, "order": int(st.order), "bandwidth_hz": st.bandwidth_hz,
             "sampling_rate_hz": st.sampling_rate_hz,
