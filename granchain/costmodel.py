@@ -196,7 +196,8 @@ def cost_estimate(scene, v: float, *, duration: float | None = None,
                   sample_dt: float | None = None) -> dict:
     """Estimated duration (s), integration steps, samples and record bytes of one chain
     (of a resolved scene: method auto has no step yet). ``duration`` and ``sample_dt``:
-    :func:`expected_duration` and :func:`sample_interval` at v, if already known (neither
+    :func:`~granchain.stoprule.expected_duration` and
+    :func:`~granchain.stoprule.sample_interval` at v, if already known (neither
     depends on the integrator)."""
     require_resolved(scene, "cost_estimate")
     dur = expected_duration(scene, v) if duration is None else duration
