@@ -146,8 +146,12 @@ def plan_run(scene: Scene | RunPlan, model: costmodel.CostModel | None = None) -
     for v in vs:
         sc = own.get(v, scene)
         c = cost_estimate(sc, v, duration=dur[v], sample_dt=sdt[v])
-        secs = tuple(costmodel.member_seconds(sc, v, e, model, duration=dur[v],
-                                              steps=c["steps"]) for e in ENGINES)
+        # LAMMPS runs the plan's one setting for every speed
+        lc = c if sc is scene else cost_estimate(scene, v, duration=dur[v], sample_dt=sdt[v])
+        secs = (costmodel.member_seconds(sc, v, "reference", model, duration=dur[v],
+                                         steps=c["steps"]),
+                costmodel.member_seconds(scene, v, "lammps", model, duration=dur[v],
+                                         steps=lc["steps"]))
         speeds.append(SpeedPlan(sc, v, sdt[v], dur[v], c["steps"], c["samples"],
                                 c["record_bytes"], secs, tuple(physics_warnings(sc, v))))
     return RunPlan(scene, auto, costmodel.scene_class(scene), tuple(speeds))

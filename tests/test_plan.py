@@ -194,6 +194,10 @@ def test_auto_chooses_per_striker_speed():
         alone = simulate.run_scene(costmodel.resolve_auto(sc.derive(**{"striker.velocity": v})))
         assert [r.v_max for r in res if r.v_striker == v] == [r.v_max for r in alone]
         assert [r.realisation for r in res if r.v_striker == v] == [0, 1]
+    # LAMMPS runs the plan's one setting: its estimate is that setting's, per speed
+    for sp in p.speeds:
+        assert sp.seconds[1] == costmodel.member_seconds(p.scene, sp.v_striker, "lammps")
+        assert sp.seconds[0] == costmodel.member_seconds(sp.scene, sp.v_striker, "reference")
     # one setting for every speed: no per-speed scenes
     one = plan_run(sc.derive(**{"striker.velocity": [0.01, 0.01]}))
     assert not one.per_speed
