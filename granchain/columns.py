@@ -353,6 +353,38 @@ PROVENANCE_JSON = {
                                      "columns' values."),
 }
 
+# ---------------------------------------------------------------------------------------
+# the engine comparison (workflow.lammps_check.TABLE_COLUMNS):
+# results/<preset>/tables/lammps_vs_reference.csv
+# ---------------------------------------------------------------------------------------
+COMPARISON = {
+    "study": _s("Always lammps_check."),
+    "chain": _s("The field chain compared (a name from lammps_check's chains), or chapter "
+                "for lammps_check's own scenes."),
+    "material": _s("The spheres' material (the striker's for a chain of several)."),
+    "gap_mean_nm": _f("nm", "The scene's mean gap (0: packed)."),
+    "scene_hash": _s("Hash of the scene as given (before the comparison's Verlet and sample "
+                     "grid)."),
+    "member": _i("The member's index in its scene."),
+    "realisation": _i("The member's gap realisation."),
+    "v_striker_m_s": _f("m/s", "The member's striker speed."),
+    "quantity": _s("What the row compares: an observable (v_max[i], v_max_1, v_max_2, "
+                   "dt_peak, dt_front, v_g, v_g_front), the sample count, a ledger entry, the "
+                   "balance, the end wall's force, or 'v(t), every particle' (the whole "
+                   "trajectories, for the traced members)."),
+    "reference": _f("of the quantity", "The reference engine's value (NaN for the "
+                                       "trajectory row)."),
+    "lammps": _f("of the quantity", "LAMMPS' value (NaN for the trajectory row)."),
+    "diff": _f("1 or J/J", "The difference, as the column measure says (relative, or "
+                           "absolute over the initial energy E0)."),
+    "measure": _s("How diff is measured: rel, abs/E0, max/v_s, exact, abs (of /E0)."),
+    "tolerance": _f("as diff", "The largest diff that passes; empty where the row is shown "
+                               "but not checked (a ledger residual)."),
+    "ok": _b("diff <= tolerance; empty where not checked."),
+    "why": _s("Why the tolerance is what it is (or why the row is not checked)."),
+}
+
+
 # (heading, what it is, entries, patterns), in page order
 SECTIONS = (
     ("Per-member table", "`results/<preset>/tables/<study>.csv` and `<study>.parquet`: one row "
@@ -366,6 +398,9 @@ SECTIONS = (
     ("Timing table", "`results/<preset>/timing/<study>.csv`: wall-clock times, kept out of the "
      "byte-identical tables (`tables.TIMING_COLUMNS`); one row per scene and batch.",
      TIMING, {}),
+    ("Engine comparison table", "`results/<preset>/tables/lammps_vs_reference.csv`: "
+     "LAMMPS against the reference engine on every lammps_check scene and field chain, one "
+     "row per member and quantity (`workflow.lammps_check.TABLE_COLUMNS`).", COMPARISON, {}),
     ("granchain run JSON", "The document `granchain run --json` prints and `--out` writes.",
      RUN_JSON, {}),
     ("Energy ledger JSON", "The `energy` object of a run's JSON: final values (works: done "

@@ -63,6 +63,11 @@ WHY_WALL_STATIC = ("the preload F0 both engines start from (rounding only, measu
                    "relative to the larger of it and the dynamic peak, as an unloaded wall's is 0")
 
 
+# the columns of Comparison.rows: one row per member and quantity
+ROW_COLUMNS = ("member", "realisation", "v_striker", "quantity", "reference", "lammps", "diff",
+               "measure", "tolerance", "ok", "why")
+
+
 @dataclass
 class Comparison:
     scene: Scene                  # the scene as compared (verlet, fixed sample grid)
@@ -152,9 +157,7 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
         for row in member_rows(cs, r, lt, trace=traced[i] if i < k else None):
             rows.append(dict(member=m.index, realisation=m.realisation, v_striker=m.v_striker,
                              **row))
-    df = pd.DataFrame(rows, columns=["member", "realisation", "v_striker", "quantity",
-                                     "reference", "lammps", "diff", "measure", "tolerance",
-                                     "ok", "why"])
+    df = pd.DataFrame(rows, columns=list(ROW_COLUMNS))
     meta = {"scene": scene.name, "scene_hash": scene.hash, "compared_scene_hash": cs.hash,
             "chains": len(mem), "traced_chains": k, "dt": cs.dt, "sample_dt": lmp[0].info.sample_dt,
             "nprocs": nprocs, "reference_wall_s": t1 - t0, "lammps_wall_s": t2 - t1,

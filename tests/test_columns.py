@@ -153,3 +153,13 @@ def test_reference_page_builds_under_sphinx_warnings_as_errors(tmp_path):
                            str(src), str(tmp_path / "out")], capture_output=True, text=True,
                           timeout=300)
     assert proc.returncode == 0, proc.stderr
+
+
+def test_engine_comparison_columns_are_documented():
+    """The comparison table's columns are granchain.compare's rows behind the scene's
+    columns, and each has exactly one entry."""
+    from granchain.compare import ROW_COLUMNS
+    from granchain.workflow.lammps_check import TABLE_COLUMNS
+    assert TABLE_COLUMNS[5:] == tuple("v_striker_m_s" if c == "v_striker" else c
+                                      for c in ROW_COLUMNS)
+    assert tuple(columns.COMPARISON) == TABLE_COLUMNS

@@ -12,6 +12,12 @@ from .studies import check_chain_scenes, study_scenes
 # for every member; the reference engine then holds only these records)
 TRACED = 2
 
+# tables/lammps_vs_reference.csv: the scene's columns, then granchain.compare's rows
+# (ROW_COLUMNS, v_striker in m/s)
+TABLE_COLUMNS = ("study", "chain", "material", "gap_mean_nm", "scene_hash", "member",
+                 "realisation", "v_striker_m_s", "quantity", "reference", "lammps", "diff",
+                 "measure", "tolerance", "ok", "why")
+
 COMPARISON_META = ("scene_hash", "compared_scene_hash", "chains", "traced_chains", "dt",
                    "sample_dt", "nprocs",
                    "lammps_version", "balance", "tolerances")
@@ -22,8 +28,9 @@ def engine_comparison(preset: dict, threads: int | None = None) -> tuple[pd.Data
     (``chains``: a dimer, a chain on a wall, a preloaded chain...): per member and
     quantity both engines' values, the difference, its tolerance, ok and why (a walled
     chain adds the wall's rows; the first ``TRACED`` members of each scene add the row of
-    their whole trajectories, every particle's v(t) at every sample); column ``chain``
-    names the field chain ("chapter" for lammps_check's own scenes); plus each scene's meta (wall times and temporary paths
+    their whole trajectories, every particle's v(t) at every sample), in the columns
+    ``TABLE_COLUMNS``; column ``chain`` names the field chain ("chapter" for
+    lammps_check's own scenes); plus each scene's meta (wall times and temporary paths
     left out, so the table is deterministic)."""
     from .. import compare as cmp
     local_mpi(max(1, int(threads or 1)))
@@ -40,7 +47,7 @@ def engine_comparison(preset: dict, threads: int | None = None) -> tuple[pd.Data
         frames.append(df)
         metas.append({k: c.meta.get(k) for k in COMPARISON_META} | {
             "scene": ss.scene.name, "chain": ss.chain or "chapter", "ok": c.ok})
-    return pd.concat(frames, ignore_index=True), metas
+    return pd.concat(frames, ignore_index=True)[list(TABLE_COLUMNS)], metas
 
 
 def write_engine_comparison(preset_name: str, preset: dict, out_csv, out_provenance,
