@@ -385,6 +385,71 @@ COMPARISON = {
 }
 
 
+# ---------------------------------------------------------------------------------------
+# the vibrometer study (workflow.vibrometer.VIB_COLUMNS): tables/vibrometer.csv, one row per
+# chain, filter and bandwidth; the columns it shares with the per-member table mean the same
+# ---------------------------------------------------------------------------------------
+_VIB_OWN = {
+    "filter": _s("The vibrometer decoder's low-pass filter: butterworth or bessel."),
+    "order": _i("The filter's order."),
+    "bandwidth_hz": _f("Hz", "The vibrometer's bandwidth (the filter's cut-off)."),
+    "sampling_rate_hz": _f("Hz", "The digitiser's sampling rate of the recording."),
+    "dt_front_s": _f("s", "The true delay between the probes' half-peak arrivals."),
+    "v_max_1_measured_over_true": _f("1", "Recorded over true v_max at the first probe."),
+    "v_max_2_measured_over_true": _f("1", "Recorded over true v_max at the second probe."),
+    "dt_peak_bias_s": _f("s", "Recorded minus true peak-to-peak delay."),
+    "dt_front_bias_s": _f("s", "Recorded minus true half-peak arrival delay."),
+}
+_VIB_NAMES = (
+    "study", "material", "gap_distribution", "gap_mean_nm", "v_striker_m_s", "realisation",
+    "seed", "scene_hash", "method", "dt_s", "status", "wave_arrived", "filter", "order",
+    "bandwidth_hz", "sampling_rate_hz", "v_max_1_m_s", "v_max_2_m_s", "dt_peak_s",
+    "dt_front_s", "v_g_m_s", "v_max_1_measured_m_s", "v_max_2_measured_m_s",
+    "dt_peak_measured_s", "dt_front_measured_s", "v_g_measured_m_s", "measured_not_final",
+    "v_max_1_measured_over_true", "v_max_2_measured_over_true", "dt_peak_bias_s",
+    "dt_front_bias_s")
+VIBROMETER = {c: _VIB_OWN.get(c) or MEMBER[c] for c in _VIB_NAMES}
+
+# ---------------------------------------------------------------------------------------
+# the accuracy-vs-cost study (accuracy.harness.COLUMNS): tables/accuracy_cost.csv (without
+# the wall times) and timing/accuracy_cost.csv, one row per scene and integration setting
+# ---------------------------------------------------------------------------------------
+_ERR = ("The largest over the batch of |x / x_ref - 1| for {x}, against the converged "
+        "reference (adaptive at the reference tolerance); inf where a run lost what the "
+        "reference has.")
+_UNC = ("The reference's own uncertainty on {x}: its difference from the RK4 cross-check at "
+        "the finest steps per contact; no error below it is meaningful.")
+ACCURACY = {
+    "scene": _s("The study's scene: packed, or gapped_<mean gap>nm."),
+    "method": _s("The setting's integrator: rk4, verlet, adaptive, event or lammps."),
+    "steps_per_contact": _f("1", "Fixed steps per Hertz contact time (dt = t_c / N, snapped "
+                                 "onto the sample grid); NaN for the tolerance methods."),
+    "dt_s": _f("s", "The fixed step; NaN for the tolerance methods."),
+    "tolerance": _f("1", "The tolerance methods' relative tolerance; NaN for a fixed step."),
+    "wall_s_per_chain": _f("s", "Median over the timed repeats of run_scene's wall time on the "
+                                "batch, over the batch size (timing table only)."),
+    "engine_s_per_chain": _f("s", "The engine's own share of wall_s_per_chain (timing table "
+                                  "only)."),
+    "err_v_max_2": _f("1", _ERR.format(x="v_max at the second probe")),
+    "err_v_g": _f("1", _ERR.format(x="the peak-time group velocity v_g")),
+    "err_v_g_front": _f("1", _ERR.format(x="the arrival-time group velocity")),
+    "balance_error": _f("1", "The largest energy-ledger closure |balance| / E(0) over the "
+                             "batch; NaN where LAMMPS' ledger closes by construction."),
+    "steps_per_chain": _f("1", "Mean integration steps a chain took."),
+    "rejected_per_chain": _f("1", "Mean rejected trial steps a chain took (tolerance "
+                                  "methods)."),
+    "force_evaluations_per_chain": _f("1", "Mean force (right-hand side) evaluations a chain "
+                                           "took."),
+    "status": _s("How the batch's runs ended ('+'-joined distinct statuses)."),
+    "ref_uncertainty_v_max_2": _f("1", _UNC.format(x="v_max at the second probe")),
+    "ref_uncertainty_v_g": _f("1", _UNC.format(x="v_g")),
+    "ref_uncertainty_v_g_front": _f("1", _UNC.format(x="the arrival-time group velocity")),
+    "batch": _i("Chains in the batch."),
+    "repeats": _i("Timed repeats of the setting (timing table only)."),
+    "scene_hash": _s("Hash of the scene at this setting."),
+}
+
+
 # (heading, what it is, entries, patterns), in page order
 SECTIONS = (
     ("Per-member table", "`results/<preset>/tables/<study>.csv` and `<study>.parquet`: one row "
@@ -401,6 +466,13 @@ SECTIONS = (
     ("Engine comparison table", "`results/<preset>/tables/lammps_vs_reference.csv`: "
      "LAMMPS against the reference engine on every lammps_check scene and field chain, one "
      "row per member and quantity (`workflow.lammps_check.TABLE_COLUMNS`).", COMPARISON, {}),
+    ("Vibrometer table", "`results/<preset>/tables/vibrometer.csv`: every chain of the "
+     "vibrometer study recorded by every filter and bandwidth, true and recorded "
+     "observables side by side (`workflow.vibrometer.VIB_COLUMNS`).", VIBROMETER, {}),
+    ("Accuracy-vs-cost table", "`results/<preset>/tables/accuracy_cost.csv` (without the "
+     "wall times, byte-identical between runs) and `timing/accuracy_cost.csv` (all "
+     "columns): one row per scene and integration setting (`accuracy.harness.COLUMNS`).",
+     ACCURACY, {}),
     ("granchain run JSON", "The document `granchain run --json` prints and `--out` writes.",
      RUN_JSON, {}),
     ("Energy ledger JSON", "The `energy` object of a run's JSON: final values (works: done "

@@ -163,3 +163,15 @@ def test_engine_comparison_columns_are_documented():
     assert TABLE_COLUMNS[5:] == tuple("v_striker_m_s" if c == "v_striker" else c
                                       for c in ROW_COLUMNS)
     assert tuple(columns.COMPARISON) == TABLE_COLUMNS
+
+
+def test_vibrometer_and_accuracy_columns_are_documented():
+    """The vibrometer table's and the accuracy study's columns each have exactly one entry,
+    in table order, and a column the vibrometer table shares with the per-member table
+    means the same there."""
+    from granchain.accuracy.harness import COLUMNS
+    from granchain.workflow.vibrometer import VIB_COLUMNS
+    assert VIB_COLUMNS == tuple(columns.VIBROMETER)
+    assert tuple(columns.ACCURACY) == COLUMNS
+    shared = [c for c in VIB_COLUMNS if c in columns.MEMBER and c not in columns._VIB_OWN]
+    assert shared and all(columns.VIBROMETER[c] is columns.MEMBER[c] for c in shared)
