@@ -135,7 +135,7 @@ def plan_run(scene: Scene | RunPlan, model: costmodel.CostModel | None = None) -
         setting = costmodel.auto_setting(scene, model, durations=dur, sample_dts=sdt)
         whole = costmodel.apply_auto(scene, setting)
         if len(set(vs)) > 1:
-            own = _auto_per_speed(scene, whole, setting, model, dur, sdt)
+            own = _auto_per_speed(scene, whole, model, dur, sdt)
         scene = whole
         auto = costmodel.describe_auto(scene)
         if own:
@@ -157,9 +157,9 @@ def plan_run(scene: Scene | RunPlan, model: costmodel.CostModel | None = None) -
     return RunPlan(scene, auto, costmodel.scene_class(scene), tuple(speeds))
 
 
-def _auto_per_speed(scene: Scene, whole: Scene, setting, model, dur, sdt) -> dict[float, Scene]:
+def _auto_per_speed(scene: Scene, whole: Scene, model, dur, sdt) -> dict[float, Scene]:
     """Striker speed -> its own resolved scene (that speed alone, auto's cheapest setting
-    for it), or {} when every speed gets ``setting`` (the whole sweep's choice). A speed
+    for it), or {} when every speed gets the setting of ``whole`` (the sweep's choice). A speed
     alone has one sample interval, so the fixed steps stay on offer where a sweep of
     several intervals could not align them."""
     own = {}

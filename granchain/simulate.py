@@ -32,11 +32,17 @@ def trajectories(scene: Scene | RunPlan, mem: list[Member], engine: str = "refer
     speeds of one setting together; LAMMPS runs the plan's one setting."""
     plan = scene if isinstance(scene, RunPlan) else plan_run(scene)
     scene = plan.scene
-    if engine == "reference" and plan.per_speed:
+    if engine == "reference":
+        # one engine call per setting (all members when the speeds share one; a member at
+        # a speed the plan lacks takes the plan's scene), yielded in member order as they
+        # arrive
+        own = {sp.v_striker: sp.scene for sp in plan.speeds}
         runs: dict[int, tuple[Scene, list[int]]] = {}
         for i, m in enumerate(mem):
-            sc = plan.at(m.v_striker).scene
+            sc = own.get(float(m.v_striker), scene)
             runs.setdefault(id(sc), (sc, []))[1].append(i)
+        if not runs:
+            runs[id(scene)] = (scene, [])       # no members: the engine still checks the scene
         done: dict[int, object] = {}
         nxt = 0
         for sc, idx in runs.values():
@@ -46,9 +52,7 @@ def trajectories(scene: Scene | RunPlan, mem: list[Member], engine: str = "refer
                     yield mem[nxt], done.pop(nxt)
                     nxt += 1
         return
-    if engine == "reference":
-        it = _reference(scene, plan.sampling, mem, kw)
-    elif engine == "lammps":
+    if engine == "lammps":
         try:
             from .engines import lammps as lmp_engine
         except ImportError as exc:
