@@ -386,8 +386,9 @@ COMPARISON = {
 
 
 # ---------------------------------------------------------------------------------------
-# the vibrometer study (workflow.vibrometer.VIB_COLUMNS): tables/vibrometer.csv, one row per
-# chain, filter and bandwidth; the columns it shares with the per-member table mean the same
+# the vibrometer study: tables/vibrometer.csv, one row per chain, filter and bandwidth, in
+# this order (workflow.vibrometer.VIB_COLUMNS is this list); the columns it shares with the
+# per-member table mean the same
 # ---------------------------------------------------------------------------------------
 _VIB_OWN = {
     "filter": _s("The vibrometer decoder's low-pass filter: butterworth or bessel."),

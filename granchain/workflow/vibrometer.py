@@ -26,7 +26,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from .. import tables
+from .. import columns, tables
 from ..errors import GranchainError
 from ..gaps import members as scene_members
 from ..vibrometer import extract, measure, needs_trace, record
@@ -38,15 +38,10 @@ from .studies import VIBROMETER, StudyScene, vibrometer_scenes, vibrometer_setti
 CHAPTER_BANDWIDTH_HZ = float(MEASUREMENT_DEFAULTS["bandwidth_hz"])
 TRACE_SPEED = 0.1          # m/s: the trace of Fig. 5.2a's counterpart (chapter Fig. 5.1a's)
 
-VIB_COLUMNS = (
-    "study", "material", "gap_distribution", "gap_mean_nm", "v_striker_m_s", "realisation",
-    "seed", "scene_hash", "method", "dt_s", "status", "wave_arrived", "filter", "order",
-    "bandwidth_hz", "sampling_rate_hz", "v_max_1_m_s", "v_max_2_m_s", "dt_peak_s",
-    "dt_front_s", "v_g_m_s", "v_max_1_measured_m_s", "v_max_2_measured_m_s",
-    "dt_peak_measured_s", "dt_front_measured_s", "v_g_measured_m_s", "measured_not_final",
-    "v_max_1_measured_over_true", "v_max_2_measured_over_true", "dt_peak_bias_s",
-    "dt_front_bias_s",
-)
+# the table's columns, in order: their documentation (granchain.columns) is the one list;
+# run_vibrometer's table takes its columns from the rows, so a row that leaves the list
+# shows in the table
+VIB_COLUMNS = tuple(columns.VIBROMETER)
 TRACE_KEYS = ("t_s", "v_m_s", "probes", "v_striker_m_s", "material", "bandwidth_hz",
               "sampling_rate_hz", "order", "filters", "t_rec_s", "vmax_true_m_s",
               "t_peak_true_s")      # and per filter F: v_rec_F_m_s, vmax_rec_F_m_s, t_peak_rec_F_s
@@ -143,7 +138,7 @@ def run_vibrometer(preset: dict) -> tuple[pd.DataFrame, dict[str, dict], pd.Data
                        "wall_s": wall, "wall_per_member_s": wall / max(1, len(mem))})
         print(f"[granchain] {VIBROMETER}: {sc.name} {len(mem)} chains x {len(settings)} "
               f"instrument settings in {wall:.2f} s", file=sys.stderr, flush=True)
-    df = pd.DataFrame(rows, columns=list(VIB_COLUMNS))
+    df = pd.DataFrame(rows) if rows else pd.DataFrame(columns=list(VIB_COLUMNS))
     for c in ("realisation", "seed", "order"):
         df[c] = df[c].astype("int64")
     return df, traces, tables.timing_table(timing)
