@@ -34,6 +34,7 @@ time printed is then the cache's read).
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 import time
@@ -189,7 +190,10 @@ def main() -> None:
                     help="default: the command's (21 joint, 26 gap-only)")
     ap.add_argument("--e-points", type=int, default=inference.E_POINTS)
     ap.add_argument("--cache-dir", default=None)
+    ap.add_argument("--out", default=None, help="also write every experiment's outcome "
+                    "(JSON lines: fit, material, design, set, coverage, width, p-value)")
     a = ap.parse_args()
+    out = open(a.out, "w") if a.out else None
     for fit in a.fits:
         joint = fit == "joint"
         for material in a.materials:
@@ -217,6 +221,12 @@ def main() -> None:
                          inference.infer(base, meas, grid=grid))
                     t_inf.append(time.perf_counter() - t1)
                     res.append((tr["set"], outcome(tr, r, base.probes, joint)))
+                    if out is not None:
+                        out.write(json.dumps(dict(fit=fit, material=material, emphasis=em,
+                                                  set=tr["set"], series=tr["series"],
+                                                  rows=len(tr["v"]), g=tr["g"], e=tr["e"],
+                                                  **res[-1][1])) + "\n")
+                        out.flush()
                 print(f"  design emphasis {em:g}: grid {grid.n_chains} chains "
                       f"({grid.simulated} simulated now) in {t_grid:.1f} s; one inference "
                       f"median {np.median(t_inf):.2f} s", flush=True)

@@ -18,9 +18,14 @@ ensembles (never from Eq. 5.4).
 
 - Grid: mean gaps ``0, dg, ..., gap_max`` x the base scene's striker speeds x R gap
   realisations, each grid cell one scene derived from the base scene (``Scene.derive``)
-  and run through ``simulate.run_scene``. Realisation r draws the same normalised gap
-  pattern at every mean gap (common random numbers, ``granchain.gaps``): for a uniform or
-  exponential law its gaps are exactly ``mean x pattern_r``, so the timing of realisation
+  and run through ``simulate.run_scene``. Realisation r has the same normalised gap
+  pattern at every mean gap (common random numbers): for a uniform or exponential law its
+  gaps are exactly ``mean x pattern_r``. The patterns are designed
+  (``granchain.gapdesign``): the law's own draws, but with the gaps on either side of each
+  probe importance-sampled toward small values, and a weight w_r = prior / proposal per
+  realisation, so that the few-percent of chains with a near-zero gap next to a probe
+  (whose peaks, and peak times, are a packed pair's) are represented by several
+  realisations rather than by one or none. So the timing of realisation
   r is a smooth function of the mean gap and of the striker speed, and is interpolated:
   linearly in the mean gap between grid points, linearly in (log v, log t) between
   striker speeds. The interpolation error is measured on the grid itself (each interior
@@ -31,8 +36,10 @@ ensembles (never from Eq. 5.4).
   speeds form an R x m sample; a Gaussian kernel density estimate over them (kernel
   covariance = Silverman's factor^2 x the sample covariance across realisations, plus the
   rows' measurement variances and the model error) gives
-  ``L = (1/R) sum_r N(t; T_r(g), C)`` -- the average over realisations of the joint density
-  of the group's rows. The kernel is multivariate because one realisation's timings at
+  ``L = sum_r w_r N(t; T_r(g), C) / sum_r w_r`` -- the average over realisations of the
+  joint density of the group's rows (weighted covariance, Silverman's factor for the
+  weights' effective size; with equal weights, the plain kernel density,
+  :func:`kernel_log_density`). The kernel is multivariate because one realisation's timings at
   several speeds are strongly correlated: treating a chain's rows as independent given a
   simulated realisation counts the same gap pattern once per row and gives intervals that
   are too narrow (this is what the calibration measures). A realisation whose wave did not
@@ -153,6 +160,15 @@ experiment's speeds: coverage 0.915 (mean gap) and 0.930 (e); at 2 % peak noise 
 all fall on one side (8 of 8 intervals above the truth: a chain's collisions are slower than
 the striker, where this law's e is higher), median error of e +0.002. The intervals do not
 cover a damping law other than the base scene's beyond that.
+
+Model check (both fits, ``data_outside_model`` in the result): for data outside the
+simulated cloud the kernel density is the Gaussian tail of the nearest kernels and the
+posterior's width measures the steepness of that tail, not the spread of gap patterns: a
+narrow, biased interval. ``granchain.modelcheck`` ranks the data's kernel log density
+among replicates made from the realisations themselves (leave-one-out, at posterior draws)
+and flags p < ``modelcheck.ALPHA``; the flag is in ``flags`` and the summary says plainly
+that the interval is then not calibrated. Calibration of the design and the check:
+``benchmarks/inference_outside.py`` (docs/explanation/inference.md gives its table).
 
 Which simulated timing and peaks a CSV column is compared with is decided in one place
 each, :func:`timing` and :func:`peak`.
