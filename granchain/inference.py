@@ -733,7 +733,7 @@ def gap_model_check(grid: Grid, meas: Measurements, fine: np.ndarray, pdf: np.nd
     (``granchain.modelcheck``; each chain's kernel as in :func:`log_likelihood`.)"""
     from .modelcheck import ModelCheck, STATISTIC, ALPHA, check, draws_1d
     if not np.any(pdf > 0):
-        return ModelCheck(STATISTIC, math.nan, math.nan, ALPHA, 0, True)
+        return ModelCheck(STATISTIC, math.nan, math.nan, math.nan, math.nan, ALPHA, 0, True)
     g = draws_1d(fine, pdf)
     T = _interp_gap(grid.timings[meas.column], grid.gaps, g)            # (K, S, R)
     groups = []
@@ -1365,7 +1365,7 @@ def joint_model_check(grid: JointGrid, meas: Measurements, draws: np.ndarray, er
     :func:`joint_log_likelihood`.)"""
     from .modelcheck import CHECK_DRAWS, ModelCheck, STATISTIC, ALPHA, check
     if not draws.size:
-        return ModelCheck(STATISTIC, math.nan, math.nan, ALPHA, 0, True)
+        return ModelCheck(STATISTIC, math.nan, math.nan, math.nan, math.nan, ALPHA, 0, True)
     sub = draws[:CHECK_DRAWS]
     rel = _model_rel(errs, meas.column, sub[:, 0], grid.gaps)          # (K, 3)
     groups = []
