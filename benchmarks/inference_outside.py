@@ -27,6 +27,8 @@ draws (the design before).
     python benchmarks/inference_outside.py [--fits gap joint] [--materials ss440c ss316]
         [--natural N] [--stress N] [--emphasis 0.5 0] [--truth reference|independent]
         [--speeds ...] [--gap-points G] [--e-points E] [--realisations R] [--cache-dir D]
+        [--out FILE.jsonl]
+    python benchmarks/inference_outside.py --cost 3 [--materials ss316]
 
 Every number printed is measured in this run (grids may come from the cache: the build
 time printed is then the cache's read).
@@ -174,6 +176,40 @@ def report(label: str, res: list[dict], joint: bool) -> str:
     return line
 
 
+def cost(material: str, repeats: int) -> None:
+    """The cure's cost side by side with the plain design, in one process, alternating:
+    the joint grid's build (no cache; 11 mean gaps x 4 e x 3 speeds x 64 realisations) and
+    one inference of a 6-row series on it, with the model check's share."""
+    speeds = [0.03, 0.1, 0.5]
+    base = base_scene(material, "joint", "reference", speeds)
+    tr = make_trials(base, ["natural"], 1, (6, 6), True)[0]
+    tr["v"] = np.clip(tr["v"], speeds[0], speeds[-1])
+    meas = measurements(tr, truth_rows(base, tr, True, "reference"))
+    times = {em: {"grid": [], "infer": [], "check": []} for em in (0.5, 0.0)}
+    for _ in range(repeats):
+        for em in (0.5, 0.0):
+            t0 = time.perf_counter()
+            grid = inference.simulate_joint_grid(base, 500e-9, 11, 0.85, 4, 64, emphasis=em)
+            times[em]["grid"].append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            res = inference.infer_joint(base, meas, grid=grid)
+            times[em]["infer"].append(time.perf_counter() - t0)
+            errs = inference.joint_interp_errors(grid, meas.column)
+            t0 = time.perf_counter()
+            inference.joint_model_check(grid, meas, res.draws, errs)
+            times[em]["check"].append(time.perf_counter() - t0)
+    n = grid.n_chains
+    for em, t in times.items():
+        print(f"design emphasis {em:g}: grid of {n} chains {np.median(t['grid']):.1f} s, one "
+              f"inference {np.median(t['infer']):.2f} s of which the check "
+              f"{np.median(t['check']):.2f} s (medians of {repeats}, alternating)")
+    print("ratios designed / plain: grid "
+          f"{np.median(times[0.5]['grid']) / np.median(times[0.0]['grid']):.2f}, inference "
+          f"{np.median(times[0.5]['infer']) / np.median(times[0.0]['infer']):.2f}; the check "
+          f"is {np.median(times[0.5]['check']) / np.median(times[0.5]['infer']):.0%} of an "
+          "inference (the plain design before had none)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--fits", nargs="+", default=["joint", "gap"], choices=["joint", "gap"])
@@ -192,7 +228,13 @@ def main() -> None:
     ap.add_argument("--cache-dir", default=None)
     ap.add_argument("--out", default=None, help="also write every experiment's outcome "
                     "(JSON lines: fit, material, design, set, coverage, width, p-value)")
+    ap.add_argument("--cost", type=int, default=0, metavar="REPEATS",
+                    help="instead: the cure's cost side by side (grid build and one "
+                    "inference, designed and plain, alternating REPEATS times)")
     a = ap.parse_args()
+    if a.cost:
+        cost(a.materials[0], a.cost)
+        return
     out = open(a.out, "w") if a.out else None
     for fit in a.fits:
         joint = fit == "joint"

@@ -731,10 +731,12 @@ def gap_model_check(grid: Grid, meas: Measurements, fine: np.ndarray, pdf: np.nd
                     model_rel: float):
     """Do the timings lie inside what the grid's realisations produce at the posterior?
     (``granchain.modelcheck``; each chain's kernel as in :func:`log_likelihood`.)"""
-    from .modelcheck import ModelCheck, STATISTIC, ALPHA, check, draws_1d
+    from .modelcheck import ALPHA, CHECK_DRAWS, CHECK_SEED, STATISTIC, ModelCheck, check
     if not np.any(pdf > 0):
         return ModelCheck(STATISTIC, math.nan, math.nan, math.nan, math.nan, ALPHA, 0, True)
-    g = draws_1d(fine, pdf)
+    mass = pdf * _trapz_weights(fine)
+    g = fine[np.random.default_rng(CHECK_SEED).choice(fine.size, size=CHECK_DRAWS,
+                                                      p=mass / mass.sum())]
     T = _interp_gap(grid.timings[meas.column], grid.gaps, g)            # (K, S, R)
     groups = []
     for idx in meas.groups:

@@ -192,14 +192,3 @@ def check(groups: list[tuple[np.ndarray, np.ndarray, np.ndarray]], weights: np.n
     pv = min(1.0, 2.0 * min(p_density, p_marginal))
     return ModelCheck(STATISTIC, float(np.median(obs_d[good])), p_density, p_marginal, pv,
                       alpha, int(below.size), pv < alpha)
-
-
-def draws_1d(x: np.ndarray, pdf: np.ndarray, n: int = CHECK_DRAWS,
-             seed: int = CHECK_SEED) -> np.ndarray:
-    """n points drawn from a 1D density on the points x (trapezoid cell masses)."""
-    w = np.zeros_like(x)
-    dx = np.diff(x)
-    w[:-1] += 0.5 * dx
-    w[1:] += 0.5 * dx
-    mass = pdf * w
-    return x[np.random.default_rng(seed).choice(x.size, size=n, p=mass / mass.sum())]
