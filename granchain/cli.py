@@ -19,6 +19,7 @@ from .fileio import atomic_write_text, check_output_path, json_text
 from .guards import check_run, run_size, scene_warnings
 from .progress import bar
 from .costmodel import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost
+from .observables import OK_STATUSES, status_text
 from .scene import load_scene
 
 
@@ -49,6 +50,8 @@ def _print_human(scene, runs, out=None):
         cut = list(r.not_final)
         note = (f"; peak not measured (n/a) for particle{'s' if len(cut) > 1 else ''} "
                 f"{_ranges(cut)}" if cut else "")
+        if r.status not in OK_STATUSES:
+            note += f"; {status_text(r.status)}"
         if not r.wave_arrived:
             missed = [p for p in (p1, p2) if p in cut]
             print(f"{head}: no measured peak at probe{'s' if len(missed) > 1 else ''} "
@@ -218,8 +221,13 @@ def _print_comparison(cmp, out=None) -> None:
         print("  ".join(str(c).ljust(w) for c, w in zip(row, widths)).rstrip(), file=out)
     for why, key in whys.items():
         print(f"[{key}] {why}", file=out)
+    _print_warnings(m.get("warnings", ()), out)
     bad = cmp.failures()
-    print(f"{'all tolerances met' if cmp.ok else f'{len(bad)} tolerance(s) missed'}", file=out)
+    verdict = "all tolerances met" if cmp.ok else f"{len(bad)} tolerance(s) missed"
+    if m.get("warnings"):
+        # engines that agree on a value a guard set aside have not checked it
+        verdict += " on the values both engines measured; see the warnings above"
+    print(verdict, file=out)
 
 
 def cmd_compare(args) -> int:

@@ -78,7 +78,7 @@ import numpy as np
 
 from ..effects import contact_damping, physics_terms, residual_work
 from ..errors import GranchainError
-from ..guards import require_resolved
+from ..guards import require_resolved, result_limits
 from ..lammps import deck as deckmod
 from ..scene import Scene
 from ..stoprule import auto_t_max, last_detached, wall_left
@@ -812,6 +812,7 @@ def _trajectories(scene, pl, data, wall_each, info):
     step, V, E, OL = data["step"], data["v"], data["energy"], data["last_overlap"]
     WF, XL = data.get("wall_force"), data.get("last_disp")
     eff = tuple(sorted(scene.effects))
+    limits = result_limits(scene)
     terms = physics_terms(scene)
     members = chain_terms(scene, pl)
     for b in range(pl.n_chains):
@@ -842,7 +843,7 @@ def _trajectories(scene, pl, data, wall_each, info):
             t=step[:keep] * scene.dt, v=v[:keep], energy=E[:keep, b, :],
             gaps=pl.gaps[b].copy(), radius=scene.radius, v_striker=vsb, effects=eff,
             steps=int(step[keep - 1]), rejected=0, status=status, wall_s=wall_each,
-            info=info, last_overlap=float(OL[keep - 1, b]),
+            info=info, last_overlap=float(OL[keep - 1, b]), limits=limits,
             # one force computation per step, plus the one of LAMMPS's setup
             force_evaluations=int(step[keep - 1]) + 1, **extra)
 
