@@ -287,6 +287,7 @@ def _print_inference(res, out=None) -> None:
                                  "raise --gap-max-nm",
         "no_simulated_match": "no simulated mean gap reproduces the timings"}[f]
         for f in res.flags], out)
+    _print_unmeasured(res, out)
 
 
 def _print_sources(res, out) -> None:
@@ -364,8 +365,17 @@ def _print_joint_inference(res, out=None) -> None:
           f"({E} points) x {len(res.speeds_m_s)} striker speed(s) x {res.realisations} "
           "realisations", file=out)
     _print_sources(res, out)
-    print(f"posterior predictive check: {res.predictive_outside} of {res.predictive_values} "
-          "measured values outside their 95% predictive range", file=out)
+    ranged = _predictive_ranged(res)
+    if ranged == 0:
+        # no posterior draw gave a range: nothing was checked, which is not a pass
+        print(f"posterior predictive check: not made (n/a): none of the "
+              f"{res.predictive_values} measured values has a simulated predictive range",
+              file=out)
+    else:
+        print(f"posterior predictive check: {res.predictive_outside} of "
+              f"{res.predictive_values} measured values outside their 95% predictive range"
+              + (f" ({res.predictive_values - ranged} without a simulated range, counted "
+                 "outside)" if ranged < res.predictive_values else ""), file=out)
     print(f"Eq. 5.4 reading (chapter; packed chain at the inferred e): least-squares "
           f"{nm(res.eq54_gap_m)}, upper-bound reading {nm(res.eq54_gap_bound_m)}", file=out)
     _print_warnings([f"{f}: " + {
@@ -377,6 +387,36 @@ def _print_joint_inference(res, out=None) -> None:
                                    "(n/a): lower --e-min",
         "no_simulated_match": "no simulated (mean gap, e) reproduces the data"}[f]
         for f in res.flags], out)
+    _print_unmeasured(res, out)
+
+
+def _predictive_ranged(res) -> int:
+    """How many measured values of a joint inference have a finite 95% predictive range
+    (``predictive_rows``): the values its predictive check actually checked."""
+    n = 0
+    for row in res.predictive_rows:
+        for key, q in row.items():
+            if key != "v_striker_m_s":
+                n += int(all(x is not None and math.isfinite(x) for x in q))
+    return n
+
+
+def _print_unmeasured(res, out) -> None:
+    """A warning when simulated chains of an inference's grid have no timing: their wave
+    did not reach both probes within the run, the run timed out, or a guard set an
+    impossible value aside (``observables.bounded``); they match no measurement."""
+    import numpy as np
+    grid = res.grid
+    if grid is None:
+        return
+    table = grid.timings if hasattr(grid, "timings") else grid.values
+    T = np.asarray(table[res.timing_column])
+    k = int(np.count_nonzero(np.isnan(T)))
+    if k:
+        _print_warnings([f"{k} of {T.size} simulated chains have no {res.timing_column}: "
+                         "their wave did not reach both probes within the run or a guard set "
+                         "an impossible value aside (granchain run on the base scene shows "
+                         "which); they match no measurement"], out)
 
 
 def check_joint_grid(base, args, src) -> None:
