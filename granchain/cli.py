@@ -15,7 +15,8 @@ from pathlib import Path
 from .costmodel import (DEFAULT_MAX_TOTAL_STEPS, add_estimates, describe_auto, resolve_auto,
                         run_estimate)
 from .errors import GranchainError
-from .fileio import atomic_write_text, check_output_path, json_text
+from .fileio import (IMAGE, atomic_write_text, check_distinct, check_output_path, json_output,
+                     json_text)
 from .guards import check_run, run_size, scene_warnings
 from .progress import bar
 from .costmodel import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost
@@ -26,6 +27,29 @@ from .scene import load_scene
 def one_line(text: str) -> str:
     """A message on one line: control characters (newlines, ...) shown escaped."""
     return re.sub(r"[\x00-\x1f\x7f]", lambda m: repr(m.group())[1:-1], text)
+
+
+# what --force may replace: an earlier output of the same command
+RUN_JSON = json_output("a granchain run JSON document", {"scene_hash", "v_striker"},
+                       {"scene_hash", "runs"})
+COMPARE_JSON = json_output("a granchain compare JSON document", {"scene_hash", "rows", "meta"})
+INFER_JSON = json_output("a granchain infer JSON document", {"measurements", "timing_column"})
+
+
+def _workdir_files(args) -> list:
+    """(--workdir, path) of every file the LAMMPS engine writes into a kept --workdir."""
+    if not getattr(args, "workdir", None):
+        return []
+    from .lammps.plan import WORKDIR_FILES
+    return [("--workdir", Path(args.workdir) / name) for name in WORKDIR_FILES]
+
+
+def check_paths(args, outputs, inputs=()) -> None:
+    """Refuse, before any work, an output of a command that is one of its inputs (the
+    scene file, the measurement file) or another of its outputs (``--out``, ``--plot``, the
+    files of a kept ``--workdir``), with or without --force (``fileio.check_distinct``)."""
+    check_distinct(_workdir_files(args) + list(outputs),
+                   [("the scene file", getattr(args, "scene", None)), *inputs])
 
 
 def _fmt(x, unit="", digits=4):
@@ -139,11 +163,12 @@ def check_whole_run(scene, args, est) -> None:
 def cmd_run(args) -> int:
     from .plan import plan_run
     from .simulate import run_scene
+    check_paths(args, [("--out", args.out)])          # refuse before spending the compute
     # the run plan: method auto chooses per striker speed for the reference engine
     plan = plan_run(load_scene(args.scene, args.set))
     scene = plan.scene
     if args.out:
-        check_output_path(args.out, args.force, "--out")     # refuse before spending the compute
+        check_output_path(args.out, args.force, "--out", kind=RUN_JSON)
     plan.check(args.max_steps, args.max_memory_gb)
     check_whole_run(scene, args, plan.estimate(engine=args.engine))
     kw = _engine_kw(args)
@@ -232,9 +257,10 @@ def _print_comparison(cmp, out=None) -> None:
 
 def cmd_compare(args) -> int:
     from .compare import compare
+    check_paths(args, [("--out", args.out)])
     scene = load(args)
     if args.out:
-        check_output_path(args.out, args.force, "--out")
+        check_output_path(args.out, args.force, "--out", kind=COMPARE_JSON)
     if args.np < 1:
         raise GranchainError(f"--np: must be >= 1 (got {args.np})")
     check_cost(scene, args.max_steps, args.max_memory_gb)
@@ -261,7 +287,9 @@ def cmd_compare(args) -> int:
 
 
 def cmd_deck(args) -> int:
-    from .lammps.deck import write_deck
+    from .lammps.deck import DATA_NAME, DECK_NAME, write_deck
+    check_paths(args, [("-o/--output", Path(args.output) / name)
+                       for name in (DECK_NAME, DATA_NAME)])
     scene = load(args)
     path = write_deck(scene, Path(args.output), force=args.force, output=args.write)
     print(path)
@@ -462,13 +490,15 @@ def cmd_infer(args) -> int:
     from .inference import (check_restitution_base, complete_base, infer, parse_fit,
                             read_measurements)
     fit = parse_fit(args.fit)
+    check_paths(args, [("--out", args.out), ("--plot", args.plot)],
+                [("the measurement file", args.measurements)])
     if args.plot:
-        check_output_path(args.plot, args.force, "--plot")
         if Path(args.plot).suffix.lower() not in (".png", ".pdf", ".svg"):
             raise GranchainError(f"--plot: {args.plot!r} has no known image suffix; end it "
                                  "with .png, .pdf or .svg")
+        check_output_path(args.plot, args.force, "--plot", kind=IMAGE)
     if args.out:
-        check_output_path(args.out, args.force, "--out")
+        check_output_path(args.out, args.force, "--out", kind=INFER_JSON)
     joint = "restitution" in fit
     meas = read_measurements(args.measurements, peaks=joint)
     # the gap law and speeds the base scene leaves out are filled in before method auto

@@ -273,7 +273,8 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         if progress:
             print(f"[granchain] {scene.name}: LAMMPS, {B} chain(s) x {scene.n} spheres, "
                   f"{pl.nsteps} steps max, {nprocs} rank(s) ...", file=sys.stderr, flush=True)
-        lrun = run_lammps(deck, wd, nprocs=nprocs, timeout=timeout)
+        lrun = run_lammps(deck, wd, nprocs=nprocs, timeout=timeout,
+                          log_name=deckmod.LOG_NAME, stdout_name=deckmod.SCREEN_NAME)
         if progress:
             print(f"[granchain] {scene.name}: LAMMPS done in {lrun.wall_time:.1f} s; reading "
                   f"{wd / READERS[output][0]} ...", file=sys.stderr, flush=True)
