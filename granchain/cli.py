@@ -616,7 +616,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--json", action="store_true", help="print one JSON object")
     sp.add_argument("--out", help="also write the JSON results to this new file")
     sp.add_argument("--force", action="store_true",
-                    help="allow --out (and a non-empty --workdir) to be replaced")
+                    help="allow --out to replace an earlier run JSON (never an input) and a "
+                         "non-empty --workdir's files to be replaced")
     sp.add_argument("--np", type=int, default=None, metavar="N",
                     help="LAMMPS engine: MPI ranks (mpirun -np N; default 1)")
     sp.add_argument("--workdir", metavar="DIR",
@@ -636,7 +637,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--json", action="store_true", help="print one JSON object (every row)")
     sp.add_argument("--out", help="also write the JSON document to this new file")
     sp.add_argument("--force", action="store_true",
-                    help="allow --out (and a non-empty --workdir) to be replaced")
+                    help="allow --out to replace an earlier compare JSON (never an input) and "
+                         "a non-empty --workdir's files to be replaced")
     sp.add_argument("--np", type=int, default=1, metavar="N", help="LAMMPS MPI ranks (default 1)")
     sp.add_argument("--workdir", metavar="DIR", help="keep the LAMMPS deck, dump and log in DIR")
     sp.add_argument("--traces", type=int, default=1, metavar="N",
@@ -652,7 +654,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("deck", help="write a LAMMPS input deck for a scene")
     scene_args(sp)
     sp.add_argument("-o", "--output", required=True, help="directory for the deck")
-    sp.add_argument("--force", action="store_true", help="replace an existing deck directory's files")
+    sp.add_argument("--force", action="store_true",
+                    help="replace the deck.lmp and chain.data an earlier deck wrote")
     sp.add_argument("--write", choices=["dump", "binary", "none"], default="dump",
                     help="what the deck writes at every sample: dump (default) the text dump "
                          "traj.dump and ledger.txt; binary the LAMMPS binary dumps traj.bin and "
@@ -683,7 +686,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--plot", metavar="FILE", help="draw v_g vs v_s (data, inferred band, "
                     "Eq. 5.4) into this new file (.png or .pdf); with restitution fitted: "
                     "the joint posterior, its marginals and the data against the fitted model")
-    sp.add_argument("--force", action="store_true", help="allow --out and --plot to be replaced")
+    sp.add_argument("--force", action="store_true",
+                    help="allow --out and --plot to replace an earlier infer JSON and image "
+                         "(never an input)")
     sp.add_argument("--gap-max-nm", type=_limit, default=500.0, metavar="NM",
                     help="largest simulated mean gap in nm (default 500)")
     sp.add_argument("--gap-points", type=int, default=21, metavar="N",

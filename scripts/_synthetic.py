@@ -24,7 +24,7 @@ def cli(main, doc: str, default_out: Path, base: Path) -> None:
     ap = argparse.ArgumentParser(description=doc.split("\n\n")[0].replace("\n", " "))
     ap.add_argument("--out", type=Path, default=default_out,
                     help=f"the CSV to write (default: {default_out.name} in measurements/)")
-    ap.add_argument("--force", action="store_true", help="replace the file if it exists")
+    ap.add_argument("--force", action="store_true", help="replace an earlier synthetic file (never a measurement)")
     args = ap.parse_args()
     try:
         check_distinct([("--out", args.out)], [("the base scene", base)])

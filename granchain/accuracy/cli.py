@@ -48,7 +48,7 @@ def build_parser(prog: str = "python -m granchain.accuracy") -> argparse.Argumen
     mo = sub.add_parser("model", help="write the packaged cost model from a measured table")
     mo.add_argument("timing", help="timing/accuracy_cost.csv of a run (and its .provenance.json)")
     mo.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / MODEL_FILE))
-    mo.add_argument("--force", action="store_true", help="replace the existing model")
+    mo.add_argument("--force", action="store_true", help="replace an earlier cost model and its provenance")
     return ap
 
 
