@@ -74,13 +74,13 @@ def _print_human(scene, runs, out=None):
         cut = list(r.not_final)
         note = (f"; peak not measured (n/a) for particle{'s' if len(cut) > 1 else ''} "
                 f"{_ranges(cut)}" if cut else "")
-        if r.status not in OK_STATUSES:
-            note += f"; {status_text(r.status)}"
         if not r.wave_arrived:
             missed = [p for p in (p1, p2) if p in cut]
             print(f"{head}: no measured peak at probe{'s' if len(missed) > 1 else ''} "
-                  f"{_ranges(missed)} (status {r.status}){note}", file=out)
+                  f"{_ranges(missed)} ({status_text(r.status)}){note}", file=out)
             continue
+        if r.status not in OK_STATUSES:
+            note += f"; {status_text(r.status)}"
         print(f"{head}: v_max,1 = {_fmt(r.v_max_1)} m/s ({_fmt(r.v_max_1 / vs)} v_s) at particle {p1}; "
               f"v_max,2 = {_fmt(r.v_max_2)} m/s ({_fmt(r.v_max_2 / vs)} v_s) at {p2}; "
               f"dt = {_fmt(r.dt_peak)} s; v_g = {_fmt(r.v_g)} m/s "

@@ -17,6 +17,7 @@ No numba or scipy, so ``granchain validate`` stays light. The solitary wave come
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -239,9 +240,11 @@ def _stiff_effect(scene) -> str | None:
             continue
         tau, what = m.time_scale(scene, vmax)
         if tau < tc:
-            sec = scene.spec.get(m.SECTION) or {}
-            keys = [f"{m.SECTION}.{k}" for k, v in sec.items()
-                    if isinstance(v, (int, float)) and not isinstance(v, bool)]
+            # the section's numeric settings that are set (the dashpot's eta or e)
+            st = scene.setting(m.SPEC.name)
+            keys = [f"{m.SECTION}.{f.name}" for f in dataclasses.fields(st)
+                    if isinstance(getattr(st, f.name), (int, float))
+                    and not isinstance(getattr(st, f.name), bool)]
             return (f"{' or '.join(keys) or m.SECTION} ({what} is {tau:.2g} s at "
                     f"{vmax:g} m/s: shorter than the collision time {tc:.2g} s)")
     return None

@@ -460,13 +460,13 @@ STATUS_TEXT = {
     "timeout": "the run hit its time cap before the wave left the chain",
     "nonfinite": "the integration reached a non-finite state",
     "stepfail": "the adaptive step control failed",
-    "unphysical": "a value left its physical bounds: see the warning",
+    "unphysical": "a value left its physical bounds (see the warning)",
 }
 
 
 def status_text(status: str) -> str:
-    """'status timeout (the run hit its time cap ...)': a status for the human output."""
-    return f"status {status}" + (f" ({STATUS_TEXT[status]})" if status in STATUS_TEXT else "")
+    """'status timeout: the run hit its time cap ...': a status for the human output."""
+    return f"status {status}" + (f": {STATUS_TEXT[status]}" if status in STATUS_TEXT else "")
 # (delay, group velocity) pairs: a delay that is not positive, or a group velocity above
 # the sound speed, makes both impossible (v_g = span / delay)
 _TIMING_PAIRS = (("dt_peak", "v_g"), ("dt_front", "v_g_front"),

@@ -117,6 +117,11 @@ def test_a_non_finite_energy_is_nan_with_a_line_naming_the_dashpot():
                              "integrator": {"method": "adaptive"}})
     lim = guards.result_limits(stiff)
     assert lim.nonfinite.startswith("damping.eta")
+    # as a scene file writes it (YAML reads 1.0e20 as text; the validator as a number)
+    from granchain.scenefile import parse_yaml
+    raw = parse_yaml("name: stiff\neffects: [hertz, contact_damping]\ndamping: {model: "
+                     "viscoelastic, eta: 1.0e20}\nintegrator: {method: adaptive}\n", "s.yaml")
+    assert guards.result_limits(scene_from_dict(raw)).nonfinite.startswith("damping.eta ")
     t, v = pulses([5e-8 + 2e-7 * i for i in range(15)])
     e = np.ones((t.size, len(ENERGY_COLUMNS)))
     e[-1, 2] = np.inf
