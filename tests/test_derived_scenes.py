@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import contextlib
 import io
-import math
 
 import numpy as np
 import pytest
@@ -92,6 +91,7 @@ def nan_joint_grid(base, gap_max, gap_points, e_min, e_points, realisations, cac
     return inference.JointGrid(gaps, es, speeds, values, ("0" * 16,) * gaps.size, 0)
 
 
+@pytest.mark.filterwarnings("ignore:All-NaN slice:RuntimeWarning")
 def test_an_empty_predictive_check_is_not_printed_as_a_pass(monkeypatch):
     """Fails on a build that printed '0 of 24 measured values outside their 95% predictive
     range' for a check that checked nothing."""
