@@ -307,15 +307,41 @@ def _print_inference(res, out=None) -> None:
           f"({res.gap_grid_m[2]} points) x {len(res.speeds_m_s)} striker speed(s) x "
           f"{res.realisations} realisations", file=out)
     _print_sources(res, out)
+    _print_model_check(res, out)
     print(f"Eq. 5.4 reading (chapter): least-squares {nm(res.eq54_gap_m)}, "
           f"upper-bound reading {nm(res.eq54_gap_bound_m)}", file=out)
     _print_warnings([f"{f}: " + {
         "posterior_at_grid_end": "the posterior still has weight at the largest simulated "
                                  "mean gap; median and upper bound not measured (n/a): "
                                  "raise --gap-max-nm",
-        "no_simulated_match": "no simulated mean gap reproduces the timings"}[f]
+        "no_simulated_match": "no simulated mean gap reproduces the timings",
+        "data_outside_model": _OUTSIDE}[f]
         for f in res.flags], out)
     _print_unmeasured(res, out)
+
+
+_OUTSIDE = ("the measured values lie outside what the simulated gap realisations produce "
+            "(model check below its threshold): the posterior describes the nearest simulated "
+            "chains, not this one, and its interval is not calibrated (too narrow, biased); "
+            "check the data, or give the base scene the chain's gap law, effects and "
+            "integrator, or simulate more realisations (--realisations)")
+
+
+def _print_model_check(res, out) -> None:
+    """The model check's line (``granchain.modelcheck``): where the data's kernel density
+    ranks among posterior-predictive replicates of the simulated realisations."""
+    mc = res.data_outside_model
+    p = mc.get("p_value")
+    if not mc["flag"] and (p is None or not math.isfinite(p)):
+        # no p-value: nothing was checked, which is not a pass
+        print("model check: not made (n/a): no posterior-predictive replicate to rank the "
+              "data among", file=out)
+        return
+    verdict = ("OUTSIDE the simulated realisations" if mc["flag"]
+               else "inside the simulated realisations")
+    print(f"model check: data {verdict} (p = {_fmt(mc['p_value'], digits=3)}, flagged "
+          f"below {mc['alpha']:g}; density rank among {mc['replicates']} replicates)",
+          file=out)
 
 
 def _print_sources(res, out) -> None:
@@ -404,6 +430,7 @@ def _print_joint_inference(res, out=None) -> None:
               f"{res.predictive_values} measured values outside their 95% predictive range"
               + (f" ({res.predictive_values - ranged} without a simulated range, counted "
                  "outside)" if ranged < res.predictive_values else ""), file=out)
+    _print_model_check(res, out)
     print(f"Eq. 5.4 reading (chapter; packed chain at the inferred e): least-squares "
           f"{nm(res.eq54_gap_m)}, upper-bound reading {nm(res.eq54_gap_bound_m)}", file=out)
     _print_warnings([f"{f}: " + {
@@ -413,7 +440,8 @@ def _print_joint_inference(res, out=None) -> None:
         "restitution_at_grid_end": "the posterior still has weight at the smallest "
                                    "simulated e; its median and lower bound not measured "
                                    "(n/a): lower --e-min",
-        "no_simulated_match": "no simulated (mean gap, e) reproduces the data"}[f]
+        "no_simulated_match": "no simulated (mean gap, e) reproduces the data",
+        "data_outside_model": _OUTSIDE}[f]
         for f in res.flags], out)
     _print_unmeasured(res, out)
 

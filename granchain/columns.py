@@ -298,7 +298,13 @@ _INFER_COMMON = {
     "scene": Column("string", "", "The base scene's name."),
     "scene_hashes": Column("list", "", "Hashes of the grid's scenes."),
     "flags": Column("list", "", "Warnings about the result (e.g. posterior_at_grid_end, "
-                                "no_simulated_match)."),
+                                "no_simulated_match, data_outside_model)."),
+    "data_outside_model": Column("object", "", "The model check (granchain.modelcheck): "
+                                               "flag (true: the data lie outside what the "
+                                               "simulated realisations produce, the "
+                                               "interval is not calibrated), statistic, "
+                                               "log_density, p_value, alpha (the flag's "
+                                               "threshold) and replicates."),
     "measurements": Column("string", "", "The measurements CSV's path."),
 }
 INFER_JSON = {

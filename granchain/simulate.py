@@ -77,6 +77,7 @@ def _reference(scene: Scene, sampling: dict, mem: list[Member], kw: dict):
 
 
 def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=None, *,
+              gaps=None,
               max_steps: float = DEFAULT_MAX_STEPS, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
               progress: Callable[[int], None] | None = None, **kw) -> list[ChainResult]:
     """Observables of every member of the scene, one :class:`~granchain.observables.ChainResult`
@@ -92,6 +93,9 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
     measurement block also gets the vibrometer's fields (``granchain.vibrometer``): it
     needs the probes' velocity histories (``vibrometer.needs_trace``).
 
+    ``gaps``: (R, n-1) gaps (m) of realisations 0..R-1 in place of the scene's gap law
+    (``gaps.members``; the inference's designed realisations).
+
     ``progress``: called with 1 as each member's result is done (members arrive as the
     engine finishes each of its chunks), e.g. a progress bar's ``update``
     (``granchain.progress``); the engine's own progress line is then off. It sees the
@@ -99,7 +103,7 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
     plan = plan_run(scene)
     plan.check(max_steps, max_memory_gb)
     scene = plan.scene
-    mem = members(scene, realisations)
+    mem = members(scene, realisations, gaps)
     t0 = time.perf_counter()
     out = []
     warn = {sp.v_striker: sp.warnings for sp in plan.speeds}
