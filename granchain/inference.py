@@ -448,7 +448,9 @@ def complete_base(base: Scene, meas: Measurements) -> tuple[Scene, dict]:
     ``striker.velocity`` is simulated at the data's own striker speeds. What the scene
     gives is kept as it is, and checked by :func:`check_base` and :func:`check_speeds`.
     The returned scene keeps the base scene's ``given``, so completing it again changes
-    nothing and reports the same sources."""
+    nothing and reports the same sources. A base scene that cannot take a gap law is
+    refused first (:func:`check_gappable`)."""
+    check_gappable(base)
     change = {}
     src = {"gap_law": "scene", "speeds": "scene"}
     if "gaps.distribution" not in base.given:
@@ -465,10 +467,24 @@ def complete_base(base: Scene, meas: Measurements) -> tuple[Scene, dict]:
     return base, src
 
 
-def check_base(base: Scene) -> None:
-    """A base scene the inference can use: a gap law with a mean that scales its
-    realisations, and a fixed set of striker speeds."""
+def check_gappable(base: Scene) -> None:
+    """Refuse (SceneError naming the key) a base scene whose chain cannot have gaps: a
+    preloaded chain (``precompression.force``) is pressed together, so it has no mean gap
+    to infer."""
     from .errors import SceneError
+    if base.precompression > 0.0 or "precompression.force" in base.given:
+        raise SceneError("precompression.force", "a preloaded chain is pressed together and "
+                         "has no gaps, so the inference cannot give it a gap law",
+                         "drop precompression (and walls.end if only the preload needs it) "
+                         "from the base scene")
+
+
+def check_base(base: Scene) -> None:
+    """A base scene the inference can use: a chain that can have gaps
+    (:func:`check_gappable`), a gap law with a mean that scales its realisations, and a
+    fixed set of striker speeds."""
+    from .errors import SceneError
+    check_gappable(base)
     if base.gap_distribution not in GAP_LAWS:
         raise SceneError("gaps.distribution", f"'{base.gap_distribution}' has no mean gap to "
                          "infer", f"use one of {', '.join(GAP_LAWS)} (mean: any value; the "

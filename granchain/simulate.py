@@ -15,7 +15,7 @@ import numpy as np
 from .errors import GranchainError
 from .gaps import Member, member_gaps, member_radii, members
 from .vibrometer import measure, needs_trace
-from .observables import ChainResult, summarize
+from .observables import ChainResult, bounded, summarize
 from .plan import RunPlan, plan_run
 from .costmodel import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS
 from .scene import Scene
@@ -122,10 +122,12 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
             final = [s.final[p - 1] for p in scene.probes]
             extra = measure(traj, scene.probes, scene.measurement, key=(m.index,),
                             true_final=final).result_fields(scene.probes)
-        out.append(dataclasses.replace(
+        # the plan's warnings first, then those of the result's bounds (summarize); the
+        # vibrometer's values go through the same bounds
+        out.append(bounded(dataclasses.replace(
             s, member=m.index, realisation=m.realisation, engine=engine,
             method=traj.info.method, dt=float(traj.info.dt),
-            warnings=warn[m.v_striker], **extra))
+            warnings=tuple(warn[m.v_striker]) + s.warnings, **extra), traj.limits))
         if progress is not None:
             progress(1)
     wall = time.perf_counter() - t0
