@@ -322,7 +322,8 @@ INFER_JOINT_JSON = {
     "posterior_correlation": Column("float", "1", "Correlation of mean gap and restitution "
                                                   "in the posterior."),
     "predictive_outside": Column("int", "", "Measured values outside their posterior "
-                                            "predictive 95 % range."),
+                                            "predictive 95 % range (null: no posterior "
+                                            "draw, nothing checked)."),
     "predictive_values": Column("int", "", "Measured values checked (three a row)."),
     "predictive_rows": Column("list", "", "Per row: v_striker_m_s and the 2.5, 50 and "
                                           "97.5 % predictive values of the timing, "

@@ -1334,7 +1334,7 @@ class JointInference:
     eq54_gap_m: float
     eq54_gap_bound_m: float
     eq54_gap_rows_m: tuple[float, ...]
-    predictive_outside: int
+    predictive_outside: int | None    # None: no posterior draw, nothing checked
     predictive_values: int
     predictive_rows: tuple
     n_simulated: int
@@ -1488,7 +1488,7 @@ def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = 500e-9,
     if draws.size:
         pred_rows, outside, checked = predictive(grid, meas, draws)
     else:
-        pred_rows, outside, checked = (), 0, 3 * len(meas)
+        pred_rows, outside, checked = (), None, 3 * len(meas)   # nothing checked
     mc = joint_model_check(grid, meas, draws, errs)
     if mc.flag:
         flags.append("data_outside_model")

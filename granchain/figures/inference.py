@@ -205,8 +205,9 @@ def plot_joint_inference(res, meas, base, path, force: bool = False) -> Path:
     a_t.legend(loc="upper right")
     a_t.set_title(f"{base.material.name}: {res.rows} row(s) on {res.chains} chain(s)")
     a_v1.set_title(f"{res.n_simulated} simulated chains")
-    a_v2.set_title(f"predictive check: {res.predictive_outside} of {res.predictive_values} "
-                   "values outside 95 %")
+    outside = "n/a" if res.predictive_outside is None else res.predictive_outside
+    a_v2.set_title(f"predictive check: {outside} of {res.predictive_values} values outside "
+                   "95 %")
     fig.tight_layout()
     path = Path(path)
     fmt = path.suffix.lower()
