@@ -211,25 +211,28 @@ def test_gap_only_json_and_summary_carry_the_check(tmp_path, capsys):
 # the calibration suite, CI-sized
 # ---------------------------------------------------------------------------------------
 @pytest.mark.slow
-def test_calibration_suite_ci_sized(tmp_path):
-    """The suite at CI size: 316, joint fit, speeds 0.03-0.5 m/s (3 nodes), a grid of
-    13 mean gaps x 4 e x 3 speeds x 64 realisations, 16 natural and 16 stress experiments
-    (series and independent chains of 3-10 rows). Natural: the truth covered in at least
-    0.85 of them (0.93 in the full suite, see docs/explanation/inference.md), the flag on
-    at most 2; stress: coverage at least 0.9 or every miss flagged."""
+def test_calibration_suite_ci_sized():
+    """The suite at CI size: 316, joint fit, the command's grid (21 mean gaps x 7 e) at 3
+    striker speeds 0.03-0.5 m/s x 64 realisations, 16 natural and 16 stress experiments
+    (series and independent chains of 3-10 rows). The full suite's measured coverage is in
+    docs/explanation/inference.md; on 16 experiments a miss or two more than nominal is
+    binomial noise, so this asks: natural, the mean gap and e covered in at least 13 of 16
+    and the flag on at most one; stress, the mean gap covered in at least 0.9 of them or
+    every miss flagged (the plain draws of the gap law covered 0.70 of the suite's stress
+    set, unflagged)."""
     speeds = [0.03, 0.1, 0.5]
     base = suite.base_scene("ss316", "joint", "reference", speeds)
     trials = suite.make_trials(base, ["natural", "stress"], 16, (3, 10), True)
-    grid = inference.simulate_joint_grid(base, 500e-9, 13, 0.85, 4, 64)
+    grid = inference.simulate_joint_grid(base, 500e-9, 21, inference.E_MIN, inference.E_POINTS,
+                                         64)
     res = {"natural": [], "stress": []}
     for tr in trials:
-        tr["v"] = np.clip(tr["v"], speeds[0], speeds[-1])
         r = inference.infer_joint(base, suite.measurements(tr, suite.truth_rows(
             base, tr, True, "reference")), grid=grid)
         res[tr["set"]].append(suite.outcome(tr, r, base.probes, True))
     nat, st = res["natural"], res["stress"]
-    assert np.mean([o["cov_g"] for o in nat]) >= 0.85, [o["cov_g"] for o in nat]
-    assert np.mean([o["cov_e"] for o in nat]) >= 0.85
-    assert sum(o["flagged"] for o in nat) <= 2
+    assert sum(o["cov_g"] for o in nat) >= 13, nat
+    assert sum(o["cov_e"] for o in nat) >= 13, nat
+    assert sum(o["flagged"] for o in nat) <= 1, nat
     st_cov = np.mean([o["cov_g"] for o in st])
     assert st_cov >= 0.9 or all(o["flagged"] for o in st if not o["cov_g"]), st
