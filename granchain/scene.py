@@ -24,6 +24,7 @@ import json
 import math
 import re
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -332,12 +333,25 @@ class Scene:
         E_star = self.material.E / (2.0 * (1.0 - self.material.nu**2))
         return 4.0 / 3.0 * E_star * math.sqrt(self.radius / 2.0)
 
+    @cached_property
+    def uniform(self) -> bool:
+        """Are the nominal spheres all alike, the chain's one bead (a radius spread may
+        still make each member's differ)?"""
+        return (self.radii.count(self.radius) == len(self.radii)
+                and self.materials.count(self.material) == len(self.materials))
+
     @property
     def heterogeneous(self) -> bool:
         """Do the spheres differ (radius or material) from the chain's one bead, or may a
         member's (a radius spread)?"""
-        return self.radius_spread is not None or any(r != self.radius for r in self.radii) \
-            or any(m != self.material for m in self.materials)
+        return self.radius_spread is not None or not self.uniform
+
+    @property
+    def distinct_contacts(self) -> range:
+        """Indices i of the contacts (spheres i+1, i+2; 0-based) that stand for all of them:
+        every contact, or for alike spheres the striker's and the next (the others repeat
+        the next: the same spheres, the same static overlap)."""
+        return range(min(self.n - 1, 2)) if self.uniform else range(self.n - 1)
 
     def with_radii(self, radii) -> "Scene":
         """This scene with the given radii (a member's draw of a radius spread) and no
@@ -345,26 +359,26 @@ class Scene:
         radii = tuple(float(r) for r in radii)
         return dataclasses.replace(self, radii=radii, radius=radii[1], radius_spread=None)
 
-    @property
+    @cached_property
     def masses(self) -> tuple[float, ...]:
         """Each sphere's mass (kg), particle 1 first."""
-        if not self.heterogeneous:
+        if self.uniform:
             return (self.mass,) * self.n
         return tuple(m.rho * 4.0 / 3.0 * math.pi * r**3
                      for m, r in zip(self.materials, self.radii))
 
-    @property
+    @cached_property
     def inertias(self) -> tuple[float, ...]:
         """Each sphere's moment of inertia (2/5) m R^2 (kg m^2)."""
         if not self.heterogeneous:
             return (self.inertia,) * self.n
         return tuple(0.4 * m * r * r for m, r in zip(self.masses, self.radii))
 
-    @property
+    @cached_property
     def contact_k(self) -> tuple[float, ...]:
         """K of each contact i, i+1 (n-1 of them): (4/3) E* sqrt(R*) with
         1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j and R* = R_i R_j / (R_i + R_j)."""
-        if not self.heterogeneous:
+        if self.uniform:
             return (self.hertz_k,) * (self.n - 1)
         return tuple(hertz_constant(self.materials[i], self.radii[i], self.materials[i + 1],
                                     self.radii[i + 1]) for i in range(self.n - 1))
@@ -443,7 +457,7 @@ class Scene:
         if not self.heterogeneous and self.wall is None:
             return hertz_contact_time(self.mass / 2.0, self.hertz_k, v)
         ms, ks = self.masses, self.contact_k
-        pairs = [(ms[i] * ms[i + 1] / (ms[i] + ms[i + 1]), ks[i]) for i in range(self.n - 1)]
+        pairs = [(ms[i] * ms[i + 1] / (ms[i] + ms[i + 1]), ks[i]) for i in self.distinct_contacts]
         if self.wall is not None:
             pairs.append((ms[-1], self.wall_k))
         tc = min(hertz_contact_time(mu, k, v) for mu, k in pairs)
@@ -458,15 +472,16 @@ class Scene:
         diameters over Nesterenko's speed, the shortest over the beads' materials and
         radii (particles 2 to n); under a preload at most 5 diameters over the sound
         speed c0 = 2R sqrt(k2/m) of the stiffest preloaded contact."""
-        if not self.heterogeneous:
+        if self.uniform:
             width = float(pulse_width(self.material, self.radius, v_m))
         else:
             width = min(float(pulse_width(m, r, v_m))
                         for m, r in set(zip(self.materials[1:], self.radii[1:])))
         F0 = self.precompression
         if F0 > 0.0:
-            ms, rs = self.masses, self.radii
-            for k, K in enumerate(self.contact_k[1:], start=1):
+            ms, rs, ks = self.masses, self.radii, self.contact_k
+            for k in self.distinct_contacts[1:]:
+                K = ks[k]
                 k2 = 1.5 * K ** (2.0 / 3.0) * F0 ** (1.0 / 3.0)
                 c0 = 2.0 * rs[k] * math.sqrt(k2 / ms[k])
                 width = min(width, 10.0 * rs[k] / c0)

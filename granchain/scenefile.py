@@ -25,11 +25,11 @@ from .errors import SceneError
 
 MAX_SCENE_BYTES = 1 << 20      # a scene is a page of YAML; anything larger is not a scene
 # The most values (numbers, names, keys, list entries, and each mapping or list) a scene
-# file may hold, counted with YAML aliases expanded: a per-sphere list (chain.radius,
-# chain.materials, gaps.values) of up to ~30000 spheres fits. Reading and validating
-# stays within a second or two; an alias "bomb" (a few hundred bytes standing for 10^9
-# values) is refused after at most this many.
-MAX_VALUES = 100_000
+# file may hold, counted with YAML aliases expanded: per-sphere lists (chain.radius,
+# chain.materials, gaps.values) of up to ~50000 entries in all fit. Reading and validating
+# the largest such file takes about a second (benchmarks/hostile_scenes.py); an alias
+# "bomb" (a few hundred bytes standing for 10^9 values) is refused after this many.
+MAX_VALUES = 50_000
 # The deepest nesting of lists and mappings (a scene needs 4: chain.materials[i].E)
 MAX_DEPTH = 10
 # The longest number (characters) YAML may read: sexagesimal integers (1:00:00...) cost

@@ -161,7 +161,7 @@ def time_scale(scene, v: float) -> tuple[float, str]:
     cd = build(scene)
     m, R, K = scene.masses, scene.radii, scene.contact_k
     pairs = [(m[k] * m[k + 1] / (m[k] + m[k + 1]), R[k] * R[k + 1] / (R[k] + R[k + 1]), K[k])
-             for k in range(scene.n - 1)]
+             for k in scene.distinct_contacts]
     if scene.wall is not None:
         pairs.append((m[-1], R[-1], scene.wall_k))
     rate = 0.0
