@@ -32,9 +32,10 @@ from typing import Any
 from .errors import SceneError
 from .validate import Key, number as _value, number_text, short as _short
 from .scenefile import apply_overrides, read_scene_file
-from .guards import MIN_SAMPLES_PER_PULSE, floor_sig, max_sample_dt, pulse_width
+from .guards import (MIN_SAMPLES_PER_PULSE, check_overlaps, floor_sig, max_sample_dt,
+                     pulse_width)
 from .effects import MODULES as EFFECT_MODULES
-from .materials import RIGID, Material, effective_modulus, library
+from .materials import FIELD_FIX, FIELDS, RIGID, Material, effective_modulus, library
 
 EFFECTS = tuple(m.SPEC.name for m in EFFECT_MODULES)
 # effect -> its scene section, for the effects that have one (granchain.effects: each
@@ -129,8 +130,10 @@ BLOCK_DEFAULTS = {"chain.radius_spread": RADIUS_SPREAD_DEFAULTS,
                   "measurement": MEASUREMENT_DEFAULTS}
 
 _MATERIAL = ("a name from `granchain/data/materials.yaml`, or a mapping `{E: 200e9, nu: 0.28, "
-             "rho: 7800}` (E > 0 Pa, -0.999 <= nu <= 0.4999, rho > 0 kg/m^3; an optional "
-             "`name`)")
+             "rho: 7800}` (" + ", ".join(k.range_text.strip("`") + ("" if k.unit == "1" else
+                                                                   f" {k.unit}")
+                                         for k in FIELDS.values())
+             + "; an optional `name`)")
 
 # Each key of DEFAULTS, MEASUREMENT_DEFAULTS and RADIUS_SPREAD_DEFAULTS, declared once (an
 # effect's section: its module's KEYS). The checks below take the bounds and choices from
@@ -594,27 +597,33 @@ def _material(value, where: str = "material", *, wall: bool = False) -> Material
                              f"{hint} or give {example}")
         return lib[value]
     if isinstance(value, dict):
-        extra = set(value) - set(keys) - {"name"} - ({"rho"} if wall else set())
+        extra = set(value) - set(keys) - {"name"}
         if extra:
-            raise SceneError(f"{where}.{sorted(map(str, extra))[0]}", "unknown key",
+            key = sorted(map(str, extra))[0]
+            if wall and key == "rho":
+                raise SceneError(f"{where}.rho", "has no effect: the wall does not move",
+                                 f"drop it; a wall takes E and nu, e.g. {example}")
+            raise SceneError(f"{where}.{_short(key, 30).strip(chr(39))}", "unknown key",
                              f"a material mapping has {', '.join(keys)} (and optional name)")
         for k in keys:
             if k not in value:
                 raise SceneError(f"{where}.{k}", "missing",
                                  "give E (Pa), nu" + ("" if wall else " and rho (kg/m^3)"))
-        E = _value(value["E"], f"{where}.E", positive=True)
-        nu = _value(value["nu"], f"{where}.nu", lo=-0.999, hi=0.4999,
-                    fix="a Poisson ratio lies in (-1, 0.5)")
-        rho = _value(value["rho"], f"{where}.rho", positive=True) if "rho" in value else 0.0
+        E, nu = (FIELDS[k].number(value[k], field=f"{where}.{k}", fix=FIELD_FIX[k])
+                 for k in ("E", "nu"))
+        rho = FIELDS["rho"].number(value["rho"], field=f"{where}.rho",
+                                   fix=FIELD_FIX["rho"]) if not wall else 0.0
         name = check_name(value.get("name", "custom"), f"{where}.name")
         return Material(name, E, nu, rho)
     raise SceneError(where, f"expected a name or a mapping, got {_short(value)}",
                      f"write {where.rpartition('.')[2].split('[')[0]}: ss440c or {example}")
 
 
-def _chain_spheres(spec: dict, n: int, material: Material):
+def _chain_spheres(spec: dict, n: int, material: Material, given: set[str]):
     """(radii, materials) of the n spheres, particle 1 (the striker) first, from
-    chain.radius, chain.materials, striker.radius and striker.material."""
+    chain.radius, chain.materials, striker.radius and striker.material. A key another one
+    overrides is refused: ``material`` (given) beside a chain.materials list, striker.radius
+    beside a chain.radius list, striker.material beside a chain.materials list."""
     rad = spec["chain"]["radius"]
     fix = "give the sphere radius in metres, e.g. 150e-6"
     if isinstance(rad, list):
@@ -630,18 +639,37 @@ def _chain_spheres(spec: dict, n: int, material: Material):
     if mats is None:
         materials = [material] * n
     else:
+        if isinstance(mats, (str, dict)):          # one material: that is `material`
+            one = mats if isinstance(mats, str) and NAME_RE.fullmatch(mats) else "..."
+            raise SceneError("chain.materials", f"takes a list of n = {n} materials, got one "
+                             f"({_short(mats)})", f"for one material for every sphere write "
+                             f"material: {one} and drop chain.materials")
         if not isinstance(mats, list):
             raise SceneError("chain.materials", f"expected a list, got {_short(mats)}",
                              f"give a list of n = {n} materials, or drop it")
+        if "material" in given:
+            raise SceneError("material", "has no effect beside the chain.materials list, "
+                             "which gives every sphere's material",
+                             "drop material, or drop chain.materials")
         if len(mats) != n:
             raise SceneError("chain.materials", f"has {len(mats)} entries but the chain has "
                              f"n = {n} spheres", f"give exactly n = {n} materials "
                              "(particle 1, the striker, first)")
         materials = [_material(m, f"chain.materials[{i}]") for i, m in enumerate(mats)]
     if spec["striker"].get("radius") is not None:
+        if isinstance(rad, list):
+            raise SceneError("striker.radius", "given beside the chain.radius list, whose "
+                             "first entry is already the striker's radius",
+                             "drop striker.radius, or set the striker's radius as "
+                             "chain.radius[0]")
         radii[0] = _num(spec, "striker.radius",
                         fix="give the striker's radius in metres, e.g. 189e-6")
     if spec["striker"].get("material") is not None:
+        if mats is not None:
+            raise SceneError("striker.material", "given beside the chain.materials list, "
+                             "whose first entry is already the striker's material",
+                             "drop striker.material, or set the striker's material as "
+                             "chain.materials[0]")
         materials[0] = _material(spec["striker"]["material"], "striker.material")
     return tuple(radii), tuple(materials)
 
@@ -815,7 +843,7 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     n = _num(spec, "chain.n",
              fix=f"a chain needs at least 3 particles (the striker and two probes) and at most "
              f"{MAX_SPHERES}")
-    radii, materials = _chain_spheres(spec, n, material)
+    radii, materials = _chain_spheres(spec, n, material, given)
     radius = radii[1]
     if spec["chain"].get("materials") is not None:
         material = materials[1]
@@ -962,24 +990,42 @@ def _measurement(spec: dict, given: set[str]) -> Measurement | None:
 
 
 def _check_derived(scene: Scene) -> None:
-    """Mass, inertia, Hertz constant and the collision time of the fastest striker must be
-    finite positive numbers: extreme but finite inputs (a radius of 1e300 m, a density of
-    1e308) overflow them."""
-    try:
-        values = {"mass": scene.mass, "inertia": scene.inertia, "Hertz constant": scene.hertz_k}
-        vmax = max(scene.striker_velocities)
-        if vmax > 0:
-            values["collision time"] = scene.contact_time(vmax)
-    except (OverflowError, ZeroDivisionError, ValueError):
-        values = {"mass": math.inf}
-    for what, x in values.items():
-        if not (math.isfinite(x) and x > 0):
-            field = "chain.radius" if ("chain.radius" in scene.given
-                                       or "material" not in scene.given) else "material"
-            raise SceneError(field, f"with material {scene.material.name!r} and striker "
-                             f"speeds up to {max(scene.striker_velocities):g} m/s the {what} is "
-                             f"{x:g}, not a finite positive number",
-                             "use physical values (radius in metres, E in Pa, rho in kg/m^3)")
+    """What the scene's values make of the chain, before it runs: every sphere's mass and
+    moment of inertia and every Hertz constant a finite positive number (an extreme radius,
+    1e300 m or 1e-200 m, overflows them; materials are bounded by ``materials.FIELDS``); no
+    contact and no wall overlapping beyond ``guards.HARD_OVERLAP_RATIO`` of its R* at rest
+    or at the fastest striker (``guards.check_overlaps``); each enabled effect's own checks
+    (its module's ``check``); and a finite collision time."""
+    def refuse(i: int, problem: str):
+        field = "striker.radius" if i == 0 and "striker.radius" in scene.given else "chain.radius"
+        raise SceneError(field, f"with radius {scene.radii[i]:g} m {problem}",
+                         "give the radius in metres, e.g. 150e-6")
+
+    for i, r in enumerate(scene.radii[:1] if scene.uniform else scene.radii):
+        if not r ** 0.5 * r < 1e100:            # r^3 and more would overflow
+            refuse(i, f"sphere {i + 1}'s mass and inertia overflow")
+    wall = (scene.wall_k,) if scene.wall is not None else ()
+    for what, values in (("mass", scene.masses), ("moment of inertia", scene.inertias),
+                         ("Hertz constant", scene.contact_k + wall)):
+        bad = next((i for i, x in enumerate(values) if not (math.isfinite(x) and x > 0)), None)
+        if bad is not None:
+            where = "contact" if what == "Hertz constant" else "sphere"
+            refuse(min(bad, scene.n - 1), f"the {what} of {where} {bad + 1} is "
+                   f"{values[bad]:g}, not a finite positive number")
+    check_overlaps(scene)
+    for m in EFFECT_MODULES:
+        if scene.has(m.SPEC.name) and hasattr(m, "check"):
+            m.check(scene)
+    vmax = max(scene.striker_velocities)
+    if vmax > 0:
+        try:
+            tc = scene.contact_time(vmax)
+        except (OverflowError, ZeroDivisionError, ValueError):
+            tc = math.nan
+        if not (math.isfinite(tc) and tc > 0):
+            raise SceneError("striker.velocity", f"at {vmax:g} m/s the collision time is "
+                             f"{tc:g}, not a finite positive number",
+                             "give the striker's speed in m/s, e.g. 0.1")
 
 
 def _check_sampling(scene: Scene) -> None:
