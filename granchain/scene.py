@@ -650,7 +650,7 @@ def _chain_spheres(spec: dict, n: int, material: Material, given: set[str]):
         if "material" in given:
             raise SceneError("material", "has no effect beside the chain.materials list, "
                              "which gives every sphere's material",
-                             "drop material, or drop chain.materials")
+                             "drop material (--set material=null), or drop chain.materials")
         if len(mats) != n:
             raise SceneError("chain.materials", f"has {len(mats)} entries but the chain has "
                              f"n = {n} spheres", f"give exactly n = {n} materials "
@@ -838,6 +838,8 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     (kept as ``Scene.given``)."""
     spec = _merge(DEFAULTS, raw)
     name = check_name(spec["name"], "name") if spec["name"] is not None else "scene"
+    if spec["material"] is None:            # null: the default (e.g. --set material=null)
+        spec["material"] = DEFAULTS["material"]
     material = _material(spec["material"])
 
     n = _num(spec, "chain.n",
