@@ -95,7 +95,7 @@ class Overlap:
     so no contact can overlap more (for the striker's own contact with sphere 2 the
     bound is 2^0.4 = 1.32 x the two-sphere collision's overlap, measured 1.00-1.02 x in a
     chain)."""
-    where: str          # 'contact 3-4 (ptfe-ss440c)', 'sphere 15 on the wall (ss440c on rigid)'
+    index: int          # the contact of spheres index+1, index+2 (0-based); n-1: the wall
     r_star: float       # the contact's R* (m); the wall's: R_n
     K: float            # its Hertz constant (N/m^1.5)
     static: float
@@ -108,6 +108,19 @@ class Overlap:
     @property
     def peak_ratio(self) -> float:
         return self.peak / self.r_star
+
+
+def contact_name(scene, index: int) -> str:
+    """'contact 3-4 (ptfe-ss440c)', 'the contacts 2-3 to 14-15' (alike spheres), 'sphere 15
+    on the wall (ss440c on rigid)': the words for contact ``index`` of :func:`overlaps`."""
+    n, mats = scene.n, scene.materials
+    if index == n - 1:
+        return f"sphere {n} on the wall ({mats[-1].name} on {scene.wall.name})"
+    if not scene.uniform:
+        return f"contact {index + 1}-{index + 2} ({mats[index].name}-{mats[index + 1].name})"
+    if index == 0 or n == 3:
+        return f"contact {index + 1}-{index + 2}"
+    return f"the contacts 2-3 to {n - 1}-{n}"
 
 
 def _energy_overlap(energy: float, K: float) -> float:
@@ -128,23 +141,15 @@ def overlaps(scene, v_striker: float) -> list[Overlap]:
     except OverflowError:
         energy = math.inf
     F0 = scene.precompression
-    n, mats = scene.n, scene.materials
     out = []
     for i in scene.distinct_contacts:
         static = (F0 / ks[i]) ** (2.0 / 3.0) if F0 > 0.0 and i > 0 else 0.0
-        if not scene.uniform:
-            where = f"contact {i + 1}-{i + 2} ({mats[i].name}-{mats[i + 1].name})"
-        elif i == 0 or n == 3:
-            where = f"contact {i + 1}-{i + 2}"
-        else:
-            where = f"the contacts 2-3 to {n - 1}-{n}"
-        r_star = rs[i] * rs[i + 1] / (rs[i] + rs[i + 1])
-        out.append(Overlap(where, r_star, ks[i], static, static + _energy_overlap(energy, ks[i])))
+        out.append(Overlap(i, rs[i] * rs[i + 1] / (rs[i] + rs[i + 1]), ks[i], static,
+                           static + _energy_overlap(energy, ks[i])))
     if scene.wall is not None:
         K = scene.wall_k
         static = (F0 / K) ** (2.0 / 3.0) if F0 > 0.0 else 0.0
-        out.append(Overlap(f"sphere {n} on the wall ({mats[-1].name} on {scene.wall.name})",
-                           rs[-1], K, static, static + _energy_overlap(energy, K)))
+        out.append(Overlap(scene.n - 1, rs[-1], K, static, static + _energy_overlap(energy, K)))
     return out
 
 
@@ -161,8 +166,9 @@ def check_overlaps(scene) -> None:
         # the largest load every contact takes within the limit: K (0.1 R*)^(3/2)
         limit = min(o.K * (HARD_OVERLAP_RATIO * o.r_star) ** 1.5 for o in found if o.static)
         raise SceneError(
-            "precompression.force", f"{scene.precompression:g} N presses {worst.where} "
-            f"{worst.static:.3g} m = {worst.static_ratio:.3g} R* deep at rest, beyond the "
+            "precompression.force", f"{scene.precompression:g} N presses "
+            f"{contact_name(scene, worst.index)} {worst.static:.3g} m = "
+            f"{worst.static_ratio:.3g} R* deep at rest, beyond the "
             f"{HARD_OVERLAP_RATIO:g} R* where Hertz contact theory holds",
             f"give precompression.force <= {floor_sig(limit):.2g} N (stiffer or larger "
             "spheres and wall take more)")
@@ -173,8 +179,9 @@ def check_overlaps(scene) -> None:
         limit = min(math.sqrt(2.0 * 0.4 * o.K * (HARD_OVERLAP_RATIO * o.r_star - o.static)
                               ** 2.5 / m1) for o in found)
         raise SceneError(
-            "striker.velocity", f"a striker at {v:g} m/s can press {worst.where} up to "
-            f"{worst.peak:.3g} m = {worst.peak_ratio:.3g} R* deep (its whole kinetic energy "
+            "striker.velocity", f"a striker at {v:g} m/s can press "
+            f"{contact_name(scene, worst.index)} up to {worst.peak:.3g} m = "
+            f"{worst.peak_ratio:.3g} R* deep (its whole kinetic energy "
             f"in that contact), beyond the {HARD_OVERLAP_RATIO:g} R* where Hertz contact "
             "theory holds", f"give striker speeds <= {floor_sig(limit):.2g} m/s"
             + (" or a lower precompression.force" if worst.static else ""))
@@ -189,9 +196,10 @@ def physics_warnings(scene, v_striker: float) -> list[str]:
     if worst.peak_ratio > MAX_OVERLAP_RATIO:
         static = (f" ({worst.static_ratio:.2g} R* of it at rest under precompression.force)"
                   if worst.static else "")
-        out.append(f"v_s = {v:g} m/s: the Hertz overlap of {worst.where} can reach "
-                   f"~{worst.peak_ratio:.2g} R*{static} and exceeds {MAX_OVERLAP_RATIO:g} R* "
-                   "where Hertz contact theory holds (results are outside the model's range)")
+        out.append(f"v_s = {v:g} m/s: the Hertz overlap of {contact_name(scene, worst.index)}"
+                   f" can reach ~{worst.peak_ratio:.2g} R*{static} and exceeds "
+                   f"{MAX_OVERLAP_RATIO:g} R* where Hertz contact theory holds (results are "
+                   "outside the model's range)")
     if v <= 0:
         return out
     if scene.t_end is not None:

@@ -32,8 +32,8 @@ from typing import Any
 from .errors import SceneError
 from .validate import Key, number as _value, number_text, short as _short
 from .scenefile import apply_overrides, read_scene_file
-from .guards import (MIN_SAMPLES_PER_PULSE, check_overlaps, floor_sig, max_sample_dt,
-                     pulse_width)
+from .guards import (HARD_OVERLAP_RATIO, MAX_OVERLAP_RATIO, MIN_SAMPLES_PER_PULSE,
+                     check_overlaps, floor_sig, max_sample_dt, pulse_width)
 from .effects import MODULES as EFFECT_MODULES
 from .materials import FIELD_FIX, FIELDS, RIGID, Material, effective_modulus, library
 
@@ -145,7 +145,8 @@ KEYS: tuple[Key, ...] = (
     Key("material", "-", "The material of the spheres. The library has 316 and 440C stainless, "
         "brass, aluminium 6061, 52100 chrome steel, tungsten carbide, PTFE and soda-lime "
         "glass, each with its source; E, nu, rho of 316 and 440C are handbook values (the "
-        "thesis's Table 2.1 is not available).", allowed=_MATERIAL),
+        "thesis's Table 2.1 is not available). null: the default. Refused beside a "
+        "`chain.materials` list.", allowed=_MATERIAL),
     Key("chain.n", "1", "Number of spheres, particle 1 (the striker) included: at least the "
         "striker and two probes.", integer=True, lo=3, hi=MAX_SPHERES),
     Key("chain.radius", "m", "Sphere radius (the chapter's). A list gives each sphere its "
@@ -153,8 +154,10 @@ KEYS: tuple[Key, ...] = (
         "contact is Hertzian with 1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j and R* = R_i R_j/(R_i "
         "+ R_j); groove, drag, rotation and friction use each sphere's own mass, radius and "
         "inertia.", positive=True, allowed="or a list of n radii"),
-    Key("chain.materials", "-", "Each sphere's material, particle 1 first. null: every sphere "
-        "is `material`.", allowed="a list of n materials, each as `material`"),
+    Key("chain.materials", "-", "Each sphere's material, particle 1 first (one material for "
+        "every sphere: `material`, which is refused beside the list, as is "
+        "`striker.material`). null: every sphere is `material`.",
+        allowed="a list of n materials, each as `material`"),
     Key("chain.radius_spread", "-", "Each member's radii drawn about the nominal ones "
         "(`chain.radius_spread.*` below), from a stream of its own, so a member re-runs alone "
         "bit for bit; both engines take it. null: every member has the nominal radii.",
@@ -168,11 +171,15 @@ KEYS: tuple[Key, ...] = (
     Key("chain.radius_spread.seed", "1", "Seed of the radius draws.", integer=True,
         nonneg=True),
     Key("striker.velocity", "m/s", "The striker's speed towards the chain (the chapter's); a "
-        "list is a sweep, one run per speed.", nonneg=True, allowed="or a list of speeds"),
-    Key("striker.radius", "m", "Particle 1's own radius: a heavy or light striker. null: as "
+        "list is a sweep, one run per speed.", nonneg=True, allowed="or a list of speeds; "
+        f"every contact's peak overlap bound within {HARD_OVERLAP_RATIO:g} R* (warned above "
+        f"{MAX_OVERLAP_RATIO:g} R*)"),
+    Key("striker.radius", "m", "Particle 1's own radius: a heavy or light striker, beside one "
+        "`chain.radius` (refused beside a list, whose first entry is the striker's). null: as "
         "`chain.radius` gives.", positive=True),
-    Key("striker.material", "-", "Particle 1's own material. null: as `chain.materials` (or "
-        "`material`) gives.", allowed="as `material`"),
+    Key("striker.material", "-", "Particle 1's own material, beside `material` (refused beside "
+        "a `chain.materials` list, whose first entry is the striker's). null: as `material` "
+        "gives.", allowed="as `material`"),
     Key("gaps.distribution", "-", "The gaps between neighbours (n-1 of them): `none`, a "
         "packed chain; `fixed`, every gap `mean`; `uniform`, i.i.d. U(0, 2 mean) (the chapter "
         "says \"random\"); `exponential`, i.i.d. with mean `mean`; `list`, the n-1 `values`; "
@@ -245,7 +252,9 @@ KEYS: tuple[Key, ...] = (
     Key("precompression.force", "N", "A dead load F0 on particle 2 pushing the chain onto the "
         "end wall (needs `walls.end`, no gaps). The chain starts at rest in its static state, "
         "every contact from particle 2 to the wall overlapping by (F0/K)^(2/3); the ledger's "
-        "`work_load` is the load's work. null: no load.", nonneg=True),
+        "`work_load` is the load's work. null: no load.", nonneg=True,
+        allowed=f"static overlaps within {HARD_OVERLAP_RATIO:g} R* of each contact (warned "
+        f"above {MAX_OVERLAP_RATIO:g} R*)"),
 )
 _KEY = {k.path: k for k in KEYS}
 
@@ -1007,8 +1016,11 @@ def _check_derived(scene: Scene) -> None:
         if not r ** 0.5 * r < 1e100:            # r^3 and more would overflow
             refuse(i, f"sphere {i + 1}'s mass and inertia overflow")
     wall = (scene.wall_k,) if scene.wall is not None else ()
-    for what, values in (("mass", scene.masses), ("moment of inertia", scene.inertias),
-                         ("Hertz constant", scene.contact_k + wall)):
+    alike = scene.uniform                       # one sphere and one contact stand for all
+    for what, values in (("mass", (scene.mass,) if alike else scene.masses),
+                         ("moment of inertia", (scene.inertia,) if alike else scene.inertias),
+                         ("Hertz constant", ((scene.hertz_k,) if alike else scene.contact_k)
+                          + wall)):
         bad = next((i for i, x in enumerate(values) if not (math.isfinite(x) and x > 0)), None)
         if bad is not None:
             where = "contact" if what == "Hertz constant" else "sphere"

@@ -17,7 +17,7 @@ from pathlib import Path
 import yaml
 from yaml.composer import Composer
 from yaml.constructor import SafeConstructor
-from yaml.events import AliasEvent
+from yaml.events import AliasEvent, ScalarEvent
 from yaml.nodes import ScalarNode
 from yaml.resolver import Resolver
 
@@ -94,45 +94,52 @@ class SceneLoader(Composer, SafeConstructor, Resolver, *_PARSER):
         seg = index.value if isinstance(index, ScalarNode) else "?"
         return f"{base}.{seg}" if base else str(seg)
 
-    def _add(self, values: int, path: str) -> None:
+    def _add(self, values: int, index) -> None:
         self._count += values
         if self._count > MAX_VALUES:
-            raise SceneError(key_of(path), f"the scene file holds more than {MAX_VALUES} "
-                             "values up to here (numbers, names, keys and list entries, YAML "
-                             "aliases expanded)", "a scene needs far fewer: write the value "
-                             "out, one number or a list of at most one entry per sphere")
+            raise SceneError(key_of(self._child_path(index)), f"the scene file holds more "
+                             f"than {MAX_VALUES} values up to here (numbers, names, keys and "
+                             "list entries, YAML aliases expanded)", "a scene needs far fewer: "
+                             "write the value out, one number or a list of at most one entry "
+                             "per sphere")
 
     def compose_node(self, parent, index):
-        path = self._child_path(index)
-        if self.check_event(AliasEvent):
-            node = self.anchors.get(self.peek_event().anchor)
+        event = self.peek_event()
+        if isinstance(event, AliasEvent):
+            node = self.anchors.get(event.anchor)
             if node is not None:
                 size = self._sizes.get(id(node))
                 if size is None:
-                    raise SceneError(key_of(path), "a YAML alias refers to the value that "
-                                     "holds it (the value would contain itself)",
-                                     "write the value out without that alias")
-                self._add(size, path)
+                    raise SceneError(key_of(self._child_path(index)), "a YAML alias refers "
+                                     "to the value that holds it (the value would contain "
+                                     "itself)", "write the value out without that alias")
+                self._add(size, index)
             return super().compose_node(parent, index)
+        self._add(1, index)
+        if isinstance(event, ScalarEvent):
+            # the common case, composed without the base class's checks when unanchored
+            node = (self.compose_scalar_node(None) if event.anchor is None
+                    else super().compose_node(parent, index))
+            if event.anchor is not None:
+                self._sizes[id(node)] = 1
+            if node.tag in _NUMBER_TAGS and len(node.value) > MAX_NUMBER_CHARS:
+                raise SceneError(key_of(self._child_path(index)), f"a number written with "
+                                 f"{len(node.value)} characters (at most "
+                                 f"{MAX_NUMBER_CHARS})", "give the number in a few digits, "
+                                 "e.g. 1.5e-4")
+            return node
         if len(self._stack) >= MAX_DEPTH:
-            raise SceneError(key_of(path), f"lists and mappings nest deeper than {MAX_DEPTH} "
-                             "levels", "a scene value is a number, a name, a list of them or "
-                             "a small mapping")
-        anchor = self.peek_event().anchor
-        start = self._count
-        self._add(1, path)
-        self._stack.append(path)
+            raise SceneError(key_of(self._child_path(index)), f"lists and mappings nest "
+                             f"deeper than {MAX_DEPTH} levels", "a scene value is a number, a "
+                             "name, a list of them or a small mapping")
+        start = self._count - 1
+        self._stack.append(self._child_path(index))
         try:
             node = super().compose_node(parent, index)
         finally:
             self._stack.pop()
-        if anchor is not None:
+        if event.anchor is not None:
             self._sizes[id(node)] = self._count - start
-        if (isinstance(node, ScalarNode) and node.tag in _NUMBER_TAGS
-                and len(node.value) > MAX_NUMBER_CHARS):
-            raise SceneError(key_of(path), f"a number written with {len(node.value)} "
-                             f"characters (at most {MAX_NUMBER_CHARS})",
-                             "give the number in a few digits, e.g. 1.5e-4")
         return node
 
     # --- constructing: duplicate keys ----------------------------------------------------

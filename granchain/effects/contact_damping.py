@@ -63,7 +63,8 @@ KEYS = (
         "required there, refused with `viscoelastic`.", positive=True, hi=1.0),
     Key("damping.eta", "1/(m s)", "eta_n0 of `viscoelastic` (LAMMPS's second "
         "`hertz/material` coefficient); required there, refused with the other models.",
-        nonneg=True),
+        nonneg=True, allowed="a dashpot time m_eff/eta at least 1/100 of the collision time "
+        "(the refusal gives the largest eta)"),
     Key("damping.limit_damping", "-", "`true`: the net normal force is held at >= 0. "
         "`false`: it may turn attractive near the end of a contact, as in LAMMPS (a particle "
         "then peaks slightly above the speed it leaves with). Coulomb caps use |F| either "
