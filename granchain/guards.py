@@ -176,7 +176,7 @@ def check_overlaps(scene) -> None:
     if worst.peak_ratio > HARD_OVERLAP_RATIO:
         # the fastest striker whose energy stays within the limit at every contact
         m1 = scene.masses[0]
-        limit = min(math.sqrt(2.0 * 0.4 * o.K * (HARD_OVERLAP_RATIO * o.r_star - o.static)
+        limit = min(math.sqrt(0.8 * o.K * max(HARD_OVERLAP_RATIO * o.r_star - o.static, 0.0)
                               ** 2.5 / m1) for o in found)
         raise SceneError(
             "striker.velocity", f"a striker at {v:g} m/s can press "

@@ -612,7 +612,7 @@ def _material(value, where: str = "material", *, wall: bool = False) -> Material
             if wall and key == "rho":
                 raise SceneError(f"{where}.rho", "has no effect: the wall does not move",
                                  f"drop it; a wall takes E and nu, e.g. {example}")
-            raise SceneError(f"{where}.{_short(key, 30).strip(chr(39))}", "unknown key",
+            raise SceneError(f"{where}.{key}", "unknown key",
                              f"a material mapping has {', '.join(keys)} (and optional name)")
         for k in keys:
             if k not in value:
@@ -1007,8 +1007,11 @@ def _check_derived(scene: Scene) -> None:
     contact and no wall overlapping beyond ``guards.HARD_OVERLAP_RATIO`` of its R* at rest
     or at the fastest striker (``guards.check_overlaps``); each enabled effect's own checks
     (its module's ``check``); and a finite collision time."""
+    listed = isinstance(scene.spec["chain"].get("radius"), list)
+
     def refuse(i: int, problem: str):
-        field = "striker.radius" if i == 0 and "striker.radius" in scene.given else "chain.radius"
+        field = ("striker.radius" if i == 0 and "striker.radius" in scene.given else
+                 f"chain.radius[{i}]" if listed else "chain.radius")
         raise SceneError(field, f"with radius {scene.radii[i]:g} m {problem}",
                          "give the radius in metres, e.g. 150e-6")
 
