@@ -30,7 +30,7 @@ from typing import Any
 
 
 from .errors import SceneError
-from .validate import Key, number as _value, number_text, short as _short
+from .validate import Key, number_text, short as _short
 from .scenefile import apply_overrides, read_scene_file
 from .guards import (HARD_OVERLAP_RATIO, MAX_OVERLAP_RATIO, MIN_SAMPLES_PER_PULSE,
                      check_overlaps, floor_sig, max_sample_dt, pulse_width)
@@ -469,7 +469,8 @@ class Scene:
         if not self.heterogeneous and self.wall is None:
             return hertz_contact_time(self.mass / 2.0, self.hertz_k, v)
         ms, ks = self.masses, self.contact_k
-        pairs = [(ms[i] * ms[i + 1] / (ms[i] + ms[i + 1]), ks[i]) for i in self.distinct_contacts]
+        pairs = [(ms[i] * ms[i + 1] / (ms[i] + ms[i + 1]), ks[i])
+                 for i in self.distinct_contacts]
         if self.wall is not None:
             pairs.append((ms[-1], self.wall_k))
         tc = min(hertz_contact_time(mu, k, v) for mu, k in pairs)
@@ -788,7 +789,7 @@ def _probes(value, n: int) -> tuple[int, int]:
             raise SceneError(f"probes[{i}]", "particle 1 is the striker",
                              f"give particles from 2 to n = {n}")
         if not 2 <= p <= n:
-            raise SceneError(f"probes[{i}]", f"particle {p} is outside the chain of {n}",
+            raise SceneError(f"probes[{i}]", f"particle {_short(p)} is outside the chain of {n}",
                              f"give particles from 2 to n = {n}")
     p1, p2 = value
     if p2 == p1:

@@ -7,9 +7,10 @@ decades, wrong types, nesting, unknown keys, YAML aliases. Whatever they build, 
 is a run-or-refuse decision: a valid scene, or one GranchainError whose message is one line
 naming the key (``scene field '...'``) or the file, column and row. Never a traceback.
 
-Each example's time is recorded; ``benchmarks/hostile_scenes.py`` prints the distribution
-beside the time of a plain scene (no timed asserts here). The fast tier runs
-FAST_SCENES + FAST_CSVS examples; the slow tier (``-m slow``) SLOW_SCENES + SLOW_CSVS.
+Each example's time is recorded (``-s`` prints the totals); ``benchmarks/hostile_scenes.py``
+prints the distribution beside the time of a plain scene (no timed asserts here). The fast
+tier runs FAST_SCENES scene files, FAST_SCENES scene mappings and FAST_CSVS measurement
+files; the slow tier (``-m slow``) SLOW_SCENES, SLOW_SCENES and SLOW_CSVS.
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ import contextlib
 import io
 import math
 import re
+import sys
 import time
 
 import pytest
@@ -30,8 +32,8 @@ from granchain.materials import library
 from granchain.scene import scene_from_dict
 from granchain.scenefile import parse_yaml
 
-FAST_SCENES, SLOW_SCENES = 300, 3000
-FAST_CSVS, SLOW_CSVS = 300, 3000
+FAST_SCENES, SLOW_SCENES = 150, 3000
+FAST_CSVS, SLOW_CSVS = 150, 3000
 # seconds of each example, for the report (tests/test_fuzz_inputs.py -s prints them)
 TIMES: dict[str, list[float]] = {"scene": [], "csv": []}
 
@@ -48,6 +50,8 @@ def logs(lo: float, hi: float):
 
 wild_numbers = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True), st.integers(-10**30, 10**30),
+    # integers of 5001 digits (beyond what repr() shows) and -1201 digits
+    st.booleans().map(lambda big: 10**5000 if big else -10**1200),
     logs(1e-300, 1e300), logs(1e-300, 1e300).map(lambda x: -x), st.just(0), st.just(-0.0))
 junk = st.recursive(
     st.one_of(st.none(), st.booleans(), wild_numbers, st.text(max_size=8),
@@ -158,7 +162,12 @@ def yaml_text(raw: dict, flow: bool, alias: bool) -> str:
         for key in ("materials", "radius"):
             if isinstance(chain.get(key), list) and chain[key]:
                 chain[key] = [chain[key][0]] * len(chain[key])
-    return yaml.safe_dump(raw, default_flow_style=flow, allow_unicode=True)
+    limit = sys.get_int_max_str_digits()
+    sys.set_int_max_str_digits(0)                     # to write integers of any length
+    try:
+        return yaml.safe_dump(raw, default_flow_style=flow, allow_unicode=True)
+    finally:
+        sys.set_int_max_str_digits(limit)
 
 
 def check_scene_text(text: str, tmp_path) -> None:
@@ -200,6 +209,24 @@ def test_fuzzed_scenes_are_run_or_refused_in_one_line(tmp_path, raw, flow, alias
 @given(scenes(), st.booleans(), st.booleans())
 def test_many_fuzzed_scenes_are_run_or_refused_in_one_line(tmp_path, raw, flow, alias):
     check_scene_text(yaml_text(raw, flow, alias), tmp_path)
+
+
+@settings(max_examples=FAST_SCENES, **SCENE_SETTINGS)
+@given(scenes())
+def test_fuzzed_scene_mappings_are_validated_or_refused(raw):
+    """The same mappings given to the validator directly (as a program does, through
+    Scene.derive or scene_from_dict): a Scene or one SceneError naming a key."""
+    try:
+        scene_from_dict(raw)
+    except SceneError as exc:
+        assert exc.field and "\n" not in exc.problem and len(str(exc)) < 1200, str(exc)
+
+
+@pytest.mark.slow
+@settings(max_examples=SLOW_SCENES, **dict(SCENE_SETTINGS, derandomize=False))
+@given(scenes())
+def test_many_fuzzed_scene_mappings_are_validated_or_refused(raw):
+    test_fuzzed_scene_mappings_are_validated_or_refused.hypothesis.inner_test(raw)
 
 
 def test_the_scene_strategy_reaches_both_answers(tmp_path):

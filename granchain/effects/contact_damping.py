@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 from ..errors import SceneError
 from ..lammps.units import lmp_float as _r, to_micro
-from ..validate import Key, number_text
+from ..validate import Key, number_text, short
 from .spec import EffectSpec
 
 SPEC = EffectSpec("contact_damping", work="work_contact_damping", work_slot="L_WORK_DAMPING",
@@ -91,7 +91,7 @@ def settings(sec: dict, given: frozenset, on: bool) -> Settings:
                              fix="give LAMMPS's viscoelastic coefficient eta_n0 in 1/(m s), >= 0")
     limit = sec["limit_damping"]
     if not isinstance(limit, bool):
-        raise SceneError("damping.limit_damping", f"expected true or false, got {limit!r}",
+        raise SceneError("damping.limit_damping", f"expected true or false, got {short(limit)}",
                          "write limit_damping: true or false")
     if model == "viscoelastic":
         if on and eta is None:
