@@ -120,14 +120,19 @@ def test_hostile_scene_files_are_refused_in_one_short_line(tmp_path, capsys, cas
     assert words in err and len(err) < 1200, err
 
 
+# the child's own peak resident memory (VmHWM, in kB): getrusage's ru_maxrss would carry
+# the parent's size over fork and exec
+PEAK_RSS = ("import sys\nfrom granchain.cli import main\nrc = main(sys.argv[1:])\n"
+            "hwm = [ln for ln in open('/proc/self/status') if ln.startswith('VmHWM')]\n"
+            "open(sys.argv.pop(), 'w').write(hwm[0].split()[1])\nsys.exit(rc)\n")
+
+
 def _validate_in_subprocess(path: str, tmp_path: Path) -> tuple[int, str, float]:
     """(exit status, stderr, peak resident memory in MB) of ``granchain validate path`` in
     a child whose address space is capped at 2 GB (a regression fails, it cannot take the
     machine's memory); a child still running after 120 s fails the test."""
     rss = tmp_path / "rss"
-    code = ("import resource, sys\nfrom granchain.cli import main\nrc = main(sys.argv[1:])\n"
-            f"open({str(rss)!r}, 'w').write(str(resource.getrusage("
-            "resource.RUSAGE_SELF).ru_maxrss))\nsys.exit(rc)\n")
+    code = PEAK_RSS.replace("sys.argv.pop()", repr(str(rss)))
 
     def cap():
         resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
