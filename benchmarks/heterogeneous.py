@@ -28,7 +28,7 @@ R = ", ".join(["1.5e-4", "1.2e-4"] * 7 + ["1.5e-4"])
 M = ", ".join(["ss440c", "chrome_steel_52100"] * 7 + ["ss440c"])
 ALL = "[hertz, groove_friction, air_drag, rotation, particle_friction, rolling_friction]"
 CASES = {"uniform": [], "dimer radii": [f"chain.radius=[{R}]"],
-         "two steels": [f"chain.materials=[{M}]"],
+         "two steels": [f"chain.materials=[{M}]", "material=null"],
          "WC striker": ["striker.material=tungsten_carbide"], "end wall": ["walls.end=ss440c"]}
 CASES["all four"] = [s for k in ("dimer radii", "two steels", "WC striker", "end wall")
                      for s in CASES[k]]

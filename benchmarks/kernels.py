@@ -48,9 +48,10 @@ SETTINGS = {
 # three maps and 3 sqrt)
 OPS = {"hertz-verlet": (1, 1), "all-verlet": (11, 3), "all-rk4": (4 * 8 + 3, 4 * 2 + 3)}
 _R = ", ".join(["1.5e-4", "1.2e-4"] * 7 + ["1.5e-4"])
-_M = ", ".join(["ss440c", "chrome_steel_52100"] * 7 + ["ss440c"])
-HETERO = [f"chain.radius=[{_R}]", f"chain.materials=[{_M}]",
-          "striker.material=tungsten_carbide", "walls.end=ss440c"]
+# the striker tungsten carbide, then 52100 and 440C in turn (the list gives every sphere's)
+_M = ", ".join(["tungsten_carbide"] + ["chrome_steel_52100", "ss440c"] * 7)
+HETERO = [f"chain.radius=[{_R}]", f"chain.materials=[{_M}]", "material=null",
+          "walls.end=ss440c"]
 # heterogeneous settings (this tree only) -> the uniform setting of the previous kernels
 # they are compared with
 HETERO_SETTINGS = {"het-hertz-verlet": ("hertz-verlet", SETTINGS["hertz-verlet"] + HETERO),

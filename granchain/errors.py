@@ -18,4 +18,16 @@ class SceneError(GranchainError):
 
     def __init__(self, field: str, problem: str, fix: str):
         self.field, self.problem, self.fix = field, problem, fix
-        super().__init__(f"scene field '{field}': {problem}; {fix}")
+        super().__init__(f"scene field '{_cut(field, MAX_FIELD)}': {_cut(problem, MAX_PART)}; "
+                         f"{_cut(fix, MAX_PART)}")
+
+
+# A message stays short whatever the scene holds: a key's path (which may hold a key the
+# user wrote, of any length) and each part are cut to these many characters.
+MAX_FIELD = 100
+MAX_PART = 500
+
+
+def _cut(text: str, limit: int) -> str:
+    text = str(text)
+    return text if len(text) <= limit else text[:limit - 3] + "..."

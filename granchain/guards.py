@@ -5,8 +5,11 @@ No numba or scipy, so ``granchain validate`` stays light. The solitary wave come
 ``granchain.analytic``.
 
 * :func:`max_sample_dt`: the coarsest sampling that resolves the pulse.
-* :func:`physics_warnings`: where the scene leaves the model's range (Hertz overlap) or
-  ends before its wave arrives.
+* :func:`overlaps`: the static and peak Hertz overlap of every contact and the wall, each
+  with its own materials and radii; :func:`check_overlaps` refuses a scene beyond
+  HARD_OVERLAP_RATIO of R* (scene validation calls it).
+* :func:`physics_warnings`: where the scene leaves the model's range (a Hertz overlap
+  above MAX_OVERLAP_RATIO of R*) or ends before its wave arrives.
 * :func:`require_resolved`: what needs the step refuses a scene still at method auto.
 * :func:`check_run`: the whole run (every member of an ensemble or sweep, a grid, a
   workflow job) refused in one line when its estimated steps or memory
@@ -26,8 +29,11 @@ from .analytic import nesterenko_speed, pulse_width
 # Fewest samples per solitary-wave width a scene's output.sample_dt may give (v_max at
 # 25 samples per width is off by 6e-4, at 400 by 3e-8).
 MIN_SAMPLES_PER_PULSE = 20
-# Hertz theory holds for small overlaps: warn above this peak overlap / radius
+# Hertz theory holds for overlaps small against the contact's R* (contact radius
+# a = sqrt(R* delta) small against R*): warn above this overlap / R* at any contact ...
 MAX_OVERLAP_RATIO = 1e-2
+# ... and refuse a scene above this one (a = 0.32 R*: far outside the model)
+HARD_OVERLAP_RATIO = 0.1
 
 
 def require_resolved(scene, who: str) -> None:
@@ -82,20 +88,124 @@ def far_probe_arrival(scene, v: float) -> float:
     return crossing_time(scene, v, scene.probes[-1] - 1, 0.64 * v)
 
 
+@dataclass(frozen=True)
+class Overlap:
+    """The overlaps of one contact of a scene (or of the alike contacts it stands for) at
+    one striker speed, in m. ``static``: at rest under the dead load, (F0/K)^(2/3);
+    ``peak``: a bound on the largest, the static one plus the overlap that stores the
+    striker's whole kinetic energy (1/2) m_1 v^2 in this contact, (5 E / (2 K))^(2/5).
+    The chain conserves energy and dissipation only removes it, and compressing a contact
+    from its static overlap takes at least the energy that compressing it from zero does,
+    so no contact can overlap more (for the striker's own contact with sphere 2 the
+    bound is 2^0.4 = 1.32 x the two-sphere collision's overlap, measured 1.00-1.02 x in a
+    chain)."""
+    index: int          # the contact of spheres index+1, index+2 (0-based); n-1: the wall
+    r_star: float       # the contact's R* (m); the wall's: R_n
+    K: float            # its Hertz constant (N/m^1.5)
+    static: float
+    peak: float
+
+    @property
+    def static_ratio(self) -> float:
+        return self.static / self.r_star
+
+    @property
+    def peak_ratio(self) -> float:
+        return self.peak / self.r_star
+
+
+def contact_name(scene, index: int) -> str:
+    """'contact 3-4 (ptfe-ss440c)', 'the contacts 2-3 to 14-15' (alike spheres), 'sphere 15
+    on the wall (ss440c on rigid)': the words for contact ``index`` of :func:`overlaps`."""
+    n, mats = scene.n, scene.materials
+    if index == n - 1:
+        return f"sphere {n} on the wall ({mats[-1].name} on {scene.wall.name})"
+    if not scene.uniform:
+        return f"contact {index + 1}-{index + 2} ({mats[index].name}-{mats[index + 1].name})"
+    if index == 0 or n == 3:
+        return f"contact {index + 1}-{index + 2}"
+    return f"the contacts 2-3 to {n - 1}-{n}"
+
+
+def _energy_overlap(energy: float, K: float) -> float:
+    """The overlap (m) of a Hertz contact K that stores ``energy`` (J): (2/5) K d^(5/2)."""
+    try:
+        return (2.5 * energy / K) ** 0.4
+    except (OverflowError, ZeroDivisionError):
+        return math.inf
+
+
+def overlaps(scene, v_striker: float) -> list[Overlap]:
+    """The static and peak overlaps (:class:`Overlap`) of every distinct contact of a scene
+    and of its wall, each with its own spheres' materials and radii, for the striker at
+    ``v_striker`` (m/s)."""
+    ms, rs, ks = scene.masses, scene.radii, scene.contact_k
+    try:
+        energy = 0.5 * ms[0] * float(v_striker) ** 2
+    except OverflowError:
+        energy = math.inf
+    F0 = scene.precompression
+    out = []
+    for i in scene.distinct_contacts:
+        static = (F0 / ks[i]) ** (2.0 / 3.0) if F0 > 0.0 and i > 0 else 0.0
+        out.append(Overlap(i, rs[i] * rs[i + 1] / (rs[i] + rs[i + 1]), ks[i], static,
+                           static + _energy_overlap(energy, ks[i])))
+    if scene.wall is not None:
+        K = scene.wall_k
+        static = (F0 / K) ** (2.0 / 3.0) if F0 > 0.0 else 0.0
+        out.append(Overlap(scene.n - 1, rs[-1], K, static, static + _energy_overlap(energy, K)))
+    return out
+
+
+def check_overlaps(scene) -> None:
+    """Refuse (SceneError naming the key to change) a scene in which a contact or the wall
+    overlaps by more than HARD_OVERLAP_RATIO of its R*: at rest under the dead load
+    (``precompression.force``), or at the bound of :func:`overlaps` for the fastest striker
+    (``striker.velocity``)."""
+    from .errors import SceneError
+    v = max(scene.striker_velocities)
+    found = overlaps(scene, v)
+    worst = max(found, key=lambda o: o.static_ratio)
+    if worst.static_ratio > HARD_OVERLAP_RATIO:
+        # the largest load every contact takes within the limit: K (0.1 R*)^(3/2)
+        limit = min(o.K * (HARD_OVERLAP_RATIO * o.r_star) ** 1.5 for o in found if o.static)
+        raise SceneError(
+            "precompression.force", f"{scene.precompression:g} N presses "
+            f"{contact_name(scene, worst.index)} {worst.static:.3g} m = "
+            f"{worst.static_ratio:.3g} R* deep at rest, beyond the "
+            f"{HARD_OVERLAP_RATIO:g} R* where Hertz contact theory holds",
+            f"give precompression.force <= {floor_sig(limit):.2g} N (stiffer or larger "
+            "spheres and wall take more)")
+    worst = max(found, key=lambda o: o.peak_ratio)
+    if worst.peak_ratio > HARD_OVERLAP_RATIO:
+        # the fastest striker whose energy stays within the limit at every contact
+        m1 = scene.masses[0]
+        limit = min(math.sqrt(0.8 * o.K * max(HARD_OVERLAP_RATIO * o.r_star - o.static, 0.0)
+                              ** 2.5 / m1) for o in found)
+        raise SceneError(
+            "striker.velocity", f"a striker at {v:g} m/s can press "
+            f"{contact_name(scene, worst.index)} up to {worst.peak:.3g} m = "
+            f"{worst.peak_ratio:.3g} R* deep (its whole kinetic energy "
+            f"in that contact), beyond the {HARD_OVERLAP_RATIO:g} R* where Hertz contact "
+            "theory holds", f"give striker speeds <= {floor_sig(limit):.2g} m/s"
+            + (" or a lower precompression.force" if worst.static else ""))
+
+
 def physics_warnings(scene, v_striker: float) -> list[str]:
     """Warnings (one line each, without ';' or ',' so that tables can join them) for one
     striker speed of a scene; [] when none."""
     out = []
     v = float(v_striker)
+    worst = max(overlaps(scene, v), key=lambda o: o.peak_ratio)
+    if worst.peak_ratio > MAX_OVERLAP_RATIO:
+        static = (f" ({worst.static_ratio:.2g} R* of it at rest under precompression.force)"
+                  if worst.static else "")
+        out.append(f"v_s = {v:g} m/s: the Hertz overlap of {contact_name(scene, worst.index)}"
+                   f" can reach ~{worst.peak_ratio:.2g} R*{static} and exceeds "
+                   f"{MAX_OVERLAP_RATIO:g} R* where Hertz contact theory holds (results are "
+                   "outside the model's range)")
     if v <= 0:
         return out
-    mu = scene.mass / 2.0
-    delta_m = (5.0 * mu * v * v / (4.0 * scene.hertz_k)) ** 0.4
-    ratio = delta_m / scene.radius
-    if ratio > MAX_OVERLAP_RATIO:
-        out.append(f"v_s = {v:g} m/s: peak Hertz overlap ~{ratio:.2g} R exceeds "
-                   f"{MAX_OVERLAP_RATIO:g} R, where Hertz contact theory no longer holds "
-                   "(results are outside the model's range)")
     if scene.t_end is not None:
         arrive = far_probe_arrival(scene, v)
         if scene.t_end < arrive:

@@ -13,6 +13,22 @@ from importlib import resources
 
 import yaml
 
+from .validate import Key
+
+#: The fields of a material a scene writes as a mapping (``material``,
+#: ``chain.materials[i]``, ``striker.material``; a wall's ``walls.end`` takes E and nu),
+#: with the range of solids they must lie in: a value outside is refused naming its key.
+FIELDS = {k.name: k for k in (
+    Key("E", "Pa", "Young's modulus, from a soft gel's (1e3 Pa) to beyond diamond's "
+        "(1.2e12 Pa).", lo=1e3, hi=1e13),
+    Key("nu", "1", "Poisson ratio, in (-1, 0.5).", lo=-0.999, hi=0.4999),
+    Key("rho", "kg/m^3", "Density, from an aerogel's to beyond osmium's (22590 kg/m^3).",
+        lo=1.0, hi=1e5),
+)}
+FIELD_FIX = {"E": "give Young's modulus in Pa, from 1e3 to 1e13 (steel: 200e9)",
+             "nu": "a Poisson ratio lies in (-1, 0.5)",
+             "rho": "give the density in kg/m^3, from 1 to 1e5 (steel: 7800)"}
+
 
 @dataclass(frozen=True)
 class Material:

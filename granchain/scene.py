@@ -24,16 +24,18 @@ import json
 import math
 import re
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 
 from .errors import SceneError
-from .validate import Key, number as _value, number_text, short as _short
+from .validate import Key, number_text, short as _short
 from .scenefile import apply_overrides, read_scene_file
-from .guards import MIN_SAMPLES_PER_PULSE, floor_sig, max_sample_dt, pulse_width
+from .guards import (HARD_OVERLAP_RATIO, MAX_OVERLAP_RATIO, MIN_SAMPLES_PER_PULSE,
+                     check_overlaps, floor_sig, max_sample_dt, pulse_width)
 from .effects import MODULES as EFFECT_MODULES
-from .materials import RIGID, Material, effective_modulus, library
+from .materials import FIELD_FIX, FIELDS, RIGID, Material, effective_modulus, library
 
 EFFECTS = tuple(m.SPEC.name for m in EFFECT_MODULES)
 # effect -> its scene section, for the effects that have one (granchain.effects: each
@@ -128,8 +130,10 @@ BLOCK_DEFAULTS = {"chain.radius_spread": RADIUS_SPREAD_DEFAULTS,
                   "measurement": MEASUREMENT_DEFAULTS}
 
 _MATERIAL = ("a name from `granchain/data/materials.yaml`, or a mapping `{E: 200e9, nu: 0.28, "
-             "rho: 7800}` (E > 0 Pa, -0.999 <= nu <= 0.4999, rho > 0 kg/m^3; an optional "
-             "`name`)")
+             "rho: 7800}` (" + ", ".join(k.range_text.strip("`") + ("" if k.unit == "1" else
+                                                                   f" {k.unit}")
+                                         for k in FIELDS.values())
+             + "; an optional `name`)")
 
 # Each key of DEFAULTS, MEASUREMENT_DEFAULTS and RADIUS_SPREAD_DEFAULTS, declared once (an
 # effect's section: its module's KEYS). The checks below take the bounds and choices from
@@ -141,7 +145,8 @@ KEYS: tuple[Key, ...] = (
     Key("material", "-", "The material of the spheres. The library has 316 and 440C stainless, "
         "brass, aluminium 6061, 52100 chrome steel, tungsten carbide, PTFE and soda-lime "
         "glass, each with its source; E, nu, rho of 316 and 440C are handbook values (the "
-        "thesis's Table 2.1 is not available).", allowed=_MATERIAL),
+        "thesis's Table 2.1 is not available). null: the default. Refused beside a "
+        "`chain.materials` list.", allowed=_MATERIAL),
     Key("chain.n", "1", "Number of spheres, particle 1 (the striker) included: at least the "
         "striker and two probes.", integer=True, lo=3, hi=MAX_SPHERES),
     Key("chain.radius", "m", "Sphere radius (the chapter's). A list gives each sphere its "
@@ -149,8 +154,10 @@ KEYS: tuple[Key, ...] = (
         "contact is Hertzian with 1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j and R* = R_i R_j/(R_i "
         "+ R_j); groove, drag, rotation and friction use each sphere's own mass, radius and "
         "inertia.", positive=True, allowed="or a list of n radii"),
-    Key("chain.materials", "-", "Each sphere's material, particle 1 first. null: every sphere "
-        "is `material`.", allowed="a list of n materials, each as `material`"),
+    Key("chain.materials", "-", "Each sphere's material, particle 1 first (one material for "
+        "every sphere: `material`, which is refused beside the list, as is "
+        "`striker.material`). null: every sphere is `material`.",
+        allowed="a list of n materials, each as `material`"),
     Key("chain.radius_spread", "-", "Each member's radii drawn about the nominal ones "
         "(`chain.radius_spread.*` below), from a stream of its own, so a member re-runs alone "
         "bit for bit; both engines take it. null: every member has the nominal radii.",
@@ -164,11 +171,15 @@ KEYS: tuple[Key, ...] = (
     Key("chain.radius_spread.seed", "1", "Seed of the radius draws.", integer=True,
         nonneg=True),
     Key("striker.velocity", "m/s", "The striker's speed towards the chain (the chapter's); a "
-        "list is a sweep, one run per speed.", nonneg=True, allowed="or a list of speeds"),
-    Key("striker.radius", "m", "Particle 1's own radius: a heavy or light striker. null: as "
+        "list is a sweep, one run per speed.", nonneg=True, allowed="or a list of speeds; "
+        f"every contact's peak overlap bound within {HARD_OVERLAP_RATIO:g} R* (warned above "
+        f"{MAX_OVERLAP_RATIO:g} R*)"),
+    Key("striker.radius", "m", "Particle 1's own radius: a heavy or light striker, beside one "
+        "`chain.radius` (refused beside a list, whose first entry is the striker's). null: as "
         "`chain.radius` gives.", positive=True),
-    Key("striker.material", "-", "Particle 1's own material. null: as `chain.materials` (or "
-        "`material`) gives.", allowed="as `material`"),
+    Key("striker.material", "-", "Particle 1's own material, beside `material` (refused beside "
+        "a `chain.materials` list, whose first entry is the striker's). null: as `material` "
+        "gives.", allowed="as `material`"),
     Key("gaps.distribution", "-", "The gaps between neighbours (n-1 of them): `none`, a "
         "packed chain; `fixed`, every gap `mean`; `uniform`, i.i.d. U(0, 2 mean) (the chapter "
         "says \"random\"); `exponential`, i.i.d. with mean `mean`; `list`, the n-1 `values`; "
@@ -241,7 +252,9 @@ KEYS: tuple[Key, ...] = (
     Key("precompression.force", "N", "A dead load F0 on particle 2 pushing the chain onto the "
         "end wall (needs `walls.end`, no gaps). The chain starts at rest in its static state, "
         "every contact from particle 2 to the wall overlapping by (F0/K)^(2/3); the ledger's "
-        "`work_load` is the load's work. null: no load.", nonneg=True),
+        "`work_load` is the load's work. null: no load.", nonneg=True,
+        allowed=f"static overlaps within {HARD_OVERLAP_RATIO:g} R* of each contact (warned "
+        f"above {MAX_OVERLAP_RATIO:g} R*)"),
 )
 _KEY = {k.path: k for k in KEYS}
 
@@ -332,12 +345,25 @@ class Scene:
         E_star = self.material.E / (2.0 * (1.0 - self.material.nu**2))
         return 4.0 / 3.0 * E_star * math.sqrt(self.radius / 2.0)
 
+    @cached_property
+    def uniform(self) -> bool:
+        """Are the nominal spheres all alike, the chain's one bead (a radius spread may
+        still make each member's differ)?"""
+        return (self.radii.count(self.radius) == len(self.radii)
+                and self.materials.count(self.material) == len(self.materials))
+
     @property
     def heterogeneous(self) -> bool:
         """Do the spheres differ (radius or material) from the chain's one bead, or may a
         member's (a radius spread)?"""
-        return self.radius_spread is not None or any(r != self.radius for r in self.radii) \
-            or any(m != self.material for m in self.materials)
+        return self.radius_spread is not None or not self.uniform
+
+    @property
+    def distinct_contacts(self) -> range:
+        """Indices i of the contacts (spheres i+1, i+2; 0-based) that stand for all of them:
+        every contact, or for alike spheres the striker's and the next (the others repeat
+        the next: the same spheres, the same static overlap)."""
+        return range(min(self.n - 1, 2)) if self.uniform else range(self.n - 1)
 
     def with_radii(self, radii) -> "Scene":
         """This scene with the given radii (a member's draw of a radius spread) and no
@@ -345,26 +371,26 @@ class Scene:
         radii = tuple(float(r) for r in radii)
         return dataclasses.replace(self, radii=radii, radius=radii[1], radius_spread=None)
 
-    @property
+    @cached_property
     def masses(self) -> tuple[float, ...]:
         """Each sphere's mass (kg), particle 1 first."""
-        if not self.heterogeneous:
+        if self.uniform:
             return (self.mass,) * self.n
         return tuple(m.rho * 4.0 / 3.0 * math.pi * r**3
                      for m, r in zip(self.materials, self.radii))
 
-    @property
+    @cached_property
     def inertias(self) -> tuple[float, ...]:
         """Each sphere's moment of inertia (2/5) m R^2 (kg m^2)."""
         if not self.heterogeneous:
             return (self.inertia,) * self.n
         return tuple(0.4 * m * r * r for m, r in zip(self.masses, self.radii))
 
-    @property
+    @cached_property
     def contact_k(self) -> tuple[float, ...]:
         """K of each contact i, i+1 (n-1 of them): (4/3) E* sqrt(R*) with
         1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j and R* = R_i R_j / (R_i + R_j)."""
-        if not self.heterogeneous:
+        if self.uniform:
             return (self.hertz_k,) * (self.n - 1)
         return tuple(hertz_constant(self.materials[i], self.radii[i], self.materials[i + 1],
                                     self.radii[i + 1]) for i in range(self.n - 1))
@@ -448,7 +474,8 @@ class Scene:
         if not self.heterogeneous and self.wall is None:
             return hertz_contact_time(self.mass / 2.0, self.hertz_k, v)
         ms, ks = self.masses, self.contact_k
-        pairs = [(ms[i] * ms[i + 1] / (ms[i] + ms[i + 1]), ks[i]) for i in range(self.n - 1)]
+        pairs = [(ms[i] * ms[i + 1] / (ms[i] + ms[i + 1]), ks[i])
+                 for i in self.distinct_contacts]
         if self.wall is not None:
             pairs.append((ms[-1], self.wall_k))
         tc = min(hertz_contact_time(mu, k, v) for mu, k in pairs)
@@ -463,15 +490,16 @@ class Scene:
         diameters over Nesterenko's speed, the shortest over the beads' materials and
         radii (particles 2 to n); under a preload at most 5 diameters over the sound
         speed c0 = 2R sqrt(k2/m) of the stiffest preloaded contact."""
-        if not self.heterogeneous:
+        if self.uniform:
             width = float(pulse_width(self.material, self.radius, v_m))
         else:
             width = min(float(pulse_width(m, r, v_m))
                         for m, r in set(zip(self.materials[1:], self.radii[1:])))
         F0 = self.precompression
         if F0 > 0.0:
-            ms, rs = self.masses, self.radii
-            for k, K in enumerate(self.contact_k[1:], start=1):
+            ms, rs, ks = self.masses, self.radii, self.contact_k
+            for k in self.distinct_contacts[1:]:
+                K = ks[k]
                 k2 = 1.5 * K ** (2.0 / 3.0) * F0 ** (1.0 / 3.0)
                 c0 = 2.0 * rs[k] * math.sqrt(k2 / ms[k])
                 width = min(width, 10.0 * rs[k] / c0)
@@ -584,27 +612,33 @@ def _material(value, where: str = "material", *, wall: bool = False) -> Material
                              f"{hint} or give {example}")
         return lib[value]
     if isinstance(value, dict):
-        extra = set(value) - set(keys) - {"name"} - ({"rho"} if wall else set())
+        extra = set(value) - set(keys) - {"name"}
         if extra:
-            raise SceneError(f"{where}.{sorted(map(str, extra))[0]}", "unknown key",
+            key = sorted(map(str, extra))[0]
+            if wall and key == "rho":
+                raise SceneError(f"{where}.rho", "has no effect: the wall does not move",
+                                 f"drop it; a wall takes E and nu, e.g. {example}")
+            raise SceneError(f"{where}.{key}", "unknown key",
                              f"a material mapping has {', '.join(keys)} (and optional name)")
         for k in keys:
             if k not in value:
                 raise SceneError(f"{where}.{k}", "missing",
                                  "give E (Pa), nu" + ("" if wall else " and rho (kg/m^3)"))
-        E = _value(value["E"], f"{where}.E", positive=True)
-        nu = _value(value["nu"], f"{where}.nu", lo=-0.999, hi=0.4999,
-                    fix="a Poisson ratio lies in (-1, 0.5)")
-        rho = _value(value["rho"], f"{where}.rho", positive=True) if "rho" in value else 0.0
+        E, nu = (FIELDS[k].number(value[k], field=f"{where}.{k}", fix=FIELD_FIX[k])
+                 for k in ("E", "nu"))
+        rho = FIELDS["rho"].number(value["rho"], field=f"{where}.rho",
+                                   fix=FIELD_FIX["rho"]) if not wall else 0.0
         name = check_name(value.get("name", "custom"), f"{where}.name")
         return Material(name, E, nu, rho)
     raise SceneError(where, f"expected a name or a mapping, got {_short(value)}",
                      f"write {where.rpartition('.')[2].split('[')[0]}: ss440c or {example}")
 
 
-def _chain_spheres(spec: dict, n: int, material: Material):
+def _chain_spheres(spec: dict, n: int, material: Material, given: set[str]):
     """(radii, materials) of the n spheres, particle 1 (the striker) first, from
-    chain.radius, chain.materials, striker.radius and striker.material."""
+    chain.radius, chain.materials, striker.radius and striker.material. A key another one
+    overrides is refused: ``material`` (given) beside a chain.materials list, striker.radius
+    beside a chain.radius list, striker.material beside a chain.materials list."""
     rad = spec["chain"]["radius"]
     fix = "give the sphere radius in metres, e.g. 150e-6"
     if isinstance(rad, list):
@@ -620,18 +654,37 @@ def _chain_spheres(spec: dict, n: int, material: Material):
     if mats is None:
         materials = [material] * n
     else:
+        if isinstance(mats, (str, dict)):          # one material: that is `material`
+            one = mats if isinstance(mats, str) and NAME_RE.fullmatch(mats) else "..."
+            raise SceneError("chain.materials", f"takes a list of n = {n} materials, got one "
+                             f"({_short(mats)})", f"for one material for every sphere write "
+                             f"material: {one} and drop chain.materials")
         if not isinstance(mats, list):
             raise SceneError("chain.materials", f"expected a list, got {_short(mats)}",
                              f"give a list of n = {n} materials, or drop it")
+        if "material" in given:
+            raise SceneError("material", "has no effect beside the chain.materials list, "
+                             "which gives every sphere's material",
+                             "drop material (--set material=null), or drop chain.materials")
         if len(mats) != n:
             raise SceneError("chain.materials", f"has {len(mats)} entries but the chain has "
                              f"n = {n} spheres", f"give exactly n = {n} materials "
                              "(particle 1, the striker, first)")
         materials = [_material(m, f"chain.materials[{i}]") for i, m in enumerate(mats)]
     if spec["striker"].get("radius") is not None:
+        if isinstance(rad, list):
+            raise SceneError("striker.radius", "given beside the chain.radius list, whose "
+                             "first entry is already the striker's radius",
+                             "drop striker.radius, or set the striker's radius as "
+                             "chain.radius[0]")
         radii[0] = _num(spec, "striker.radius",
                         fix="give the striker's radius in metres, e.g. 189e-6")
     if spec["striker"].get("material") is not None:
+        if mats is not None:
+            raise SceneError("striker.material", "given beside the chain.materials list, "
+                             "whose first entry is already the striker's material",
+                             "drop striker.material, or set the striker's material as "
+                             "chain.materials[0]")
         materials[0] = _material(spec["striker"]["material"], "striker.material")
     return tuple(radii), tuple(materials)
 
@@ -741,7 +794,7 @@ def _probes(value, n: int) -> tuple[int, int]:
             raise SceneError(f"probes[{i}]", "particle 1 is the striker",
                              f"give particles from 2 to n = {n}")
         if not 2 <= p <= n:
-            raise SceneError(f"probes[{i}]", f"particle {p} is outside the chain of {n}",
+            raise SceneError(f"probes[{i}]", f"particle {_short(p)} is outside the chain of {n}",
                              f"give particles from 2 to n = {n}")
     p1, p2 = value
     if p2 == p1:
@@ -803,12 +856,14 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
     whole = set(given) if whole is None else set(whole)
     spec = _merge(DEFAULTS, raw)
     name = check_name(spec["name"], "name") if spec["name"] is not None else "scene"
+    if spec["material"] is None:            # null: the default (e.g. --set material=null)
+        spec["material"] = DEFAULTS["material"]
     material = _material(spec["material"])
 
     n = _num(spec, "chain.n",
              fix=f"a chain needs at least 3 particles (the striker and two probes) and at most "
              f"{MAX_SPHERES}")
-    radii, materials = _chain_spheres(spec, n, material)
+    radii, materials = _chain_spheres(spec, n, material, given)
     radius = radii[1]
     if spec["chain"].get("materials") is not None:
         material = materials[1]
@@ -955,24 +1010,48 @@ def _measurement(spec: dict, given: set[str]) -> Measurement | None:
 
 
 def _check_derived(scene: Scene) -> None:
-    """Mass, inertia, Hertz constant and the collision time of the fastest striker must be
-    finite positive numbers: extreme but finite inputs (a radius of 1e300 m, a density of
-    1e308) overflow them."""
-    try:
-        values = {"mass": scene.mass, "inertia": scene.inertia, "Hertz constant": scene.hertz_k}
-        vmax = max(scene.striker_velocities)
-        if vmax > 0:
-            values["collision time"] = scene.contact_time(vmax)
-    except (OverflowError, ZeroDivisionError, ValueError):
-        values = {"mass": math.inf}
-    for what, x in values.items():
-        if not (math.isfinite(x) and x > 0):
-            field = "chain.radius" if ("chain.radius" in scene.given
-                                       or "material" not in scene.given) else "material"
-            raise SceneError(field, f"with material {scene.material.name!r} and striker "
-                             f"speeds up to {max(scene.striker_velocities):g} m/s the {what} is "
-                             f"{x:g}, not a finite positive number",
-                             "use physical values (radius in metres, E in Pa, rho in kg/m^3)")
+    """What the scene's values make of the chain, before it runs: every sphere's mass and
+    moment of inertia and every Hertz constant a finite positive number (an extreme radius,
+    1e300 m or 1e-200 m, overflows them; materials are bounded by ``materials.FIELDS``); no
+    contact and no wall overlapping beyond ``guards.HARD_OVERLAP_RATIO`` of its R* at rest
+    or at the fastest striker (``guards.check_overlaps``); each enabled effect's own checks
+    (its module's ``check``); and a finite collision time."""
+    listed = isinstance(scene.spec["chain"].get("radius"), list)
+
+    def refuse(i: int, problem: str):
+        field = ("striker.radius" if i == 0 and "striker.radius" in scene.given else
+                 f"chain.radius[{i}]" if listed else "chain.radius")
+        raise SceneError(field, f"with radius {scene.radii[i]:g} m {problem}",
+                         "give the radius in metres, e.g. 150e-6")
+
+    for i, r in enumerate(scene.radii[:1] if scene.uniform else scene.radii):
+        if not r ** 0.5 * r < 1e100:            # r^3 and more would overflow
+            refuse(i, f"sphere {i + 1}'s mass and inertia overflow")
+    wall = (scene.wall_k,) if scene.wall is not None else ()
+    alike = scene.uniform                       # one sphere and one contact stand for all
+    for what, values in (("mass", (scene.mass,) if alike else scene.masses),
+                         ("moment of inertia", (scene.inertia,) if alike else scene.inertias),
+                         ("Hertz constant", ((scene.hertz_k,) if alike else scene.contact_k)
+                          + wall)):
+        bad = next((i for i, x in enumerate(values) if not (math.isfinite(x) and x > 0)), None)
+        if bad is not None:
+            where = "contact" if what == "Hertz constant" else "sphere"
+            refuse(min(bad, scene.n - 1), f"the {what} of {where} {bad + 1} is "
+                   f"{values[bad]:g}, not a finite positive number")
+    check_overlaps(scene)
+    for m in EFFECT_MODULES:
+        if scene.has(m.SPEC.name) and hasattr(m, "check"):
+            m.check(scene)
+    vmax = max(scene.striker_velocities)
+    if vmax > 0:
+        try:
+            tc = scene.contact_time(vmax)
+        except (OverflowError, ZeroDivisionError, ValueError):
+            tc = math.nan
+        if not (math.isfinite(tc) and tc > 0):
+            raise SceneError("striker.velocity", f"at {vmax:g} m/s the collision time is "
+                             f"{tc:g}, not a finite positive number",
+                             "give the striker's speed in m/s, e.g. 0.1")
 
 
 def _check_sampling(scene: Scene) -> None:

@@ -2,7 +2,10 @@
 
 Every problem is a one-line :class:`~granchain.errors.SceneError` naming the file or the
 key: a path that is missing, a directory, not a regular file or larger than a scene can be;
-text that is not UTF-8; YAML that does not parse, or gives a key twice in one mapping.
+text that is not UTF-8; YAML that does not parse, gives a key twice in one mapping, holds
+more values than a scene can (YAML aliases expanded), nests too deep or writes a number
+with too many digits (:class:`SceneLoader`). Each is found with work bounded by the file's
+size, whatever its aliases stand for.
 Validation of the mapping is ``granchain.scene``'s job.
 """
 from __future__ import annotations
@@ -12,24 +15,134 @@ import stat
 from pathlib import Path
 
 import yaml
+from yaml.composer import Composer
+from yaml.constructor import SafeConstructor
+from yaml.events import AliasEvent, ScalarEvent
+from yaml.nodes import ScalarNode
+from yaml.resolver import Resolver
 
 from .errors import SceneError
 
 MAX_SCENE_BYTES = 1 << 20      # a scene is a page of YAML; anything larger is not a scene
+# The most values (numbers, names, keys, list entries, and each mapping or list) a scene
+# file may hold, counted with YAML aliases expanded: per-sphere lists (chain.radius,
+# chain.materials, gaps.values) of up to ~50000 entries in all fit. Reading and validating
+# the largest such file takes about a second (benchmarks/hostile_scenes.py); an alias
+# "bomb" (a few hundred bytes standing for 10^9 values) is refused after this many.
+MAX_VALUES = 50_000
+# The deepest nesting of lists and mappings (a scene needs 4: chain.materials[i].E)
+MAX_DEPTH = 10
+# The longest number (characters) YAML may read: sexagesimal integers (1:00:00...) cost
+# time quadratic in their length
+MAX_NUMBER_CHARS = 1000
+
+try:                        # libyaml's event parser (C), ~10x faster than the pure-Python one
+    from yaml.cyaml import CParser as _CParser
+    _PARSER: tuple = (_CParser,)
+except ImportError:         # pragma: no cover - PyYAML without libyaml
+    from yaml.parser import Parser
+    from yaml.reader import Reader
+    from yaml.scanner import Scanner
+    _CParser = None
+    _PARSER = (Reader, Scanner, Parser)
+
+_NUMBER_TAGS = ("tag:yaml.org,2002:int", "tag:yaml.org,2002:float")
 
 
-class SceneLoader(yaml.SafeLoader):
-    """YAML SafeLoader that refuses a key given twice in one mapping (at any depth),
-    naming the key's path and the line of its second occurrence."""
+def key_of(path: str) -> str:
+    """The key part of a value's path: 'chain.n[3][0]' -> 'chain.n' ('<file>' at the top)."""
+    return path.partition("[")[0] or "<file>"
+
+
+class SceneLoader(Composer, SafeConstructor, Resolver, *_PARSER):
+    """YAML safe loader for scene files.
+
+    It refuses, naming the key's path: a key given twice in one mapping (at any depth; the
+    line of its second occurrence), more than MAX_VALUES values with YAML aliases expanded
+    (counted while the document is composed, so a large file or an alias bomb stops
+    early), an alias to the value that holds it, nesting deeper than MAX_DEPTH, and a
+    number longer than MAX_NUMBER_CHARS characters. The events come from libyaml when
+    PyYAML has it; the document is composed here, so its depth is checked before any
+    recursion."""
 
     def __init__(self, stream, root: str = ""):
-        super().__init__(stream)
+        if _CParser is not None:
+            _CParser.__init__(self, stream)
+        else:                                   # pragma: no cover
+            Reader.__init__(self, stream)
+            Scanner.__init__(self)
+            Parser.__init__(self)
+        Composer.__init__(self)
+        SafeConstructor.__init__(self)
+        Resolver.__init__(self)
         self._paths: dict[int, str] = {}
         self._root = root
+        self._stack: list[str] = []       # paths of the collections being composed
+        self._count = 0                   # values so far, aliases expanded
+        self._sizes: dict[int, int] = {}  # anchored node -> its values, aliases expanded
 
     def _path_of(self, node) -> str:
         return self._paths.get(id(node), self._root)
 
+    # --- composing: count, depth, aliases ----------------------------------------------
+    def _child_path(self, index) -> str:
+        base = self._stack[-1] if self._stack else self._root
+        if isinstance(index, int) and not isinstance(index, bool):
+            return f"{base}[{index}]"
+        if index is None:                         # a mapping's key, or the document
+            return base
+        seg = index.value if isinstance(index, ScalarNode) else "?"
+        return f"{base}.{seg}" if base else str(seg)
+
+    def _add(self, values: int, index) -> None:
+        self._count += values
+        if self._count > MAX_VALUES:
+            raise SceneError(key_of(self._child_path(index)), f"the scene file holds more "
+                             f"than {MAX_VALUES} values up to here (numbers, names, keys and "
+                             "list entries, YAML aliases expanded)", "a scene needs far fewer: "
+                             "write the value out, one number or a list of at most one entry "
+                             "per sphere")
+
+    def compose_node(self, parent, index):
+        event = self.peek_event()
+        if isinstance(event, AliasEvent):
+            node = self.anchors.get(event.anchor)
+            if node is not None:
+                size = self._sizes.get(id(node))
+                if size is None:
+                    raise SceneError(key_of(self._child_path(index)), "a YAML alias refers "
+                                     "to the value that holds it (the value would contain "
+                                     "itself)", "write the value out without that alias")
+                self._add(size, index)
+            return super().compose_node(parent, index)
+        self._add(1, index)
+        if isinstance(event, ScalarEvent):
+            # the common case, composed without the base class's checks when unanchored
+            node = (self.compose_scalar_node(None) if event.anchor is None
+                    else super().compose_node(parent, index))
+            if event.anchor is not None:
+                self._sizes[id(node)] = 1
+            if node.tag in _NUMBER_TAGS and len(node.value) > MAX_NUMBER_CHARS:
+                raise SceneError(key_of(self._child_path(index)), f"a number written with "
+                                 f"{len(node.value)} characters (at most "
+                                 f"{MAX_NUMBER_CHARS})", "give the number in a few digits, "
+                                 "e.g. 1.5e-4")
+            return node
+        if len(self._stack) >= MAX_DEPTH:
+            raise SceneError(key_of(self._child_path(index)), f"lists and mappings nest "
+                             f"deeper than {MAX_DEPTH} levels", "a scene value is a number, a "
+                             "name, a list of them or a small mapping")
+        start = self._count - 1
+        self._stack.append(self._child_path(index))
+        try:
+            node = super().compose_node(parent, index)
+        finally:
+            self._stack.pop()
+        if event.anchor is not None:
+            self._sizes[id(node)] = self._count - start
+        return node
+
+    # --- constructing: duplicate keys ----------------------------------------------------
     def construct_mapping(self, node, deep=False):
         if isinstance(node, yaml.MappingNode):
             base = self._path_of(node)
@@ -75,7 +188,11 @@ def parse_yaml(text: str, what: str, root: str = ""):
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark else ""
-        problem = getattr(exc, "problem", None) or "syntax error"
+        position = getattr(exc, "position", None)          # a reader's error
+        if not mark and isinstance(position, int):
+            where = f" at line {text.count(chr(10), 0, position) + 1}"
+        problem = (getattr(exc, "problem", None) or getattr(exc, "reason", None)
+                   or "syntax error")
         raise SceneError("<file>", f"{what} is not valid YAML{where} ({problem})",
                          "fix the YAML syntax") from None
     except (ValueError, TypeError, OverflowError, RecursionError) as exc:

@@ -6,6 +6,7 @@ default: the checks read its bounds and choices, and the reference page of the s
 (``granchain.scenekeys``) is written from the same declarations."""
 from __future__ import annotations
 
+import datetime
 import difflib
 import math
 import re
@@ -14,10 +15,67 @@ from dataclasses import dataclass
 from .errors import SceneError
 
 
+# How deep short() looks into nested lists and mappings, and how many of their entries
+# it shows: the summary of any value costs a bounded amount of work.
+SHORT_DEPTH = 2
+SHORT_ITEMS = 6
+# An integer with more decimal digits than this is shown by its size, not its digits.
+SHORT_DIGITS = 30
+# types whose repr is short whatever the value (YAML's dates and timestamps)
+_SMALL_REPR = {datetime.date.__repr__, datetime.datetime.__repr__}
+
+
 def short(value, limit: int = 60) -> str:
-    """repr of a value for a one-line message, cut to ``limit`` characters."""
-    text = repr(value)
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+    """A one-line summary of a value for a message: about ``limit`` characters, and a
+    value's length after a cut (at most ``limit`` + 30 in all).
+
+    Bounded work whatever the value: a string is cut before it is quoted, an integer of
+    many digits is shown by its number of digits, a list or mapping shows its first
+    entries to SHORT_DEPTH levels (deeper ones as ``[...]``) and its length. A value that
+    contains itself, or shares parts through YAML aliases, costs no more than any other."""
+    text = _summary(value, limit, 0)
+    return text if len(text) <= limit + 30 else text[:limit + 27] + "..."
+
+
+def _summary(value, budget: int, depth: int) -> str:
+    if value is None or isinstance(value, (bool, float)):
+        return repr(value)
+    if isinstance(value, int):
+        bits = value.bit_length()
+        if bits <= 3.33 * SHORT_DIGITS:
+            return repr(value)
+        return f"<an integer of ~{int(bits * 0.30103) + 1} digits>"
+    if isinstance(value, (str, bytes)):
+        cut = value[:budget + 1]
+        text = repr(cut)
+        return text if len(cut) == len(value) else text + f"... ({len(value)} characters)"
+    if isinstance(value, (list, tuple, set, frozenset, dict)):
+        is_map = isinstance(value, dict)
+        opening, closing = ("{", "}") if is_map else ("(", ")") if isinstance(value, tuple) \
+            else ("[", "]")
+        if depth >= SHORT_DEPTH:
+            return f"{opening}...{closing}" if len(value) else opening + closing
+        parts, used = [], 2
+        for i, item in enumerate(value.items() if is_map else value):
+            room = budget - used
+            if is_map:
+                part = (_summary(item[0], room, depth + 1) + ": "
+                        + _summary(item[1], room, depth + 1))
+            else:
+                part = _summary(item, room, depth + 1)
+            if i >= SHORT_ITEMS or (parts and len(part) > room):
+                parts.append("...")
+                break
+            parts.append(part)
+            used += len(part) + 2
+        text = opening + ", ".join(parts) + closing
+        if parts and parts[-1] == "...":
+            text += f" ({len(value)} entries)"
+        return text
+    if type(value).__repr__ in _SMALL_REPR:
+        return repr(value)
+    return f"<{type(value).__name__}>"
+
 
 
 def number(node, field: str, *, positive=False, nonneg=False, integer=False,

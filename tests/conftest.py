@@ -90,6 +90,8 @@ def packed(**over):
            "striker": {"velocity": 0.1}, "effects": ["hertz"], "probes": [2, 13],
            "integrator": {"method": "rk4", "dt": 1e-9}}
     from granchain.scene import apply_overrides
+    if "chain.materials" in over:
+        del raw["material"]                  # the list gives every sphere's material
     return scene_from_dict(apply_overrides(raw, [f"{k}={v}" for k, v in over.items()]))
 
 

@@ -195,6 +195,8 @@ def scene(damping, **sections):
             d[key].update(value)
         else:
             d[key] = value
+    if d["chain"].get("materials") is not None:
+        del d["material"]                 # the list gives every sphere's material
     return scene_from_dict(d)
 
 

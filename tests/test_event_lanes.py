@@ -18,6 +18,8 @@ def _scene(**over):
            "striker": {"velocity": 0.1}, "effects": ALL, "probes": [2, 11],
            "integrator": EVENT}
     raw.update(over)
+    if "materials" in raw["chain"]:
+        del raw["material"]              # the list gives every sphere's material
     return scene_from_dict(raw)
 
 

@@ -267,6 +267,8 @@ def scene(**sections):
             d[key].update(value)
         else:
             d[key] = value
+    if d["chain"].get("materials") is not None:
+        del d["material"]                 # the list gives every sphere's material
     return scene_from_dict(d)
 
 

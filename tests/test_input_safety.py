@@ -1112,7 +1112,8 @@ def test_uncreatable_lammps_workdir_is_one_line(tmp_path, capsys):
 @pytest.mark.parametrize("text, field", [
     ("chain: {radius: 1.0e300}\n", "'chain.radius'"),
     ("chain: {radius: 1.0e-200}\n", "'chain.radius'"),
-    ("material: {E: 1.0e-300, nu: 0.3, rho: 1.0e300}\n", "'material'"),
+    ("material: {E: 1.0e-300, nu: 0.3, rho: 1.0e300}\n", "'material.E'"),
+    ("material: {E: 200.0e9, nu: 0.3, rho: 1.0e308}\n", "'material.rho'"),
 ])
 def test_inputs_that_overflow_the_derived_quantities_are_one_line(tmp_path, capsys, text, field):
     refused(capsys, ["validate", write(tmp_path, text)], field)

@@ -32,7 +32,7 @@ CASES = {
                                    "chain.radius=[150.0e-6, 189.0e-6, 150.0e-6, 189.0e-6, "
                                    "150.0e-6, 189.0e-6, 150.0e-6, 189.0e-6, 150.0e-6, "
                                    "189.0e-6, 150.0e-6, 189.0e-6, 150.0e-6, 189.0e-6, "
-                                   "150.0e-6]"]),
+                                   "150.0e-6]", "material=null"]),
     "damped": ("gaps-20nm-440c.yaml", [f"effects=[hertz, groove_friction, air_drag, rotation, "
                                        "particle_friction, contact_damping]",
                                        "damping.e=0.9", "ensemble.realisations=3"]),

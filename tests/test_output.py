@@ -43,7 +43,8 @@ RUNS = {
     "wall": [PACKED, "--set=walls.end=rigid", "--set=t_end=1e-5"],
     "heterogeneous": [PACKED, "--set=chain.n=5", "--set=probes=[2,5]",
                       "--set=chain.radius=[1.5e-4,1e-4,1.5e-4,1e-4,1.5e-4]",
-                      "--set=chain.materials=[ss440c,brass,ss440c,brass,ss440c]"],
+                      "--set=chain.materials=[ss440c,brass,ss440c,brass,ss440c]",
+                      "--set=material=null"],
     "measured": [PACKED, "--set=chain.n=8", "--set=probes=[2,7]",
                  "--set=measurement.filter=bessel"],
 }

@@ -25,9 +25,11 @@ DEFAULTS = {"T0": 0.052, "L": 2.5e-3, "form": "as_printed"}
 FORMS = ("as_printed", "odd")
 KEYS = (
     Key("drag.T0", "s", "Time constant T0 of the drag law F = -m (v/T0 - v^2/L); the "
-        "default is the chapter's fit (its Chapter 4).", positive=True),
+        "default is the chapter's fit (its Chapter 4). A drag that stops a sphere within a "
+        "microsecond is no air drag (and overflows the explicit steps).", lo=1e-6),
     Key("drag.L", "m", "Length L of the drag law; the default is the chapter's fit (its "
-        "Chapter 4).", positive=True),
+        "Chapter 4). Below a micrometre the printed form's propulsive term v^2/L runs away.",
+        lo=1e-6),
     Key("drag.form", "-", "`as_printed`: the chapter's Eq. 5.1 as printed, F = -m (v/T0 - "
         "v^2/L), which turns propulsive for v > L/T0 (about 0.048 m/s); `odd`: F = -m (v/T0 "
         "- v|v|/L), the form odd in v.", choices=FORMS),

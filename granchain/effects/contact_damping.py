@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 from ..errors import SceneError
 from ..lammps.units import lmp_float as _r, to_micro
-from ..validate import Key
+from ..validate import Key, number_text, short
 from .spec import EffectSpec
 
 SPEC = EffectSpec("contact_damping", work="work_contact_damping", work_slot="L_WORK_DAMPING",
@@ -63,7 +63,8 @@ KEYS = (
         "required there, refused with `viscoelastic`.", positive=True, hi=1.0),
     Key("damping.eta", "1/(m s)", "eta_n0 of `viscoelastic` (LAMMPS's second "
         "`hertz/material` coefficient); required there, refused with the other models.",
-        nonneg=True),
+        nonneg=True, allowed="a dashpot time m_eff/eta at least 1/100 of the collision time "
+        "(the refusal gives the largest eta)"),
     Key("damping.limit_damping", "-", "`true`: the net normal force is held at >= 0. "
         "`false`: it may turn attractive near the end of a contact, as in LAMMPS (a particle "
         "then peaks slightly above the speed it leaves with). Coulomb caps use |F| either "
@@ -90,7 +91,7 @@ def settings(sec: dict, given: frozenset, on: bool) -> Settings:
                              fix="give LAMMPS's viscoelastic coefficient eta_n0 in 1/(m s), >= 0")
     limit = sec["limit_damping"]
     if not isinstance(limit, bool):
-        raise SceneError("damping.limit_damping", f"expected true or false, got {limit!r}",
+        raise SceneError("damping.limit_damping", f"expected true or false, got {short(limit)}",
                          "write limit_damping: true or false")
     if model == "viscoelastic":
         if on and eta is None:
@@ -161,7 +162,7 @@ def time_scale(scene, v: float) -> tuple[float, str]:
     cd = build(scene)
     m, R, K = scene.masses, scene.radii, scene.contact_k
     pairs = [(m[k] * m[k + 1] / (m[k] + m[k + 1]), R[k] * R[k + 1] / (R[k] + R[k + 1]), K[k])
-             for k in range(scene.n - 1)]
+             for k in scene.distinct_contacts]
     if scene.wall is not None:
         pairs.append((m[-1], R[-1], scene.wall_k))
     rate = 0.0
@@ -172,6 +173,44 @@ def time_scale(scene, v: float) -> tuple[float, str]:
         else:
             rate = max(rate, cd.damp * math.sqrt(k * math.sqrt(d) / meff))
     return (math.inf if rate == 0.0 else 1.0 / rate), "the contact dashpot's time m_eff/eta"
+
+
+# The most dashpot times m_eff/eta a collision may last: beyond, a contact is damped far
+# past critical (about 16 x), does not rebound, passes no wave on, and is too stiff for the
+# integrators (measured on a packed 440C chain at 0.1 m/s: eta_n0 = 1e12 1/(m s), a ratio of
+# 2.8, already stops the wave within 6 spheres; 1e14, a ratio of 280, runs out of time;
+# 1e20 gives non-finite velocities).
+MAX_DAMPING_RATIO = 100.0
+
+
+def check(scene) -> None:
+    """Refuse (SceneError naming the key) damping whose dashpot time m_eff/eta
+    (:func:`time_scale`) at the fastest striker is shorter than the collision time over
+    MAX_DAMPING_RATIO. Only ``viscoelastic``'s eta_n0 can get there: the c(e) of
+    ``coeff_restitution`` and ``tsuji`` stay below sqrt(5) for every 0 < e <= 1."""
+    v = max(scene.striker_velocities)
+    if v <= 0.0:
+        return
+    tau, _ = time_scale(scene, v)
+    tc = scene.contact_time(v)
+    if not tc / tau > MAX_DAMPING_RATIO:
+        return
+    st = scene.setting(SPEC.name)
+    key, value, unit = (("damping.eta", st.eta, " 1/(m s)") if st.model == "viscoelastic"
+                        else ("damping.e", st.e, ""))
+    limit = st.eta * MAX_DAMPING_RATIO * tau / tc if st.model == "viscoelastic" else None
+    raise SceneError(key, f"{value:g}{unit} damps a collision at {v:g} m/s within {tau:.2g} s "
+                     f"(m_eff/eta), {tc / tau:.3g} x faster than the collision lasts "
+                     f"({tc:.2g} s): far past critical damping, no wave passes and no "
+                     "integrator can follow it",
+                     f"give eta <= {_round_down(limit)}" if limit is not None else
+                     "give a larger e")
+
+
+def _round_down(x: float) -> str:
+    """x rounded down to 2 significant digits, as text (a limit the user can paste back)."""
+    e = math.floor(math.log10(x)) - 1
+    return number_text(float(f"{math.floor(x / 10.0**e) * 10.0**e:.2g}"))
 
 
 def kernel(cd: ContactDamping) -> tuple[dict, dict]:

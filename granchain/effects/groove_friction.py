@@ -52,9 +52,10 @@ KEYS = (
         "default, a 90-degree groove (s = 0.7071), is assumed: the thesis's Chapter 4, which "
         "fixes s, is not available.", lo=1e-6, hi=180.0),
     Key("groove.mu", "1", "Coulomb coefficient mu_pg of the groove walls on every sphere; the "
-        "default is the chapter's fit (its Chapter 4).", nonneg=True),
+        "default is the chapter's fit (its Chapter 4).", nonneg=True, hi=10.0),
     Key("groove.g", "m/s^2", "Gravitational acceleration, which loads the spheres onto the "
-        "groove walls.", nonneg=True),
+        "groove walls (at most 1000 g: beyond, the groove's forces overflow the steps).",
+        nonneg=True, hi=1e4),
     Key("groove.kt", "N/m", "Stick spring k_g of the elastic-plastic (Cundall-Strack) groove "
         "contact. `mindlin`: the Mindlin stiffness of the two wall contacts under the static "
         "wall load m g / (2 s) each, k_g = 2 x 8 G*_w a_w (a sphere on a flat of its own "

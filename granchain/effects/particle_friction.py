@@ -34,7 +34,7 @@ MODELS = ("mindlin", "linear_history")
 KEYS = (
     Key("contact.mu_pp", "1", "Coulomb coefficient mu_pp of the friction between neighbouring "
         "spheres, on the slip w = R (omega_k + omega_k+1): |T| <= mu_pp f at each loaded "
-        "contact; the default is the chapter's fit (its Chapter 4).", nonneg=True),
+        "contact; the default is the chapter's fit (its Chapter 4).", nonneg=True, hi=10.0),
     Key("contact.tangential", "-", "The stick law, as LAMMPS's: `mindlin`, k_t = 8 G_eff a "
         "(a = sqrt(R* delta), G_eff = G/(2(2-nu))), so that both engines share one law; "
         "`linear_history`, a constant k_t (`contact.kt`).", choices=MODELS),

@@ -409,7 +409,10 @@ def check_chain_scenes(preset: dict) -> list[StudyScene]:
     out: list[StudyScene] = []
     for k, ch in enumerate(chains):
         at = f"{where}.{k}"
-        for material in _study_materials(preset, spec):
+        # a chain with materials of its own is the same chain for every study material
+        # (the scene takes no `material` beside chain.materials): built once, for the first
+        materials = _study_materials(preset, spec)[:1 if "materials" in ch else None]
+        for material in materials:
             for g in _as_list(ch.get("gap_mean_nm", [0])):
                 gaps = {"distribution": "none"} if g == 0 else \
                     {"distribution": dist, "mean": float(g) * 1e-9}
@@ -423,6 +426,7 @@ def check_chain_scenes(preset: dict) -> list[StudyScene]:
                     if "materials" in ch:
                         raw["chain"]["materials"] = _pattern(ch["materials"], n,
                                                              f"{at}.materials")
+                        del raw["material"]
                     for key in ("material", "radius"):
                         if f"striker_{key}" in ch:
                             raw["striker"][key] = ch[f"striker_{key}"]
