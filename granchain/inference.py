@@ -190,6 +190,7 @@ from .fileio import atomic_write_bytes
 from .gapdesign import EMPHASIS, design
 from .gaps import Member
 from .scene import Scene
+from .validate import short
 
 TIMING_COLUMNS = ("dt_peak_s", "dt_front_s")
 PEAK_COLUMNS = ("vmax_1_m_s", "vmax_2_m_s")     # measured peaks at the two probes (m/s)
@@ -257,9 +258,10 @@ def _number(text: str, where: str) -> float:
     try:
         x = float(text)
     except ValueError:
-        raise _bad(where, f"{text!r} is not a number", "give a number in SI units") from None
+        raise _bad(where, f"{short(text)} is not a number", "give a number in SI units") from None
     if not math.isfinite(x):
-        raise _bad(where, f"{text!r} is not a finite number", "give a measured value or drop the row")
+        raise _bad(where, f"{short(text)} is not a finite number",
+                   "give a measured value or drop the row")
     return x
 
 
@@ -308,11 +310,11 @@ def read_measurements(path, peaks: bool = False) -> Measurements:
     for h in header:
         if h not in COLUMNS:
             close = difflib.get_close_matches(h, COLUMNS, n=1)
-            raise _bad(f"{name}, column {h!r}", "unknown column",
+            raise _bad(f"{name}, column {short(h)}", "unknown column",
                        f"did you mean {close[0]!r}?" if close else f"use {', '.join(COLUMNS)}")
     for j, h in enumerate(header):
         if h in header[:j]:
-            raise _bad(f"{name}, column {h!r}", f"given twice (header cells {header.index(h) + 1} "
+            raise _bad(f"{name}, column {short(h)}", f"given twice (header cells {header.index(h) + 1} "
                        f"and {j + 1})", "keep one")
     if "v_striker_m_s" not in header:
         raise _bad(f"{name}, column 'v_striker_m_s'", "missing",
@@ -405,12 +407,12 @@ def parse_fit(text: str) -> tuple[str, ...]:
     for w in names:
         if w not in FITS:
             close = difflib.get_close_matches(w, FITS, n=1)
-            raise GranchainError(f"--fit: unknown parameter {w!r}; " + (
+            raise GranchainError(f"--fit: unknown parameter {short(w)}; " + (
                 f"did you mean {close[0]!r}?" if close else
                 "fit gap_mean, or gap_mean,restitution"))
     for j, w in enumerate(names):
         if w in names[:j]:
-            raise GranchainError(f"--fit: {w!r} is named twice; name each parameter once")
+            raise GranchainError(f"--fit: {short(w)} is named twice; name each parameter once")
     if "gap_mean" not in names:
         raise GranchainError("--fit: the restitution is fitted together with the mean gap "
                              "(both set the timing and the peaks); give --fit "

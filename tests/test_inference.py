@@ -25,6 +25,7 @@ import pytest
 
 from granchain import inference
 from granchain.cli import main
+from granchain.errors import GranchainError
 from granchain.scene import load_scene, scene_from_dict
 
 from conftest import REPO
@@ -573,3 +574,16 @@ def test_an_explicit_base_scene_that_cannot_be_used_is_one_line(tmp_path, capsys
     refused(capsys, ["infer", str(csv_path), "--scene", str(scene), "--gap-points", "3",
                      "--realisations", "2", "--cache-dir", str(tmp_path / "c")], *needles)
     assert not (tmp_path / "c").exists()
+
+
+@pytest.mark.parametrize("text", ["v_striker_m_s,dt_peak_s\n0.05," + "x" * 100000 + "\n",
+                                  "v_striker_m_s," + "y" * 100000 + "\n0.05,1\n"])
+def test_a_huge_cell_or_header_is_refused_in_a_short_line(tmp_path, text):
+    """A refusal summarises the offending cell (validate.short): a 100 kB cell gives a
+    line of a few hundred characters naming the column, not a 100 kB message."""
+    p = tmp_path / "m.csv"
+    p.write_text(text)
+    with pytest.raises(GranchainError) as exc:
+        inference.read_measurements(p)
+    msg = str(exc.value)
+    assert len(msg) < 400 and "100000 characters" in msg and "\n" not in msg
