@@ -293,6 +293,7 @@ def test_lammps_and_the_reference_engine_agree_on_a_radius_spread_ensemble():
     sc = scene_from_dict(SPREAD)
     ref, lmp = run_scene(sc), run_scene(sc, engine="lammps")
     assert [r.engine for r in lmp] == ["lammps"] * 6 and lmp[0].v_max != lmp[1].v_max
+    assert [r.engine for r in ref] == ["reference"] * 6
     for a, b in zip(ref, lmp):
         assert b.status == a.status == "passed" and b.samples == a.samples
         va, vb = np.array(a.v_max), np.array(b.v_max)

@@ -229,6 +229,7 @@ def test_field_chains_match_the_reference_engine(name, tmp_path):
         x_last = [ln for ln in (tmp_path / lammps_deck.DATA_NAME).read_text().splitlines()
                   if re.match(rf"\d+ \d+ ", ln) and int(ln.split()[0]) % cs.n == 0]
         assert len({ln.split()[4] for ln in x_last}) == 1     # one wall plane for all
+    assert len(ref) == len(lmp) == len(mem) >= 1
     for r, lt in zip(ref, lmp):
         rows = member_rows(cs, r, lt)
         bad = [row for row in rows if row["ok"] is False]
@@ -327,6 +328,7 @@ def test_radius_spread_ensembles_match_the_reference_engine(name, tmp_path):
         assert len(set(x_last)) == B                      # each chain's last sphere its own x
         assert np.all(x_last + atoms[n - 1::n, 2] / 2 > 0)    # each at its own wall overlap
         assert "fix             x0 lasts store/state 0 x" in deck and "x<=f_x0" in deck
+    assert len(ref) == len(lmp) == B >= 1
     for b, (r, lt) in enumerate(zip(ref, lmp)):
         rows = member_rows(cs, r, lt)
         bad = [row for row in rows if row["ok"] is False]

@@ -352,7 +352,7 @@ def test_engine_override_plans_every_ensemble_study_on_lammps():
         assert same.scene_hashes(study) == ref.scene_hashes(study)
         if study == "packed_trace":
             continue
-        assert [b.name for b in lmp.batches[study]] == \
+        assert lmp.batches[study] and [b.name for b in lmp.batches[study]] == \
             [b.name.replace("reference", "lammps") for b in ref.batches[study]]
         # each batch is costed by its members' own estimate on its engine
         for plan in (ref, lmp):
@@ -766,7 +766,9 @@ def test_killed_run_resumes_to_the_same_tables(tiny_run, tmp_path):
     deadline = time.monotonic() + 300
     try:
         while time.monotonic() < deadline and proc.poll() is None:
-            if len(list(work.glob("*/*.timing.csv"))) >= 1:
+            # a batch's table is written after its timing: wait for a table, so the
+            # checks of complete files below have one to check
+            if any(not q.name.endswith(".timing.csv") for q in work.glob("*/*.csv")):
                 break
             time.sleep(0.2)
         assert proc.poll() is None, "the run ended before it could be interrupted"
@@ -780,10 +782,10 @@ def test_killed_run_resumes_to_the_same_tables(tiny_run, tmp_path):
     # complete files only (written to a temporary file, then renamed): every batch table
     # present holds all its members, every study table all of its study's
     P = tiny_preset()
-    for p in work.glob("*/*.csv"):
+    batch_tables = [p for p in work.glob("*/*.csv") if not p.name.endswith(".timing.csv")]
+    assert batch_tables, "no batch table was written before the kill"
+    for p in batch_tables:
         df = tables.read_csv(p)
-        if p.name.endswith(".timing.csv"):
-            continue
         study = p.parent.name
         want = len(gw.study_scenes(P, study)) if study == "packed_trace" else \
             gw.find_batch(P, study, p.stem).members
