@@ -15,16 +15,41 @@ from pathlib import Path
 from .costmodel import (DEFAULT_MAX_TOTAL_STEPS, add_estimates, describe_auto, resolve_auto,
                         run_estimate)
 from .errors import GranchainError
-from .fileio import atomic_write_text, check_output_path, json_text
+from .fileio import (IMAGE, atomic_write_text, check_distinct, check_output_path, json_output,
+                     json_text)
 from .guards import check_run, run_size, scene_warnings
 from .progress import bar
 from .costmodel import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost
+from .observables import OK_STATUSES, status_text
 from .scene import load_scene
 
 
 def one_line(text: str) -> str:
     """A message on one line: control characters (newlines, ...) shown escaped."""
     return re.sub(r"[\x00-\x1f\x7f]", lambda m: repr(m.group())[1:-1], text)
+
+
+# what --force may replace: an earlier output of the same command
+RUN_JSON = json_output("a granchain run JSON document", {"scene_hash", "v_striker"},
+                       {"scene_hash", "runs"})
+COMPARE_JSON = json_output("a granchain compare JSON document", {"scene_hash", "rows", "meta"})
+INFER_JSON = json_output("a granchain infer JSON document", {"measurements", "timing_column"})
+
+
+def _workdir_files(args) -> list:
+    """(--workdir, path) of every file the LAMMPS engine writes into a kept --workdir."""
+    if not getattr(args, "workdir", None):
+        return []
+    from .lammps.plan import WORKDIR_FILES
+    return [("--workdir", Path(args.workdir) / name) for name in WORKDIR_FILES]
+
+
+def check_paths(args, outputs, inputs=()) -> None:
+    """Refuse, before any work, an output of a command that is one of its inputs (the
+    scene file, the measurement file) or another of its outputs (``--out``, ``--plot``, the
+    files of a kept ``--workdir``), with or without --force (``fileio.check_distinct``)."""
+    check_distinct(_workdir_files(args) + list(outputs),
+                   [("the scene file", getattr(args, "scene", None)), *inputs])
 
 
 def _fmt(x, unit="", digits=4):
@@ -52,8 +77,10 @@ def _print_human(scene, runs, out=None):
         if not r.wave_arrived:
             missed = [p for p in (p1, p2) if p in cut]
             print(f"{head}: no measured peak at probe{'s' if len(missed) > 1 else ''} "
-                  f"{_ranges(missed)} (status {r.status}){note}", file=out)
+                  f"{_ranges(missed)} ({status_text(r.status)}){note}", file=out)
             continue
+        if r.status not in OK_STATUSES:
+            note += f"; {status_text(r.status)}"
         print(f"{head}: v_max,1 = {_fmt(r.v_max_1)} m/s ({_fmt(r.v_max_1 / vs)} v_s) at particle {p1}; "
               f"v_max,2 = {_fmt(r.v_max_2)} m/s ({_fmt(r.v_max_2 / vs)} v_s) at {p2}; "
               f"dt = {_fmt(r.dt_peak)} s; v_g = {_fmt(r.v_g)} m/s "
@@ -136,11 +163,12 @@ def check_whole_run(scene, args, est) -> None:
 def cmd_run(args) -> int:
     from .plan import plan_run
     from .simulate import run_scene
+    check_paths(args, [("--out", args.out)])          # refuse before spending the compute
     # the run plan: method auto chooses per striker speed for the reference engine
     plan = plan_run(load_scene(args.scene, args.set))
     scene = plan.scene
     if args.out:
-        check_output_path(args.out, args.force, "--out")     # refuse before spending the compute
+        check_output_path(args.out, args.force, "--out", kind=RUN_JSON)
     plan.check(args.max_steps, args.max_memory_gb)
     check_whole_run(scene, args, plan.estimate(engine=args.engine))
     kw = _engine_kw(args)
@@ -218,15 +246,21 @@ def _print_comparison(cmp, out=None) -> None:
         print("  ".join(str(c).ljust(w) for c, w in zip(row, widths)).rstrip(), file=out)
     for why, key in whys.items():
         print(f"[{key}] {why}", file=out)
+    _print_warnings(m.get("warnings", ()), out)
     bad = cmp.failures()
-    print(f"{'all tolerances met' if cmp.ok else f'{len(bad)} tolerance(s) missed'}", file=out)
+    verdict = "all tolerances met" if cmp.ok else f"{len(bad)} tolerance(s) missed"
+    if m.get("warnings"):
+        # engines that agree on a value a guard set aside have not checked it
+        verdict += " on the values both engines measured; see the warnings above"
+    print(verdict, file=out)
 
 
 def cmd_compare(args) -> int:
     from .compare import compare
+    check_paths(args, [("--out", args.out)])
     scene = load(args)
     if args.out:
-        check_output_path(args.out, args.force, "--out")
+        check_output_path(args.out, args.force, "--out", kind=COMPARE_JSON)
     if args.np < 1:
         raise GranchainError(f"--np: must be >= 1 (got {args.np})")
     check_cost(scene, args.max_steps, args.max_memory_gb)
@@ -253,7 +287,9 @@ def cmd_compare(args) -> int:
 
 
 def cmd_deck(args) -> int:
-    from .lammps.deck import write_deck
+    from .lammps.deck import DATA_NAME, DECK_NAME, write_deck
+    check_paths(args, [("-o/--output", Path(args.output) / name)
+                       for name in (DECK_NAME, DATA_NAME)])
     scene = load(args)
     path = write_deck(scene, Path(args.output), force=args.force, output=args.write)
     print(path)
@@ -271,14 +307,41 @@ def _print_inference(res, out=None) -> None:
           f"({res.gap_grid_m[2]} points) x {len(res.speeds_m_s)} striker speed(s) x "
           f"{res.realisations} realisations", file=out)
     _print_sources(res, out)
+    _print_model_check(res, out)
     print(f"Eq. 5.4 reading (chapter): least-squares {nm(res.eq54_gap_m)}, "
           f"upper-bound reading {nm(res.eq54_gap_bound_m)}", file=out)
     _print_warnings([f"{f}: " + {
         "posterior_at_grid_end": "the posterior still has weight at the largest simulated "
                                  "mean gap; median and upper bound not measured (n/a): "
                                  "raise --gap-max-nm",
-        "no_simulated_match": "no simulated mean gap reproduces the timings"}[f]
+        "no_simulated_match": "no simulated mean gap reproduces the timings",
+        "data_outside_model": _OUTSIDE}[f]
         for f in res.flags], out)
+    _print_unmeasured(res, out)
+
+
+_OUTSIDE = ("the measured values lie outside what the simulated gap realisations produce "
+            "(model check below its threshold): the posterior describes the nearest simulated "
+            "chains, not this one, and its interval is not calibrated (too narrow, biased); "
+            "check the data, or give the base scene the chain's gap law, effects and "
+            "integrator, or simulate more realisations (--realisations)")
+
+
+def _print_model_check(res, out) -> None:
+    """The model check's line (``granchain.modelcheck``): where the data's kernel density
+    ranks among posterior-predictive replicates of the simulated realisations."""
+    mc = res.data_outside_model
+    p = mc.get("p_value")
+    if not mc["flag"] and (p is None or not math.isfinite(p)):
+        # no p-value: nothing was checked, which is not a pass
+        print("model check: not made (n/a): no posterior-predictive replicate to rank the "
+              "data among", file=out)
+        return
+    verdict = ("OUTSIDE the simulated realisations" if mc["flag"]
+               else "inside the simulated realisations")
+    print(f"model check: data {verdict} (p = {_fmt(mc['p_value'], digits=3)}, flagged "
+          f"below {mc['alpha']:g}; density rank among {mc['replicates']} replicates)",
+          file=out)
 
 
 def _print_sources(res, out) -> None:
@@ -356,8 +419,18 @@ def _print_joint_inference(res, out=None) -> None:
           f"({E} points) x {len(res.speeds_m_s)} striker speed(s) x {res.realisations} "
           "realisations", file=out)
     _print_sources(res, out)
-    print(f"posterior predictive check: {res.predictive_outside} of {res.predictive_values} "
-          "measured values outside their 95% predictive range", file=out)
+    ranged = _predictive_ranged(res)
+    if ranged == 0:
+        # no posterior draw gave a range: nothing was checked, which is not a pass
+        print(f"posterior predictive check: not made (n/a): none of the "
+              f"{res.predictive_values} measured values has a simulated predictive range",
+              file=out)
+    else:
+        print(f"posterior predictive check: {res.predictive_outside} of "
+              f"{res.predictive_values} measured values outside their 95% predictive range"
+              + (f" ({res.predictive_values - ranged} without a simulated range, counted "
+                 "outside)" if ranged < res.predictive_values else ""), file=out)
+    _print_model_check(res, out)
     print(f"Eq. 5.4 reading (chapter; packed chain at the inferred e): least-squares "
           f"{nm(res.eq54_gap_m)}, upper-bound reading {nm(res.eq54_gap_bound_m)}", file=out)
     _print_warnings([f"{f}: " + {
@@ -367,8 +440,39 @@ def _print_joint_inference(res, out=None) -> None:
         "restitution_at_grid_end": "the posterior still has weight at the smallest "
                                    "simulated e; its median and lower bound not measured "
                                    "(n/a): lower --e-min",
-        "no_simulated_match": "no simulated (mean gap, e) reproduces the data"}[f]
+        "no_simulated_match": "no simulated (mean gap, e) reproduces the data",
+        "data_outside_model": _OUTSIDE}[f]
         for f in res.flags], out)
+    _print_unmeasured(res, out)
+
+
+def _predictive_ranged(res) -> int:
+    """How many measured values of a joint inference have a finite 95% predictive range
+    (``predictive_rows``): the values its predictive check actually checked."""
+    n = 0
+    for row in res.predictive_rows:
+        for key, q in row.items():
+            if key != "v_striker_m_s":
+                n += int(all(x is not None and math.isfinite(x) for x in q))
+    return n
+
+
+def _print_unmeasured(res, out) -> None:
+    """A warning when simulated chains of an inference's grid have no timing: their wave
+    did not reach both probes within the run, the run timed out, or a guard set an
+    impossible value aside (``observables.bounded``); they match no measurement."""
+    import numpy as np
+    grid = res.grid
+    if grid is None:
+        return
+    table = grid.timings if hasattr(grid, "timings") else grid.values
+    T = np.asarray(table[res.timing_column])
+    k = int(np.count_nonzero(np.isnan(T)))
+    if k:
+        _print_warnings([f"{k} of {T.size} simulated chains have no {res.timing_column}: "
+                         "their wave did not reach both probes within the run or a guard set "
+                         "an impossible value aside (granchain run on the base scene shows "
+                         "which); they match no measurement"], out)
 
 
 def check_joint_grid(base, args, src) -> None:
@@ -414,13 +518,15 @@ def cmd_infer(args) -> int:
     from .inference import (check_restitution_base, complete_base, infer, parse_fit,
                             read_measurements)
     fit = parse_fit(args.fit)
+    check_paths(args, [("--out", args.out), ("--plot", args.plot)],
+                [("the measurement file", args.measurements)])
     if args.plot:
-        check_output_path(args.plot, args.force, "--plot")
         if Path(args.plot).suffix.lower() not in (".png", ".pdf", ".svg"):
             raise GranchainError(f"--plot: {args.plot!r} has no known image suffix; end it "
                                  "with .png, .pdf or .svg")
+        check_output_path(args.plot, args.force, "--plot", kind=IMAGE)
     if args.out:
-        check_output_path(args.out, args.force, "--out")
+        check_output_path(args.out, args.force, "--out", kind=INFER_JSON)
     joint = "restitution" in fit
     meas = read_measurements(args.measurements, peaks=joint)
     # the gap law and speeds the base scene leaves out are filled in before method auto
@@ -538,7 +644,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--json", action="store_true", help="print one JSON object")
     sp.add_argument("--out", help="also write the JSON results to this new file")
     sp.add_argument("--force", action="store_true",
-                    help="allow --out (and a non-empty --workdir) to be replaced")
+                    help="allow --out to replace an earlier run JSON (never an input) and a "
+                         "non-empty --workdir's files to be replaced")
     sp.add_argument("--np", type=int, default=None, metavar="N",
                     help="LAMMPS engine: MPI ranks (mpirun -np N; default 1)")
     sp.add_argument("--workdir", metavar="DIR",
@@ -558,7 +665,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--json", action="store_true", help="print one JSON object (every row)")
     sp.add_argument("--out", help="also write the JSON document to this new file")
     sp.add_argument("--force", action="store_true",
-                    help="allow --out (and a non-empty --workdir) to be replaced")
+                    help="allow --out to replace an earlier compare JSON (never an input) and "
+                         "a non-empty --workdir's files to be replaced")
     sp.add_argument("--np", type=int, default=1, metavar="N", help="LAMMPS MPI ranks (default 1)")
     sp.add_argument("--workdir", metavar="DIR", help="keep the LAMMPS deck, dump and log in DIR")
     sp.add_argument("--traces", type=int, default=1, metavar="N",
@@ -574,7 +682,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("deck", help="write a LAMMPS input deck for a scene")
     scene_args(sp)
     sp.add_argument("-o", "--output", required=True, help="directory for the deck")
-    sp.add_argument("--force", action="store_true", help="replace an existing deck directory's files")
+    sp.add_argument("--force", action="store_true",
+                    help="replace the deck.lmp and chain.data an earlier deck wrote")
     sp.add_argument("--write", choices=["dump", "binary", "none"], default="dump",
                     help="what the deck writes at every sample: dump (default) the text dump "
                          "traj.dump and ledger.txt; binary the LAMMPS binary dumps traj.bin and "
@@ -605,7 +714,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--plot", metavar="FILE", help="draw v_g vs v_s (data, inferred band, "
                     "Eq. 5.4) into this new file (.png or .pdf); with restitution fitted: "
                     "the joint posterior, its marginals and the data against the fitted model")
-    sp.add_argument("--force", action="store_true", help="allow --out and --plot to be replaced")
+    sp.add_argument("--force", action="store_true",
+                    help="allow --out and --plot to replace an earlier infer JSON and image "
+                         "(never an input)")
     sp.add_argument("--gap-max-nm", type=_limit, default=500.0, metavar="NM",
                     help="largest simulated mean gap in nm (default 500)")
     sp.add_argument("--gap-points", type=int, default=21, metavar="N",

@@ -66,7 +66,9 @@ MEMBER = {
     "scene_hash": _s("The hash of the scene the row ran (16 hex digits): rows of equal "
                      "hash ran the same scene."),
     "status": _s("How the run ended: passed (the wave passed the last probe), done "
-                 "(t_end reached), timeout, nonfinite or stepfail."),
+                 "(t_end reached), timeout, nonfinite or stepfail; unphysical: it ended as "
+                 "planned but a value left its physical bounds (NaN, and a line in "
+                 "warnings naming the scene key at fault)."),
     "wave_arrived": _b("Both probes' peaks were measured (final); v_g and the probes' "
                        "observables are NaN otherwise."),
     "peaks_not_final": _s("The particles (1-based, ';'-separated) whose peak the run did not "
@@ -100,8 +102,9 @@ MEMBER = {
                              "(final mechanical energy - initial - works) / initial."),
     "steps": _i("Integration steps taken."),
     "force_evaluations": _i("Force (right-hand side) evaluations."),
-    "warnings": _s("One-line physics warnings for this striker speed, ';'-separated; empty "
-                   "when there are none."),
+    "warnings": _s("One-line physics warnings for this striker speed, then one per kind "
+                   "of value that left its physical bounds (status unphysical), "
+                   "';'-separated; empty when there are none."),
     # a measured scene's (the vibrometer's) columns, tables.columns(measured=True)
     "v_max_1_measured_m_s": _f("m/s", "v_max,1 as the vibrometer records it (filtered, "
                                       "sampled)."),
@@ -187,7 +190,8 @@ RUN_JSON = {
     "v_striker": Column("float", "m/s", "The striker's speed."),
     "wave_arrived": Column("bool", "", "Both probes' peaks are final."),
     "status": Column("string", "", "How the run ended (passed, done, timeout, nonfinite, "
-                                   "stepfail)."),
+                                   "stepfail; unphysical: a value left its physical bounds, "
+                                   "see out_of_bounds)."),
     "v_max": Column("list", "m/s", "Peak velocity of each particle (null where not final)."),
     "t_peak": Column("list", "s", "Peak time of each particle."),
     "t_front": Column("list", "s", "Arrival (half-peak) time of each particle."),
@@ -216,7 +220,8 @@ RUN_JSON = {
     "engine": Column("string", "", "reference or lammps."),
     "method": Column("string", "", "The integrator."),
     "dt": Column("float", "s", "The integrator's step."),
-    "warnings": Column("list", "", "One-line physics warnings for this striker speed."),
+    "warnings": Column("list", "", "One-line physics warnings for this striker speed, then "
+                                   "one per kind of value that left its physical bounds."),
     "batch_wall_s": Column("float", "s", "Wall-clock time of the whole run_scene call."),
     "measured": Column("bool", "", "The scene has a measurement (vibrometer) block; the "
                                    "measured keys below are present only then."),
@@ -235,6 +240,12 @@ RUN_JSON = {
     "t_wall_peak": Column("float", "s", "Time of that peak."),
     "wall_force_static": Column("float", "N", "The wall's static force (the dead load)."),
     "wall_peak_final": Column("bool", "", "The wall's force peak was measured."),
+    "out_of_bounds": Column("list", "", "The values that left their physical bounds (a "
+                                        "group velocity above the bar sound speed sqrt(E/rho) "
+                                        "of the stiffest sphere, a delay that is not "
+                                        "positive, a non-finite value; energy entries as "
+                                        "energy.<entry>): null here, each explained by a line "
+                                        "in warnings."),
 }
 # the "energy" object of a run's JSON (observables.LEDGER_ENTRIES): final values
 LEDGER_JSON = {
@@ -287,7 +298,13 @@ _INFER_COMMON = {
     "scene": Column("string", "", "The base scene's name."),
     "scene_hashes": Column("list", "", "Hashes of the grid's scenes."),
     "flags": Column("list", "", "Warnings about the result (e.g. posterior_at_grid_end, "
-                                "no_simulated_match)."),
+                                "no_simulated_match, data_outside_model)."),
+    "data_outside_model": Column("object", "", "The model check (granchain.modelcheck): "
+                                               "flag (true: the data lie outside what the "
+                                               "simulated realisations produce, the "
+                                               "interval is not calibrated), statistic, "
+                                               "log_density, p_value, alpha (the flag's "
+                                               "threshold) and replicates."),
     "measurements": Column("string", "", "The measurements CSV's path."),
 }
 INFER_JSON = {

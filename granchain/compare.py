@@ -32,7 +32,7 @@ import numpy as np
 from .costmodel import resolve_auto
 from .effects import residual_work
 from .errors import GranchainError
-from .observables import summarize
+from .observables import OK_STATUSES, status_text, summarize
 from .stoprule import arrival_speed
 from .scene import Scene
 from .trajectory import ENERGY_COLUMNS
@@ -158,11 +158,19 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
                               keep=keep, progress=False, radii=radii,
                               output="dump" if trajectory else "binary"))
     t2 = time.perf_counter()
-    rows = []
+    rows, status, notes = [], {"reference": [], "lammps": []}, []
     for i, (m, r, lt) in enumerate(zip(mem, ref, lmp)):
-        for row in member_rows(cs, r, lt, trace=traced[i] if i < k else None):
+        results = summarize(r, cs.probes), summarize(lt, cs.probes)
+        for row in member_rows(cs, r, lt, trace=traced[i] if i < k else None,
+                               results=results):
             rows.append(dict(member=m.index, realisation=m.realisation, v_striker=m.v_striker,
                              **row))
+        # a status other than passed or done, and the bounds' lines, of either engine
+        for engine, s in zip(status, results):
+            status[engine].append(s.status)
+            if s.status not in OK_STATUSES:
+                notes.append(f"member #{m.index} {engine}: {status_text(s.status)}")
+            notes += [f"member #{m.index} {engine}: {w}" for w in s.warnings]
     df = pd.DataFrame(rows, columns=list(ROW_COLUMNS))
     meta = {"scene": scene.name, "scene_hash": scene.hash, "compared_scene_hash": cs.hash,
             "chains": len(mem), "traced_chains": k, "dt": cs.dt, "sample_dt": lmp[0].info.sample_dt,
@@ -170,7 +178,8 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
             "lammps_output": "dump (MDAnalysis)" if trajectory else "binary",
             "lammps_version": lmp[0].info.lammps_version,
             "balance": lmp[0].info.balance, "deck": lmp[0].info.deck,
-            "tolerances": {"v": V_TOL, "t": T_TOL, "energy_over_E0": E_TOL}}
+            "tolerances": {"v": V_TOL, "t": T_TOL, "energy_over_E0": E_TOL},
+            "status": status, "warnings": notes}
     if k:
         meta["tolerances"]["trajectory_over_v_s"] = TRAJ_TOL
     if cs.wall is not None:
@@ -210,13 +219,13 @@ def wall_rows(sr, sl) -> list[dict]:
                  W_TOL, WHY_WALL_STATIC)]
 
 
-def member_rows(scene: Scene, ref, lmp, *, trace=None) -> list[dict]:
+def member_rows(scene: Scene, ref, lmp, *, trace=None, results=None) -> list[dict]:
     """Rows of one member: both runs' observables side by side (``ref`` may have measured
     them on the fly; ``lmp`` holds LAMMPS' sample record). ``trace``: the reference's
     sample record of this member (``ref`` itself if it has one), adding the row of the
     trajectories themselves, max |v_lammps - v_reference| / v_s over every particle and
-    sample."""
-    sr, sl = summarize(ref, scene.probes), summarize(lmp, scene.probes)
+    sample. ``results``: both runs' ``summarize``, if the caller has them."""
+    sr, sl = results or (summarize(ref, scene.probes), summarize(lmp, scene.probes))
     vfloor = arrival_speed(max(ref.v_striker, 1e-300))
     out = [_row("samples", sr.samples, sl.samples, float(abs(sr.samples - sl.samples)),
                 "exact", 0.0, WHY_SAMPLES)]

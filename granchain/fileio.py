@@ -1,9 +1,14 @@
 """Writing result files safely: one helper for every file granchain writes.
 
-``check_output_path(path, force, field)`` refuses, with one line naming ``field`` (an
-option such as ``--out``), a target that cannot or must not be written: its directory is
-missing or not writable, it is a directory or not a regular file, or it exists and
-``force`` is not given. Callers run it before any computation.
+``check_output_path(path, force, field, kind=...)`` refuses, with one line naming
+``field`` (an option such as ``--out``), a target that cannot or must not be written: its
+directory is missing or not writable, it is a directory or not a regular file, it exists
+and ``force`` is not given, or it exists and is not an earlier output of the same
+``kind`` (an :class:`OutputKind`: ``--force`` replaces an earlier result, never a
+measurement, a scene or another command's file). ``check_distinct(outputs, inputs)``
+refuses an output that is one of the command's inputs or another of its outputs, with or
+without ``force``: paths are compared as files (``same_file``: real paths with symlinks
+resolved, and the same inode for hard links). Callers run both before any computation.
 
 ``atomic_write_text`` / ``atomic_write_bytes`` write into a new temporary file created
 with ``tempfile.mkstemp`` in the target's directory (``.NAME.XXXXXXXX.tmp``: created
@@ -26,13 +31,15 @@ import math
 import os
 import stat
 import tempfile
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import Callable
 
 from .errors import GranchainError
 
-__all__ = ["check_output_path", "atomic_write_text", "atomic_write_bytes", "jsonable",
-           "json_text"]
+__all__ = ["check_output_path", "check_distinct", "same_file", "OutputKind", "json_output",
+           "IMAGE", "file_head", "atomic_write_text", "atomic_write_bytes", "jsonable", "json_text"]
 
 
 def _show(path) -> str:
@@ -44,12 +51,82 @@ def _fail(field: str, problem: str, fix: str) -> GranchainError:
     return GranchainError(f"{field}: {problem}; {fix}")
 
 
+@dataclass(frozen=True)
+class OutputKind:
+    """What an output file is, for ``--force``: ``what`` names it in messages ("a granchain
+    run JSON document"), ``looks_like(path)`` tells whether an existing file is one (it
+    reads at most the file's head, or parses a JSON document)."""
+    what: str
+    looks_like: Callable[[Path], bool]
+
+
+def file_head(path: Path, size: int = 4096) -> bytes:
+    """The first ``size`` bytes of a file (empty if it cannot be read)."""
+    try:
+        with open(path, "rb") as f:
+            return f.read(size)
+    except OSError:
+        return b""
+
+
+def json_output(what: str, *keysets) -> OutputKind:
+    """A JSON object holding every key of one of ``keysets``: the documents granchain's
+    commands write (the file is parsed whole; anything else is not one)."""
+    def looks_like(path: Path) -> bool:
+        if not file_head(path, 64).lstrip().startswith(b"{"):
+            return False
+        try:
+            doc = json.loads(Path(path).read_bytes())
+        except (OSError, ValueError, RecursionError):
+            return False
+        return isinstance(doc, dict) and any(set(k) <= doc.keys() for k in keysets)
+    return OutputKind(what, looks_like)
+
+
+# the first bytes of each image format a figure is written in, by suffix
+_MAGIC = {".png": (b"\x89PNG\r\n\x1a\n",), ".pdf": (b"%PDF-",), ".svg": (b"<?xml", b"<svg")}
+IMAGE = OutputKind("an image of its suffix's format (.png, .pdf or .svg)",
+                   lambda p: file_head(p, 16).lstrip().startswith(
+                       _MAGIC.get(Path(p).suffix.lower(), (b"\0\0no-such-magic",))))
+
+
+def same_file(a, b) -> bool:
+    """Do paths ``a`` and ``b`` name one file: equal real paths (every symlink resolved,
+    the file need not exist) or, for two existing files, the same inode (hard links)?"""
+    try:
+        if os.path.realpath(a) == os.path.realpath(b):
+            return True
+        return os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b)
+    except (OSError, ValueError):
+        return False
+
+
+def check_distinct(outputs, inputs=()) -> None:
+    """Refuse (one line naming both) an output that is one of the inputs or another
+    output, whether or not ``--force`` is given (module doc). ``outputs``, ``inputs``:
+    (what, path) pairs, ``what`` an option or a description ("--out", "the scene file",
+    "the --workdir file log.lammps"; an output's is the option that names it); a None
+    path is skipped."""
+    outputs = [(w, p) for w, p in outputs if p is not None and os.fspath(p) != ""]
+    inputs = [(w, p) for w, p in inputs if p is not None and os.fspath(p) != ""]
+    for i, (field, p) in enumerate(outputs):
+        for what, q in inputs:
+            if same_file(p, q):
+                raise _fail(field, f"{_show(p)} is {what} ({_show(q)}): an output never "
+                            "replaces an input, even with --force", "choose another path")
+        for what, q in outputs[:i]:
+            if same_file(p, q):
+                raise _fail(field, f"{_show(p)} is also the output of {what}",
+                            "give each output its own path")
+
+
 def check_output_path(path, force: bool = False, field: str = "--out", *,
-                      probe: bool = True) -> Path:
+                      probe: bool = True, kind: OutputKind | None = None) -> Path:
     """Refuse a target file that cannot or must not be written (see the module doc).
 
     ``probe``: also create and remove a temporary file in the directory, which proves it
-    writable where permission bits do not tell (root, read-only file systems)."""
+    writable where permission bits do not tell (root, read-only file systems). ``kind``:
+    with ``force``, an existing target must be an earlier output of this kind."""
     text = os.fspath(path)
     if not text or "\0" in text:
         raise _fail(field, f"{_show(text)} is not a file path", "give the path of a new file")
@@ -69,6 +146,10 @@ def check_output_path(path, force: bool = False, field: str = "--out", *,
         st = os.lstat(path)
         if not (stat.S_ISREG(st.st_mode) or stat.S_ISLNK(st.st_mode)):
             raise _fail(field, f"{_show(path)} is not a regular file", "choose another path")
+        if kind is not None and not kind.looks_like(path):
+            raise _fail(field, f"{_show(path)} exists and is not {kind.what}: --force replaces "
+                        "only an earlier output of the same kind",
+                        "choose another path (or move that file away yourself)")
     if probe:
         try:
             fd, tmp = tempfile.mkstemp(dir=parent, prefix="." + path.name + ".", suffix=".tmp")

@@ -88,22 +88,33 @@ def mean_gap_between(gaps: np.ndarray, p1: int, p2: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Member:
-    """One chain of a scene: a striker speed and a gap realisation index."""
+    """One chain of a scene: a striker speed and a gap realisation index; ``gaps``: its n-1
+    gaps (m) when they are given (a designed ensemble, ``members(..., gaps=)``) instead of
+    drawn from the scene's gap law."""
     index: int
     v_striker: float
     realisation: int
+    gaps: tuple[float, ...] | None = None
 
 
-def members(scene: Scene, realisations=None) -> list[Member]:
-    """The chains of a scene: every striker speed x every realisation, in table order."""
+def members(scene: Scene, realisations=None, gaps=None) -> list[Member]:
+    """The chains of a scene: every striker speed x every realisation, in table order.
+    ``gaps``: (R, n-1) gaps (m) of realisations 0..R-1 that the members take instead of
+    the scene's gap law (the inference's designed realisations, ``granchain.gapdesign``)."""
     reals = range(scene.realisations) if realisations is None else realisations
     out = []
     for v in scene.striker_velocities:
         for r in reals:
-            out.append(Member(len(out), float(v), int(r)))
+            row = None if gaps is None else tuple(float(x) for x in gaps[int(r)])
+            out.append(Member(len(out), float(v), int(r), row))
     return out
 
 
 def member_gaps(scene: Scene, mem: list[Member]) -> np.ndarray:
-    """(len(mem), n-1) gaps (m) of the members, one realisation each."""
-    return realise_many(scene, [m.realisation for m in mem]).reshape(len(mem), scene.n - 1)
+    """(len(mem), n-1) gaps (m) of the members, one realisation each (a member's own
+    ``gaps`` where given)."""
+    out = realise_many(scene, [m.realisation for m in mem]).reshape(len(mem), scene.n - 1)
+    for j, m in enumerate(mem):
+        if m.gaps is not None:
+            out[j] = m.gaps
+    return out

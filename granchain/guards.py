@@ -11,10 +11,15 @@ No numba or scipy, so ``granchain validate`` stays light. The solitary wave come
 * :func:`check_run`: the whole run (every member of an ensemble or sweep, a grid, a
   workflow job) refused in one line when its estimated steps or memory
   (``granchain.costmodel.run_estimate``) exceed a limit.
+* :func:`result_limits`: the physical bounds a chain's results must meet after the run,
+  and the scene key to blame when one does not (``granchain.observables.bounded``
+  applies them to every result of either engine).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+from dataclasses import dataclass
 
 from .analytic import nesterenko_speed, pulse_width
 
@@ -179,3 +184,67 @@ def scene_warnings(scene) -> list[str]:
             if w not in out:
                 out.append(w)
     return out
+
+
+@dataclass(frozen=True)
+class Limits:
+    """The physical bounds of a chain's results (:func:`result_limits`), which
+    ``granchain.observables.bounded`` checks after every run of either engine.
+
+    sound_speed: the bar speed c = sqrt(E/rho) (m/s) of ``material``, the stiffest of the
+    chain's spheres. A wave along a chain of spheres is slower than along a rod of their
+    material: a preloaded Hertz chain's long-wave speed c0 = 2R sqrt(k2/m) reaches c only
+    at a static overlap of about 1.9 R, and the solitary wave only at a particle speed
+    near c, both far outside Hertz theory. A group velocity above c is therefore an
+    impossible number, not a fast wave. (The bar speed, not the higher dilatational speed
+    of the bulk material, because it is the tighter bound that still holds.)
+    fast, order, nonfinite: the scene key most likely at fault, and what to do, for a
+    group velocity above c, a delay between the probes that is not positive, and a
+    non-finite value."""
+    sound_speed: float
+    material: str
+    fast: str
+    order: str
+    nonfinite: str
+
+
+def result_limits(scene) -> Limits:
+    """The :class:`Limits` of a scene's chains."""
+    mats = scene.materials or (scene.material,)
+    stiff = max(mats, key=lambda m: m.bar_speed)
+    load = ("precompression.force (the preload squeezes the contacts far beyond Hertz "
+            "theory: lower it)") if scene.precompression > 0.0 else None
+    step = ("integrator.dt (lower it or use method adaptive)"
+            if scene.method in ("rk4", "verlet") else "integrator.tolerance (lower it)")
+    return Limits(
+        sound_speed=stiff.bar_speed, material=stiff.name,
+        fast=load or "striker.velocity (lower it) or the material's E and rho",
+        order=load or step,
+        nonfinite=_stiff_effect(scene) or load or step)
+
+
+def _stiff_effect(scene) -> str | None:
+    """The keys of an effect whose own time scale (an effect module's ``time_scale``, e.g.
+    a contact dashpot's m_eff/eta) is shorter than the scene's shortest collision: the
+    likely source of a non-finite run."""
+    from .effects import MODULES
+    vmax = max(scene.striker_velocities)
+    if not vmax > 0:
+        return None
+    try:
+        tc = scene.contact_time(vmax)
+    except (ArithmeticError, ValueError):
+        return None
+    for m in MODULES:
+        if not (scene.has(m.SPEC.name) and hasattr(m, "time_scale")):
+            continue
+        tau, what = m.time_scale(scene, vmax)
+        if tau < tc:
+            # the section's numeric settings that are set (the dashpot's eta or e)
+            st = scene.setting(m.SPEC.name)
+            keys = [f"{m.SECTION}.{f.name}" for f in dataclasses.fields(st)
+                    if isinstance(getattr(st, f.name), (int, float))
+                    and not isinstance(getattr(st, f.name), bool)]
+            return (f"{' or '.join(keys) or m.SECTION} ({what} is {tau:.2g} s at "
+                    f"{vmax:g} m/s: shorter than the collision time {tc:.2g} s)")
+    return None

@@ -18,9 +18,14 @@ ensembles (never from Eq. 5.4).
 
 - Grid: mean gaps ``0, dg, ..., gap_max`` x the base scene's striker speeds x R gap
   realisations, each grid cell one scene derived from the base scene (``Scene.derive``)
-  and run through ``simulate.run_scene``. Realisation r draws the same normalised gap
-  pattern at every mean gap (common random numbers, ``granchain.gaps``): for a uniform or
-  exponential law its gaps are exactly ``mean x pattern_r``, so the timing of realisation
+  and run through ``simulate.run_scene``. Realisation r has the same normalised gap
+  pattern at every mean gap (common random numbers): for a uniform or exponential law its
+  gaps are exactly ``mean x pattern_r``. The patterns are designed
+  (``granchain.gapdesign``): the law's own draws, but with the gaps on either side of each
+  probe importance-sampled toward small values, and a weight w_r = prior / proposal per
+  realisation, so that the few-percent of chains with a near-zero gap next to a probe
+  (whose peaks, and peak times, are a packed pair's) are represented by several
+  realisations rather than by one or none. So the timing of realisation
   r is a smooth function of the mean gap and of the striker speed, and is interpolated:
   linearly in the mean gap between grid points, linearly in (log v, log t) between
   striker speeds. The interpolation error is measured on the grid itself (each interior
@@ -31,8 +36,10 @@ ensembles (never from Eq. 5.4).
   speeds form an R x m sample; a Gaussian kernel density estimate over them (kernel
   covariance = Silverman's factor^2 x the sample covariance across realisations, plus the
   rows' measurement variances and the model error) gives
-  ``L = (1/R) sum_r N(t; T_r(g), C)`` -- the average over realisations of the joint density
-  of the group's rows. The kernel is multivariate because one realisation's timings at
+  ``L = sum_r w_r N(t; T_r(g), C) / sum_r w_r`` -- the average over realisations of the
+  joint density of the group's rows (weighted covariance, Silverman's factor for the
+  weights' effective size; with equal weights, the plain kernel density,
+  :func:`kernel_log_density`). The kernel is multivariate because one realisation's timings at
   several speeds are strongly correlated: treating a chain's rows as independent given a
   simulated realisation counts the same gap pattern once per row and gives intervals that
   are too narrow (this is what the calibration measures). A realisation whose wave did not
@@ -154,6 +161,15 @@ all fall on one side (8 of 8 intervals above the truth: a chain's collisions are
 the striker, where this law's e is higher), median error of e +0.002. The intervals do not
 cover a damping law other than the base scene's beyond that.
 
+Model check (both fits, ``data_outside_model`` in the result): for data outside the
+simulated cloud the kernel density is the Gaussian tail of the nearest kernels and the
+posterior's width measures the steepness of that tail, not the spread of gap patterns: a
+narrow, biased interval. ``granchain.modelcheck`` ranks the data's kernel log density
+among replicates made from the realisations themselves (leave-one-out, at posterior draws)
+and flags p < ``modelcheck.ALPHA``; the flag is in ``flags`` and the summary says plainly
+that the interval is then not calibrated. Calibration of the design and the check:
+``benchmarks/inference_outside.py`` (docs/explanation/inference.md gives its table).
+
 Which simulated timing and peaks a CSV column is compared with is decided in one place
 each, :func:`timing` and :func:`peak`.
 """
@@ -171,6 +187,7 @@ import numpy as np
 
 from .errors import GranchainError
 from .fileio import atomic_write_bytes
+from .gapdesign import EMPHASIS, design
 from .gaps import Member
 from .scene import Scene
 
@@ -401,6 +418,17 @@ def parse_fit(text: str) -> tuple[str, ...]:
     return tuple(f for f in FITS if f in names)
 
 
+def fit_for(base: Scene, columns) -> tuple[str, ...]:
+    """What to fit when nobody says (the workflow's inference rule): the mean gap and the
+    restitution for a damped base scene (contact_damping, model coeff_restitution) whose
+    measurement file has both peak columns (``columns``: its header), else the mean gap."""
+    damped = ("contact_damping" in base.effects
+              and base.setting("contact_damping").model == "coeff_restitution")
+    if damped and all(c in columns for c in PEAK_COLUMNS):
+        return FITS
+    return ("gap_mean",)
+
+
 # ---------------------------------------------------------------------------------------
 # the simulated grid
 # ---------------------------------------------------------------------------------------
@@ -420,7 +448,9 @@ def complete_base(base: Scene, meas: Measurements) -> tuple[Scene, dict]:
     ``striker.velocity`` is simulated at the data's own striker speeds. What the scene
     gives is kept as it is, and checked by :func:`check_base` and :func:`check_speeds`.
     The returned scene keeps the base scene's ``given``, so completing it again changes
-    nothing and reports the same sources."""
+    nothing and reports the same sources. A base scene that cannot take a gap law is
+    refused first (:func:`check_gappable`)."""
+    check_gappable(base)
     change = {}
     src = {"gap_law": "scene", "speeds": "scene"}
     if "gaps.distribution" not in base.given:
@@ -437,10 +467,24 @@ def complete_base(base: Scene, meas: Measurements) -> tuple[Scene, dict]:
     return base, src
 
 
-def check_base(base: Scene) -> None:
-    """A base scene the inference can use: a gap law with a mean that scales its
-    realisations, and a fixed set of striker speeds."""
+def check_gappable(base: Scene) -> None:
+    """Refuse (SceneError naming the key) a base scene whose chain cannot have gaps: a
+    preloaded chain (``precompression.force``) is pressed together, so it has no mean gap
+    to infer."""
     from .errors import SceneError
+    if base.precompression > 0.0 or "precompression.force" in base.given:
+        raise SceneError("precompression.force", "a preloaded chain is pressed together and "
+                         "has no gaps, so the inference cannot give it a gap law",
+                         "drop precompression (and walls.end if only the preload needs it) "
+                         "from the base scene")
+
+
+def check_base(base: Scene) -> None:
+    """A base scene the inference can use: a chain that can have gaps
+    (:func:`check_gappable`), a gap law with a mean that scales its realisations, and a
+    fixed set of striker speeds."""
+    from .errors import SceneError
+    check_gappable(base)
     if base.gap_distribution not in GAP_LAWS:
         raise SceneError("gaps.distribution", f"'{base.gap_distribution}' has no mean gap to "
                          "infer", f"use one of {', '.join(GAP_LAWS)} (mean: any value; the "
@@ -466,30 +510,40 @@ class Grid:
     timings: dict
     hashes: tuple[str, ...]
     simulated: int
+    weights: np.ndarray | None = None
 
     @property
     def realisations(self) -> int:
         return int(next(iter(self.timings.values())).shape[2])
 
     @property
+    def realisation_weights(self) -> np.ndarray:
+        """(R,) the realisations' weights (``granchain.gapdesign``; 1 each when the grid
+        has plain draws)."""
+        return np.ones(self.realisations) if self.weights is None else self.weights
+
+    @property
     def n_chains(self) -> int:
         return int(self.gaps.size * self.speeds.size * self.realisations)
 
 
-def _cache_file(cache_dir: Path, scene: Scene) -> Path:
-    """One grid point's timings, keyed by its scene and by the package's source (a grid
-    simulated by other code is never reused)."""
+def _cache_file(cache_dir: Path, scene: Scene, tag: str) -> Path:
+    """One grid point's timings, keyed by its scene, its realisations' design ``tag``
+    (``gapdesign.Design.tag``) and the package's source (a grid simulated by other code is
+    never reused)."""
     from .fileio import source_hash
-    return Path(cache_dir) / f"grid-{scene.hash}-{source_hash()[:12]}-v{CACHE_FORMAT}.npz"
+    return Path(cache_dir) / (f"grid-{scene.hash}-{tag}-{source_hash()[:12]}-"
+                              f"v{CACHE_FORMAT}.npz")
 
 
 def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: int,
                   cache_dir=None, engine: str = "reference",
-                  progress: bool | None = None) -> Grid:
+                  progress: bool | None = None, emphasis: float = EMPHASIS) -> Grid:
     """Simulate (or read from ``cache_dir``) the grid of mean gaps
-    ``linspace(0, gap_max, gap_points)`` x the base scene's speeds x ``realisations``.
-    ``progress``: a bar of the chains still to simulate on stderr (``granchain.progress``;
-    None: when stderr is a terminal)."""
+    ``linspace(0, gap_max, gap_points)`` x the base scene's speeds x ``realisations``
+    designed realisations (``gapdesign.design`` with ``emphasis``; 0: the gap law's own
+    draws, weight 1 each). ``progress``: a bar of the chains still to simulate on stderr
+    (``granchain.progress``; None: when stderr is a terminal)."""
     from .costmodel import resolve_auto
     from .progress import bar
     from .simulate import run_scene
@@ -505,13 +559,14 @@ def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: in
         raise GranchainError("scene field 'striker.velocity': a speed of 0 has no wave; give "
                              "speeds > 0")
     base = base.derive(striker={"velocity": [float(v) for v in speeds]})
+    designed = design(base, realisations, emphasis)
     gaps = np.linspace(0.0, gap_max, gap_points)
     out = {c: np.full((gaps.size, speeds.size, realisations), np.nan) for c in TIMING_COLUMNS}
     hashes, simulated, todo = [], 0, []
     for k, g in enumerate(gaps):
         scene = resolve_auto(grid_scene(base, g, realisations))
         hashes.append(scene.hash)
-        path = _cache_file(cache_dir, scene) if cache_dir is not None else None
+        path = _cache_file(cache_dir, scene, designed.tag) if cache_dir is not None else None
         if path is not None and path.exists():
             with np.load(path) as z:
                 for c in TIMING_COLUMNS:
@@ -521,7 +576,8 @@ def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: in
     with bar(len(todo) * speeds.size * realisations, f"{base.name}: inference grid",
              enabled=progress) as shown:
         for k, scene, path in todo:
-            res = run_scene(scene, engine=engine, progress=shown.update)
+            res = run_scene(scene, engine=engine, progress=shown.update,
+                            gaps=designed.gaps(gaps[k]))
             simulated += len(res)
             for r in res:
                 j = int(np.searchsorted(speeds, r.v_striker))
@@ -532,7 +588,7 @@ def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: in
                 buf = io.BytesIO()
                 np.savez(buf, **{c: out[c][k] for c in TIMING_COLUMNS})
                 atomic_write_bytes(path, buf.getvalue(), force=True, field="--cache-dir")
-    return Grid(gaps, speeds, out, tuple(hashes), simulated)
+    return Grid(gaps, speeds, out, tuple(hashes), simulated, designed.weights)
 
 
 def simulate_rows(base: Scene, gap_mean: float, speeds, realisations,
@@ -648,33 +704,63 @@ def log_likelihood(grid: Grid, meas: Measurements, fine: np.ndarray,
                    model_rel: float = 0.0) -> np.ndarray:
     """log L(g) at every mean gap of ``fine`` (module doc), shape (F,)."""
     T = _interp_gap(grid.timings[meas.column], grid.gaps, fine)         # (F, S, R)
-    R = T.shape[2]
+    weights = grid.realisation_weights
     total = np.zeros(fine.size)
     for idx in meas.groups:
-        m = idx.size
         P = np.stack([_interp_speed(T, grid.speeds, float(meas.v[i])) for i in idx], axis=-1)
         t = meas.t[idx]                                                   # (m,)
-        ok = np.all(np.isfinite(P), axis=-1)                              # (F, R)
-        n_ok = ok.sum(axis=1)                                             # (F,)
-        X = np.where(ok[..., None], P, 0.0)
-        mean = X.sum(axis=1) / np.maximum(n_ok, 1)[:, None]               # (F, m)
-        D = np.where(ok[..., None], P - mean[:, None, :], 0.0)
-        cov = np.einsum("fri,frj->fij", D, D) / np.maximum(n_ok - 1, 1)[:, None, None]
-        factor2 = ((R * (m + 2)) / 4.0) ** (-2.0 / (m + 4))               # Silverman^2
         var = meas.err[idx] ** 2 + (model_rel * t) ** 2 + (1e-9 * t) ** 2
-        C = factor2 * cov + np.diag(var)[None]
-        L = np.linalg.cholesky(C)                                          # (F, m, m)
-        resid = np.where(ok[..., None], t[None, None, :] - P, 0.0)         # (F, R, m)
-        Z = np.linalg.solve(L, np.swapaxes(resid, 1, 2))                   # (F, m, R)
-        logdet = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
-        lp = (-0.5 * (Z * Z).sum(axis=1) - 0.5 * logdet[:, None]
-              - 0.5 * m * math.log(2 * math.pi))                            # (F, R)
-        lp = np.where(ok, lp, -np.inf)
-        top = lp.max(axis=1)
-        with np.errstate(invalid="ignore"):
-            ll = top + np.log(np.exp(lp - top[:, None]).sum(axis=1)) - math.log(R)
-        total += np.where(n_ok >= 2, ll, -np.inf)
+        total += kernel_log_density(P, t, np.broadcast_to(var, P[:, 0].shape), weights)
     return total
+
+
+def kernel_log_density(X: np.ndarray, y: np.ndarray, var: np.ndarray,
+                       weights: np.ndarray) -> np.ndarray:
+    """log of the weighted Gaussian kernel density over realisations at the data: X (P, R,
+    d) the R realisations' values at P parameter points (NaN where not measured), y (d,)
+    the data, var (P, d) the variance added to the kernel (measurement, model error),
+    weights (R,) the realisations' weights. The kernel covariance is Silverman's factor^2
+    (for the weights' effective size) x the realisations' weighted covariance, plus var;
+    the density is sum_r w_r N(y; X_r, C) / sum_r w_r over all R (a realisation without
+    values adds nothing), -inf where fewer than two realisations give values."""
+    from .modelcheck import effective_size, silverman2, weighted_cov
+    d = X.shape[-1]
+    ok = np.all(np.isfinite(X), axis=-1)                                # (P, R)
+    w = np.where(ok, weights[None, :], 0.0)
+    Xz = np.where(ok[..., None], X, 0.0)
+    C = silverman2(effective_size(weights), d) * weighted_cov(Xz, w)
+    C[:, np.arange(d), np.arange(d)] += var
+    L = np.linalg.cholesky(C)                                              # (P, d, d)
+    resid = np.where(ok[..., None], y[None, None, :] - X, 0.0)             # (P, R, d)
+    Z = np.linalg.solve(L, np.swapaxes(resid, 1, 2))                       # (P, d, R)
+    logdet = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
+    lp = -0.5 * (Z * Z).sum(axis=1) - 0.5 * logdet[:, None] - 0.5 * d * math.log(2 * math.pi)
+    lp = np.where(ok, lp, -np.inf)
+    top = lp.max(axis=1)
+    with np.errstate(invalid="ignore"):
+        ll = (top + np.log((np.exp(lp - top[:, None]) * weights[None, :]).sum(axis=1))
+              - math.log(weights.sum()))
+    return np.where(ok.sum(axis=1) >= 2, ll, -np.inf)
+
+
+def gap_model_check(grid: Grid, meas: Measurements, fine: np.ndarray, pdf: np.ndarray,
+                    model_rel: float):
+    """Do the timings lie inside what the grid's realisations produce at the posterior?
+    (``granchain.modelcheck``; each chain's kernel as in :func:`log_likelihood`.)"""
+    from .modelcheck import ALPHA, CHECK_DRAWS, CHECK_SEED, STATISTIC, ModelCheck, check
+    if not np.any(pdf > 0):
+        return ModelCheck(STATISTIC, math.nan, math.nan, math.nan, math.nan, ALPHA, 0, True)
+    mass = pdf * _trapz_weights(fine)
+    g = fine[np.random.default_rng(CHECK_SEED).choice(fine.size, size=CHECK_DRAWS,
+                                                      p=mass / mass.sum())]
+    T = _interp_gap(grid.timings[meas.column], grid.gaps, g)            # (K, S, R)
+    groups = []
+    for idx in meas.groups:
+        P = np.stack([_interp_speed(T, grid.speeds, float(meas.v[i])) for i in idx], axis=-1)
+        t = meas.t[idx]
+        var = meas.err[idx] ** 2 + (model_rel * t) ** 2 + (1e-9 * t) ** 2
+        groups.append((P / t, np.ones_like(t), np.broadcast_to(var / t ** 2, P[:, 0].shape)))
+    return check(groups, grid.realisation_weights)
 
 
 # ---------------------------------------------------------------------------------------
@@ -704,6 +790,7 @@ class Inference:
     scene: str
     scene_hashes: tuple[str, ...]
     flags: tuple[str, ...]
+    data_outside_model: dict      # modelcheck.ModelCheck.to_json(): flag, statistic, p_value
     posterior_g_m: np.ndarray = dataclasses.field(repr=False, compare=False)
     posterior_pdf: np.ndarray = dataclasses.field(repr=False, compare=False)
     grid: Grid | None = dataclasses.field(default=None, repr=False, compare=False)
@@ -782,6 +869,9 @@ def infer(base: Scene, meas: Measurements, *, gap_max: float = 250e-9, gap_point
     rel = interp_rel_error(grid, meas.column)
     logpost = log_likelihood(grid, meas, fine, rel) + log_prior(fine, prior)
     pdf, med, lo, hi, flags = posterior_summary(fine, logpost)
+    mc = gap_model_check(grid, meas, fine, pdf, rel)
+    if mc.flag:
+        flags.append("data_outside_model")
     fit, bound, rows = eq54_gaps(grid, meas, base.probes)
     return Inference(
         gap_mean_m=med, ci95_m=(lo, hi), eq54_gap_m=fit, eq54_gap_bound_m=bound,
@@ -793,8 +883,8 @@ def infer(base: Scene, meas: Measurements, *, gap_max: float = 250e-9, gap_point
         speeds_m_s=tuple(float(v) for v in grid.speeds), gap_law_source=src["gap_law"],
         speeds_source=src["speeds"], interp_rel_error=rel,
         rows=len(meas), chains=len(meas.groups), scene=base.name,
-        scene_hashes=grid.hashes, flags=tuple(flags), posterior_g_m=fine, posterior_pdf=pdf,
-        grid=grid)
+        scene_hashes=grid.hashes, flags=tuple(flags), data_outside_model=mc.to_json(),
+        posterior_g_m=fine, posterior_pdf=pdf, grid=grid)
 
 
 # ---------------------------------------------------------------------------------------
@@ -865,10 +955,16 @@ class JointGrid:
     hashes: tuple[str, ...]
     simulated: int
     wall_s: float = 0.0
+    weights: np.ndarray | None = None
 
     @property
     def realisations(self) -> int:
         return int(next(iter(self.values.values())).shape[3])
+
+    @property
+    def realisation_weights(self) -> np.ndarray:
+        """(R,) the realisations' weights, as :attr:`Grid.realisation_weights`."""
+        return np.ones(self.realisations) if self.weights is None else self.weights
 
     @property
     def n_chains(self) -> int:
@@ -876,9 +972,9 @@ class JointGrid:
                    * self.realisations)
 
 
-def _joint_cache_file(cache_dir: Path, scene: Scene) -> Path:
+def _joint_cache_file(cache_dir: Path, scene: Scene, tag: str) -> Path:
     from .fileio import source_hash
-    return Path(cache_dir) / (f"joint-{scene.hash}-{source_hash()[:12]}-"
+    return Path(cache_dir) / (f"joint-{scene.hash}-{tag}-{source_hash()[:12]}-"
                               f"v{JOINT_CACHE_FORMAT}.npz")
 
 
@@ -899,11 +995,12 @@ def check_joint_options(gap_max: float, gap_points: int, e_min: float, e_points:
 
 def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: float,
                         e_points: int, realisations: int, cache_dir=None,
-                        engine: str = "reference", progress: bool | None = None) -> JointGrid:
+                        engine: str = "reference", progress: bool | None = None,
+                        emphasis: float = EMPHASIS) -> JointGrid:
     """Simulate (or read from ``cache_dir``) the joint grid: mean gaps
     ``gap_nodes(gap_max, gap_points)`` x restitutions ``restitution_nodes(e_min,
-    e_points)`` x the base scene's speeds x ``realisations`` (module doc). ``progress``
-    as :func:`simulate_grid`."""
+    e_points)`` x the base scene's speeds x ``realisations`` designed realisations (module
+    doc). ``progress`` and ``emphasis`` as :func:`simulate_grid`."""
     import time
     from .costmodel import resolve_auto
     from .progress import bar
@@ -916,6 +1013,7 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
         raise GranchainError("scene field 'striker.velocity': a speed of 0 has no wave; give "
                              "speeds > 0")
     base = base.derive(striker={"velocity": [float(v) for v in speeds]})
+    designed = design(base, realisations, emphasis)
     gaps, es = gap_nodes(gap_max, gap_points), restitution_nodes(e_min, e_points)
     shape = (gaps.size, es.size, speeds.size, realisations)
     out = {c: np.full(shape, np.nan) for c in JOINT_OBS}
@@ -925,7 +1023,8 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
         for j, e in enumerate(es):
             scene = resolve_auto(joint_scene(base, g, e, realisations))
             hashes.append(scene.hash)
-            path = _joint_cache_file(cache_dir, scene) if cache_dir is not None else None
+            path = (_joint_cache_file(cache_dir, scene, designed.tag) if cache_dir is not None
+                    else None)
             if path is not None and path.exists():
                 with np.load(path) as z:
                     for c in JOINT_OBS:
@@ -935,7 +1034,8 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
     with bar(len(todo) * speeds.size * realisations, f"{base.name}: inference grid",
              enabled=progress) as shown:
         for k, j, scene, path in todo:
-            res = run_scene(scene, engine=engine, progress=shown.update)
+            res = run_scene(scene, engine=engine, progress=shown.update,
+                            gaps=designed.gaps(gaps[k]))
             simulated += len(res)
             for r in res:
                 s = int(np.searchsorted(speeds, r.v_striker))
@@ -949,7 +1049,7 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
                 np.savez(buf, **{c: out[c][k, j] for c in JOINT_OBS})
                 atomic_write_bytes(path, buf.getvalue(), force=True, field="--cache-dir")
     return JointGrid(gaps, es, speeds, out, tuple(hashes), simulated,
-                     time.perf_counter() - t0)
+                     time.perf_counter() - t0, designed.weights)
 
 
 def simulate_joint_rows(base: Scene, gap_mean: float, e: float | None, speeds, realisations,
@@ -1146,46 +1246,35 @@ def joint_log_likelihood(grid: JointGrid, meas: Measurements, fine_g: np.ndarray
         errs = joint_interp_errors(grid, meas.column)
     rel = _model_rel(errs, meas.column, fine_g, grid.gaps)             # (F_g, 3)
     R = grid.realisations
+    weights = grid.realisation_weights
     total = np.zeros((fine_g.size, fine_e.size))
-    perr = meas.peak_err
     for idx in meas.groups:
         m = idx.size
         d = 3 * m
-        scale = np.concatenate([[meas.t[i], meas.v[i], meas.v[i]] for i in idx])   # (d,)
-        y = np.concatenate([[meas.t[i], meas.vmax_1[i], meas.vmax_2[i]] for i in idx]) / scale
-        var_meas = (np.concatenate([[meas.err[i], perr[i], perr[i]] for i in idx]) / scale) ** 2
+        scale, y, var_meas, var_floor = _joint_group(meas, idx)
         var_model = (np.tile(rel, (1, m)) * y[None, :]) ** 2                 # (F_g, d)
-        var_floor = (1e-9 * y) ** 2
         nodes = np.concatenate([_at_speed(grid, meas.column, float(meas.v[i])) for i in idx],
                                axis=-1) / scale                            # (G, E, R, d)
         Ne = _interp_e(nodes, grid.restitutions, fine_e, axis=1)          # (G, F_e, R, d)
-        factor2 = ((R * (d + 2)) / 4.0) ** (-2.0 / (d + 4))               # Silverman^2
         rows = max(1, int(CHUNK_BYTES // (fine_e.size * R * d * 8 * 6)))
         for a in range(0, fine_g.size, rows):
             b = min(a + rows, fine_g.size)
             X = _interp_g(Ne, grid.gaps, fine_g[a:b])                      # (c, F_e, R, d)
-            X = X.reshape(-1, R, d)
-            ok = np.all(np.isfinite(X), axis=-1)                           # (P, R)
-            n_ok = ok.sum(axis=1)
-            Xz = np.where(ok[..., None], X, 0.0)
-            mean = Xz.sum(axis=1) / np.maximum(n_ok, 1)[:, None]
-            D = np.where(ok[..., None], X - mean[:, None, :], 0.0)
-            cov = np.einsum("pri,prj->pij", D, D) / np.maximum(n_ok - 1, 1)[:, None, None]
             var = var_meas + var_floor + np.repeat(var_model[a:b], fine_e.size, axis=0)
-            C = factor2 * cov
-            C[:, np.arange(d), np.arange(d)] += var
-            L = np.linalg.cholesky(C)
-            resid = np.where(ok[..., None], y[None, None, :] - X, 0.0)      # (P, R, d)
-            Z = np.linalg.solve(L, np.swapaxes(resid, 1, 2))                # (P, d, R)
-            logdet = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
-            lp = -0.5 * (Z * Z).sum(axis=1) - 0.5 * logdet[:, None] - 0.5 * d * math.log(2 * math.pi)
-            lp = np.where(ok, lp, -np.inf)
-            top = lp.max(axis=1)
-            with np.errstate(invalid="ignore"):
-                ll = top + np.log(np.exp(lp - top[:, None]).sum(axis=1)) - math.log(R)
-            ll = np.where(n_ok >= 2, ll, -np.inf)
+            ll = kernel_log_density(X.reshape(-1, R, d), y, var, weights)
             total[a:b] += ll.reshape(b - a, fine_e.size)
     return total
+
+
+def _joint_group(meas: Measurements, idx: np.ndarray):
+    """(scale, y, var_meas, var_floor), each (3m,), of a group's rows in the joint
+    likelihood: each row's (timing, vmax_1, vmax_2) standardised by its observed timing
+    and its striker speed, their stated variances and the kernel's floor."""
+    perr = meas.peak_err
+    scale = np.concatenate([[meas.t[i], meas.v[i], meas.v[i]] for i in idx])
+    y = np.concatenate([[meas.t[i], meas.vmax_1[i], meas.vmax_2[i]] for i in idx]) / scale
+    var_meas = (np.concatenate([[meas.err[i], perr[i], perr[i]] for i in idx]) / scale) ** 2
+    return scale, y, var_meas, (1e-9 * y) ** 2
 
 
 def zoom_box(fine_g, fine_e, logpost, drop: float = ZOOM_DROP, shrink: float = 0.5):
@@ -1267,6 +1356,7 @@ class JointInference:
     scene: str
     scene_hashes: tuple[str, ...]
     flags: tuple[str, ...]
+    data_outside_model: dict      # as Inference
     posterior_g_m: np.ndarray = dataclasses.field(repr=False, compare=False)
     posterior_e: np.ndarray = dataclasses.field(repr=False, compare=False)
     posterior_pdf: np.ndarray = dataclasses.field(repr=False, compare=False)   # (F_g, F_e)
@@ -1285,6 +1375,25 @@ class JointInference:
             if isinstance(v, tuple):
                 d[k] = list(v)
         return d
+
+
+def joint_model_check(grid: JointGrid, meas: Measurements, draws: np.ndarray, errs: dict):
+    """Do the timings and peaks lie inside what the grid's realisations produce at the
+    posterior draws? (``granchain.modelcheck``; each chain's kernel as in
+    :func:`joint_log_likelihood`.)"""
+    from .modelcheck import CHECK_DRAWS, ModelCheck, STATISTIC, ALPHA, check
+    if not draws.size:
+        return ModelCheck(STATISTIC, math.nan, math.nan, math.nan, math.nan, ALPHA, 0, True)
+    sub = draws[:CHECK_DRAWS]
+    rel = _model_rel(errs, meas.column, sub[:, 0], grid.gaps)          # (K, 3)
+    groups = []
+    for idx in meas.groups:
+        scale, y, var_meas, var_floor = _joint_group(meas, idx)
+        X = np.concatenate([joint_values(grid, meas.column, float(meas.v[i]), sub[:, 0],
+                                         sub[:, 1]) for i in idx], axis=-1) / scale
+        var = var_meas + var_floor + (np.tile(rel, (1, idx.size)) * y[None, :]) ** 2
+        groups.append((X, y, var))
+    return check(groups, grid.realisation_weights)
 
 
 def posterior_draws(fine_g, fine_e, pdf, draws: int = PREDICTIVE_DRAWS,
@@ -1380,6 +1489,9 @@ def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = 500e-9,
         pred_rows, outside, checked = predictive(grid, meas, draws)
     else:
         pred_rows, outside, checked = (), 0, 3 * len(meas)
+    mc = joint_model_check(grid, meas, draws, errs)
+    if mc.flag:
+        flags.append("data_outside_model")
     e_eq = eq[0] if math.isfinite(eq[0]) else float(grid.restitutions[-1])
     T0 = _interp_e(grid.values[meas.column][0], grid.restitutions, [e_eq], axis=0)[0]
     fit54, bound54, rows54 = _eq54(T0, grid.speeds, meas, base.probes)
@@ -1403,7 +1515,8 @@ def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = 500e-9,
         interp_rel_error={k: {"g_max": float(np.max(v["g"])), "e": float(v["e"]),
                               "speed": float(v["speed"])} for k, v in errs.items()},
         rows=len(meas), chains=len(meas.groups), scene=base.name,
-        scene_hashes=grid.hashes, flags=tuple(flags), posterior_g_m=fg, posterior_e=fe,
+        scene_hashes=grid.hashes, flags=tuple(flags), data_outside_model=mc.to_json(),
+        posterior_g_m=fg, posterior_e=fe,
         posterior_pdf=pdf, marginal_g=mg, marginal_e=me, draws=draws, grid=grid)
 
 

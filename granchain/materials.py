@@ -33,6 +33,13 @@ class Material:
         return math.sqrt(2.0 * self.E / (math.pi * self.rho * (1.0 - self.nu**2)))
 
     @property
+    def bar_speed(self) -> float:
+        """The longitudinal bar speed c = sqrt(E/rho) (m/s): the speed of a long
+        compression wave along a rod of the material, the limit a chain of its spheres
+        approaches as their contacts flatten (no wave along the chain is faster)."""
+        return math.sqrt(self.E / self.rho)
+
+    @property
     def rigid(self) -> bool:
         return math.isinf(self.E)
 

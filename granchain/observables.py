@@ -281,6 +281,9 @@ class ChainResult:
     t_wall_peak: float | None = None
     wall_force_static: float | None = None
     wall_peak_final: bool | None = None
+    # the fields (energy entries as ``energy.<entry>``) whose value left its physical
+    # bounds (:func:`bounded`): NaN here, each with a line in ``warnings``
+    out_of_bounds: tuple[str, ...] = ()
 
     @property
     def n(self) -> int:
@@ -417,7 +420,7 @@ def summarize(traj: Trajectory, probes=(2, 13)) -> ChainResult:
     dt_front = float(t_front[i2] - t_front[i1]) if arrived else math.nan
     v_g = span / dt_peak if arrived and dt_peak > 0 else math.nan
     v_g_front = span / dt_front if arrived and dt_front > 0 else math.nan
-    return ChainResult(
+    result = ChainResult(
         v_striker=float(traj.v_striker),
         wave_arrived=bool(arrived),
         status=str(traj.status),
@@ -445,3 +448,110 @@ def summarize(traj: Trajectory, probes=(2, 13)) -> ChainResult:
                     else traj.observed.samples),
         **wall,
     )
+    return bounded(result, traj.limits)
+
+
+# ---------------------------------------------------------------------------------------
+# physical bounds
+# ---------------------------------------------------------------------------------------
+# statuses of a run that ended as planned; what any other means, for the human output
+OK_STATUSES = ("passed", "done")
+STATUS_TEXT = {
+    "timeout": "the run hit its time cap before the wave left the chain",
+    "nonfinite": "the integration reached a non-finite state",
+    "stepfail": "the adaptive step control failed",
+    "unphysical": "a value left its physical bounds (see the warning)",
+}
+
+
+def status_text(status: str) -> str:
+    """'status timeout: the run hit its time cap ...': a status for the human output."""
+    return f"status {status}" + (f": {STATUS_TEXT[status]}" if status in STATUS_TEXT else "")
+# (delay, group velocity) pairs: a delay that is not positive, or a group velocity above
+# the sound speed, makes both impossible (v_g = span / delay)
+_TIMING_PAIRS = (("dt_peak", "v_g"), ("dt_front", "v_g_front"),
+                 ("dt_peak_measured", "v_g_measured"), ("dt_front_measured", "v_g_front_measured"))
+_SPEEDS = ("v_max_1", "v_max_2", "v_max_1_measured", "v_max_2_measured", "wall_force_max",
+           "t_wall_peak", "wall_force_static")
+
+
+def bounded(r: ChainResult, limits=None) -> ChainResult:
+    """``r`` with every value outside its physical bounds set to NaN, named in
+    ``out_of_bounds`` and explained by a one-line warning naming the scene key most
+    likely at fault (``limits``: ``guards.Limits``; None checks only what needs no
+    scene). Bounds: a delay between the probes must be positive, a group velocity at
+    most ``limits.sound_speed`` (both of a pair are dropped when either fails), every
+    velocity, force and time finite, every energy-ledger entry finite. A run that ended
+    as planned (``OK_STATUSES``) but failed a bound gets status ``unphysical``; a run
+    whose engine reported a non-finite state or a failed step gets the line too. The
+    check is idempotent: applying it again changes nothing."""
+    bad: dict[str, list[str]] = {"fast": [], "order": [], "nonfinite": []}
+    change: dict = {}
+    shown: dict[str, float] = {}
+
+    def drop(kind: str, *names: str) -> None:
+        for name in names:
+            shown.setdefault(name, getattr(r, name))
+            change[name] = math.nan
+            if name not in bad[kind]:
+                bad[kind].append(name)
+
+    for dt_name, vg_name in _TIMING_PAIRS:
+        dt, vg = getattr(r, dt_name), getattr(r, vg_name)
+        if dt is None:
+            continue
+        if math.isinf(dt) or math.isinf(vg):
+            drop("nonfinite", dt_name, vg_name)
+        elif math.isfinite(dt) and dt <= 0.0:
+            drop("order", dt_name, vg_name)
+        elif limits is not None and math.isfinite(vg) and vg > limits.sound_speed:
+            drop("fast", vg_name, dt_name)
+    for name in _SPEEDS:
+        x = getattr(r, name)
+        if x is not None and math.isinf(x):
+            drop("nonfinite", name)
+    per_particle = {}
+    for name in ("v_max", "t_peak", "t_front"):
+        vals = getattr(r, name)
+        if any(math.isinf(x) for x in vals):
+            per_particle[name] = tuple(math.nan if math.isinf(x) else x for x in vals)
+            bad["nonfinite"].append(name)
+    ledger = {}
+    for entry, x in r.energy.to_dict().items():
+        if not math.isfinite(x):
+            ledger[entry] = math.nan
+            bad["nonfinite"].append(f"energy.{entry}")
+    failed = r.status in ("nonfinite", "stepfail")
+    if not any(bad.values()) and not failed:
+        return r
+    lines = []
+    head = f"v_s = {r.v_striker:g} m/s: "
+    if bad["fast"]:
+        names = [n for n in bad["fast"] if n.startswith("v_g")]
+        vals = " and ".join(f"{n} = {shown[n]:.3g} m/s" for n in names)
+        lines.append(f"{head}{vals} above the bar sound speed {limits.sound_speed:.3g} m/s of "
+                     f"{limits.material} (sqrt(E/rho)) is impossible: "
+                     f"{' and '.join(bad['fast'])} not reported (NaN) - check "
+                     f"{limits.fast}")
+    if bad["order"]:
+        names = [n for n in bad["order"] if n.startswith("dt")]
+        vals = " and ".join(f"{n} = {shown[n]:.3g} s" for n in names)
+        lines.append(f"{head}{vals}: a wave cannot reach probe {r.probes[1]} before probe "
+                     f"{r.probes[0]}: {' and '.join(bad['order'])} not reported (NaN) - check "
+                     + (limits.order if limits is not None else "the scene"))
+    if bad["nonfinite"] or failed:
+        what = (f"the run ended with status {r.status}" if failed else "")
+        if bad["nonfinite"]:
+            what += (" and " if what else "") + f"{' and '.join(bad['nonfinite'])} not " \
+                    "finite (NaN)"
+        lines.append(f"{head}{what} - check "
+                     + (limits.nonfinite if limits is not None else "the scene"))
+    if ledger:
+        change["energy"] = dataclasses.replace(r.energy, **ledger)
+    names = tuple(n for kind in ("fast", "order", "nonfinite") for n in bad[kind])
+    new = tuple(w for w in lines if w not in r.warnings)
+    return dataclasses.replace(
+        r, **change, **per_particle,
+        status="unphysical" if r.status in OK_STATUSES else r.status,
+        out_of_bounds=r.out_of_bounds + tuple(n for n in names if n not in r.out_of_bounds),
+        warnings=tuple(r.warnings) + new)

@@ -414,10 +414,15 @@ class Scene:
         "t_end": 1e-5})``) and/or sections given as mappings (``scene.derive({"integrator":
         {"method": "verlet"}, "t_end": 1e-5})`` or ``scene.derive(integrator={...})``): a
         section's mapping changes only the keys it names, the others keep their values.
-        Values are as in a scene file. A changed key that has no effect for the
-        new scene's settings is refused, as in a scene file; the keys of the scene itself
-        are not checked again. A scene resolved from method auto derives from its resolved
-        setting (the result is a plain scene with that integrator)."""
+        Values are as in a scene file; a value of None unsets the key. The new scene is
+        validated whole, as ``load_scene`` validates a file giving this scene's keys and
+        the changes: every value, and every combination the validator refuses in a file
+        (a gap law on a preloaded chain, ...), whichever of its keys the change named. A
+        changed key that has no effect for the new settings is refused as in a file; a
+        key of this scene that the change leaves without effect (a tolerance when the
+        change picks a fixed step) is the change's choice and is not. A scene resolved
+        from method auto derives from its resolved setting (the result is a plain scene
+        with that integrator)."""
         flat = _flatten(changes or {}) + _flatten(dotted)
         spec = copy.deepcopy(self.spec)
         for key, value in flat:
@@ -431,8 +436,8 @@ class Scene:
             node[parts[-1]] = copy.deepcopy(value)
         changed = {str(k) for k, v in flat if v is not None}
         changed |= {k.partition(".")[0] for k in changed}
-        scene = _validate(spec, changed)
-        return dataclasses.replace(scene, given=self.given | frozenset(changed))
+        unset = {str(k) for k, v in flat if v is None}
+        return _validate(spec, changed, (self.given - unset) | changed)
 
     def contact_time(self, v: float) -> float:
         """Duration of the shortest collision of the scene at closing speed v: a head-on
@@ -790,9 +795,12 @@ def scene_from_dict(raw: dict, *, check_unused: bool = True) -> Scene:
     return _validate(raw, given_keys(raw) if check_unused else set())
 
 
-def _validate(raw: dict, given: set[str]) -> Scene:
-    """The Scene of a mapping; ``given``: the dotted keys refused if they have no effect
-    (kept as ``Scene.given``)."""
+def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scene:
+    """The Scene of a mapping; ``given``: the dotted keys refused if they have no effect;
+    ``whole``: every key the scene gives (default ``given``; a derived scene's are its
+    base scene's and the changed ones), checked in combination (a preload with gaps, ...)
+    and kept as ``Scene.given``."""
+    whole = set(given) if whole is None else set(whole)
     spec = _merge(DEFAULTS, raw)
     name = check_name(spec["name"], "name") if spec["name"] is not None else "scene"
     material = _material(spec["material"])
@@ -861,7 +869,7 @@ def _validate(raw: dict, given: set[str]) -> Scene:
     tol = _num(spec, "integrator.tolerance", allow_none=True,
                fix="give a relative tolerance such as 1e-6")
     _check_unused(given, dist, eff, method)
-    if "precompression.force" in given:
+    if "precompression.force" in whole or load > 0.0:
         if wall is None:
             raise SceneError("precompression.force", "needs an end wall to push the chain onto",
                              "add walls: {end: ss440c} (or rigid), or drop precompression")
@@ -900,7 +908,7 @@ def _validate(raw: dict, given: set[str]) -> Scene:
         striker_velocities=tuple(velocities), gap_distribution=dist, gap_mean=gap_mean,
         gap_seed=seed, gap_values=gap_values, gap_extra_length=extra, effects=eff,
         settings=settings, probes=tuple(pr), method=method, dt=dt, tolerance=tol, t_end=t_end,
-        sample_dt=sample_dt, realisations=realisations, spec=spec, given=frozenset(given),
+        sample_dt=sample_dt, realisations=realisations, spec=spec, given=frozenset(whole),
         measurement=measurement, radii=radii, materials=materials, wall=wall,
         precompression=load, radius_spread=spread,
     )

@@ -15,7 +15,7 @@ import numpy as np
 from .errors import GranchainError
 from .gaps import Member, member_gaps, member_radii, members
 from .vibrometer import measure, needs_trace
-from .observables import ChainResult, summarize
+from .observables import ChainResult, bounded, summarize
 from .plan import RunPlan, plan_run
 from .costmodel import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS
 from .scene import Scene
@@ -77,6 +77,7 @@ def _reference(scene: Scene, sampling: dict, mem: list[Member], kw: dict):
 
 
 def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=None, *,
+              gaps=None,
               max_steps: float = DEFAULT_MAX_STEPS, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
               progress: Callable[[int], None] | None = None, **kw) -> list[ChainResult]:
     """Observables of every member of the scene, one :class:`~granchain.observables.ChainResult`
@@ -92,6 +93,9 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
     measurement block also gets the vibrometer's fields (``granchain.vibrometer``): it
     needs the probes' velocity histories (``vibrometer.needs_trace``).
 
+    ``gaps``: (R, n-1) gaps (m) of realisations 0..R-1 in place of the scene's gap law
+    (``gaps.members``; the inference's designed realisations).
+
     ``progress``: called with 1 as each member's result is done (members arrive as the
     engine finishes each of its chunks), e.g. a progress bar's ``update``
     (``granchain.progress``); the engine's own progress line is then off. It sees the
@@ -99,7 +103,7 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
     plan = plan_run(scene)
     plan.check(max_steps, max_memory_gb)
     scene = plan.scene
-    mem = members(scene, realisations)
+    mem = members(scene, realisations, gaps)
     t0 = time.perf_counter()
     out = []
     warn = {sp.v_striker: sp.warnings for sp in plan.speeds}
@@ -118,10 +122,12 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
             final = [s.final[p - 1] for p in scene.probes]
             extra = measure(traj, scene.probes, scene.measurement, key=(m.index,),
                             true_final=final).result_fields(scene.probes)
-        out.append(dataclasses.replace(
+        # the plan's warnings first, then those of the result's bounds (summarize); the
+        # vibrometer's values go through the same bounds
+        out.append(bounded(dataclasses.replace(
             s, member=m.index, realisation=m.realisation, engine=engine,
             method=traj.info.method, dt=float(traj.info.dt),
-            warnings=warn[m.v_striker], **extra))
+            warnings=tuple(warn[m.v_striker]) + s.warnings, **extra), traj.limits))
         if progress is not None:
             progress(1)
     wall = time.perf_counter() - t0

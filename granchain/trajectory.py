@@ -2,10 +2,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .effects import ENERGY_COLUMNS  # noqa: F401  (the energy-ledger columns, in engine order)
+
+if TYPE_CHECKING:
+    from .guards import Limits
 
 
 @dataclass(frozen=True)
@@ -102,6 +106,10 @@ class Trajectory:
     # its static part (the preload at t = 0)
     wall_force: np.ndarray | None = None
     wall_static: float = 0.0
+    # the physical bounds of this chain's results (``guards.result_limits`` of the scene
+    # that ran; the engines set them), checked by ``observables.summarize``; None: only
+    # the bounds that need no scene (positive delays, finite values)
+    limits: "Limits | None" = None
 
     @property
     def n(self) -> int:

@@ -19,13 +19,15 @@ from granchain.inference import simulate_rows
 from granchain.scene import load_scene
 
 REPO = Path(__file__).resolve().parents[1]
+# the base scene the chains are drawn from
+BASE = REPO / "measurements" / "example_synthetic.yaml"
 TRUE_GAP = 47e-9
 NOISE = 0.2e-6
 SEED = 2024
 
 
 def main(out: Path = REPO / "measurements" / "example_synthetic.csv", force: bool = False) -> Path:
-    base = load_scene(REPO / "measurements" / "example_synthetic.yaml").derive(
+    base = load_scene(BASE).derive(
         {"gaps": {"seed": SEED}})
     rng = np.random.default_rng(7)
     speeds = [0.03, 0.045, 0.07, 0.1, 0.035, 0.05, 0.08, 0.095]
@@ -43,4 +45,4 @@ def main(out: Path = REPO / "measurements" / "example_synthetic.csv", force: boo
 
 if __name__ == "__main__":
     from _synthetic import cli
-    cli(main, __doc__, REPO / "measurements" / "example_synthetic.csv")
+    cli(main, __doc__, REPO / "measurements" / "example_synthetic.csv", BASE)

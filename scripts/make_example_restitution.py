@@ -21,6 +21,8 @@ from granchain.inference import simulate_joint_rows
 from granchain.scene import load_scene
 
 REPO = Path(__file__).resolve().parents[1]
+# the base scene the chains are drawn from
+BASE = REPO / "measurements" / "example_restitution.yaml"
 TRUE_GAP = 47e-9
 TRUE_E = 0.92
 NOISE = 0.2e-6
@@ -29,7 +31,7 @@ SEED = 2024
 
 
 def main(out: Path = REPO / "measurements" / "example_restitution.csv", force: bool = False) -> Path:
-    base = load_scene(REPO / "measurements" / "example_restitution.yaml").derive(
+    base = load_scene(BASE).derive(
         {"gaps": {"seed": SEED}})
     rng = np.random.default_rng(7)
     speeds = np.array([0.03, 0.045, 0.07, 0.1, 0.035, 0.05, 0.08, 0.095])
@@ -52,4 +54,4 @@ def main(out: Path = REPO / "measurements" / "example_restitution.csv", force: b
 
 if __name__ == "__main__":
     from _synthetic import cli
-    cli(main, __doc__, REPO / "measurements" / "example_restitution.csv")
+    cli(main, __doc__, REPO / "measurements" / "example_restitution.csv", BASE)

@@ -323,10 +323,11 @@ def _fake_runs(monkeypatch):
 
 
 def test_out_force_replaces_and_leaves_other_files_alone(tmp_path, capsys, monkeypatch):
+    """--force replaces an earlier run's JSON (and only that: tests/test_output_paths.py)."""
     _fake_runs(monkeypatch)
     scene = write(tmp_path, "{}\n")
     out = tmp_path / "r.json"
-    out.write_text("old")
+    out.write_text('{"v_striker": 0.2, "scene": "old", "scene_hash": "0000000000000000"}')
     (tmp_path / "r.json.tmp").write_text("keep me")
     assert main(["run", scene, "--json", "--out", str(out), "--force"]) == 0
     assert json.loads(out.read_text())["scene"] == "s"

@@ -9,10 +9,15 @@ from pathlib import Path
 
 from ..costmodel import MODEL_FILE
 from ..errors import GranchainError
+from ..fileio import OutputKind, check_distinct, check_output_path, file_head, json_output
 from .harness import measure
 from .report import plot, write_model, write_outputs
 
 DESCRIPTION = "What accuracy costs in time, and the cost model behind method: auto."
+# what model --force may replace: an earlier cost model (its header) and its provenance
+COST_MODEL = OutputKind("a cost model table (header scene_class,method,...)",
+                        lambda p: file_head(p, 64).startswith(b"scene_class,method,"))
+COST_PROVENANCE = json_output("a cost model provenance document", {"scene_class", "source"})
 
 
 def preset_blocks(config: dict, preset: str | None = None) -> tuple[dict, dict, str]:
@@ -43,14 +48,43 @@ def build_parser(prog: str = "python -m granchain.accuracy") -> argparse.Argumen
     mo = sub.add_parser("model", help="write the packaged cost model from a measured table")
     mo.add_argument("timing", help="timing/accuracy_cost.csv of a run (and its .provenance.json)")
     mo.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / MODEL_FILE))
-    mo.add_argument("--force", action="store_true", help="replace the existing model")
+    mo.add_argument("--force", action="store_true", help="replace an earlier cost model and its provenance")
     return ap
+
+
+def _provenance(path) -> Path | None:
+    """The provenance JSON written (or read) beside a measured table."""
+    return None if path is None else Path(path).with_suffix(".provenance.json")
+
+
+def check_paths(args) -> None:
+    """Refuse, before any work, an output that is an input of the subcommand or another of
+    its outputs (``fileio.check_distinct``); with ``model --force``, an existing model
+    that is not an earlier cost model."""
+    if args.cmd == "measure":
+        check_distinct([("--table", args.table), ("--provenance", args.provenance),
+                        ("--timing", args.timing),
+                        ("--timing (its provenance)", _provenance(args.timing)),
+                        ("--cheapest", args.cheapest)],
+                       [] if args.cost_json is not None else [("the --config file", args.config)])
+    elif args.cmd == "figure":
+        check_distinct([("png", args.png), ("pdf", args.pdf)], [("the timing table", args.timing)])
+    else:
+        out = Path(args.out)
+        prov = out.with_name(out.stem + ".provenance.json")
+        check_distinct([("--out", out), ("--out (its provenance)", prov)],
+                       [("the timing table", args.timing),
+                        ("the timing table's provenance", _provenance(args.timing))])
+        if args.force:
+            check_output_path(out, True, "--out", probe=False, kind=COST_MODEL)
+            check_output_path(prov, True, "--out", probe=False, kind=COST_PROVENANCE)
 
 
 def main(argv=None, prog: str = "python -m granchain.accuracy") -> int:
     """Run a subcommand; errors a user can cause are one line on stderr, exit status 2."""
     args = build_parser(prog).parse_args(argv)
     try:
+        check_paths(args)
         if args.cmd == "measure":
             if args.cost_json is not None:
                 cost, base = json.loads(args.cost_json), json.loads(args.base_json or "{}")

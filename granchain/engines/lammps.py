@@ -78,7 +78,7 @@ import numpy as np
 
 from ..effects import contact_damping, physics_terms, residual_work
 from ..errors import GranchainError
-from ..guards import require_resolved
+from ..guards import require_resolved, result_limits
 from ..lammps import deck as deckmod
 from ..scene import Scene
 from ..stoprule import auto_t_max, last_detached, wall_left
@@ -273,7 +273,8 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         if progress:
             print(f"[granchain] {scene.name}: LAMMPS, {B} chain(s) x {scene.n} spheres, "
                   f"{pl.nsteps} steps max, {nprocs} rank(s) ...", file=sys.stderr, flush=True)
-        lrun = run_lammps(deck, wd, nprocs=nprocs, timeout=timeout)
+        lrun = run_lammps(deck, wd, nprocs=nprocs, timeout=timeout,
+                          log_name=deckmod.LOG_NAME, stdout_name=deckmod.SCREEN_NAME)
         if progress:
             print(f"[granchain] {scene.name}: LAMMPS done in {lrun.wall_time:.1f} s; reading "
                   f"{wd / READERS[output][0]} ...", file=sys.stderr, flush=True)
@@ -812,6 +813,7 @@ def _trajectories(scene, pl, data, wall_each, info):
     step, V, E, OL = data["step"], data["v"], data["energy"], data["last_overlap"]
     WF, XL = data.get("wall_force"), data.get("last_disp")
     eff = tuple(sorted(scene.effects))
+    limits = result_limits(scene)
     terms = physics_terms(scene)
     members = chain_terms(scene, pl)
     for b in range(pl.n_chains):
@@ -842,7 +844,7 @@ def _trajectories(scene, pl, data, wall_each, info):
             t=step[:keep] * scene.dt, v=v[:keep], energy=E[:keep, b, :],
             gaps=pl.gaps[b].copy(), radius=scene.radius, v_striker=vsb, effects=eff,
             steps=int(step[keep - 1]), rejected=0, status=status, wall_s=wall_each,
-            info=info, last_overlap=float(OL[keep - 1, b]),
+            info=info, last_overlap=float(OL[keep - 1, b]), limits=limits,
             # one force computation per step, plus the one of LAMMPS's setup
             force_evaluations=int(step[keep - 1]) + 1, **extra)
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..stoprule import arrival_speed, auto_t_max, expected_duration, last_detached, sample_interval
 from ..effects import MODULES, SPECS, Terms, chain as chain_mod, physics_terms
-from ..guards import require_resolved
+from ..guards import require_resolved, result_limits
 from ..scene import Scene
 from ..trajectory import OnTheFly, RunInfo, Trajectory
 from . import backend
@@ -326,6 +326,7 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
         NS = obs.NS if observe else NS
     wall = time.perf_counter() - t0
     eff = tuple(sorted(scene.effects))
+    limits = result_limits(scene)
     ox, ov = layout.LO[codes.L_DISP], layout.LO[codes.L_VEL]
     ovf = obs.overflow() if observe else np.zeros(B, dtype=bool)
     redo = {}
@@ -369,6 +370,7 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
                          wall_s=wall / B, last_overlap=last_overlap, force_evaluations=nev,
                          observed=observed,
                          info=RunInfo(method, dt, sdt, rtol, trace=not observe),
+                         limits=limits,
                          **_chain_fields(terms, rec, None if radii is None else radii[b]))
 
 
@@ -456,6 +458,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
                 E_parts[b].append(Ebuf[b, :c].copy())
     wall = time.perf_counter() - t0
     eff = tuple(sorted(scene.effects))
+    limits = result_limits(scene)
     ox, ov = LO[codes.L_DISP], LO[codes.L_VEL]
     ebuf = np.empty(codes.E_LEN)
     for b in range(B):
@@ -495,6 +498,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
                          force_evaluations=int(NEV[b]), observed=obs,
                          info=RunInfo("event", dt, sample_dt, rtol, trace=bool(trace),
                                       pair=pair, t_last=float(T[b])),
+                         limits=limits,
                          **_chain_fields(terms, None, None if radii is None else radii[b]))
 
 

@@ -43,6 +43,8 @@ from pathlib import Path
 
 from ..reductions import read_table, read_trace, read_vibrometer_trace
 from ..errors import GranchainError
+from ..fileio import check_distinct
+from .style import figure_paths
 from .fig5_1 import fig5_1a, fig5_1b, fig5_1c
 from .fig5_2 import fig5_2a, vibrometer
 from .fig5_3 import fig5_3b, fig5_3c
@@ -114,6 +116,8 @@ def main(argv=None) -> int:
     a = build_parser().parse_args(argv)
     paths = {k: v for k, v in vars(a).items() if k not in ("name", "out", "radius") and v}
     try:
+        check_distinct([("--out", p) for p in figure_paths(a.out)],
+                       [(f"the --{k.replace('_', '-')} input", v) for k, v in paths.items()])
         for p in render(a.name, paths, a.out, a.radius):
             print(p)
     except GranchainError as exc:

@@ -22,6 +22,17 @@ from .style import drawn, figure, plain_log
 FORMATS = (".png", ".pdf", ".svg")
 
 
+
+def outside_note(res) -> str:
+    """A title's warning when the model check flagged the data (``data_outside_model``):
+    the interval drawn is then not calibrated."""
+    mc = res.data_outside_model
+    if not mc["flag"]:
+        return ""
+    p = mc["p_value"]
+    return ("\nDATA OUTSIDE THE SIMULATED REALISATIONS"
+            + (f" (p = {p:.2g})" if math.isfinite(p) else "") + ": interval not calibrated")
+
 def predicted_vg(res, base, speeds, draws: int = 200):
     """(lo, median, hi) of simulated v_g (m/s) at each striker speed of ``speeds``, over
     ``draws`` posterior quantiles of the mean gap x the grid's realisations."""
@@ -74,7 +85,8 @@ def plot_inference(res, meas, base, path, force: bool = False) -> Path:
         f"[{res.ci95_m[0] * 1e9:.1f}, {res.ci95_m[1] * 1e9:.1f}] nm"
     med_txt = "n/a" if not math.isfinite(res.gap_mean_m) else f"{res.gap_mean_m * 1e9:.1f} nm"
     ax.set_title(f"{base.material.name}: inferred mean gap {med_txt}, 95 % {ci}\n"
-                 f"({res.timing_column}, {res.n_simulated} simulated chains)")
+                 f"({res.timing_column}, {res.n_simulated} simulated chains)"
+                 + outside_note(res))
     ax.legend(loc="best")
     path = Path(path)
     fmt = path.suffix.lower()
@@ -160,7 +172,7 @@ def plot_joint_inference(res, meas, base, path, force: bool = False) -> Path:
     ci = ("n/a" if not math.isfinite(res.ci95_m[1]) or not math.isfinite(res.ci95_m[0])
           else f"[{res.ci95_m[0] * 1e9:.1f}, {res.ci95_m[1] * 1e9:.1f}] nm")
     med = "n/a" if not math.isfinite(res.gap_mean_m) else f"{res.gap_mean_m * 1e9:.1f} nm"
-    a_g.set_title(f"mean gap {med}, 95 % {ci}")
+    a_g.set_title(f"mean gap {med}, 95 % {ci}" + outside_note(res))
     a_g.legend(loc="best")
     a_e.plot(res.posterior_e, res.marginal_e, color="#1f77b4")
     _interval(a_e, *res.restitution_ci95, res.restitution, "#1f77b4")

@@ -65,13 +65,20 @@ def colormap(name):
     return matplotlib.colormaps[name]
 
 
-def save(fig, out) -> list[Path]:
-    """Write ``{out}.png`` and ``{out}.pdf`` without dates or software strings."""
+def figure_paths(out) -> list[Path]:
+    """The files a figure drawn into ``out`` is written to: ``{out}.png`` and
+    ``{out}.pdf`` (a .png or .pdf suffix of ``out`` dropped first)."""
     out = Path(out)
     if out.suffix in (".png", ".pdf"):
         out = out.with_suffix("")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    png, pdf = Path(f"{out}.png"), Path(f"{out}.pdf")
+    return [Path(f"{out}.png"), Path(f"{out}.pdf")]
+
+
+def save(fig, out) -> list[Path]:
+    """Write ``{out}.png`` and ``{out}.pdf`` (:func:`figure_paths`) without dates or
+    software strings."""
+    png, pdf = figure_paths(out)
+    png.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(png, metadata={"Software": None})
     fig.savefig(pdf, metadata={"CreationDate": None, "ModDate": None, "Producer": None,
                                "Creator": None})

@@ -72,11 +72,12 @@ import numpy as np
 from granchain.effects import (air_drag, contact_damping, groove_friction, hertz,
                                particle_friction, physics_terms, rolling_friction, rotation)
 from granchain.errors import GranchainError
-from granchain.fileio import atomic_write_text, check_output_path
+from granchain.fileio import OutputKind, file_head, atomic_write_text, check_output_path
 from granchain.scene import NAME_RE, NAME_RULE, Scene
 from granchain.lammps.plan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, DECK_NAME,
                                    DUMP_COLUMNS, DUMP_NAME, ENERGY_NAME, LEDGER_BINARY_NAME,
-                                   LEDGER_INPUTS, LEDGER_NAME, OUTPUTS, WALL_FORCE_COLUMN,
+                                   LEDGER_INPUTS, LEDGER_NAME, LOG_NAME, OUTPUTS, SCREEN_NAME,
+                                   WALL_FORCE_COLUMN, WORKDIR_FILES,
                                    WORK_COLUMNS, DeckPlan,
                                    ledger_binary_columns, max_travel, plan)
 from granchain.lammps import field
@@ -87,7 +88,8 @@ __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "wr
            "plan", "DeckPlan", "DECK_NAME", "DATA_NAME", "DUMP_NAME", "ENERGY_NAME",
            "LEDGER_NAME", "DUMP_COLUMNS", "WORK_COLUMNS", "LEDGER_INPUTS", "OUTPUTS",
            "BINARY_NAME", "LEDGER_BINARY_NAME", "BINARY_COLUMNS", "max_travel",
-           "ledger_binary_columns", "WALL_FORCE_COLUMN", "field"]
+           "ledger_binary_columns", "WALL_FORCE_COLUMN", "field", "LOG_NAME", "SCREEN_NAME",
+           "WORKDIR_FILES"]
 
 def template_path() -> Path:
     return Path(__file__).resolve().parents[2] / "lammps_inputs" / "templates" / "chain.lmp.in"
@@ -495,6 +497,13 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
     return deck_text, data_text
 
 
+# what force may replace: the deck and data files of an earlier write_deck (their first
+# lines, written by render)
+DECK_FILES = OutputKind("a deck.lmp or chain.data granchain wrote",
+                        lambda p: file_head(p, 64).startswith((b"# granchain LAMMPS deck",
+                                                           b"granchain chain.data")))
+
+
 def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=None,
                force: bool = False, plugin: str | None = None, output: str = "dump",
                durable: bool = True) -> Path:
@@ -522,7 +531,7 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=N
                              "directory for the deck (it is created if missing)")
     if outdir.is_dir():
         for t in targets:                     # refuse before rendering (plugin build, plan)
-            check_output_path(t, force, "deck", probe=False)
+            check_output_path(t, force, "deck", probe=False, kind=DECK_FILES)
     if plugin is None and needs_plugin(scene):
         from granchain.lammps.plugin import build_plugin
         plugin = str(build_plugin())
@@ -534,7 +543,7 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=N
         raise GranchainError(f"deck: cannot create the directory {str(outdir)!r} "
                              f"({exc.strerror or exc}); choose another directory") from None
     for t in targets:
-        check_output_path(t, force, "deck")
+        check_output_path(t, force, "deck", kind=DECK_FILES)
     for t, text in zip(targets[::-1], (data_text, deck_text)):
         if durable:
             atomic_write_text(t, text, force, "deck")

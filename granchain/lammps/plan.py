@@ -25,6 +25,11 @@ ENERGY_NAME = "energy.txt"
 LEDGER_NAME = "ledger.txt"
 BINARY_NAME = "traj.bin"
 LEDGER_BINARY_NAME = "ledger.bin"
+LOG_NAME = "log.lammps"          # LAMMPS' log and its screen output (lammps.runner)
+SCREEN_NAME = "screen.lammps"
+# every file the LAMMPS engine writes into its working directory (a kept --workdir)
+WORKDIR_FILES = (DECK_NAME, DATA_NAME, DUMP_NAME, ENERGY_NAME, LEDGER_NAME, BINARY_NAME,
+                 LEDGER_BINARY_NAME, LOG_NAME, SCREEN_NAME)
 # the text trajectory dump: MDAnalysis needs id and x y z; the engine reads x and vx
 DUMP_COLUMNS = ("id", "x", "y", "z", "vx")
 # the binary trajectory dump (sorted by id, so no id column): what the engine reads

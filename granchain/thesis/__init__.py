@@ -29,6 +29,7 @@ import pandas as pd
 
 from ..reductions import read_table, read_trace
 from ..errors import GranchainError
+from ..fileio import check_distinct
 from . import rows as thesis_rows
 
 COLUMNS = ["id", "quantity", "kind", "chapter_text", "chapter_value", "chapter_uncertainty",
@@ -150,6 +151,9 @@ def main(argv=None) -> int:
     missing or invalid table prints one line and returns 2."""
     a = build_parser().parse_args(argv)
     try:
+        check_distinct([("--out-csv", a.out_csv), ("--out-md", a.out_md)],
+                       [(f"the --{k.replace('_', '-')} input", getattr(a, k))
+                        for k in (*STUDIES, "trace")])
         kw = read_inputs(vars(a))
         kw["radius"] = a.radius
         write(comparison(**kw), a.out_csv, a.out_md, a.title)

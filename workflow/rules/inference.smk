@@ -1,13 +1,16 @@
-# The mean gap inferred from measured wave timing (granchain infer, granchain/inference.py)
-# for every measurements/<name>.csv at the top of the repository, with its base scene
+# The mean gap inferred from measured wave timing (granchain infer, granchain/inference.py;
+# with the coefficient of restitution, --fit gap_mean,restitution, when the base scene has
+# contact_damping coeff_restitution and the CSV both peaks: inference.fit_for) for every
+# measurements/<name>.csv at the top of the repository, with its base scene
 # measurements/<name>.yaml: results/<preset>/inference/<name>.json and <name>.png.
 # `snakemake --cores 2 inference` runs them all; the default target includes them for real
 # measurements only (files not named example_*: the shipped example is synthetic). The
 # simulated grids are cached under results/inference_cache, keyed by scene hash, for all
 # presets.
 # MEASUREMENTS and inference_targets() are in common.smk (all_targets lists the real ones).
-INFER_CODE = [str(Path(workflow.basedir) / "granchain" / "inference.py"),
-              str(Path(workflow.basedir) / "granchain" / "figures" / "inference.py")]
+INFER_CODE = [str(Path(workflow.basedir) / "granchain" / f)
+              for f in ("inference.py", "gapdesign.py", "modelcheck.py",
+                        "figures/inference.py")]
 
 
 wildcard_constraints:
