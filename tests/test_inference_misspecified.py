@@ -10,12 +10,14 @@ the same noise draws are also made with the likelihood's own law at e = 0.9, so 
 inferences differ by the damping law alone.
 
 What is expected (the module doc of granchain.inference, and the slow calibration in
-tests/test_inference_joint.py over many experiments): the mean gap read as with the
-likelihood's own law (the damping hardly changes the timing); e read higher than under
-the likelihood's own law, never lower, because the collisions inside a chain are slower
-than the striker, where this law's e is higher (its e is 0.918 at 0.02 m/s against 0.900
-at the matched 0.057 m/s); the intervals still holding the truth (e as matched) at this
-mild misspecification, which the posterior predictive check does not flag.
+tests/test_inference_joint.py over many experiments): e read higher than under the
+likelihood's own law, never lower, because the collisions inside a chain are slower than
+the striker, where this law's e is higher (its e is 0.918 at 0.02 m/s against 0.900 at
+the matched 0.057 m/s), so e's interval holds the truth or lies above it; the mean gap
+read as under the likelihood's own law (the damping hardly changes the timing); and, at
+this mild misspecification, no flag: the model check and the predictive check do not see
+it. (Coverage of the mean gap is not asserted here: this coarse grid is not calibrated,
+the slow calibration measures it.)
 """
 from __future__ import annotations
 
@@ -71,25 +73,25 @@ def paired(tmp_path_factory):
     return base, eta, out
 
 
-def test_a_viscoelastic_truth_reads_e_higher_and_keeps_its_intervals(paired):
+def test_a_viscoelastic_truth_reads_e_higher_and_flags_nothing(paired):
     """Measured on 8 such experiments (noise and realisations drawn anew): e read higher
-    under the viscoelastic truth by +0.0032 to +0.0064, the mean gap moved by at most
-    1.3 %; e's interval held 0.9 in 8 of 8, the mean gap's held 70 nm in 7 of 8 (the
-    slow calibration measures coverage on 52: mean gap 0.904, e 0.865)."""
+    under the viscoelastic truth by +0.0036 to +0.0079, the mean gap moved by at most
+    2.3 %; e's interval reached 0.9 or above in 8 of 8; no flag (the slow calibration's
+    coverage over 52: mean gap 0.904, e 0.865, every miss of e above the truth)."""
     base, eta, res = paired
     own, visco = res["coeff_restitution"], res["viscoelastic"]
     # the truth's law: e = 0.9 at the matched speed, higher for slower impacts
     assert inference.collision_restitution(
         base, 0.02, {"model": "viscoelastic", "eta": eta, "e": None}) > E_TRUE + 0.01
     for r in (own, visco):
-        assert not r.flags, r.flags
-        assert r.ci95_m[0] <= G_TRUE <= r.ci95_m[1], r.ci95_m
-        assert r.restitution_ci95[0] <= E_TRUE <= r.restitution_ci95[1], r.restitution_ci95
-        # the predictive check does not notice this misspecification: what chance gives
+        assert r.flags == (), r.flags               # data_outside_model among them
         assert r.predictive_values == 12 and r.predictive_outside <= 2
+        assert r.restitution_ci95[0] < r.restitution < r.restitution_ci95[1]
     # e higher, by less than the law's own change of e between the matched speed and
-    # 0.02 m/s (0.018); the mean gap as read with the likelihood's own law
+    # 0.02 m/s (0.018); its interval holds the truth or lies above it
     shift = visco.restitution - own.restitution
     assert 0.001 < shift < 0.018, shift
     assert visco.restitution_ci95[0] > own.restitution_ci95[0]
+    assert visco.restitution_ci95[1] >= E_TRUE
+    # the mean gap as read with the likelihood's own law
     assert abs(visco.gap_mean_m / own.gap_mean_m - 1) < 0.05

@@ -83,7 +83,8 @@ RELATIVE = {"cross-validate-with-lammps": (1e-6, "compare's table prints 10 digi
 NOT_COMPARED = [
     (None, r"\d steps, (?P<x>\S+) s$", "the run's wall time"),
     (None, r"members in (?P<x>\S+) s", "a batch's wall time"),
-    (None, r"SLURM jobid (?P<x>\d+) \(log: .*/(?P<y>\d+)\.log\)", "SLURM's job id"),
+    (None, r"Job (?P<z>\d+) has been submitted with SLURM jobid (?P<x>\d+) \(log: .*/(?P<y>\d+)\.log\)",
+     "snakemake's job number and SLURM's job id"),
     ("cross-validate-with-lammps", r"^v\(t\), every particle\s+\S+\s+\S+\s+(?P<x>\S+)",
      "the engines' difference: rounding"),
     ("cross-validate-with-lammps", r"energy balance error (?P<x>\S+) \(LAMMPS",
