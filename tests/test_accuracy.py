@@ -198,6 +198,51 @@ def test_deterministic_table_and_provenance(study, tmp_path):
     assert "machine" in json.loads((a / "timing.provenance.json").read_text())
 
 
+@uses_study
+def test_the_accuracy_figure_draws_the_table(study, tmp_path, monkeypatch):
+    """The accuracy figure (error against wall time per chain) read back: each method's
+    curve on each scene is its rows in order of refinement, the reference's uncertainty
+    a grey line per scene, the cheapest setting for each tolerance on v_g starred where
+    the table puts it; the fixed-step curves' errors fall as their steps refine (the
+    methods' order, tested above)."""
+    import matplotlib.pyplot as plt
+    from granchain.accuracy import report
+    df, _ = study
+    got = []
+    monkeypatch.setattr(plt, "close", lambda fig: got.append(fig))
+    report.plot(df, tmp_path / "a.png")
+    (fig,) = got
+    axes = fig.axes[:3]
+    for ax, (obs, _) in zip(axes, report.PANELS):
+        col = "balance_error" if obs == "balance" else f"err_{obs}"
+        curves = {ln.get_label(): ln.get_xydata() for ln in ax.get_lines()
+                  if not ln.get_label().startswith("_")}
+        drawn = 0
+        for (scene, m), d in df.groupby(["scene", "method"]):
+            if d[col].isna().all():
+                continue
+            d = d.sort_values("tolerance", ascending=False) if m in TOLERANCE_METHODS else \
+                d.sort_values("steps_per_contact")
+            xy = curves[f"{m}, {scene}"]
+            np.testing.assert_allclose(xy[:, 0], d["wall_s_per_chain"], rtol=1e-12)
+            np.testing.assert_allclose(xy[:, 1], np.maximum(d[col], 1e-16), rtol=1e-12)
+            if obs == "v_max_2" and m in ("rk4", "verlet"):
+                assert np.all(np.diff(xy[:, 1]) < 0), (scene, m)
+            drawn += 1
+        assert drawn == len(curves) >= 4, obs
+        if obs != "balance":
+            grey = sorted(ln.get_ydata()[0] for ln in ax.get_lines()
+                          if ln.get_color() == "0.6")
+            want = sorted(max(float(d[f"ref_uncertainty_{obs}"].max()), 1e-16)
+                          for _, d in df.groupby("scene"))
+            np.testing.assert_allclose(grey, want, rtol=1e-12)
+    stars = [ln.get_xydata()[0] for ln in axes[1].get_lines() if ln.get_marker() == "*"]
+    want = [accuracy.cheapest(df, tol, "v_g") for tol in (1e-3, 1e-5)]
+    want = [(c["wall_s_per_chain"], max(c["envelope"], 1e-16)) for c in want if c is not None]
+    assert len(want) >= 1
+    np.testing.assert_allclose(stars, want, rtol=1e-12)
+
+
 def test_measured_errors_are_deterministic(tmp_path):
     """What goes into tables/ is byte-identical between runs (timings go to timing/),
     however many timed repeats each setting gets: errors come from the first batch.

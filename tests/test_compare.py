@@ -80,7 +80,8 @@ def test_cli_json_and_out(scene_yaml, tmp_path, capsys):
     assert doc["ok"] is True and doc["scene"] == "packed-440c"
     assert {r["quantity"] for r in doc["rows"]} >= {"v_max[1]", "v_g", "hertz_potential"}
     assert doc["meta"]["tolerances"] == {"v": compare_mod.V_TOL, "t": compare_mod.T_TOL,
-                                         "energy_over_E0": compare_mod.E_TOL}
+                                         "energy_over_E0": compare_mod.E_TOL,
+                                         "trajectory_over_v_s": compare_mod.TRAJ_TOL}
     assert cli_main(["compare", scene_yaml, *HERTZ, "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "exists" in err and err.count("\n") == 1
@@ -166,3 +167,48 @@ def test_walled_scene_compares_the_wall_force():
         rows = {r["quantity"]: r for r in compare_mod.member_rows(cs, ref, bad)}
         assert rows[failing]["ok"] is False, failing
         assert rows["t_wall_peak"]["ok"] is True
+
+
+def test_tolerances_see_what_rounding_cannot_explain():
+    """The tolerances sit about 10x above the engines' measured disagreement (module doc
+    of granchain.compare: v_max 3.5e-9, v(t) 5.0e-8 v_s, times 1.2e-9, energies 7.3e-9 E0,
+    wall force 2.0e-9), so a difference 10x above each tolerance, still far below any
+    physics term, fails its row, and rounding-sized ones pass. The reference's own
+    record stands in for LAMMPS's, altered."""
+    import dataclasses
+
+    import numpy as np
+
+    from granchain.engines import reference
+    from granchain.gaps import member_gaps, members
+    for name, tol in (("V_TOL", 3.5e-9), ("TRAJ_TOL", 5.0e-8), ("T_TOL", 1.2e-9),
+                      ("E_TOL", 7.3e-9), ("W_TOL", 2.0e-9)):
+        assert 3 * tol < getattr(compare_mod, name) <= 11 * tol, name
+    cs = compare_mod.comparison_scene(packed(**{"chain.n": 8, "probes": "[2, 7]",
+                                                "walls.end": "ss316", "striker.velocity": 0.2}))
+    mem = members(cs)
+    ref = next(reference.run(cs, member_gaps(cs, mem), [mem[0].v_striker], method="verlet",
+                             dt=cs.dt, trace=True))
+
+    def rows(**change):
+        return {r["quantity"]: r for r in compare_mod.member_rows(
+            cs, ref, dataclasses.replace(ref, **change), trace=ref)}
+
+    same = rows()
+    assert all(r["ok"] is not False for r in same.values())
+    for scale in (0.1, 10.0):
+        dv = scale * compare_mod.V_TOL
+        got = rows(v=ref.v * (1 + dv))                 # every peak scaled, v_g unchanged
+        assert (got["v_max[4]"]["ok"] is False) == (scale > 1), scale
+        assert got["v(t), every particle"]["ok"] is True  # dv < 3e-7 v_s: below TRAJ_TOL
+    v = ref.v.copy()
+    v[len(v) // 2, 3] += 10 * compare_mod.TRAJ_TOL * ref.v_striker
+    assert rows(v=v)["v(t), every particle"]["ok"] is False
+    t = ref.t * (1 + 10 * compare_mod.T_TOL)           # every time, stretched
+    assert rows(t=t)["dt_peak"]["ok"] is False
+    e = ref.energy.copy()
+    e[:, 0] += 10 * compare_mod.E_TOL * e[0, :3].sum()  # the kinetic energy, shifted
+    assert rows(energy=e)["kinetic_translational"]["ok"] is False
+    w = rows(wall_force=ref.wall_force * (1 + 10 * compare_mod.W_TOL))
+    assert w["wall_force_max"]["ok"] is False and w["t_wall_peak"]["ok"] is True
+

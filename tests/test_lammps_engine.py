@@ -72,8 +72,10 @@ def test_cross_validation_lammps_equals_reference_verlet(name, tmp_path):
         assert bal.ok.all() and bal["diff"].max() < 1e-9
     # and sample by sample
     gaps, vs = _members(cmp.scene)
-    for r, lt in zip(reference.run(cmp.scene, gaps, vs, method="verlet", trace=True),
-                     lammps_engine.run(cmp.scene, gaps, vs)):
+    ref = list(reference.run(cmp.scene, gaps, vs, method="verlet", trace=True))
+    lmp = list(lammps_engine.run(cmp.scene, gaps, vs))
+    assert len(ref) == len(lmp) == len(members(scene)) >= 1
+    for r, lt in zip(ref, lmp):
         assert lt.info.method == "lammps-verlet" and lt.status == r.status == "passed"
         np.testing.assert_allclose(lt.t, r.t, rtol=1e-12, atol=0)
         assert np.abs(lt.v - r.v).max() < DV_BOUND

@@ -352,7 +352,7 @@ def test_engine_override_plans_every_ensemble_study_on_lammps():
         assert same.scene_hashes(study) == ref.scene_hashes(study)
         if study == "packed_trace":
             continue
-        assert [b.name for b in lmp.batches[study]] == \
+        assert lmp.batches[study] and [b.name for b in lmp.batches[study]] == \
             [b.name.replace("reference", "lammps") for b in ref.batches[study]]
         # each batch is costed by its members' own estimate on its engine
         for plan in (ref, lmp):
@@ -453,6 +453,34 @@ def _tables(wd: Path, study: str) -> pd.DataFrame:
     return tables.read_csv(wd / "results" / "tiny" / "tables" / f"{study}.csv")
 
 
+def assert_figures_show_their_tables(root: Path, stems, monkeypatch, tmp_path) -> None:
+    """Each figure the workflow drew, ``root/figures/<stem>.png``, shows the run's tables:
+    redrawn here from the same inputs it is the same PNG byte for byte (the figures are
+    deterministic), and the redrawn figure's artists hold the tables' values and the
+    physics tests/test_figures.py checks (its ``FIGURE_DATA``)."""
+    import test_figures as tf
+    from granchain import figures
+    tdir, rdir = root / "tables", root / "traces"
+    radius = tiny_preset()["base"]["radius"]
+    assert stems
+    for stem in stems:
+        name, mat = (stem, None) if stem in figures.FIGURES else stem.rsplit("_", 1)
+        paths = {}
+        for need in figures.FIGURES[name][1]:
+            paths[need] = {"trace": rdir / f"packed_trace_{mat}.npz",
+                           "vibrometer_trace": rdir / f"vibrometer_{mat}.npz",
+                           "vibrometer": tdir / "vibrometer.csv"}.get(
+                               need, tdir / f"{need}.parquet")
+        out = tmp_path / "redrawn" / stem
+        with monkeypatch.context() as m:
+            m.setattr(figures, "render", lambda n, p, o, _r=figures.render: _r(n, p, o, radius))
+            fig, written = tf._draw(name, paths, out, m)
+        assert written[0].read_bytes() == (root / "figures" / f"{stem}.png").read_bytes(), stem
+        assert (root / "figures" / f"{stem}.pdf").is_file(), stem
+        kw = {"material": mat} if name == "fig5_1a" else {}
+        tf.FIGURE_DATA[name](fig, tdir, rdir, **kw)
+
+
 def test_csv_round_trip_is_exact(tmp_path):
     rng = np.random.default_rng(7)
     x = rng.standard_normal(20000) * 10.0 ** rng.integers(-25, 25, 20000)
@@ -543,7 +571,20 @@ def test_tiny_physics(tiny_run):
         assert g["v_g_front_m_s"].is_monotonic_decreasing
 
 
-def test_tiny_vibrometer_study(tiny_run):
+def test_tiny_chapter_figures_show_their_tables(tiny_run, monkeypatch, tmp_path):
+    """The chapter's figures of tiny (Figs. 5.1, 5.3, 5.4) show its tables and the
+    physics tests/test_figures.py checks; the other figures in their studies' tests,
+    the accuracy figure in tests/test_accuracy.py."""
+    root = tiny_run / "results" / "tiny"
+    chapter = ["fig5_1a_ss440c", "fig5_1a_ss316", "fig5_1b", "fig5_1c", "fig5_3b", "fig5_3c",
+               "fig5_4b"]
+    drawn = sorted(p.stem for p in (root / "figures").glob("*.png"))
+    assert drawn == sorted(chapter + ["accuracy_cost", "fig5_2a_ss440c", "vibrometer",
+                                      *gw.FIELD_STUDIES, *gw.QUESTION_STUDIES])
+    assert_figures_show_their_tables(root, chapter, monkeypatch, tmp_path)
+
+
+def test_tiny_vibrometer_study(tiny_run, monkeypatch, tmp_path):
     """One simulation per chain, recorded with every filter x bandwidth: the table has a
     row per (chain, setting) whose true columns repeat per chain and agree with a
     measured run_scene of the same member; Bessel peaks lose more as the bandwidth falls
@@ -578,9 +619,8 @@ def test_tiny_vibrometer_study(tiny_run):
     assert bw["v_max_1_measured_over_true"].between(0.999, 1.001).all()
     # the filter's delay cancels in dt: its bias is far below the filter's delay
     assert (df.loc[df["bandwidth_hz"] >= 2.5e6, "dt_peak_bias_s"].abs() < 2e-9).all()
-    for name in ["fig5_2a_ss440c", "vibrometer"]:
-        for ext in ("png", "pdf"):
-            assert (root / "figures" / f"{name}.{ext}").stat().st_size > 0
+    assert_figures_show_their_tables(root, ["fig5_2a_ss440c", "vibrometer"], monkeypatch,
+                                     tmp_path)
     th = pd.read_csv(root / "tables" / "thesis_comparison.csv").set_index("id")
     for f in spec["filters"]:
         for q in ("vmax1", "vmax2"):
@@ -588,7 +628,7 @@ def test_tiny_vibrometer_study(tiny_run):
             assert 0 < r["chapter_value"] < 1 and abs(r["project_value"]) < 0.05, r
 
 
-def test_tiny_field_studies(tiny_run):
+def test_tiny_field_studies(tiny_run, monkeypatch, tmp_path):
     """precompression and wall: tables with the wall's columns (F0 = the static wall force),
     no Eq. 5.4 bound, summaries per load, figures, thesis rows; lammps_check's field chains
     (dimer, wall, preloaded) in the engine comparison, the wall's rows checked and met."""
@@ -606,8 +646,7 @@ def test_tiny_field_studies(tiny_run):
         assert summ["n"].sum() == len(df)
         prov = json.loads((root / "tables" / f"{study}.provenance.json").read_text())
         assert "not computed" in prov["eq54_bound"] and len(prov["walls"]) == len(scenes)
-        for ext in ("png", "pdf"):
-            assert (root / "figures" / f"{study}.{ext}").stat().st_size > 0
+    assert_figures_show_their_tables(root, gw.FIELD_STUDIES, monkeypatch, tmp_path)
     pre = _tables(tiny_run, "precompression")
     loads = sorted(set(pre["wall_force_static_N"].round(12)))
     assert loads == sorted(P["studies"]["precompression"]["force_N"])
@@ -629,7 +668,7 @@ def test_tiny_field_studies(tiny_run):
     assert {c["chain"] for c in prov["comparisons"]} == {"chapter", "dimer", "wall", "preloaded"}
 
 
-def test_tiny_question_studies(tiny_run):
+def test_tiny_question_studies(tiny_run, monkeypatch, tmp_path):
     """radius_spread and dissipation: tables with their setting columns (a radius spread's
     distribution and sd, the damping's model and e) from the study, no Eq. 5.4 bound,
     summaries per setting, provenance with each scene's setting, figures and the thesis
@@ -651,8 +690,7 @@ def test_tiny_question_studies(tiny_run):
         assert summ["n"].sum() == len(df) and len(summ) == len(scenes)
         prov = json.loads((root / "tables" / f"{study}.provenance.json").read_text())
         assert "not computed" in prov["eq54_bound"] and len(prov["settings"]) == len(scenes)
-        for ext in ("png", "pdf"):
-            assert (root / "figures" / f"{study}.{ext}").stat().st_size > 0
+    assert_figures_show_their_tables(root, gw.QUESTION_STUDIES, monkeypatch, tmp_path)
     rs = _tables(tiny_run, "radius_spread")
     spread = rs[rs["radius_sd_m"] > 0]
     assert (spread["radius_spread_distribution"] == P["studies"]["radius_spread"].get(
@@ -766,7 +804,9 @@ def test_killed_run_resumes_to_the_same_tables(tiny_run, tmp_path):
     deadline = time.monotonic() + 300
     try:
         while time.monotonic() < deadline and proc.poll() is None:
-            if len(list(work.glob("*/*.timing.csv"))) >= 1:
+            # a batch's table is written after its timing: wait for a table, so the
+            # checks of complete files below have one to check
+            if any(not q.name.endswith(".timing.csv") for q in work.glob("*/*.csv")):
                 break
             time.sleep(0.2)
         assert proc.poll() is None, "the run ended before it could be interrupted"
@@ -780,10 +820,10 @@ def test_killed_run_resumes_to_the_same_tables(tiny_run, tmp_path):
     # complete files only (written to a temporary file, then renamed): every batch table
     # present holds all its members, every study table all of its study's
     P = tiny_preset()
-    for p in work.glob("*/*.csv"):
+    batch_tables = [p for p in work.glob("*/*.csv") if not p.name.endswith(".timing.csv")]
+    assert batch_tables, "no batch table was written before the kill"
+    for p in batch_tables:
         df = tables.read_csv(p)
-        if p.name.endswith(".timing.csv"):
-            continue
         study = p.parent.name
         want = len(gw.study_scenes(P, study)) if study == "packed_trace" else \
             gw.find_batch(P, study, p.stem).members
