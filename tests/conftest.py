@@ -106,3 +106,23 @@ def pair(**over):
 
 def run1(scene, **kw):
     return run_scene(scene, **kw)[0]
+
+
+def write(tmp_path: Path, text: str, name: str = "s.yaml") -> str:
+    """Write ``text`` to ``tmp_path / name``; its path."""
+    p = tmp_path / name
+    p.write_text(text)
+    return str(p)
+
+
+def refused(capsys, argv, *needles) -> str:
+    """Run the CLI: exit 2, exactly one line on stderr holding every needle (e.g. the
+    field it names), no traceback; that line."""
+    from granchain.cli import main
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.endswith("\n"), err
+    assert "Traceback" not in err, err
+    for n in needles:
+        assert n in err, err
+    return err

@@ -28,7 +28,7 @@ from granchain.cli import main
 from granchain.errors import GranchainError
 from granchain.scene import load_scene, scene_from_dict
 
-from conftest import REPO
+from conftest import REPO, refused
 
 EFFECTS = ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction"]
 SPEEDS = [0.03, 0.06, 0.1]
@@ -407,15 +407,6 @@ striker: {velocity: [0.04, 0.06]}
 gaps: {distribution: uniform, mean: 20.0e-9}
 integrator: {method: auto, tolerance: 1.0e-3}
 """
-
-
-def refused(capsys, argv, *needles):
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "Traceback" not in err, err
-    for n in needles:
-        assert n in err, err
-    return err
 
 
 @pytest.mark.parametrize("text, needles", [

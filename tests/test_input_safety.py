@@ -24,23 +24,7 @@ from granchain.errors import GranchainError, SceneError
 from granchain.fileio import atomic_write_text
 from granchain.scene import load_scene, scene_from_dict
 
-from conftest import REPO, SCENES, packed
-
-
-def write(tmp_path: Path, text: str, name: str = "s.yaml") -> str:
-    p = tmp_path / name
-    p.write_text(text)
-    return str(p)
-
-
-def refused(capsys, argv, field: str) -> str:
-    """Run the CLI: exit 2, exactly one line on stderr naming ``field``, no traceback."""
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.endswith("\n"), err
-    assert "Traceback" not in err
-    assert field in err, err
-    return err
+from conftest import REPO, SCENES, packed, refused, write
 
 
 # ---------------------------------------------------------------------------------------

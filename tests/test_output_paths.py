@@ -18,7 +18,7 @@ import pytest
 from granchain.cli import main
 from granchain.fileio import same_file
 
-from conftest import REPO, SCENES
+from conftest import REPO, SCENES, refused
 
 ENTRIES = [("granchain.simulate", "run_scene"), ("granchain.simulate", "trajectories"),
            ("granchain.compare", "compare"), ("granchain.engines.reference", "run"),
@@ -33,15 +33,6 @@ def no_work(monkeypatch):
         raise AssertionError("computed before refusing an output path")
     for module, attr in ENTRIES:
         monkeypatch.setattr(importlib.import_module(module), attr, boom)
-
-
-def refused(capsys, argv, *needles) -> str:
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "Traceback" not in err, err
-    for n in needles:
-        assert n in err, err
-    return err
 
 
 @pytest.fixture

@@ -26,7 +26,8 @@ from granchain.errors import SceneError
 from granchain.scene import scene_from_dict
 from granchain.validate import short
 
-from conftest import REPO
+from conftest import REPO, write
+from conftest import refused as refused_line
 from independent import hertz_chain_general
 
 SS440 = (200e9, 0.28, 7800.0)          # the library's ss440c, ptfe and tungsten carbide,
@@ -34,20 +35,10 @@ PTFE = (1.46e9, 0.46, 2200.0)          # written out (the independent solver sha
 WC = (620e9, 0.24, 14900.0)
 
 
-def write(tmp_path: Path, text: str, name: str = "s.yaml") -> str:
-    p = tmp_path / name
-    p.write_text(text)
-    return str(p)
-
 
 def refused(capsys, argv, field: str) -> str:
-    """Run the CLI: exit 2, one line of stderr naming ``field``, no traceback."""
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.endswith("\n"), err
-    assert "Traceback" not in err
-    assert f"scene field '{field}'" in err, err
-    return err
+    """The CLI refuses in one line naming the scene field ``field``."""
+    return refused_line(capsys, argv, f"scene field '{field}'")
 
 
 # ---------------------------------------------------------------------------------------
