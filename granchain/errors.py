@@ -18,7 +18,10 @@ class SceneError(GranchainError):
 
     def __init__(self, field: str, problem: str, fix: str):
         self.field, self.problem, self.fix = field, problem, fix
-        super().__init__(f"scene field '{_cut(field, MAX_FIELD)}': {_cut(problem, MAX_PART)}; "
+        # a key the user wrote may hold a quote: shown escaped, so the field's quotes
+        # still delimit it
+        name = _cut(field, MAX_FIELD).replace("\\", "\\\\").replace("'", "\\'")
+        super().__init__(f"scene field '{name}': {_cut(problem, MAX_PART)}; "
                          f"{_cut(fix, MAX_PART)}")
 
 

@@ -39,7 +39,8 @@ TIMES: dict[str, list[float]] = {"scene": [], "csv": []}
 
 NAMES = sorted(library())
 # a refusal: one line naming the key, the problem and the fix
-REFUSAL = re.compile(r"^granchain: error: scene field '[^']+': [^\n]+; [^\n]+\n$")
+# the field between quotes, a quote or backslash in a key the user wrote shown escaped
+REFUSAL = re.compile(r"^granchain: error: scene field '(?:[^'\\]|\\.)+': [^\n]+; [^\n]+\n$")
 
 
 # --- numbers across their range, and values of the wrong kind ---------------------------
