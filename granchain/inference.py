@@ -725,14 +725,12 @@ def kernel_log_density(X: np.ndarray, y: np.ndarray, var: np.ndarray,
     (for the weights' effective size) x the realisations' weighted covariance, plus var;
     the density is sum_r w_r N(y; X_r, C) / sum_r w_r over all R (a realisation without
     values adds nothing), -inf where fewer than two realisations give values."""
-    from .modelcheck import effective_size, silverman2, weighted_cov
+    from .modelcheck import kernel_factor
     d = X.shape[-1]
     ok = np.all(np.isfinite(X), axis=-1)                                # (P, R)
     w = np.where(ok, weights[None, :], 0.0)
     Xz = np.where(ok[..., None], X, 0.0)
-    C = silverman2(effective_size(weights), d) * weighted_cov(Xz, w)
-    C[:, np.arange(d), np.arange(d)] += var
-    L = np.linalg.cholesky(C)                                              # (P, d, d)
+    L = kernel_factor(Xz, w, weights, var)                                 # (P, d, d)
     resid = np.where(ok[..., None], y[None, None, :] - X, 0.0)             # (P, R, d)
     Z = np.linalg.solve(L, np.swapaxes(resid, 1, 2))                       # (P, d, R)
     logdet = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)

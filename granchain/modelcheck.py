@@ -96,6 +96,18 @@ def silverman2(n_eff: float, d: int) -> float:
     return ((float(n_eff) * (d + 2)) / 4.0) ** (-2.0 / (d + 4))
 
 
+def kernel_factor(Xz: np.ndarray, w: np.ndarray, weights: np.ndarray,
+                  var: np.ndarray) -> np.ndarray:
+    """(P, d, d) Cholesky factors of the kernel covariance: Silverman's factor^2 (for the
+    weights' effective size) x the weighted covariance of Xz (P, R, d; w (P, R) the weights
+    of the realisations used), plus ``var`` (P, d) on the diagonal. The likelihood
+    (``inference.kernel_log_density``) and the check use this one kernel."""
+    d = Xz.shape[-1]
+    C = silverman2(effective_size(weights), d) * weighted_cov(Xz, w)
+    C[:, np.arange(d), np.arange(d)] += var
+    return np.linalg.cholesky(C)
+
+
 def group_scores(X: np.ndarray, weights: np.ndarray, y: np.ndarray, var: np.ndarray,
                  rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One chain's scores. X (K, R, d): its simulated values at K posterior draws (NaN
@@ -107,9 +119,7 @@ def group_scores(X: np.ndarray, weights: np.ndarray, y: np.ndarray, var: np.ndar
     ok = np.all(np.isfinite(X), axis=-1)
     w = np.where(ok, weights[None, :], 0.0)
     Xz = np.where(ok[..., None], X, 0.0)
-    C = silverman2(effective_size(weights), d) * weighted_cov(Xz, w)
-    C[:, np.arange(d), np.arange(d)] += var
-    L = np.linalg.cholesky(C)                                              # (K, d, d)
+    L = kernel_factor(Xz, w, weights, var)                                 # (K, d, d)
     A = np.linalg.solve(L, np.swapaxes(Xz, 1, 2))                          # (K, d, R)
     b = np.linalg.solve(L, np.broadcast_to(y, (K, d))[..., None])[..., 0]  # (K, d)
     logw = np.where(w > 0, np.log(np.where(w > 0, w, 1.0)), -np.inf)      # (K, R)
