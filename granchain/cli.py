@@ -625,7 +625,7 @@ def _cost_args(sp) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .inference import E_MIN, E_POINTS
+    from .inference import E_MIN, E_POINTS, GAP_MAX, GAP_POINTS, REALISATIONS
     p = _Parser(prog="granchain", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
@@ -717,12 +717,12 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--force", action="store_true",
                     help="allow --out and --plot to replace an earlier infer JSON and image "
                          "(never an input)")
-    sp.add_argument("--gap-max-nm", type=_limit, default=500.0, metavar="NM",
-                    help="largest simulated mean gap in nm (default 500)")
-    sp.add_argument("--gap-points", type=int, default=21, metavar="N",
-                    help="simulated mean gaps from 0 to --gap-max-nm (default 21)")
-    sp.add_argument("--realisations", type=int, default=64, metavar="R",
-                    help="gap realisations per mean gap and speed (default 64)")
+    sp.add_argument("--gap-max-nm", type=_limit, default=GAP_MAX * 1e9, metavar="NM",
+                    help=f"largest simulated mean gap in nm (default {GAP_MAX * 1e9:g})")
+    sp.add_argument("--gap-points", type=int, default=GAP_POINTS, metavar="N",
+                    help=f"simulated mean gaps from 0 to --gap-max-nm (default {GAP_POINTS})")
+    sp.add_argument("--realisations", type=int, default=REALISATIONS, metavar="R",
+                    help=f"gap realisations per mean gap and speed (default {REALISATIONS})")
     sp.add_argument("--e-min", type=float, default=E_MIN, metavar="E",
                     help=f"--fit ...,restitution: smallest simulated e (default {E_MIN:g}; "
                          "the largest is 1)")
