@@ -81,7 +81,7 @@ from granchain.lammps.plan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, DECK_
                                    WORK_COLUMNS, DeckPlan,
                                    ledger_binary_columns, max_travel, plan)
 from granchain.lammps import field
-from granchain.lammps.units import MICRO_EXPONENT, lmp_float as _r, to_micro
+from granchain.units import MICRO_EXPONENT, lmp_float as _r, to_micro
 from granchain.stoprule import ARRIVAL_FRACTION, arrival_speed
 
 __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "write_deck",
