@@ -1,4 +1,4 @@
-"""LAMMPS support: deck plans and texts (``plan``, ``deck``), the ``fix groove/drag``
+"""LAMMPS support: deck plans and texts (``deckplan``, ``deck``), the ``fix groove/drag``
 plugin (``plugin``) and the LAMMPS runner (``runner``); micro units are
 ``granchain.units``, at the bottom layer, for the effects' deck fragments.
 
