@@ -40,7 +40,7 @@ def _workdir_files(args) -> list:
     """(--workdir, path) of every file the LAMMPS engine writes into a kept --workdir."""
     if not getattr(args, "workdir", None):
         return []
-    from .lammps.plan import WORKDIR_FILES
+    from .lammps.deckplan import WORKDIR_FILES
     return [("--workdir", Path(args.workdir) / name) for name in WORKDIR_FILES]
 
 
@@ -140,7 +140,7 @@ def load(args):
 
 
 def cmd_validate(args) -> int:
-    from .plan import plan_run
+    from .runplan import plan_run
     plan = plan_run(load_scene(args.scene, args.set))
     scene = plan.scene
     print(f"{args.scene}: valid scene '{scene.name}' ({scene.hash}), {scene.n} particles, "
@@ -161,7 +161,7 @@ def check_whole_run(scene, args, est) -> None:
 
 
 def cmd_run(args) -> int:
-    from .plan import plan_run
+    from .runplan import plan_run
     from .simulate import run_scene
     check_paths(args, [("--out", args.out)])          # refuse before spending the compute
     # the run plan: method auto chooses per striker speed for the reference engine

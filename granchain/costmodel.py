@@ -411,7 +411,7 @@ def auto_setting(scene: Scene, model: CostModel | None = None, *,
     scene's dt as their first step and get the model's tolerance as their rtol.
     ``durations`` and ``sample_dts`` (striker speed -> ``stoprule.expected_duration``,
     ``stoprule.sample_interval``): the run plan's, if already computed
-    (:func:`granchain.plan.plan_run`)."""
+    (:func:`granchain.runplan.plan_run`)."""
     model = model or load_model()
     tol = float(scene.tolerance)
     target = tol / AUTO_SAFETY
@@ -463,7 +463,7 @@ def apply_auto(scene: Scene, setting: tuple[str, float, float | None]) -> Scene:
 def resolve_auto(scene: Scene, model: CostModel | None = None) -> Scene:
     """The scene that runs: ``scene`` itself unless its method is auto; else
     :func:`apply_auto` of :func:`auto_setting`. (A run plans it once, with the rest of its
-    plan: :func:`granchain.plan.plan_run`.)"""
+    plan: :func:`granchain.runplan.plan_run`.)"""
     if scene.method != "auto":
         return scene
     return apply_auto(scene, auto_setting(scene, model))
@@ -525,7 +525,7 @@ def run_estimate(scene, realisations=None, engine: str = "reference", *,
     members; steps (integration steps, all members); worst_chain_steps; record_bytes
     (sample records held, :func:`holds_records`); result_bytes (per-member results);
     bytes (their sum); seconds (wall time on one core, :func:`member_seconds`). A run
-    plan (:meth:`granchain.plan.RunPlan.estimate`) gives the same from its own
+    plan (:meth:`granchain.runplan.RunPlan.estimate`) gives the same from its own
     estimates."""
     per_v = [cost_estimate(scene, v) for v in scene.striker_velocities]
     secs = [member_seconds(scene, v, engine, duration=c["duration_s"], steps=c["steps"])

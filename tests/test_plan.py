@@ -1,4 +1,4 @@
-"""The run plan (granchain.plan): computed once per run, and the one cost estimate that
+"""The run plan (granchain.runplan): computed once per run, and the one cost estimate that
 auto, the cost guard and the workflow's batches read."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from granchain import costmodel, stoprule
 from granchain import workflow as gw
 from granchain.errors import GranchainError
-from granchain.plan import plan_run
+from granchain.runplan import plan_run
 from granchain.scene import scene_from_dict
 
 EFFECTS = ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction"]
@@ -120,7 +120,7 @@ def test_run_scene_plans_once(monkeypatch):
     """run_scene of an auto scene asks the cost model for auto's settings once (the
     sweep's, and each speed's) and computes each striker speed's sampling and duration once (the engine aside); given a plan, not
     at all."""
-    from granchain import plan as plan_mod
+    from granchain import runplan as plan_mod
     from granchain import simulate
     calls = {"auto": 0, "dur": 0}
     real_auto, real_dur = costmodel.auto_setting, plan_mod.expected_duration

@@ -74,14 +74,14 @@ from granchain.effects import (air_drag, contact_damping, groove_friction, hertz
 from granchain.errors import GranchainError
 from granchain.fileio import OutputKind, file_head, atomic_write_text, check_output_path
 from granchain.scene import NAME_RE, NAME_RULE, Scene
-from granchain.lammps.plan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, DECK_NAME,
+from granchain.lammps.deckplan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, DECK_NAME,
                                    DUMP_COLUMNS, DUMP_NAME, ENERGY_NAME, LEDGER_BINARY_NAME,
                                    LEDGER_INPUTS, LEDGER_NAME, LOG_NAME, OUTPUTS, SCREEN_NAME,
                                    WALL_FORCE_COLUMN, WORKDIR_FILES,
                                    WORK_COLUMNS, DeckPlan,
                                    ledger_binary_columns, max_travel, plan)
 from granchain.lammps import field
-from granchain.lammps.units import MICRO_EXPONENT, lmp_float as _r, to_micro
+from granchain.units import MICRO_EXPONENT, lmp_float as _r, to_micro
 from granchain.stoprule import ARRIVAL_FRACTION, arrival_speed
 
 __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "write_deck",
@@ -326,7 +326,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
     """The texts of deck.lmp and chain.data (no files written).
 
     ``radii`` (B, n) m: each chain's own radii (a radius spread; default for a scene's
-    own members: ``gaps.member_radii``, see :func:`granchain.lammps.plan.batch_members`).
+    own members: ``gaps.member_radii``, see :func:`granchain.lammps.deckplan.batch_members`).
     Each chain then has its own diameters and masses (chain.data), its own contacts (pair
     granular takes R* from the atoms; no pair_coeff depends on a radius), its own groove
     springs (the Groove section), static overlaps and wall overlap (its positions).
