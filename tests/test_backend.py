@@ -143,9 +143,12 @@ def test_jit_cache_folder_changes_with_every_compiled_source(what, tmp_path):
 
 
 def test_the_jit_kernels_cache_into_the_hashed_folder():
-    from granchain.engines import events, kernels
+    from granchain.engines import compose, events, kernels
     folder = str(backend.jit_cache_dir())
-    for disp in (kernels.forces, kernels.run_blocks, kernels._drag_force, events.run_events):
+    # the composed physics and an effect's compiled law too
+    law = next(iter(compose._DISPATCHERS.values()))
+    for disp in (kernels.forces, kernels.run_blocks, compose.effect_forces, law,
+                 events.run_events):
         assert disp._cache._cache_path.startswith(folder + os.sep), disp
 
 

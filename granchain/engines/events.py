@@ -52,6 +52,8 @@ from numba import njit, prange
 from ..stoprule import PASS_FRACTION, PEAK_TOL
 from . import kernels
 from .codes import DEFAULT_PAIR, PAIRS, RB_C, RB_H, RB_LEN, RB_MAX, RB_SIZE, RB_T0  # noqa: F401
+from .compose import locate
+from .hermite import hermite_root as _hermite_root, hermite3 as _hermite3
 from .kernels import energies, forces, project
 
 MAX_TRIES = 60
@@ -155,35 +157,6 @@ def _first_cross(c, level, lo, up):
     return -1.0
 
 
-@njit(cache=True, inline="always")
-def _hermite3(d0, w0, d1, w1, h, tau):
-    """Cubic Hermite of a value with its time derivatives at both ends of a step h."""
-    t2 = tau * tau
-    t3 = t2 * tau
-    return ((2 * t3 - 3 * t2 + 1) * d0 + (t3 - 2 * t2 + tau) * h * w0
-            + (-2 * t3 + 3 * t2) * d1 + (t3 - t2) * h * w1)
-
-
-@njit(cache=True)
-def _hermite_root(d0, w0, d1, w1, h, level, up):
-    """First tau in (0, 1] where the cubic Hermite of d crosses level (up: from below)."""
-    M = 32
-    sgn = 1.0 if up else -1.0
-    a = 0.0
-    for k in range(1, M + 1):
-        b = k / M
-        if sgn * (_hermite3(d0, w0, d1, w1, h, b) - level) >= 0.0:
-            for _ in range(60):
-                mid = 0.5 * (a + b)
-                if sgn * (_hermite3(d0, w0, d1, w1, h, mid) - level) >= 0.0:
-                    b = mid
-                else:
-                    a = mid
-            return 0.5 * (a + b)
-        a = b
-    return -1.0
-
-
 @njit(cache=True)
 def _predict(y, dy, gaps, LO, n, band, dscale):
     """Time to the first predicted crossing of 0 by a pair's overlap (inf if none); for
@@ -245,43 +218,6 @@ def _straddle(y, ynew, gaps, LO, n, band, h):
             tau = _hermite_root(d0, w0, d1, w1, h, 0.0, False)
         if tau > 0.0 and tau < best:
             best = tau
-    return best if best < 1.0 else -1.0
-
-
-@njit(cache=True)
-def _straddle_groove(y, ynew, K0, K1, G, P, FL, LO, n, h, bandg):
-    """After a trial step: the first tau in (0, 1) at which a sphere's groove contact
-    switches between stick and slip, i.e. its trial force q = k_g xi + gamma_g u crosses
-    +-Fc (``effects.groove_friction``), or -1 if none does."""
-    if FL[kernels.F_GROOVE_FRICTION] == 0:
-        return -1.0
-    s_g = P[kernels.P_GROOVE_S]
-    rot = FL[kernels.F_ROTATION] != 0
-    og = LO[kernels.L_GROOVE_HIST]
-    ov = LO[kernels.L_VEL]
-    ow = LO[kernels.L_SPIN]
-    best = 2.0
-    for i in range(n):
-        kg = G[kernels.G_GROOVE_SPRING * n + i]
-        gam = G[kernels.G_GROOVE_DASHPOT * n + i]
-        Fc = G[kernels.G_GROOVE_LIMIT * n + i]
-        sR = s_g * G[kernels.G_RADIUS * n + i]
-        u0 = y[ov + i] - (sR * y[ow + i] if rot else 0.0)
-        u1 = ynew[ov + i] - (sR * ynew[ow + i] if rot else 0.0)
-        du0 = K0[ov + i] - (sR * K0[ow + i] if rot else 0.0)
-        du1 = K1[ov + i] - (sR * K1[ow + i] if rot else 0.0)
-        q0 = kg * y[og + i] + gam * u0
-        q1 = kg * ynew[og + i] + gam * u1
-        w0 = kg * K0[og + i] + gam * du0
-        w1 = kg * K1[og + i] + gam * du1
-        for lev in (Fc, -Fc):
-            tau = -1.0
-            if q0 < lev - bandg and q1 > lev + bandg:
-                tau = _hermite_root(q0, w0, q1, w1, h, lev, True)
-            elif q0 > lev + bandg and q1 < lev - bandg:
-                tau = _hermite_root(q0, w0, q1, w1, h, lev, False)
-            if tau > 0.0 and tau < best:
-                best = tau
     return best if best < 1.0 else -1.0
 
 
@@ -444,10 +380,10 @@ def _dense(yp, kp, y1, k1, h, tau, LO, n, out):
 @njit(cache=True)
 def _mech_balance(y, gaps, P, FL, LO, ebuf, e0):
     energies(y, gaps, P, FL, LO, ebuf)
-    tot = ebuf[kernels.E_KIN_TRANS] + ebuf[kernels.E_KIN_ROT] + ebuf[kernels.E_HERTZ]
+    tot = ebuf[kernels.E_KIN_TRANS] + ebuf[kernels.E_KIN_ROT] + ebuf[kernels.E_POT]
     # every work column (they follow the mechanical energies, codes.E_SLOTS)
-    work = ebuf[kernels.E_HERTZ + 1]
-    for c in range(kernels.E_HERTZ + 2, kernels.E_LEN):
+    work = ebuf[kernels.E_POT + 1]
+    for c in range(kernels.E_POT + 2, kernels.E_LEN):
         work += ebuf[c]
     return abs(tot - e0 - work)
 
@@ -495,7 +431,6 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
     ov = LO[kernels.L_VEL]
     ox = LO[kernels.L_DISP]
     W = Vout.shape[1]
-    bandg = rtol * P[kernels.P_GROOVE_LIMIT]
     dscale = scale_abs[ox]
     for b in prange(B):
         counts[b] = 0
@@ -514,7 +449,7 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
             forces(y, g, P, FL, LO, 0.0, Kst[0], f)
             NEV[b] += 1
             energies(y, g, P, FL, LO, ebuf)
-            E0[b] = ebuf[kernels.E_KIN_TRANS] + ebuf[kernels.E_KIN_ROT] + ebuf[kernels.E_HERTZ]
+            E0[b] = ebuf[kernels.E_KIN_TRANS] + ebuf[kernels.E_KIN_ROT] + ebuf[kernels.E_POT]
             for i in range(n):
                 VINIT[b, i] = y[ov + i]
                 VMAX[b, i] = y[ov + i]
@@ -586,7 +521,7 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                     h = max(tau * h, 1e-22)
                     clipped = True
                     continue
-                tau = _straddle_groove(y, ynew, Kst[0], Kst[S], g, P, FL, LO, n, h, bandg)
+                tau = locate(y, ynew, Kst[0], Kst[S], g, P, FL, LO, n, h, rtol)
                 if tau > 0.0:
                     REJ[b] += 1
                     h = max(tau * h, 1e-22)
@@ -793,7 +728,6 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
     S = Bw.shape[0]
     ov = LO[kernels.L_VEL]
     ox = LO[kernels.L_DISP]
-    bandg = rtol * P[kernels.P_GROOVE_LIMIT]
     dscale = scale_abs[ox]
     for blk in prange(nblk):
         if QLEN[blk] == 0:
@@ -863,7 +797,7 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                             Kb[0, j, l] = Kz[j, l]
                         NEV[b] += 1
                         E0[b] = (ebuf[kernels.E_KIN_TRANS, l] + ebuf[kernels.E_KIN_ROT, l]
-                                 + ebuf[kernels.E_HERTZ, l])
+                                 + ebuf[kernels.E_POT, l])
                         for i in range(n):
                             VINIT[b, i] = y[ov + i, l]
                             VMAX[b, i] = y[ov + i, l]
@@ -959,7 +893,7 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                     else:
                         _stage_out(Kb, 0, l, k01)
                         _stage_out(Kb, S, l, ks1)
-                        tau = _straddle_groove(y1, yn1, k01, ks1, g1, P, FL, LO, n, h, bandg)
+                        tau = locate(y1, yn1, k01, ks1, g1, P, FL, LO, n, h, rtol)
                         if tau > 0.0:
                             REJ[b] += 1
                             h = max(tau * h, 1e-22)
@@ -1028,9 +962,9 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                 T[b] = t_old[l] + hl[l]
                 STEPS[b] += 1
                 tot = (ebuf[kernels.E_KIN_TRANS, l] + ebuf[kernels.E_KIN_ROT, l]
-                       + ebuf[kernels.E_HERTZ, l])
-                work = ebuf[kernels.E_HERTZ + 1, l]
-                for q in range(kernels.E_HERTZ + 2, kernels.E_LEN):
+                       + ebuf[kernels.E_POT, l])
+                work = ebuf[kernels.E_POT + 1, l]
+                for q in range(kernels.E_POT + 2, kernels.E_LEN):
                     work += ebuf[q, l]
                 bal = abs(tot - E0[b] - work)
                 if bal > BAL[b]:

@@ -37,27 +37,22 @@ from .obscodes import (BAL_E0, BAL_MAX, OF_AFTER, OF_BEFORE, OF_MAX, OF_RECENT, 
                        OUT_T_FRONT, OUT_T_PEAK, OUT_VMAX, WF_AFTER, WF_BEFORE, WF_MAX, WF_PREV,
                        WI_ARGMAX, WI_NAN, WI_PASSED)
 
-from ..effects import (air_drag, contact_damping, groove_friction, hertz, particle_friction,
-                       rolling_friction)
-
 # the kernels' numbering of parameters, flags, layout blocks, methods, energy columns,
 # statuses, and the DOP853 tableau (numba-free, shared with the engines' Python side)
-from .codes import (DOP_A, DOP_B, DOP_C, DOP_E3, DOP_E5, E_HERTZ, E_KIN_ROT,  # noqa: E402,F401
-                    E_KIN_TRANS, E_LEN, E_WORK_DAMPING, E_WORK_DRAG, E_WORK_GROOVE, E_WORK_LOAD,
-                    E_WORK_PARTICLE, E_WORK_ROLLING, F_AIR_DRAG, F_CONTACT_DAMPING,
-                    F_DAMPING_LIMIT, F_DAMPING_MODEL, F_DEAD_LOAD, F_DRAG_ODD, F_END_WALL,
-                    F_GROOVE_FRICTION, F_HETEROGENEOUS, F_LEN, F_PARTICLE_FRICTION,
-                    F_PARTICLE_MINDLIN, F_ROLLING_FRICTION, F_ROTATION, G_DAMPING_MEFF,
-                    G_DAMPING_RSTAR, G_GROOVE_DASHPOT, G_GROOVE_LIMIT, G_GROOVE_SPRING, G_HERTZ_K,
-                    G_INERTIA, G_LEN, G_MASS, G_PARTICLE_SPRING, G_RADIUS, G_ROLLING_REFF, L_DISP,
-                    L_GROOVE_HIST, L_LEN, L_PARTICLE_HIST, L_ROLLING_HIST, L_SPIN, L_STATE_SIZE,
-                    L_VEL, L_WORK_DAMPING, L_WORK_DRAG, L_WORK_GROOVE, L_WORK_PARTICLE,
-                    L_WORK_ROLLING, M_DOP853, M_RK4, M_VERLET, NST, P_DAMPING_COEF, P_DEAD_LOAD,
-                    P_DRAG_L, P_DRAG_T0, P_GROOVE_DASHPOT, P_GROOVE_LIMIT, P_GROOVE_S,
-                    P_GROOVE_SPRING, P_HERTZ_K, P_INERTIA, P_LEN, P_MASS, P_N_SPHERES,
-                    P_PARTICLE_MU, P_PARTICLE_SPRING, P_RADIUS, P_ROLLING_DASHPOT, P_ROLLING_MU,
-                    P_ROLLING_SPRING, S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL,
+from .codes import (DOP_A, DOP_B, DOP_C, DOP_E3, DOP_E5, E_KIN_ROT, E_KIN_TRANS,  # noqa: E402,F401
+                    E_LEN, E_MECHANICAL, E_POT, E_WORK_LOAD, F_DEAD_LOAD, F_END_WALL,
+                    F_HETEROGENEOUS, F_LEN, G_LEN, G_MASS, KICKED, L_DISP, L_LEN,
+                    L_STATE_SIZE, L_VEL, M_DOP853, M_RK4, M_VERLET, NST, P_DEAD_LOAD, P_LEN,
+                    P_N_SPHERES, S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL,
                     S_TIMEOUT, WORK_SLOTS)
+from . import codes  # noqa: E402
+# the physics: the effects' laws, composed from the registry
+from .compose import (effect_energies, effect_forces, normal_forces,  # noqa: E402
+                      project_histories, wall_force)
+from .compose import bit as _bit, overlap as _overlap_l  # noqa: E402
+
+# every numbered slot as an attribute here too (callers index the kernels' arrays by them)
+globals().update(codes.NAMES)
 
 
 @njit(cache=True, inline="always")
@@ -65,31 +60,10 @@ def _overlap(y, ox, gaps, k):
     return y[ox + k] - y[ox + k + 1] - gaps[k]
 
 
-# The laws of the effects (granchain/effects/), compiled once here and used by every
-# integrator and by the return mapping.
-_law = njit(cache=True, inline="always")
-_hertz_force = _law(hertz.force)
-_hertz_energy = _law(hertz.energy)
-_damping_force = _law(contact_damping.damping_force)
-_drag_force = _law(air_drag.force)
-_groove_slip = _law(groove_friction.slip)
-_groove_map = _law(groove_friction.groove_map)
-_groove_force = _law(groove_friction.groove_force)
-_contact_map = _law(particle_friction.contact_map)
-_contact_force = _law(particle_friction.contact_force)
-_rolling_map = _law(rolling_friction.rolling_map)
-_rolling_moment = _law(rolling_friction.moment)
-_rolling_moment_lammps = _law(rolling_friction.moment_lammps_order)
-
-
 # Block kernels: the state of L chains is stored as an (ny, L) array, chains innermost,
-# and every loop runs over the lanes innermost, so that LLVM vectorises across chains.
-# Each effect's law is still called per lane; its branches become selects (no per-lane
-# branch: a lane-dependent ``if`` is written as ``a if cond else b`` on values that are
-# computed for every lane, and a lane's discarded value (e.g. the sqrt of a negative
-# overlap of an open contact) never reaches the state). The arithmetic of a lane is the
-# same, operation for operation, as that of one chain alone (no fastmath: no reassociation
-# and no FMA contraction), so a chain's trajectory does not depend on its lane or block.
+# and every loop runs over the lanes innermost, so that LLVM vectorises across chains
+# (``effects.lanes``: a lane's arithmetic is that of one chain alone, operation for
+# operation; no fastmath: no reassociation and no FMA contraction).
 _blk = njit(cache=True, error_model="numpy", boundscheck=False)
 
 
@@ -98,114 +72,31 @@ def _flat(a):
     return a.reshape(a.size)
 
 
-@njit(cache=True, inline="always")
-def _overlap_l(y, ox, gaps, k, l):
-    return y[ox + k, l] - y[ox + k + 1, l] - gaps[k, l]
-
-
-# Activity tests of a block row. Work whose result is exactly nothing for every lane is
-# skipped: a contact open in every lane (no Hertz force, no friction), a sphere exactly
-# at rest with a zero groove history in every lane (zero drag and groove force). The
-# skipped work would only add zeros (to sums that are never -0.0), so skipping it does
-# not change a bit; most contacts are open and most spheres ahead of the wave at rest.
-@njit(cache=True, inline="always")
-def _bit(mask, k):
-    return k < 63 and (mask >> k) & 1 != 0
-
-
-@njit(cache=True, inline="always")
-def _any_contact(y, ox, gaps, k, L):
-    c = 0
-    for l in range(L):
-        c += 1 if _overlap_l(y, ox, gaps, k, l) > 0.0 else 0
-    return c > 0
-
-
-@njit(cache=True, inline="always")
-def _moving(a, r, L):
-    c = 0
-    for l in range(L):
-        c += 1 if a[r, l] != 0.0 else 0
-    return c > 0
-
-
 @_blk
 def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
     """Time derivative dy (ny, L) of the block state y (ny, L); f (n, L) receives the
-    Hertz force of every contact (row n-1: the end wall's, when there is one).
+    normal force of every contact (row n-1: the end wall's, when there is one).
 
     gaps (G_LEN * n, L): each chain's own rows (``codes.G_*``): kernel gaps, masses,
-    inertias, radii, Hertz constants and the effects' per-sphere and per-contact
+    inertias, radii, contact constants and the effects' per-sphere and per-contact
     parameters.
 
-    With hist_dt > 0 (velocity Verlet), the friction histories in y are first advanced
-    by slip*hist_dt and return-mapped, as LAMMPS does inside its force call; with
-    hist_dt = 0 (RK4, DOP853, Verlet setup) y is not modified and dy carries the
-    history rates.
+    The effects' normal forces (``compose.normal_forces``), then each sphere's
+    acceleration from its contacts, the end wall and the dead load, then the effects'
+    forces, torques and history rates (``compose.effect_forces``). With hist_dt > 0
+    (velocity Verlet), the histories in y are first advanced by slip*hist_dt and
+    return-mapped, as LAMMPS does inside its force call; with hist_dt = 0 (RK4, DOP853,
+    Verlet setup) y is not modified and dy carries the history rates.
     """
     n = int(P[P_N_SPHERES])
     L = y.shape[1]
     ox = LO[L_DISP]
     ov = LO[L_VEL]
-    ow = LO[L_SPIN]
     oM = G_MASS * n
-    oI = G_INERTIA * n
-    oR = G_RADIUS * n
-    oK = G_HERTZ_K * n
-    rot = FL[F_ROTATION] != 0
     wall = FL[F_END_WALL] != 0
-    # a row that exists when rotation is off (its value is then never used)
-    owr = ow if rot else ov
     # bit k of shut: contact k (k < 63) is open in every lane, its row of f is zero
-    shut = 0
-    for k in range(n - 1):
-        if _any_contact(y, ox, gaps, k, L):
-            for l in range(L):
-                f[k, l] = _hertz_force(gaps[oK + k, l], _overlap_l(y, ox, gaps, k, l))
-        else:
-            for l in range(L):
-                f[k, l] = 0.0
-            if k < 63:
-                shut |= 1 << k
+    shut = normal_forces(y, gaps, P, FL, LO, dy, f)
     load = FL[F_DEAD_LOAD] != 0
-    if wall:
-        # the end wall: contact n-1, overlap x_n - G_{n-1}
-        c = 0
-        for l in range(L):
-            d = y[ox + n - 1, l] - gaps[n - 1, l]
-            c += 1 if d > 0.0 else 0
-            f[n - 1, l] = _hertz_force(gaps[oK + n - 1, l], d)
-        if c == 0 and n - 1 < 63:
-            shut |= 1 << (n - 1)
-    if FL[F_CONTACT_DAMPING] != 0:
-        # contact damping (effects/contact_damping.py): f becomes the net normal force
-        # F_el + eta w of every closed contact, w its overlap rate; its work -(F - F_el) w
-        model = FL[F_DAMPING_MODEL]
-        dmp = P[P_DAMPING_COEF]
-        lim = FL[F_DAMPING_LIMIT] != 0
-        oME = G_DAMPING_MEFF * n
-        oRS = G_DAMPING_RSTAR * n
-        owc = LO[L_WORK_DAMPING]
-        for l in range(L):
-            dy[owc, l] = 0.0
-        for k in range(n if wall else n - 1):
-            if _bit(shut, k):
-                continue
-            for l in range(L):
-                if k < n - 1:
-                    d = _overlap_l(y, ox, gaps, k, l)
-                    w = y[ov + k, l] - y[ov + k + 1, l]
-                else:
-                    d = y[ox + n - 1, l] - gaps[n - 1, l]
-                    w = y[ov + n - 1, l]
-                fel = f[k, l]
-                fd = _damping_force(fel, d, w, gaps[oME + k, l], gaps[oRS + k, l], model, dmp)
-                F = fel + fd
-                F = 0.0 if (lim and F < 0.0) else F
-                F = F if d > 0.0 else 0.0
-                f[k, l] = F
-                a = dy[owc, l]
-                dy[owc, l] = a - (F - fel) * w if d > 0.0 else a
     if wall or load:
         # the end wall's force and the dead load on particle 2
         F0 = P[P_DEAD_LOAD]
@@ -240,271 +131,36 @@ def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
     nL = n * L
     for j in range(nL):
         dyf[ox * L + j] = yf[ov * L + j]
-    if rot:
-        for j in range(nL):
-            dyf[ow * L + j] = 0.0
-
-    if FL[F_AIR_DRAG] != 0:
-        T0 = P[P_DRAG_T0]
-        Ld = P[P_DRAG_L]
-        odd = FL[F_DRAG_ODD] != 0
-        owd = LO[L_WORK_DRAG]
-        for l in range(L):
-            dy[owd, l] = 0.0
-        for i in range(n):
-            if not _moving(y, ov + i, L):
-                continue
-            for l in range(L):
-                v = y[ov + i, l]
-                m = gaps[oM + i, l]
-                F = _drag_force(m, v, T0, Ld, odd)
-                dy[ov + i, l] += F / m
-                dy[owd, l] += F * v
-
-    if FL[F_GROOVE_FRICTION] != 0:
-        s_g = P[P_GROOVE_S]
-        oFc = G_GROOVE_LIMIT * n
-        oKg = G_GROOVE_SPRING * n
-        oGg = G_GROOVE_DASHPOT * n
-        og = LO[L_GROOVE_HIST]
-        owg = LO[L_WORK_GROOVE]
-        for l in range(L):
-            dy[owg, l] = 0.0
-        for i in range(n):
-            if not (_moving(y, ov + i, L) or _moving(y, og + i, L)
-                    or (rot and _moving(y, ow + i, L))):
-                for l in range(L):
-                    dy[og + i, l] = 0.0
-                continue
-            if hist_dt > 0.0:
-                for l in range(L):
-                    sR = s_g * gaps[oR + i, l]
-                    u = _groove_slip(y[ov + i, l], y[owr + i, l], sR, rot)
-                    xi = _groove_map(y[og + i, l] + u * hist_dt, u, gaps[oKg + i, l],
-                                     gaps[oGg + i, l], gaps[oFc + i, l])
-                    y[og + i, l] = xi
-            for l in range(L):
-                sR = s_g * gaps[oR + i, l]
-                u = _groove_slip(y[ov + i, l], y[owr + i, l], sR, rot)
-                # history rate: xi' = u in stick; held while sliding at the cap
-                F, rate = _groove_force(y[og + i, l], u, gaps[oKg + i, l], gaps[oGg + i, l],
-                                        gaps[oFc + i, l])
-                dy[og + i, l] = rate
-                dy[ov + i, l] += F / gaps[oM + i, l]
-                dy[owg, l] += F * u
-                if rot:
-                    dy[ow + i, l] += -sR * F / gaps[oI + i, l]
-
-    if FL[F_PARTICLE_FRICTION] != 0:
-        mu = P[P_PARTICLE_MU]
-        oKt = G_PARTICLE_SPRING * n
-        mindlin = FL[F_PARTICLE_MINDLIN] != 0
-        ot = LO[L_PARTICLE_HIST]
-        owt = LO[L_WORK_PARTICLE]
-        for l in range(L):
-            dy[owt, l] = 0.0
-        for k in range(n - 1):
-            if _bit(shut, k) or (k >= 63 and not _any_contact(y, ox, gaps, k, L)):
-                for l in range(L):
-                    dy[ot + k, l] = 0.0
-                if hist_dt > 0.0:
-                    for l in range(L):
-                        y[ot + k, l] = 0.0
-                continue
-            if hist_dt > 0.0:
-                for l in range(L):
-                    fn = f[k, l]
-                    d = _overlap_l(y, ox, gaps, k, l)
-                    ktc = gaps[oKt + k, l]
-                    kt = ktc * math.sqrt(d) if mindlin else ktc
-                    Ra = gaps[oR + k, l]
-                    Rb = gaps[oR + k + 1, l]
-                    wk = y[ow + k, l]
-                    wk1 = y[ow + k + 1, l]
-                    w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
-                    # the Coulomb cap on |F| (LAMMPS's Fncrit = |Fntot|; F < 0 only damped)
-                    xi = _contact_map(y[ot + k, l] + w * hist_dt, kt, mu * abs(fn))
-                    y[ot + k, l] = xi if d > 0.0 else 0.0
-            for l in range(L):
-                fn = f[k, l]
-                d = _overlap_l(y, ox, gaps, k, l)
-                loaded = d > 0.0
-                ktc = gaps[oKt + k, l]
-                kt = ktc * math.sqrt(d) if mindlin else ktc
-                Ra = gaps[oR + k, l]
-                Rb = gaps[oR + k + 1, l]
-                wk = y[ow + k, l]
-                wk1 = y[ow + k + 1, l]
-                # slip R_k omega_k + R_k+1 omega_k+1 (LAMMPS: radi omega_i + radj omega_j)
-                w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
-                T, rate = _contact_force(y[ot + k, l], w, kt, mu * abs(fn))
-                # LAMMPS applies the tangential force at the contact point: lever arm
-                # R_i - delta/2 on each sphere (the slip above uses full radii, as LAMMPS
-                # does)
-                arm = Ra - 0.5 * d
-                arm1 = Rb - 0.5 * d
-                tq = arm * T / gaps[oI + k, l]
-                tq1 = arm1 * T / gaps[oI + k + 1, l]
-                pw = T * arm * (wk + wk1) if Ra == Rb else T * (arm * wk + arm1 * wk1)
-                dy[ot + k, l] = rate if loaded else 0.0
-                a = dy[ow + k, l]
-                dy[ow + k, l] = a + tq if loaded else a
-                a = dy[ow + k + 1, l]
-                dy[ow + k + 1, l] = a + tq1 if loaded else a
-                a = dy[owt, l]
-                dy[owt, l] = a + pw if loaded else a
-
-    if FL[F_ROLLING_FRICTION] != 0:
-        # LAMMPS rolling sds on the 1D line (docs/explanation/lammps_laws.md sections 5 and 8):
-        # v_roll = Reff (omega_k - omega_{k+1}), rho' = v_roll, moment
-        # M = -k_roll rho - gamma_roll v_roll capped at mu_roll Fn, torque +Reff M on the
-        # left sphere and -Reff M on the right one.
-        kr = P[P_ROLLING_SPRING]
-        gr = P[P_ROLLING_DASHPOT]
-        mur = P[P_ROLLING_MU]
-        oRe = G_ROLLING_REFF * n
-        op = LO[L_ROLLING_HIST]
-        owro = LO[L_WORK_ROLLING]
-        for l in range(L):
-            dy[owro, l] = 0.0
-        for k in range(n - 1):
-            if _bit(shut, k) or (k >= 63 and not _any_contact(y, ox, gaps, k, L)):
-                for l in range(L):
-                    dy[op + k, l] = 0.0
-                if hist_dt > 0.0:
-                    for l in range(L):
-                        y[op + k, l] = 0.0
-                continue
-            if hist_dt > 0.0:
-                for l in range(L):
-                    # Verlet: LAMMPS's order with the half-step spins
-                    fn = f[k, l]
-                    loaded = _overlap_l(y, ox, gaps, k, l) > 0.0
-                    Reff = gaps[oRe + k, l]
-                    vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
-                    rho, M = _rolling_moment_lammps(y[op + k, l], vr, kr, gr, mur * abs(fn),
-                                                    hist_dt)
-                    y[op + k, l] = rho if loaded else 0.0
-                    dy[op + k, l] = vr if loaded else 0.0
-                    tq = Reff * M / gaps[oI + k, l]
-                    tq1 = Reff * M / gaps[oI + k + 1, l]
-                    a = dy[ow + k, l]
-                    dy[ow + k, l] = a + tq if loaded else a
-                    a = dy[ow + k + 1, l]
-                    dy[ow + k + 1, l] = a - tq1 if loaded else a
-                    a = dy[owro, l]
-                    dy[owro, l] = a + M * vr if loaded else a
-            else:
-                for l in range(L):
-                    # continuous law (RK4, DOP853): rho' = v_roll, project() return-maps
-                    # rho after the step
-                    fn = f[k, l]
-                    loaded = _overlap_l(y, ox, gaps, k, l) > 0.0
-                    Reff = gaps[oRe + k, l]
-                    vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
-                    M = _rolling_moment(y[op + k, l], vr, kr, gr, mur * abs(fn))
-                    dy[op + k, l] = vr if loaded else 0.0
-                    tq = Reff * M / gaps[oI + k, l]
-                    tq1 = Reff * M / gaps[oI + k + 1, l]
-                    a = dy[ow + k, l]
-                    dy[ow + k, l] = a + tq if loaded else a
-                    a = dy[ow + k + 1, l]
-                    dy[ow + k + 1, l] = a - tq1 if loaded else a
-                    a = dy[owro, l]
-                    dy[owro, l] = a + M * vr if loaded else a
-
-
-@njit(cache=True, inline="always")
-def _cap(coef, y, gaps, P, FL, ox, ov, n, k, l, d):
-    """Coulomb cap coef |F| of inner contact k in lane l at overlap d > 0: F the Hertz
-    force, or with contact damping the net normal force (as ``forces_block`` computes
-    it), for the return mapping."""
-    K = gaps[G_HERTZ_K * n + k, l]
-    if FL[F_CONTACT_DAMPING] == 0:
-        return coef * K * d * math.sqrt(d)
-    fel = K * d * math.sqrt(d)
-    w = y[ov + k, l] - y[ov + k + 1, l]
-    F = fel + _damping_force(fel, d, w, gaps[G_DAMPING_MEFF * n + k, l],
-                             gaps[G_DAMPING_RSTAR * n + k, l], FL[F_DAMPING_MODEL],
-                             P[P_DAMPING_COEF])
-    return coef * abs(0.0 if (FL[F_DAMPING_LIMIT] != 0 and F < 0.0) else F)
+    # the effects' kicked blocks (the spins): their rates start from zero, the effects'
+    # torques add to them
+    for slot in KICKED:
+        o = LO[slot]
+        if o >= 0:
+            for j in range(nL):
+                dyf[o * L + j] = 0.0
+    effect_forces(y, gaps, P, FL, LO, hist_dt, dy, f, shut)
 
 
 @_blk
 def project_block(y, gaps, P, FL, LO, f):
-    """Return mapping of the friction histories of a block onto their Coulomb caps
-    (after a step)."""
-    n = int(P[P_N_SPHERES])
-    L = y.shape[1]
-    ox = LO[L_DISP]
-    ov = LO[L_VEL]
-    ow = LO[L_SPIN]
-    rot = FL[F_ROTATION] != 0
-    owr = ow if rot else ov
-    oK = G_HERTZ_K * n
-    if FL[F_GROOVE_FRICTION] != 0:
-        oFc = G_GROOVE_LIMIT * n
-        oKg = G_GROOVE_SPRING * n
-        oGg = G_GROOVE_DASHPOT * n
-        oR = G_RADIUS * n
-        s_g = P[P_GROOVE_S]
-        og = LO[L_GROOVE_HIST]
-        for i in range(n):
-            if not (_moving(y, ov + i, L) or _moving(y, og + i, L)
-                    or (rot and _moving(y, ow + i, L))):
-                continue
-            for l in range(L):
-                u = _groove_slip(y[ov + i, l], y[owr + i, l], s_g * gaps[oR + i, l], rot)
-                y[og + i, l] = _groove_map(y[og + i, l], u, gaps[oKg + i, l], gaps[oGg + i, l],
-                                           gaps[oFc + i, l])
-    if FL[F_PARTICLE_FRICTION] != 0:
-        ot = LO[L_PARTICLE_HIST]
-        mu = P[P_PARTICLE_MU]
-        oKt = G_PARTICLE_SPRING * n
-        mindlin = FL[F_PARTICLE_MINDLIN] != 0
-        for k in range(n - 1):
-            if not _any_contact(y, ox, gaps, k, L):
-                for l in range(L):
-                    y[ot + k, l] = 0.0
-                continue
-            for l in range(L):
-                d = _overlap_l(y, ox, gaps, k, l)
-                ktc = gaps[oKt + k, l]
-                kt = ktc * math.sqrt(d) if mindlin else ktc
-                xi = _contact_map(y[ot + k, l], kt, _cap(mu, y, gaps, P, FL, ox, ov, n, k, l, d))
-                y[ot + k, l] = 0.0 if d <= 0.0 else xi
-    if FL[F_ROLLING_FRICTION] != 0:
-        op = LO[L_ROLLING_HIST]
-        oRe = G_ROLLING_REFF * n
-        kr = P[P_ROLLING_SPRING]
-        gr = P[P_ROLLING_DASHPOT]
-        mur = P[P_ROLLING_MU]
-        for k in range(n - 1):
-            if not _any_contact(y, ox, gaps, k, L):
-                for l in range(L):
-                    y[op + k, l] = 0.0
-                continue
-            for l in range(L):
-                d = _overlap_l(y, ox, gaps, k, l)
-                vr = gaps[oRe + k, l] * (y[ow + k, l] - y[ow + k + 1, l])
-                rho = _rolling_map(y[op + k, l], vr, kr, gr,
-                                   _cap(mur, y, gaps, P, FL, ox, ov, n, k, l, d))
-                y[op + k, l] = 0.0 if d <= 0.0 else rho
+    """Return mapping of the effects' histories of a block onto their caps (after a
+    step; ``compose.project_histories``)."""
+    project_histories(y, gaps, P, FL, LO)
 
 
 @_blk
 def energies_block(y, gaps, P, FL, LO, out):
-    """Energy ledger (E_LEN, L) of a block: kinetic, Hertz potential, accumulated works."""
+    """Energy ledger (E_LEN, L) of a block: the translational kinetic energy, the
+    effects' energies (``compose.effect_energies``: rotational kinetic, potential), the
+    work of the dead load and the accumulated works."""
     n = int(P[P_N_SPHERES])
     L = y.shape[1]
     ox = LO[L_DISP]
     ov = LO[L_VEL]
-    oK = G_HERTZ_K * n
-    het = FL[F_HETEROGENEOUS] != 0
     for e in range(E_LEN):
         for l in range(L):
             out[e, l] = 0.0
-    if het:
+    if FL[F_HETEROGENEOUS] != 0:
         oM = G_MASS * n
         for i in range(n):
             for l in range(L):
@@ -515,27 +171,7 @@ def energies_block(y, gaps, P, FL, LO, out):
                 out[E_KIN_TRANS, l] += y[ov + i, l] * y[ov + i, l]
         for l in range(L):
             out[E_KIN_TRANS, l] = 0.5 * gaps[G_MASS * n, l] * out[E_KIN_TRANS, l]
-    if FL[F_ROTATION] != 0:
-        ow = LO[L_SPIN]
-        oI = G_INERTIA * n
-        if het:
-            for i in range(n):
-                for l in range(L):
-                    out[E_KIN_ROT, l] += 0.5 * gaps[oI + i, l] * y[ow + i, l] * y[ow + i, l]
-        else:
-            for i in range(n):
-                for l in range(L):
-                    out[E_KIN_ROT, l] += y[ow + i, l] * y[ow + i, l]
-            for l in range(L):
-                out[E_KIN_ROT, l] *= 0.5 * gaps[oI, l]
-    for k in range(n - 1):
-        if not _any_contact(y, ox, gaps, k, L):
-            continue
-        for l in range(L):
-            out[E_HERTZ, l] += _hertz_energy(gaps[oK + k, l], _overlap_l(y, ox, gaps, k, l))
-    if FL[F_END_WALL] != 0:
-        for l in range(L):
-            out[E_HERTZ, l] += _hertz_energy(gaps[oK + n - 1, l], y[ox + n - 1, l] - gaps[n - 1, l])
+    effect_energies(y, gaps, P, FL, LO, out)
     if FL[F_DEAD_LOAD] != 0:
         F0 = P[P_DEAD_LOAD]
         for l in range(L):
@@ -580,15 +216,11 @@ def verlet_block(y, acc, h, gaps, P, FL, LO, f):
     L = y.shape[1]
     ox = LO[L_DISP]
     ov = LO[L_VEL]
-    ow = LO[L_SPIN]
-    rot = FL[F_ROTATION] != 0
     hh = 0.5 * h
     for i in range(n):
         for l in range(L):
             y[ov + i, l] += hh * acc[ov + i, l]
-        if rot:
-            for l in range(L):
-                y[ow + i, l] += hh * acc[ow + i, l]
+        _kick(y, acc, LO, hh, i, L)
     for i in range(n):
         for l in range(L):
             y[ox + i, l] += h * y[ov + i, l]
@@ -601,9 +233,17 @@ def verlet_block(y, acc, h, gaps, P, FL, LO, f):
     for i in range(n):
         for l in range(L):
             y[ov + i, l] += hh * acc[ov + i, l]
-        if rot:
+        _kick(y, acc, LO, hh, i, L)
+
+
+@njit(cache=True, inline="always")
+def _kick(y, acc, LO, hh, i, L):
+    """Half kick of entry i of the effects' kicked blocks (the spins)."""
+    for slot in KICKED:
+        o = LO[slot]
+        if o >= 0:
             for l in range(L):
-                y[ow + i, l] += hh * acc[ow + i, l]
+                y[o + i, l] += hh * acc[o + i, l]
 
 
 # Per-chain entry points (1D state of one chain): the block routines on a block of one
@@ -831,30 +471,16 @@ def _left(v_last, overlap_last, x_last, vthr, wall):
 
 
 @njit(cache=True, inline="always")
-def _wall_force_of(K, d, w, meff, rs, P, FL):
-    """Force (N) of the end wall at overlap d and closing speed w: Hertz, and with contact
-    damping the net force as ``forces_block`` applies it."""
-    fel = _hertz_force(K, d)
-    if FL[F_CONTACT_DAMPING] == 0 or d <= 0.0:
-        return fel
-    F = fel + _damping_force(fel, d, w, meff, rs, FL[F_DAMPING_MODEL], P[P_DAMPING_COEF])
-    return 0.0 if (FL[F_DAMPING_LIMIT] != 0 and F < 0.0) else F
+def _wall_force_l(y, g, n, LO, P, FL, l):
+    """Force (N) of the end wall on lane l of a block (``compose.wall_force``)."""
+    return wall_force(y[LO[L_DISP] + n - 1, l] - g[n - 1, l], y[LO[L_VEL] + n - 1, l], g, P,
+                      FL, n, l)
 
 
 @njit(cache=True, inline="always")
 def _wall_force(y, g, n, LO, P, FL):
     """Force (N) of the end wall on one chain (state y, per-chain array g)."""
-    return _wall_force_of(g[G_HERTZ_K * n + n - 1], y[LO[L_DISP] + n - 1] - g[n - 1],
-                          y[LO[L_VEL] + n - 1], g[G_DAMPING_MEFF * n + n - 1],
-                          g[G_DAMPING_RSTAR * n + n - 1], P, FL)
-
-
-@njit(cache=True, inline="always")
-def _wall_force_l(y, g, n, LO, P, FL, l):
-    """Force (N) of the end wall on lane l of a block."""
-    return _wall_force_of(g[G_HERTZ_K * n + n - 1, l], y[LO[L_DISP] + n - 1, l] - g[n - 1, l],
-                          y[LO[L_VEL] + n - 1, l], g[G_DAMPING_MEFF * n + n - 1, l],
-                          g[G_DAMPING_RSTAR * n + n - 1, l], P, FL)
+    return _wall_force_l(_col(y), _col(g), n, LO, P, FL, 0)
 
 
 @njit(cache=True, inline="always")
@@ -1154,9 +780,6 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
     wall = Vout.shape[2] > n
     for blk in prange(nblk):
         base = blk * L
-        y = Y[blk]
-        acc = ACC[blk]
-        g = gaps[blk]
         ns = -1
         for l in range(L):
             counts[base + l] = 0
@@ -1164,6 +787,16 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                 ns = NS[base + l]
         if ns < 0:
             continue
+        # the block's own copies of its state and rows and of the run's vectors, the state
+        # written back at the end: the kernels reference-count their array arguments, and
+        # counting on arrays that every thread shares (views of Y, the one P) would move
+        # their cache lines from core to core at every call
+        y = Y[blk].copy()
+        acc = ACC[blk].copy()
+        g = gaps[blk].copy()
+        Pb = P.copy()
+        FLb = FL.copy()
+        LOb = LO.copy()
         f = np.zeros((n, L))
         k1 = np.empty((ny, L))
         k2 = np.empty((ny, L))
@@ -1174,13 +807,13 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
         c = 0
         if ns == 0:
             if method == M_VERLET:
-                forces_block(y, g, P, FL, LO, 0.0, acc, f)
-            energies_block(y, g, P, FL, LO, ebuf)
+                forces_block(y, g, Pb, FLb, LOb, 0.0, acc, f)
+            energies_block(y, g, Pb, FLb, LOb, ebuf)
             for l in range(L):
                 b = base + l
                 if STATUS[b] != S_RUNNING:
                     continue
-                _sample_lane(0, 0, y, g, ebuf, l, b, n, LO, P, FL, observe, wall_static,
+                _sample_lane(0, 0, y, g, ebuf, l, b, n, LOb, Pb, FLb, observe, wall_static,
                              Vout, Eout, OF, OI, RK, RV, WF, WI, BAL)
                 counts[b] = 1
                 NS[b] = 1
@@ -1204,18 +837,18 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                 break
             if method == M_RK4:
                 for _ in range(every):
-                    rk4_block(y, dt, g, P, FL, LO, k1, k2, k3, k4, tmp, f)
+                    rk4_block(y, dt, g, Pb, FLb, LOb, k1, k2, k3, k4, tmp, f)
             else:
                 for _ in range(every):
-                    verlet_block(y, acc, dt, g, P, FL, LO, f)
-            energies_block(y, g, P, FL, LO, ebuf)
+                    verlet_block(y, acc, dt, g, Pb, FLb, LOb, f)
+            energies_block(y, g, Pb, FLb, LOb, ebuf)
             for l in range(L):
                 b = base + l
                 if STATUS[b] != S_RUNNING:
                     continue
                 STEPS[b] += every
                 T[b] += every * dt
-                _sample_lane(c, NS[b], y, g, ebuf, l, b, n, LO, P, FL, observe, wall_static,
+                _sample_lane(c, NS[b], y, g, ebuf, l, b, n, LOb, Pb, FLb, observe, wall_static,
                              Vout, Eout, OF, OI, RK, RV, WF, WI, BAL)
                 counts[b] = c + 1
                 NS[b] += 1
@@ -1228,8 +861,10 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                     _finish_lane(b, n, NS, sample_dt, observe, OF, OI, RK, RV, WF, WI, OUT,
                                  WOUT, wall)
                 elif auto_stop and _left(y[ov + n - 1, l], _overlap_l(y, ox, g, n - 2, l),
-                                         y[ox + n - 1, l], VTHR[b], FL[F_END_WALL] != 0):
+                                         y[ox + n - 1, l], VTHR[b], FLb[F_END_WALL] != 0):
                     _stop_lane(y, acc, l, YF, b, S_PASSED, STATUS)
                     _finish_lane(b, n, NS, sample_dt, observe, OF, OI, RK, RV, WF, WI, OUT,
                                  WOUT, wall)
             c += 1
+        Y[blk] = y
+        ACC[blk] = acc
