@@ -75,12 +75,17 @@ def naming_lines(path: Path) -> list[tuple[int, str]]:
 
 
 def files(*paths: str) -> list[Path]:
-    """The Python files of these package-relative paths (files or folders)."""
+    """The Python files of these repository-relative paths (files, folders, or glob
+    patterns)."""
     out = []
     for p in paths:
         q = ROOT / p
-        out += sorted(f for f in q.rglob("*.py") if "__pycache__" not in f.parts) \
-            if q.is_dir() else [q]
+        if "*" in p:
+            out += sorted(ROOT.glob(p))
+        elif q.is_dir():
+            out += sorted(f for f in q.rglob("*.py") if "__pycache__" not in f.parts)
+        else:
+            out.append(q)
     return out
 
 

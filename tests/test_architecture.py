@@ -107,7 +107,7 @@ LAYERS = (
     ("physics", ("granchain.effects",)),
     ("data", ("granchain.scene", "granchain.scenekeys", "granchain.gaps", "granchain.guards",
               "granchain.gapdesign")),
-    ("run plan", ("granchain.stoprule",)),
+    ("run plan", ("granchain.stoprule", "granchain.obsrules")),
     ("engines", ("granchain.trajectory", "granchain.engines", "granchain.lammps")),
     ("analysis", ("granchain.observables", "granchain.vibrometer", "granchain.tables",
                   "granchain.reductions", "granchain.modelcheck")),

@@ -86,7 +86,8 @@ EDITS = {
     "effect": ("effects/hertz.py", "return K * d * math.sqrt(d) if d > 0.0",
                "return 0.5 * K * d * math.sqrt(d) if d > 0.0"),
     "codes": ("engines/codes.py", "RB_SIZE = 48 ", "RB_SIZE = 47 "),
-    "stoprule": ("stoprule.py", "PEAK_TOL = 1e-4 ", "PEAK_TOL = 2e-4 "),
+    "obsrules": ("obsrules.py", "PEAK_TOL = 1e-4 ", "PEAK_TOL = 2e-4 "),
+    "compose": ("engines/compose.py", '"    best = -1.0"', '"    best = -2.0"'),
 }
 
 
@@ -131,7 +132,7 @@ def test_module_name_changes_with_every_compiled_source(what, tmp_path):
 @pytest.mark.parametrize("what", list(EDITS))
 def test_jit_cache_folder_changes_with_every_compiled_source(what, tmp_path):
     # numba keys its cache by the stamp of the kernel's own file only: the kernels inline
-    # the effects' laws and freeze codes/stoprule constants, so an edit in any of them
+    # the effects' laws and freeze codes/obsrules constants, so an edit in any of them
     # must move the JIT cache to another folder, or old machine code would run
     rel, old, new = EDITS[what]
     pkg = _copy_package(tmp_path)

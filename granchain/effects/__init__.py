@@ -71,6 +71,12 @@ def _has(self, name: str) -> bool:
     return getattr(self, name) is not None
 
 
+def _overlap_scale(self, v: float) -> float:
+    """The peak overlap (m) of a head-on collision of two beads at closing speed v (m/s),
+    by the normal law (``hertz.peak_overlap``)."""
+    return hertz.peak_overlap(self.m / 2.0, self.hertz.K, v)
+
+
 def _dissipative(self) -> tuple[str, ...]:
     """Effects that do work on the particles (each gets a work entry in the ledger)."""
     return tuple(n for n, s in SPECS.items() if s.work and self.has(n))
@@ -84,6 +90,7 @@ Terms = dataclasses.make_dataclass(
               ("chain", Chain, dataclasses.field(default=None))]
     + [(m.SPEC.name, object, dataclasses.field(default=None)) for m in MODULES if m is not hertz],
     frozen=True, namespace={"has": _has, "dissipative": property(_dissipative),
+                            "overlap_scale": _overlap_scale,
                             "__doc__": "The physics of one scene: the chain and its enabled "
                                        "effects (one field per registered effect)."})
 Terms.__module__ = __name__

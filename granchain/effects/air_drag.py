@@ -102,7 +102,7 @@ def build(scene) -> AirDrag:
 
 
 def kernel(ad: AirDrag) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return {"P_DRAG_T0": ad.T0, "P_DRAG_L": ad.L}, {"F_AIR_DRAG": 1, "F_DRAG_ODD": int(ad.odd)}
 
 

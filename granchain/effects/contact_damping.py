@@ -270,7 +270,7 @@ def _round_down(x: float) -> str:
 
 
 def kernel(cd: ContactDamping) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return ({"P_DAMPING_COEF": cd.damp},
             {"F_CONTACT_DAMPING": 1,
              "F_DAMPING_MODEL": VISCOELASTIC if cd.model == "viscoelastic" else SQRT_FORM,

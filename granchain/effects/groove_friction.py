@@ -300,7 +300,7 @@ def build(scene) -> GrooveFriction:
 
 
 def kernel(gf: GrooveFriction) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return ({"P_GROOVE_S": gf.s, "P_GROOVE_LIMIT": gf.Fc, "P_GROOVE_SPRING": gf.kt,
              "P_GROOVE_DASHPOT": gf.gamma}, {"F_GROOVE_FRICTION": 1})
 

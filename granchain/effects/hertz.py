@@ -32,6 +32,12 @@ def energy(K, d):
     return 0.4 * K * d * d * math.sqrt(d) if d > 0.0 else 0.0
 
 
+def peak_overlap(m_red, K, v):
+    """The largest overlap (m) of a head-on collision of reduced mass m_red (kg) at
+    closing speed v (m/s): (5 m_red v^2 / (4 K))^(2/5)."""
+    return (5.0 * m_red * v * v / (4.0 * K)) ** 0.4
+
+
 @compiled
 def cap(coef, K, d):
     """The Coulomb cap coef K d^(3/2) (N) of a contact of overlap d > 0 (m), multiplied
@@ -124,7 +130,7 @@ def build(scene) -> Hertz:
 
 
 def kernel(h: Hertz) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return {"P_HERTZ_K": h.K}, {}
 
 

@@ -230,7 +230,7 @@ def rows(pf: ParticleFriction, chain) -> dict:
 
 
 def kernel(pf: ParticleFriction) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return ({"P_PARTICLE_MU": pf.mu, "P_PARTICLE_SPRING": pf.kt},
             {"F_PARTICLE_FRICTION": 1, "F_PARTICLE_MINDLIN": int(pf.model == "mindlin")})
 

@@ -227,7 +227,7 @@ def rows(rf: RollingFriction, chain) -> dict:
 
 
 def kernel(rf: RollingFriction) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return ({"P_ROLLING_SPRING": rf.k_roll, "P_ROLLING_DASHPOT": rf.gamma_roll,
              "P_ROLLING_MU": rf.mu_roll}, {"F_ROLLING_FRICTION": 1})
 

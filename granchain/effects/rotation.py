@@ -43,7 +43,7 @@ def build(scene) -> Rotation:
 
 
 def kernel(rot: Rotation) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return {"P_INERTIA": rot.inertia}, {"F_ROTATION": 1}
 
 

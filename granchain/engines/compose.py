@@ -85,6 +85,22 @@ def _jit(fn):
     return _DISPATCHERS[fn]
 
 
+def _bind(module) -> None:
+    """Every marked function in the module's namespace becomes its dispatcher."""
+    ns = _namespace(module)
+    for k, v in list(ns.items()):
+        if _marked(v):
+            ns[k] = _jit(v)
+
+
+def compiled(fn):
+    """The compiled form of a marked function of any module (``effects.spec.compiled``),
+    inlined where it is called: what the kernels call the effects' lanes and laws and
+    ``granchain.obsrules`` by."""
+    _bind(sys.modules[fn.__module__])
+    return _jit(fn)
+
+
 def _marked(v) -> bool:
     return isinstance(v, types.FunctionType) and getattr(v, "granchain_compiled", False)
 
@@ -203,10 +219,7 @@ def _compose() -> dict:
     """Compile the effects' marked functions and the composed ones; returns the composed
     dispatchers by name."""
     for m in (lanes,) + tuple(MODULES):
-        ns = _namespace(m)
-        for k, v in list(ns.items()):
-            if _marked(v):
-                ns[k] = _jit(v)
+        _bind(m)
     text = source()
     ns = {"__name__": "granchain_composed", "__builtins__": __builtins__}
     for m in MODULES:
@@ -230,4 +243,4 @@ def _compose() -> dict:
 
 globals().update(_compose())
 # the lane helpers, compiled, for the kernels' own loops
-bit, overlap = _jit(lanes.bit), _jit(lanes.overlap)
+bit, overlap = compiled(lanes.bit), compiled(lanes.overlap)
