@@ -17,8 +17,8 @@ of the two are compared bit for bit (v, energies, steps, status). Then LAMMPS on
 ranks on the every-effect Verlet ensemble without per-sample output: its loop time (from
 its log) and its process wall time. Prints particle-steps per second and the ratios, and
 the fraction of the machine's division/sqrt peak: the divisions and square roots a
-particle-step costs when every lane computes every law (counted from
-``engines/kernels.py``), times their throughput measured here by a numba probe, on all
+particle-step costs when every lane computes every law (counted from the effects'
+laws, ``granchain/effects/``), times their throughput measured here by a numba probe, on all
 cores. The machines are shared: only ratios measured in the one run are worth comparing.
 """
 from __future__ import annotations

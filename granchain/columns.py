@@ -16,6 +16,9 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from .effects import ENERGY_COLUMNS, SPECS
+from .effects.chain import SPEC as CHAIN
+
 
 @dataclass(frozen=True)
 class Column:
@@ -88,16 +91,10 @@ MEMBER = {
                                     "has no packed reference (its provenance says why)."),
     "energy_initial_J": _f("J", "Initial mechanical energy of the chain (the striker's "
                                 "kinetic energy plus any preload's elastic energy)."),
-    "work_groove_J": _f("J", "Work done on the particles by the groove friction up to the "
-                             "end of the run (negative: dissipated)."),
-    "work_air_J": _f("J", "Work done on the particles by the air drag up to the end of the "
-                          "run."),
-    "work_particle_friction_J": _f("J", "Work done on the particles by the tangential "
-                                        "friction between spheres up to the end of the run."),
-    "work_rolling_J": _f("J", "Work done on the particles by the rolling friction up to "
-                              "the end of the run."),
-    "work_damping_J": _f("J", "Work done on the particles by the contact damping up to the "
-                              "end of the run."),
+    # each effect's work (its EffectSpec: table_column, work_note)
+    **{s.table_column: _f("J", f"Work done on the particles by {s.work_note} up to the end "
+                               "of the run (negative: dissipated).")
+       for s in SPECS.values() if s.table_column},
     "balance_error": _f("1", "Energy balance error relative to the initial energy: "
                              "(final mechanical energy - initial - works) / initial."),
     "steps": _i("Integration steps taken."),
@@ -249,20 +246,14 @@ RUN_JSON = {
 }
 # the "energy" object of a run's JSON (observables.LEDGER_ENTRIES): final values
 LEDGER_JSON = {
-    "kinetic_translational": Column("float", "J", "Translational kinetic energy."),
-    "kinetic_rotational": Column("float", "J", "Rotational kinetic energy."),
-    "hertz_potential": Column("float", "J", "Elastic (Hertz) energy of the contacts."),
-    "work_groove_friction": Column("float", "J", "Work done on the particles by the groove "
-                                                 "friction."),
-    "work_air_drag": Column("float", "J", "Work done on the particles by the air drag."),
-    "work_particle_friction": Column("float", "J", "Work done on the particles by the "
-                                                   "friction between spheres."),
-    "work_rolling_friction": Column("float", "J", "Work done on the particles by the "
-                                                  "rolling friction."),
-    "work_contact_damping": Column("float", "J", "Work done on the particles by the "
-                                                 "contact damping."),
-    "work_load": Column("float", "J", "Work done on the particles by a static load (the "
-                                      "preload)."),
+    # the mechanical energies (ENERGY_COLUMNS' first three), then each effect's work and
+    # the chain's (the work of a static load), from their EffectSpecs
+    **dict(zip(ENERGY_COLUMNS, (
+        Column("float", "J", "Translational kinetic energy."),
+        Column("float", "J", "Rotational kinetic energy."),
+        Column("float", "J", "Elastic energy of the contacts (the normal law's potential).")))),
+    **{s.work: Column("float", "J", f"Work done on the particles by {s.work_note}.")
+       for s in (*SPECS.values(), CHAIN) if s.work},
     "initial": Column("float", "J", "Initial mechanical energy."),
     "final_mechanical": Column("float", "J", "Final mechanical energy."),
     "balance_error": Column("float", "1", "Energy balance error relative to the initial "
@@ -441,7 +432,7 @@ _UNC = ("The reference's own uncertainty on {x}: its difference from the RK4 cro
 ACCURACY = {
     "scene": _s("The study's scene: packed, or gapped_<mean gap>nm."),
     "method": _s("The setting's integrator: rk4, verlet, adaptive, event or lammps."),
-    "steps_per_contact": _f("1", "Fixed steps per Hertz contact time (dt = t_c / N, snapped "
+    "steps_per_contact": _f("1", "Fixed steps per contact time (dt = t_c / N, snapped "
                                  "onto the sample grid); NaN for the tolerance methods."),
     "dt_s": _f("s", "The fixed step; NaN for the tolerance methods."),
     "tolerance": _f("1", "The tolerance methods' relative tolerance; NaN for a fixed step."),

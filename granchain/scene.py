@@ -34,10 +34,13 @@ from .validate import Key, number_text, short as _short
 from .scenefile import apply_overrides, read_scene_file
 from .guards import (HARD_OVERLAP_RATIO, MAX_OVERLAP_RATIO, MIN_SAMPLES_PER_PULSE,
                      check_overlaps, floor_sig, max_sample_dt, pulse_width)
-from .effects import MODULES as EFFECT_MODULES
+from .effects import MODULES as EFFECT_MODULES, SPECS as EFFECT_SPECS
 from .materials import FIELD_FIX, FIELDS, RIGID, Material, effective_modulus, library
 
 EFFECTS = tuple(m.SPEC.name for m in EFFECT_MODULES)
+# the effects every scene has, and each effect's requirements (their EffectSpecs)
+_ALWAYS = tuple(m.SPEC.name for m in EFFECT_MODULES if m.SPEC.always)
+_REQUIRES = {m.SPEC.name: m.SPEC.requires for m in EFFECT_MODULES if m.SPEC.requires}
 # effect -> its scene section, for the effects that have one (granchain.effects: each
 # declares SECTION, its DEFAULTS and validates it with ``settings``)
 _SECTIONED = tuple(m for m in EFFECT_MODULES if hasattr(m, "SECTION"))
@@ -60,7 +63,7 @@ DEFAULTS: dict[str, Any] = {
     "striker": {"velocity": 0.1, "radius": None, "material": None},
     "gaps": {"distribution": "none", "mean": None, "seed": 0, "values": None,
              "extra_length": None},
-    "effects": ["hertz"],
+    "effects": list(_ALWAYS),
     # each effect's own section (groove, drag, contact, rolling), from its module
     **{m.SECTION: m.DEFAULTS for m in _SECTIONED},
     "probes": [2, 13],
@@ -152,7 +155,7 @@ KEYS: tuple[Key, ...] = (
     Key("chain.radius", "m", "Sphere radius (the chapter's). A list gives each sphere its "
         "own, particle 1 (the striker) first: dimer, tapered and impurity chains. Every "
         "contact is Hertzian with 1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j and R* = R_i R_j/(R_i "
-        "+ R_j); groove, drag, rotation and friction use each sphere's own mass, radius and "
+        "+ R_j); the other effects use each sphere's own mass, radius and "
         "inertia.", positive=True, allowed="or a list of n radii"),
     Key("chain.materials", "-", "Each sphere's material, particle 1 first (one material for "
         "every sphere: `material`, which is refused beside the list, as is "
@@ -197,9 +200,11 @@ KEYS: tuple[Key, ...] = (
     Key("gaps.extra_length", "m", "The length by which the chain exceeds the packed length, "
         "for `from_length` (required there, refused with the others): every realisation has "
         "total gap `extra_length`.", nonneg=True),
-    Key("effects", "-", "The physical effects of the chapter's Eq. 5.1 that act; `hertz` is "
-        "always on, and `particle_friction` and `rolling_friction` act through torques, so "
-        "they need `rotation`.", choices=EFFECTS, allowed="a list of these, each once"),
+    Key("effects", "-", "The physical effects of the chapter's Eq. 5.1 that act; "
+        + "; ".join([f"`{e}` is always on" for e in _ALWAYS]
+                    + [f"`{e}` {why}, so it needs `{r}`" for e, reqs in _REQUIRES.items()
+                       for r, why in reqs]) + ".",
+        choices=EFFECTS, allowed="a list of these, each once"),
     Key("probes", "1", "The two particles whose velocities are recorded and compared (the "
         "chapter's), in the direction the wave travels; particle 1 is the striker.",
         allowed="two particles p1, p2 with 2 <= p1 < p2 <= n"),
@@ -208,7 +213,7 @@ KEYS: tuple[Key, ...] = (
         "`tolerance`; `auto`: the cheapest setting the cost model expects to reach "
         "`tolerance`, the relative error on v_g.", choices=METHODS),
     Key("integrator.dt", "s", "The step of `rk4` and `verlet` (the chapter's). It must give "
-        f"at least {MIN_STEPS_PER_CONTACT} steps per shortest Hertz collision at the fastest "
+        f"at least {MIN_STEPS_PER_CONTACT} steps per shortest collision at the fastest "
         "striker (and per dashpot time m_eff/eta with contact damping); the error shows the "
         "limit.", positive=True),
     Key("integrator.tolerance", "1", "The relative tolerance of `adaptive` and `event`, or of "
@@ -757,13 +762,13 @@ def _effects(value) -> frozenset[str]:
     if isinstance(value, str):
         words = [w for w in re.split(r"[\s,\[\]]+", value) if w]
         if len(words) != 1:
-            listed = ", ".join(words) if words else "hertz"
+            listed = ", ".join(words or _ALWAYS)
             raise SceneError("effects", f"{_short(value)} is one string, not a list",
                              f"write effects: [{listed}]")
         value = words
     if not isinstance(value, list):
         raise SceneError("effects", f"expected a list, got {_short(value)}",
-                         "write effects: [hertz, ...]")
+                         f"write effects: [{', '.join(_ALWAYS)}, ...]")
     seen = []
     for i, e in enumerate(value):
         _KEY["effects"].choice(e, "effect", field=f"effects[{i}]")
@@ -772,12 +777,15 @@ def _effects(value) -> frozenset[str]:
                              "list each effect once")
         seen.append(e)
     eff = frozenset(seen)
-    if "hertz" not in eff:
-        raise SceneError("effects", "'hertz' is missing", "every chain needs hertz contacts: add hertz")
-    for needs_rot in ("particle_friction", "rolling_friction"):
-        if needs_rot in eff and "rotation" not in eff:
-            raise SceneError("effects", f"'{needs_rot}' acts through torques but 'rotation' is off",
-                             "add rotation to effects")
+    for e in _ALWAYS:
+        if e not in eff:
+            raise SceneError("effects", f"'{e}' is missing",
+                             f"{EFFECT_SPECS[e].always}: add {e}")
+    for e, reqs in _REQUIRES.items():
+        for r, why in reqs:
+            if e in eff and r not in eff:
+                raise SceneError("effects", f"'{e}' {why} but '{r}' is off",
+                                 f"add {r} to effects")
     return eff
 
 

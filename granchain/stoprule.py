@@ -35,6 +35,7 @@ import math
 import numpy as np
 
 from . import analytic, obsrules
+from .effects import acts_on_normal
 from .guards import crossing_time, require_resolved
 # the observable rules' constants (``granchain.obsrules``)
 from .obsrules import ARRIVAL_FRACTION, PASS_FRACTION, PEAK_TOL, PLATEAU_SAMPLES  # noqa: F401
@@ -64,7 +65,7 @@ def auto_t_max(scene, gaps, v_striker: float) -> float:
     travel = (n - 1) * 2.0 * scene.radius / vs
     flight = float(np.sum(gaps[: n - 1])) / v_striker
     k_travel, k_flight = ((3.0, 5.0) if scene.wall is not None
-                          and scene.has("contact_damping") else (20.0, 50.0))
+                          and acts_on_normal(scene.effects) else (20.0, 50.0))
     return k_travel * travel + k_flight * flight + 10.0 * analytic.pulse_width(
         scene.material, scene.radius, 0.5 * v_striker)
 

@@ -110,6 +110,7 @@ LAYERS = (
     ("run plan", ("granchain.stoprule", "granchain.obsrules")),
     ("engines", ("granchain.trajectory", "granchain.engines", "granchain.lammps")),
     ("analysis", ("granchain.observables", "granchain.vibrometer", "granchain.tables",
+                  "granchain.columns",
                   "granchain.reductions", "granchain.modelcheck")),
     ("application", ("granchain.costmodel", "granchain.runplan", "granchain.simulate",
                      "granchain.compare", "granchain.accuracy", "granchain.figures",

@@ -17,7 +17,8 @@ Each effect module (``hertz``, ``rotation``, ``groove_friction``, ``air_drag``,
   switches for the event method). The engines compile them with numba and compose the
   kernels from them in registry order (``granchain.engines.compose``); every integrator
   and the return mapping use the same law;
-- its LAMMPS deck fragment.
+- its part of a LAMMPS deck, through one hook, ``lammps(term, deck)`` (an
+  ``spec.DeckPart``), which the deck writer calls for every effect (``granchain.lammps``).
 
 ``physics_terms(scene)`` returns a :class:`Terms` holding one record per enabled effect.
 Both engines take the physics from here; no engine reads scene fields for physics.
@@ -59,6 +60,14 @@ ENERGY_COLUMNS = ("kinetic_translational", "kinetic_rotational", "hertz_potentia
     s.work for s in SPECS.values() if s.work) + (chain.SPEC.work,)
 # the kernels' numbering of every declared slot (``slots``)
 slots.number((chain.SPEC,) + tuple(SPECS.values()), ENERGY_COLUMNS)
+
+
+def acts_on_normal(effects) -> bool:
+    """Does one of these effects (names) act on the contacts' normal force after the
+    elastic law (its ``contact_normal``: contact damping)? The force then depends on the
+    closing speed, and a chain against a wall may lose the energy to leave it."""
+    laws = [m for m in MODULES if hasattr(m, "contact_normal")]
+    return any(m.SPEC.name in effects for m in laws[1:])
 
 
 def residual_work(effects) -> tuple[str, ...]:
@@ -103,5 +112,5 @@ def physics_terms(scene) -> Terms:
 
 
 __all__ = ["MODULES", "SPECS", "ENERGY_COLUMNS", "EffectSpec", "Terms", "physics_terms",
-           "residual_work", "Chain", "Hertz", "AirDrag", "GrooveFriction", "Rotation",
-           "ParticleFriction", "RollingFriction"]
+           "residual_work", "acts_on_normal", "Chain", "Hertz", "AirDrag", "GrooveFriction",
+           "Rotation", "ParticleFriction", "RollingFriction"]

@@ -5,19 +5,22 @@ F = -m (v/T0 - v^2/L) (``as_printed``, the chapter's form) or -m (v/T0 - v|v|/L)
 """
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import GranchainError
 from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
 from .lanes import moving
-from .spec import EffectSpec, compiled
+from .spec import DeckPart, EffectSpec, compiled
 
 # order -1: the drag is added to a sphere's force before the groove friction
 SPEC = EffectSpec("air_drag", work="work_air_drag", work_slot="L_WORK_DRAG",
-                  table_column="work_air_J", lammps_ledger="f_gd[3]",
+                  table_column="work_air_J", work_note="the air drag", lammps_ledger="f_gd[3]",
                   params=("P_DRAG_T0", "P_DRAG_L"), flags=("F_AIR_DRAG", "F_DRAG_ODD"),
                   order=-1)
 
@@ -106,8 +109,42 @@ def kernel(ad: AirDrag) -> tuple[dict, dict]:
     return {"P_DRAG_T0": ad.T0, "P_DRAG_L": ad.L}, {"F_AIR_DRAG": 1, "F_DRAG_ODD": int(ad.odd)}
 
 
-def lammps_fix(ad: AirDrag) -> tuple[str, str]:
-    """(comment, fix groove/drag arguments) of the deck."""
-    return ("# drag: F = -m (v/T0 - v^2/L)" + (" with v|v| (odd)" if ad.odd else " (as printed)"),
-            f"drag T0 {_r(to_micro(ad.T0, 'time'))} L {_r(to_micro(ad.L, 'length'))} "
-            f"form {'odd' if ad.odd else 'as_printed'}")
+def travel(ad: AirDrag, v_max: float, t: float) -> float:
+    """A bound (m) on how far any sphere of a chain can move in a run of length t (s)
+    whose fastest striker starts at v_max (m/s), under this drag.
+
+    Contacts are elastic (the Hertz potential is >= 0) and the groove and contact
+    frictions only take energy out, so every sphere's speed stays below W(t), the speed
+    of a sphere carrying the whole initial energy 1/2 m v_max^2: with air drag
+    F = -m (v/T0 - v^2/L) (or v|v|) the energy grows at most as fast as for one sphere at
+    W, dW/dt = W^2/L - W/T0, which is propulsive for W > L/T0. Its solution, with u = 1/W
+    and c = T0/L: u(t) = c + (1/v_max - c) e^(t/T0), and the distance travelled is
+    L (t/T0 + ln(W(t)/v_max)). When v_max <= L/T0 the drag only slows (bound v_max t).
+    Raises GranchainError if W diverges within t (the drag would accelerate a sphere
+    without bound)."""
+    T0, L = ad.T0, ad.L
+    if v_max <= L / T0:
+        return v_max * t
+    c, u0 = T0 / L, 1.0 / v_max
+    t_blow = T0 * math.log(c / (c - u0))
+    if t >= t_blow:
+        raise GranchainError(
+            f"LAMMPS deck: the propulsive air drag (T0 = {T0:g} s, L = {L:g} m) would speed a "
+            f"sphere moving at {v_max:g} m/s up without bound after {t_blow:.6g} s, within the "
+            f"run of {t:.6g} s; shorten t_end or lower the striker speed")
+    u = c + (u0 - c) * math.exp(t / T0)
+    return L * (t / T0 + math.log(u0 / u))
+
+
+def lammps(ad: AirDrag | None, deck) -> DeckPart:
+    """Its part of fix groove/drag (the granchain plugin), its global and per-chain work,
+    and the room a propulsive drag needs in the deck's box (:func:`travel`)."""
+    energy = ("f_gd[2]", "air drag")
+    if ad is None:
+        return DeckPart(fix_energy=energy)
+    return DeckPart(
+        fix=("# drag: F = -m (v/T0 - v^2/L)" + (" with v|v| (odd)" if ad.odd else " (as printed)"),
+             f"drag T0 {_r(to_micro(ad.T0, 'time'))} L {_r(to_micro(ad.L, 'length'))} "
+             f"form {'odd' if ad.odd else 'as_printed'}"),
+        fix_energy=energy, ledger_note=f"cumulative work of the air drag ({SPEC.lammps_ledger})",
+        travel=functools.partial(travel, ad))

@@ -29,6 +29,7 @@ from .spec import EffectSpec
 SPEC = EffectSpec("chain", params=("P_N_SPHERES", "P_RADIUS", "P_MASS", "P_DEAD_LOAD"),
                   flags=("F_END_WALL", "F_DEAD_LOAD", "F_HETEROGENEOUS"),
                   rows=("G_GAP", "G_MASS", "G_INERTIA", "G_RADIUS", "G_HERTZ_K"), work="work_load",
+                  work_note="a static load (the preload)",
                   state=(("L_DISP", "particle"), ("L_VEL", "particle")))
 
 

@@ -36,10 +36,10 @@ from ..units import lmp_float as _r, to_micro
 from ..validate import Key, number_text, short
 from . import slots as S
 from .lanes import bit, overlap
-from .spec import EffectSpec, compiled
+from .spec import DeckPart, EffectSpec, compiled, pair_words
 
 SPEC = EffectSpec("contact_damping", work="work_contact_damping", work_slot="L_WORK_DAMPING",
-                  table_column="work_damping_J", lammps_reports_work=False,
+                  table_column="work_damping_J", work_note="the contact damping", lammps_reports_work=False,
                   params=("P_DAMPING_COEF",),
                   flags=("F_CONTACT_DAMPING", "F_DAMPING_MODEL", "F_DAMPING_LIMIT"),
                   rows=("G_DAMPING_MEFF", "G_DAMPING_RSTAR"))
@@ -325,15 +325,33 @@ def lammps_damping(cd: ContactDamping | None) -> tuple[float, str]:
     return cd.e, "damping coeff_restitution" + lim
 
 
+def lammps(cd: ContactDamping | None, deck) -> DeckPart:
+    """The damping of pair granular's normal model (:func:`lammps_damping`) on every
+    pair_coeff and on the end wall, and the comments stating it (nothing when off: the
+    normal model keeps its zero damping)."""
+    if cd is None:
+        return DeckPart()
+    coef, words = lammps_damping(cd)
+    return DeckPart(
+        pair={"damp": _r(coef), "damping": words},
+        notes={"normal": deck_comment(cd) + "\n# pair_coeff: hertz/material E <damp> nu "
+                                              "damping <model> (LAMMPS: E* = E/(2(1-nu^2)))"},
+        contact=f"Hertz with contact damping ({cd.model})",
+        wall_notes=("# contact damping at the wall: the pairs' law and coefficient, m_eff = m_n "
+                    "(fix wall/gran: the", "# sphere's rmass) and R* = R_n; f_wall[2] is the "
+                    "whole force, F_el + eta w."))
+
+
 def lammps_normal(cd: ContactDamping | None, E: float, nu: float) -> str:
     """``hertz/material E <damp> nu damping <model> [limit_damping]`` of a pair_coeff or
-    of fix wall/gran (E in Pa, converted; nu as given). Undamped (cd None): the
+    of fix wall/gran (E in Pa, converted; nu as given), as the deck writes it from the
+    normal law's part and this one's (``spec.pair_words``). Undamped (cd None): the
     chapter's ``hertz/material E 0.0 nu damping viscoelastic``."""
-    coef, words = lammps_damping(cd)
-    return f"hertz/material {_r(to_micro(E, 'pressure'))} {_r(coef)} {_r(nu)} {words}"
+    from . import hertz
+    return pair_words({**hertz.lammps(None, None).pair, **lammps(cd, None).pair}, E, nu)[0]
 
 
-def lammps_comment(cd: ContactDamping) -> str:
+def deck_comment(cd: ContactDamping) -> str:
     """Comment lines of the deck stating the damping law it writes."""
     lim = ("# limit_damping: the net normal force is held at >= 0." if cd.limit_damping
            else "# No limit_damping: the net force may turn attractive before a contact opens.")

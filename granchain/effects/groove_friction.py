@@ -30,11 +30,11 @@ from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
 from .lanes import moving
-from .spec import EffectSpec, compiled, hermite_root
+from .spec import DeckPart, EffectSpec, compiled, hermite_root
 
 SPEC = EffectSpec("groove_friction", state=(("L_GROOVE_HIST", "particle"),),
                   work="work_groove_friction", work_slot="L_WORK_GROOVE",
-                  table_column="work_groove_J", lammps_ledger="f_gd[2]",
+                  table_column="work_groove_J", work_note="the groove friction", lammps_ledger="f_gd[2]",
                   params=("P_GROOVE_S", "P_GROOVE_LIMIT", "P_GROOVE_SPRING", "P_GROOVE_DASHPOT"),
                   flags=("F_GROOVE_FRICTION",),
                   rows=("G_GROOVE_LIMIT", "G_GROOVE_SPRING", "G_GROOVE_DASHPOT"))
@@ -317,9 +317,54 @@ def error_scale(gf: GrooveFriction, terms, delta: float, v: float) -> float:
     return gf.Fc / gf.kt
 
 
-def lammps_fix(gf: GrooveFriction) -> tuple[str, str]:
-    """(comment, fix groove/drag arguments) of the deck."""
-    return (f"# groove: Coulomb limit mu m g / s, stick spring kt ({gf.kt_source}) + "
-            f"dashpot gamma ({_r(gf.damping)} x critical)",
-            f"groove s {_r(gf.s)} mu {_r(gf.mu)} g {_r(to_micro(gf.g, 'acceleration'))} "
+# per-sphere stick springs in a LAMMPS deck: fix property/atom vectors, read from the data
+# file
+GROOVE_PROPS = "groove_props"        # its fix ID
+GROOVE_SECTION = "Groove"            # chain.data section: atom-ID kt gamma
+
+
+def _springs(t) -> list[str]:
+    """'kt gamma' (1e-3 N/m, 1e-9 kg/s) of every sphere of a chain with terms t."""
+    gf = getattr(t, SPEC.name)
+    return [f"{_r(to_micro(k, 'stiffness'))} {_r(to_micro(g, 'damping'))}"
+            for k, g in zip(gf.kt_each, gf.gamma_each)]
+
+
+def _per_sphere(deck) -> bool:
+    """Do the spheres' stick springs differ (each sphere's mass, radius and material), within
+    a chain or, under a radius spread (``deck.members``), between chains? Then fix
+    groove/drag reads kt and gamma per atom; else it gets the one value of every sphere."""
+    chains = deck.members if deck.members is not None else [deck.terms]
+    kts = {k for t in chains for k in getattr(t, SPEC.name).kt_each}
+    gammas = {g for t in chains for g in getattr(t, SPEC.name).gamma_each}
+    return len(kts) > 1 or len(gammas) > 1
+
+
+def lammps(gf: GrooveFriction | None, deck) -> DeckPart:
+    """Its part of fix groove/drag (the granchain plugin, the same law in C++:
+    lammps_inputs/plugin/fix_groove_drag.md), its global and per-chain work, and when the
+    spheres' springs differ, each sphere's kt and gamma (a section of chain.data, read into
+    fix property/atom vectors)."""
+    energy = ("f_gd[1]", "groove friction")
+    if gf is None:
+        return DeckPart(fix_energy=energy)
+    comment = (f"# groove: Coulomb limit mu m g / s, stick spring kt ({gf.kt_source}) + "
+               f"dashpot gamma ({_r(gf.damping)} x critical)")
+    args = (f"groove s {_r(gf.s)} mu {_r(gf.mu)} g {_r(to_micro(gf.g, 'acceleration'))} "
             f"kt {_r(to_micro(gf.kt, 'stiffness'))} gamma {_r(to_micro(gf.gamma, 'damping'))}")
+    note = f"cumulative work of the groove friction ({SPEC.lammps_ledger})"
+    if not _per_sphere(deck):
+        return DeckPart(fix=(comment, args), fix_energy=energy, ledger_note=note)
+    args = args[:args.index(" kt ")] + " kt d_groove_kt gamma d_groove_gamma"
+    n = deck.terms.n
+    data = ["", GROOVE_SECTION, ""]
+    for b in range(deck.n_chains):
+        v = _springs(deck.terms if deck.members is None else deck.members[b])
+        data += [f"{b * n + i + 1} {v[i]}" for i in range(n)]
+    return DeckPart(
+        fix=(comment + "; kt and gamma each sphere's own", args), fix_energy=energy,
+        ledger_note=note, data=tuple(data), read_data=f" fix {GROOVE_PROPS} NULL {GROOVE_SECTION}",
+        atoms=("\n# per-sphere groove stick spring kt (1e-3 N/m) and dashpot gamma (1e-9 kg/s), "
+               f"read from\n# chain.data's {GROOVE_SECTION} section (fix groove/drag kt "
+               f"d_groove_kt gamma d_groove_gamma)\nfix             {GROOVE_PROPS} all "
+               "property/atom d_groove_kt d_groove_gamma"))

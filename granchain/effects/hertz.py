@@ -12,12 +12,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..units import lmp_float as _r, to_micro
+from ..units import lmp_float as _r
 from . import slots as S
 from .lanes import any_contact, overlap
-from .spec import EffectSpec, compiled
+from .spec import DeckPart, EffectSpec, compiled
 
-SPEC = EffectSpec("hertz", params=("P_HERTZ_K",))
+SPEC = EffectSpec("hertz", params=("P_HERTZ_K",), always="every chain needs hertz contacts")
 
 
 @compiled
@@ -134,9 +134,11 @@ def kernel(h: Hertz) -> tuple[dict, dict]:
     return {"P_HERTZ_K": h.K}, {}
 
 
-def lammps_pair(h: Hertz) -> tuple[str, str]:
-    """(comment, pair_coeff part) of the deck."""
-    return ("# pair_coeff: hertz/material E eta_n0 nu (eta_n0 = 0: no damping; 'damping "
-            "viscoelastic' is then exactly zero)",
-            f"pair_coeff      * * hertz/material {_r(to_micro(h.E, 'pressure'))} 0.0 {_r(h.nu)} "
-            "damping viscoelastic")
+def lammps(h: Hertz, deck) -> DeckPart:
+    """The deck's normal law: ``hertz/material E eta_n0 nu`` with no damping (eta_n0 = 0,
+    'damping viscoelastic': exactly zero) unless an effect after it gives one."""
+    return DeckPart(pair={"normal": "hertz/material {E} {damp} {nu}", "damp": _r(0.0),
+                          "damping": "damping viscoelastic"},
+                    notes={"normal": "# pair_coeff: hertz/material E eta_n0 nu (eta_n0 = 0: no "
+                                     "damping; 'damping viscoelastic' is then exactly zero)"},
+                    contact="Hertz (zero viscoelastic damping)")

@@ -19,13 +19,16 @@ from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
 from .lanes import any_contact, bit, overlap
-from .spec import EffectSpec, compiled, normal_cap
+from .spec import DeckPart, EffectSpec, compiled, normal_cap
 
 SPEC = EffectSpec("particle_friction", state=(("L_PARTICLE_HIST", "contact"),),
                   work="work_particle_friction", work_slot="L_WORK_PARTICLE",
-                  table_column="work_particle_friction_J", lammps_reports_work=False,
+                  table_column="work_particle_friction_J",
+                  work_note="the tangential friction between spheres",
+                  lammps_reports_work=False,
                   params=("P_PARTICLE_MU", "P_PARTICLE_SPRING"),
-                  flags=("F_PARTICLE_FRICTION", "F_PARTICLE_MINDLIN"), rows=("G_PARTICLE_SPRING",))
+                  flags=("F_PARTICLE_FRICTION", "F_PARTICLE_MINDLIN"), rows=("G_PARTICLE_SPRING",),
+                  requires=(("rotation", "acts through torques"),))
 
 
 # The scene section of this effect and its defaults: the chapter's mu_pp; LAMMPS's
@@ -201,11 +204,16 @@ class ParticleFriction:
     kt_each: tuple[float, ...] = ()
 
 
+def shear_mix(a, b) -> float:
+    """G* (Pa) of materials a and b, as LAMMPS's ``mix_stiffnessG``:
+    1/G* = 2(2 - nu_a)(1 + nu_a)/E_a + 2(2 - nu_b)(1 + nu_b)/E_b (Mindlin's k_t = 8 G* a)."""
+    return 1.0 / (2.0 * (2.0 - a.nu) * (1.0 + a.nu) / a.E + 2.0 * (2.0 - b.nu) * (1.0 + b.nu) / b.E)
+
+
 def _mindlin(a, Ra, b, Rb) -> float:
     if a == b and Ra == Rb:
         return 8.0 * (a.G / (2.0 * (2.0 - a.nu))) * math.sqrt(Ra / 2.0)
-    G_eff = 1.0 / (2.0 * (2.0 - a.nu) * (1.0 + a.nu) / a.E + 2.0 * (2.0 - b.nu) * (1.0 + b.nu) / b.E)
-    return 8.0 * G_eff * math.sqrt(Ra * Rb / (Ra + Rb))
+    return 8.0 * shear_mix(a, b) * math.sqrt(Ra * Rb / (Ra + Rb))
 
 
 def build(scene) -> ParticleFriction:
@@ -241,12 +249,27 @@ def error_scale(pf: ParticleFriction, terms, delta: float, v: float) -> float:
     return delta
 
 
-def lammps_pair(pf: ParticleFriction | None) -> tuple[str, str]:
-    """(comment, pair_coeff part) of the deck; a zero tangential law when off."""
+def lammps(pf: ParticleFriction | None, deck) -> DeckPart:
+    """pair granular's tangential sub-model: the same law, or a zero one when off (k_t = 0,
+    mu = 0: the force -k_t xi is exactly zero, and the cap test 0 > 0 never fires, so no
+    division by k_t). ``mindlin NULL`` takes k = 8 G* a from the pair's E and nu, right for
+    one material; an unlike pair gets its k = 8 G* from both materials (:func:`shear_mix`:
+    LAMMPS's own mixing would derive it from the mixed E* and the mean nu)."""
     if pf is None:
-        return ("# tangential: particle_friction off -> linear_history k_t = 0, mu = 0: zero "
-                "tangential force", "tangential linear_history 0.0 0.0 0.0")
-    comment = f"# tangential: particle_friction on, {pf.model} (mu_pp = {_r(pf.mu)})"
-    if pf.model == "mindlin":
-        return comment, f"tangential mindlin NULL 0.0 {_r(pf.mu)}"
-    return comment, f"tangential linear_history {_r(to_micro(pf.kt, 'stiffness'))} 0.0 {_r(pf.mu)}"
+        return DeckPart(pair={"tangential": "tangential linear_history 0.0 0.0 0.0"},
+                        notes={"tangential": "# tangential: particle_friction off -> "
+                                             "linear_history k_t = 0, mu = 0: zero tangential "
+                                             "force"})
+    note = {"tangential": f"# tangential: particle_friction on, {pf.model} (mu_pp = {_r(pf.mu)})"}
+    if pf.model != "mindlin":
+        return DeckPart(pair={"tangential": f"tangential linear_history "
+                                            f"{_r(to_micro(pf.kt, 'stiffness'))} 0.0 {_r(pf.mu)}"},
+                        notes=note)
+    return DeckPart(
+        pair={"tangential": f"tangential mindlin NULL 0.0 {_r(pf.mu)}"}, notes=note,
+        unlike=lambda a, b: {"tangential": f"tangential mindlin "
+                                           f"{_r(to_micro(8.0 * shear_mix(a, b), 'pressure'))} "
+                                           f"0.0 {_r(pf.mu)}"},
+        unlike_notes=("# Mindlin stiffness of an unlike pair given explicitly, k = 8 G*_IJ with "
+                      "1/G*_IJ =", "# 2(2-nu_I)(1+nu_I)/E_I + 2(2-nu_J)(1+nu_J)/E_J (LAMMPS's own "
+                      "mixing would derive it", "# from the mixed E*_IJ)."))

@@ -21,13 +21,15 @@ from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
 from .lanes import any_contact, bit, overlap
-from .spec import EffectSpec, compiled, normal_cap
+from .spec import DeckPart, EffectSpec, compiled, normal_cap
 
 SPEC = EffectSpec("rolling_friction", state=(("L_ROLLING_HIST", "contact"),),
                   work="work_rolling_friction", work_slot="L_WORK_ROLLING",
-                  table_column="work_rolling_J", lammps_reports_work=False,
+                  table_column="work_rolling_J", work_note="the rolling friction",
+                  lammps_reports_work=False,
                   params=("P_ROLLING_SPRING", "P_ROLLING_DASHPOT", "P_ROLLING_MU"),
-                  flags=("F_ROLLING_FRICTION",), rows=("G_ROLLING_REFF",))
+                  flags=("F_ROLLING_FRICTION",), rows=("G_ROLLING_REFF",),
+                  requires=(("rotation", "acts through torques"),))
 
 
 # The scene section of this effect and its defaults (no default k_roll: it is not in the
@@ -239,8 +241,11 @@ def error_scale(rf: RollingFriction, terms, delta: float, v: float) -> float:
     return min(delta, rho_cap) if rho_cap > 0 else delta
 
 
-def lammps_pair(rf: RollingFriction) -> tuple[str, str]:
-    """(comment, pair_coeff part) of the deck."""
-    return ("# rolling sds k_roll gamma_roll mu_roll: rolling_friction on",
-            f"rolling sds {_r(to_micro(rf.k_roll, 'stiffness'))} "
-            f"{_r(to_micro(rf.gamma_roll, 'damping'))} {_r(rf.mu_roll)}")
+def lammps(rf: RollingFriction | None, deck) -> DeckPart:
+    """pair granular's rolling sub-model: ``rolling sds``, the same law (none when off)."""
+    if rf is None:
+        return DeckPart()
+    return DeckPart(pair={"rolling": f"rolling sds {_r(to_micro(rf.k_roll, 'stiffness'))} "
+                                     f"{_r(to_micro(rf.gamma_roll, 'damping'))} {_r(rf.mu_roll)}"},
+                    notes={"rolling": "# rolling sds k_roll gamma_roll mu_roll: rolling_friction "
+                                      "on"})

@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from . import slots as S
-from .spec import EffectSpec, compiled
+from .spec import DeckPart, EffectSpec, compiled
 
 SPEC = EffectSpec("rotation", state=(("L_SPIN", "particle"),), kicked=("L_SPIN",),
                   lammps_ledger="c_erot_atom", params=("P_INERTIA",), flags=("F_ROTATION",))
@@ -52,10 +52,17 @@ def error_scale(rot: Rotation, terms, delta: float, v: float) -> float:
     return v / terms.R
 
 
-def lammps_integrator(rot: Rotation | None) -> str:
-    """The deck's time integrator: translation and rotation, or translation only."""
-    if rot is not None:
-        return ("# rotation on: translation and rotation about y (I = 0.4 m R^2)\n"
-                "fix             nve all nve/sphere")
-    return ("# rotation off: fix nve integrates translation only, omega stays exactly 0\n"
-            "fix             nve all nve")
+def lammps(rot: Rotation | None, deck) -> DeckPart:
+    """The deck's time integrator (translation and rotation, or translation only), the
+    rotation flag of fix groove/drag, and the rotational kinetic energy in both ledgers."""
+    if rot is None:
+        return DeckPart(integrator="# rotation off: fix nve integrates translation only, omega "
+                                   "stays exactly 0\nfix             nve all nve",
+                        fix_option="rotation no")
+    return DeckPart(integrator="# rotation on: translation and rotation about y (I = 0.4 m R^2)"
+                               "\nfix             nve all nve/sphere",
+                    fix_option="rotation yes",
+                    energy=("compute         erot all erotate/sphere", "c_erot",
+                            "rotational kinetic"),
+                    ledger_compute="compute         erot_atom all erotate/sphere/atom",
+                    ledger_note="rotational kinetic energy (compute erotate/sphere/atom)")

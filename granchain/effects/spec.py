@@ -4,7 +4,9 @@ and the compiled parts an effect module may hold, with the signatures the engine
 composer (``granchain.engines.compose``) calls them with."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+
+from ..units import lmp_float, to_micro
 
 
 @dataclass(frozen=True)
@@ -35,6 +37,9 @@ class EffectSpec:
     order: where its forces enter the sums on a sphere: the composer calls the effects'
         ``forces`` in ascending order, ties in registry order (the sums are rounded in
         that order, so a change of order moves trajectories by rounding).
+    always: why every scene must have the effect (a scene without it is refused), or None.
+    requires: (effect, why) of each effect it cannot act without (the scene refuses it
+        while that one is off).
     ``granchain.effects.slots`` numbers every slot, row, state block and ledger column
     from these declarations, in registry order.
     """
@@ -51,6 +56,8 @@ class EffectSpec:
     flags: tuple[str, ...] = ()
     rows: tuple[str, ...] = ()
     order: int = 0
+    always: str | None = None
+    requires: tuple[tuple[str, str], ...] = ()
 
     @property
     def work_code(self) -> str | None:
@@ -69,6 +76,71 @@ class EffectSpec:
     def histories(self) -> tuple[str, ...]:
         """Its state blocks that are histories (not kicked)."""
         return tuple(b for b, _ in self.state if b not in self.kicked)
+
+
+@dataclass(frozen=True)
+class DeckPart:
+    """What an effect adds to a LAMMPS deck: the value of its one hook, ``lammps(term,
+    deck)``, which ``granchain.lammps.deck`` calls for every registered effect in registry
+    order (``term`` None while the effect is off) and adds up. ``deck`` holds the deck's
+    ``terms`` (its first chain's), ``members`` (each chain's terms under a radius spread,
+    else None) and ``n_chains``.
+
+    pair: words of ``pair_style granular``'s sub-models, by sub-model (LAMMPS writes them
+        in the order normal, damping, tangential, rolling): "normal" a template of the pair
+        of materials' {E} (1e3 Pa), {nu} and the normal model's damping coefficient
+        {damp}; "damp" that coefficient; "damping", "tangential", "rolling" the words; a
+        later effect's entry replaces an earlier one's.
+    unlike: (material a, material b) -> the pair entries of an unlike pair of atom types
+        where they are not the one-material words, or None.
+    notes: comment lines stating the law in the deck, by sub-model (a later effect's
+        replaces an earlier one's), before the pair_coeff lines; unlike_notes: those of a
+        deck with unlike pairs; wall_notes: those at the end wall (fix wall/gran takes the
+        pairs' normal law and damping).
+    contact: how the particle contacts act, in one phrase (a later effect's replaces an
+        earlier one's).
+    fix: (comment, arguments) of its part of ``fix groove/drag``, the granchain plugin,
+        which the deck then loads; fix_option: arguments that fix takes whenever it is
+        loaded; fix_energy: (its global output, the work it is) for the global energy
+        ledger whenever it is loaded.
+    integrator: the deck's time integrator (comment and fix lines).
+    energy: (compute line, value, what it is) of the global energy ledger.
+    ledger_compute: the compute line of its per-atom ledger quantity
+        (``EffectSpec.lammps_ledger``); ledger_note: what that per-chain column is.
+    atoms: deck lines before read_data (text added to the atoms comment); read_data: a
+        suffix of the read_data command; data: lines it adds to chain.data.
+    travel: (v_max, t) -> a bound (m) on how far a sphere can move in a run of length t
+        whose fastest striker starts at v_max, when the effect can speed spheres up (the
+        deck's box leaves room for it); None: it cannot.
+    """
+    pair: dict = field(default_factory=dict)
+    unlike: object = None
+    notes: dict = field(default_factory=dict)
+    unlike_notes: tuple[str, ...] = ()
+    wall_notes: tuple[str, ...] = ()
+    contact: str | None = None
+    fix: tuple[str, str] | None = None
+    fix_option: str | None = None
+    fix_energy: tuple[str, str] | None = None
+    integrator: str | None = None
+    energy: tuple[str, str, str] | None = None
+    ledger_compute: str | None = None
+    ledger_note: str | None = None
+    atoms: str = ""
+    read_data: str = ""
+    data: tuple[str, ...] = ()
+    travel: object = None
+
+
+def pair_words(pair: dict, E: float, nu: float) -> list[str]:
+    """The pair_coeff sub-model words of a pair of materials of modulus E (Pa) and
+    Poisson's ratio nu, from the effects' ``DeckPart.pair`` entries (merged in registry
+    order), in LAMMPS's order: the normal model with its damping coefficient, its damping,
+    then the tangential and the rolling model where given."""
+    normal = pair["normal"].format(E=lmp_float(to_micro(E, "pressure")), nu=lmp_float(nu),
+                                   damp=pair["damp"])
+    return [f"{normal} {pair['damping']}"] + [pair[k] for k in ("tangential", "rolling")
+                                               if k in pair]
 
 
 def compiled(fn):

@@ -182,8 +182,9 @@ def source() -> str:
         if j == 0:
             out += _call(m, "contact_normal", "F, d, w, G, P, FL, n, n - 1, l", "F = ")
         else:
-            out += ["    if d > 0.0:"] + _call(m, "contact_normal", "F, d, w, G, P, FL, n, n - 1, l",
-                                                 "F = ", indent="        ")
+            out += ["    if d > 0.0:"] + _call(m, "contact_normal",
+                                                 "F, d, w, G, P, FL, n, n - 1, l", "F = ",
+                                                 indent="        ")
     out += ["    return F", "", ""]
 
     out += ["def locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol):", "    best = -1.0"]

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from .backend import use_jit_cache
@@ -335,3 +336,16 @@ def _wall_force_l(y, g, n, LO, P, FL, l):
 def _wall_force(y, g, n, LO, P, FL):
     """Force (N) of the end wall on one chain (state y, per-chain array g)."""
     return _wall_force_l(_col(y), _col(g), n, LO, P, FL, 0)
+
+
+@njit(cache=True)
+def wall_forces(d, w, G, P, FL, n, out):
+    """out[s, b]: the end wall's force (N) on chain b (rows G[b]) at overlap d[s, b] (m)
+    and closing speed w[s, b] (m/s), by ``compose.wall_force`` (the LAMMPS engine's ledger
+    evaluates the kernels' own law at its dumped states)."""
+    g = np.empty((G.shape[1], 1))
+    for b in range(d.shape[1]):
+        for r in range(G.shape[1]):
+            g[r, 0] = G[b, r]
+        for s in range(d.shape[0]):
+            out[s, b] = wall_force(d[s, b], w[s, b], g, P, FL, n, 0)

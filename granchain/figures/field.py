@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..reductions import (HERTZ_WALL_EXPONENT, label, precompression_rows, radius_or_default,
+from ..reductions import (SOLITARY_WALL_EXPONENT, label, precompression_rows, radius_or_default,
                         wall_fits)
 from ..analytic import precompressed_speed_ratio
 from .style import colormap, drawn, figure, plain_log, save
@@ -114,11 +114,11 @@ def wall(df: pd.DataFrame, out) -> list[Path]:
             vv = np.geomspace(v.min(), v.max(), 60)
             ax.plot(vv, f["prefactor"] * vv ** f["exponent"], "-", color=c, lw=1.0,
                     label=f"fit: {f['prefactor']:.4g} N x (v_s / 1 m/s)^{f['exponent']:.4f}")
-            ax.plot(vv, f["prefactor_hertz"] * vv ** HERTZ_WALL_EXPONENT, "--", color="0.3",
-                    lw=1.0, label=f"Hertz solitary wave: {f['prefactor_hertz']:.4g} N x "
+            ax.plot(vv, f["prefactor_solitary"] * vv ** SOLITARY_WALL_EXPONENT, "--", color="0.3",
+                    lw=1.0, label=f"Hertz solitary wave: {f['prefactor_solitary']:.4g} N x "
                                   "v_s^(6/5)")
-            axr.plot(v, F / (f["prefactor_hertz"] * v ** HERTZ_WALL_EXPONENT), "o-",
-                     color=c, lw=0.8, label=f"{label(mat)}: F_wall / ({f['prefactor_hertz']:.4g}"
+            axr.plot(v, F / (f["prefactor_solitary"] * v ** SOLITARY_WALL_EXPONENT), "o-",
+                     color=c, lw=0.8, label=f"{label(mat)}: F_wall / ({f['prefactor_solitary']:.4g}"
                                             " N v_s^(6/5))")
     ax.set_xscale("log")
     ax.set_yscale("log")

@@ -1,6 +1,6 @@
 """LAMMPS support: deck plans and texts (``deckplan``, ``deck``), the ``fix groove/drag``
 plugin (``plugin``) and the LAMMPS runner (``runner``); micro units are
-``granchain.units``, at the bottom layer, for the effects' deck fragments.
+``granchain.units``, at the bottom layer, for the effects' deck parts.
 
 The runner and plugin names below load on first use, so that importing the deck writer
 loads neither.

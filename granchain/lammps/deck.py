@@ -69,8 +69,7 @@ from string import Template
 
 import numpy as np
 
-from granchain.effects import (air_drag, contact_damping, groove_friction, hertz,
-                               particle_friction, physics_terms, rolling_friction, rotation)
+from granchain.effects import SPECS, physics_terms
 from granchain.errors import GranchainError
 from granchain.fileio import OutputKind, file_head, atomic_write_text, check_output_path
 from granchain.scene import NAME_RE, NAME_RULE, Scene
@@ -81,6 +80,7 @@ from granchain.lammps.deckplan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, D
                                    WORK_COLUMNS, DeckPlan,
                                    ledger_binary_columns, max_travel, plan)
 from granchain.lammps import field
+from granchain.lammps.parts import Parts
 from granchain.units import MICRO_EXPONENT, lmp_float as _r, to_micro
 from granchain.stoprule import ARRIVAL_FRACTION, arrival_speed
 
@@ -124,21 +124,19 @@ def _id_ranges(ids) -> str:
     return " ".join(out)
 
 
-def _ledger_block(scene: Scene, pl: DeckPlan) -> str:
+def _ledger_block(scene: Scene, pl: DeckPlan, parts: Parts) -> str:
     """Deck lines of the per-chain ledger (ledger.txt with output "dump", ledger.bin with
     output "binary"), or a comment if it has no column or the deck writes no output."""
     if not pl.ledger_columns:
-        return ("# (no per-chain ledger file: this scene has no rotation, groove friction or "
-                "air drag;\n# the engine computes the kinetic and Hertz energies from the "
+        return ("# (no per-chain ledger file: no effect of this scene has a per-atom LAMMPS "
+                "output;\n# the engine computes the kinetic and contact energies from the "
                 "trajectory)")
     if pl.output == "none":
         return "# (no per-chain ledger: this deck writes no per-sample output)"
-    notes = {"kinetic_rotational": "rotational kinetic energy (compute erotate/sphere/atom)",
-             "work_groove_friction": f"cumulative work of the groove friction "
-                                     f"({WORK_COLUMNS['groove_friction']})",
-             "work_air_drag": f"cumulative work of the air drag ({WORK_COLUMNS['air_drag']})",
-             WALL_FORCE_COLUMN: f"x force of the end wall on the last sphere "
-                                f"({field.WALL_FORCE_INPUT}, 1e-9 N)"}
+    on = [(name, p) for name, p in zip(SPECS, parts.all) if scene.has(name)]
+    notes = {LEDGER_INPUTS[name][0]: p.ledger_note for name, p in on if name in LEDGER_INPUTS}
+    notes[WALL_FORCE_COLUMN] = (f"x force of the end wall on the last sphere "
+                                f"({field.WALL_FORCE_INPUT}, 1e-9 N)")
     inputs = [LEDGER_INPUTS[eff][1] for eff in LEDGER_INPUTS if scene.has(eff)]
     if WALL_FORCE_COLUMN in pl.ledger_columns:
         inputs.append(field.WALL_FORCE_INPUT)
@@ -157,8 +155,7 @@ def _ledger_block(scene: Scene, pl: DeckPlan) -> str:
     lines += [f"#   {j + 1}: {notes[c]}" for j, c in enumerate(pl.ledger_columns)]
     lines += [f'variable        chain atom "floor((id-1)/{pl.n})+1"',
               "compute         chain all chunk/atom v_chain nchunk once ids once compress no"]
-    if scene.has("rotation"):
-        lines.append("compute         erot_atom all erotate/sphere/atom")
+    lines += [p.ledger_compute for _, p in on if p.ledger_compute]
     lines.append(f"compute         ledger all reduce/chunk chain sum {' '.join(inputs)}")
     if pl.output == "dump":
         lines.append(f"fix             ledger all ave/time {pl.every} 1 {pl.every} {values} "
@@ -173,23 +170,15 @@ def _ledger_block(scene: Scene, pl: DeckPlan) -> str:
     return "\n".join(lines)
 
 
-def _pair_parts(terms) -> list[tuple[str, str]]:
-    """The effects' (comment, part) of a one-material pair_coeff line: the normal law
-    (``pair_coeff * * hertz/material ...`` with its damping: zero, or contact_damping's),
-    the tangential law and rolling if on. A chain of several materials keeps all but the
-    first (``field.pair_coeff`` writes the normal law per type pair)."""
-    cd = terms.contact_damping
-    if cd is None:
-        normal = hertz.lammps_pair(terms.hertz)
-    else:
-        h = terms.hertz
-        normal = (contact_damping.lammps_comment(cd) + "\n# pair_coeff: hertz/material E <damp> "
-                  "nu damping <model> (LAMMPS: E* = E/(2(1-nu^2)))",
-                  f"pair_coeff      * * {contact_damping.lammps_normal(cd, h.E, h.nu)}")
-    pairs = [normal, particle_friction.lammps_pair(terms.particle_friction)]
-    if terms.rolling_friction is not None:
-        pairs.append(rolling_friction.lammps_pair(terms.rolling_friction))
-    return pairs
+def _pair_coeff(parts: Parts, sp) -> str:
+    """The deck's pair_coeff lines: the effects' notes and ``pair_coeff * *`` with the
+    sub-models' words (one material), or a line per pair of atom types
+    (``field.pair_coeff``)."""
+    if sp.ntypes > 1:
+        return field.pair_coeff(sp, parts)
+    m = sp.type_materials[0]
+    return ("\n".join(parts.notes.values()) + "\npair_coeff      * * "
+            + " &\n                ".join(parts.words(m.E, m.nu)))
 
 
 def _member_spheres(members) -> list:
@@ -210,9 +199,7 @@ def _check_shared_laws(members, sps, pair_coeff: str, terms, sp) -> None:
     for t, s in zip(members, sps):
         if id(t) in pairs_of:
             continue
-        pairs = _pair_parts(t)
-        pc = ("\n".join(c for c, _ in pairs) + "\n" + " &\n                ".join(
-            p for _, p in pairs)) if s.ntypes == 1 else field.pair_coeff(t, s, pairs[1:])
+        pc = _pair_coeff(Parts(t), s)
         same = (pc == pair_coeff and s.types == sp.types and s.type_materials == sp.type_materials
                 and s.wall == sp.wall and s.load == sp.load and s.densities == sp.densities
                 and (sp.wall is None or field.wall_modulus(t) == field.wall_modulus(terms)))
@@ -231,14 +218,14 @@ def _trajectory_block(pl: DeckPlan, spacing: str) -> str:
             f"# trajectory ({DUMP_NAME}): every sample, sorted by id, full precision. Only what "
             "the", "# observables need: granchain reads it with MDAnalysis, x and vx as float64 "
             "'additional", "# columns' (MDAnalysis' own positions are float32 and shifted): vx is "
-            "the trajectory, x", f"# gives the Hertz energy. y (= b * {spacing}) and z (= 0) are "
+            "the trajectory, x", f"# gives the contact energy. y (= b * {spacing}) and z (= 0) are "
             "constant (MDAnalysis needs", "# them); vy = vz = 0 and omega are not dumped.",
             f"dump            d all custom {pl.every} {DUMP_NAME} {cols}",
             "dump_modify     d sort id format float %.17g"])
     if pl.output == "binary":
         return "\n".join([
             f"# trajectory ({BINARY_NAME}, LAMMPS binary dump: the doubles LAMMPS holds): every "
-            "sample,", f"# sorted by id, columns {cols}: vx is the trajectory, x gives the Hertz "
+            "sample,", f"# sorted by id, columns {cols}: vx is the trajectory, x gives the contact "
             "energy", "# (granchain.engines.lammps.read_binary; tools/binary2txt converts it to "
             "text).",
             f"dump            d all custom {pl.every} {BINARY_NAME} {cols}",
@@ -317,8 +304,8 @@ X0_PER_ATOM = "per-atom"
 
 
 def needs_plugin(scene: Scene) -> bool:
-    """Does the scene's deck load the groove/drag plugin (groove friction or air drag)?"""
-    return scene.has("groove_friction") or scene.has("air_drag")
+    """Does the scene's deck load the groove/drag plugin (an effect's part of its fix)?"""
+    return Parts(physics_terms(scene)).plugin
 
 
 def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str | None = None,
@@ -396,60 +383,39 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
         for i in range(n):
             vx = to_micro(float(vs[b]), "velocity") if i == 0 else 0.0
             data.append(f"{b * n + i + 1} {_r(vx)} 0.0 0.0 0.0 0.0 0.0")
-    groove_each = field.groove_per_sphere(terms, members)
-    if groove_each:
-        data += field.groove_section(terms, B, members)
+    # ---- physics: every effect's part of the deck (effects.spec.DeckPart) -------------
+    parts = Parts(terms, members, B)
+    data += [ln for lines in parts.collect("data") for ln in lines]
     data_text = "\n".join(data) + "\n"
-
-    # ---- physics from the terms ------------------------------------------------------
-    pairs = _pair_parts(terms)
-    if sp.ntypes == 1:
-        pair_comment = [c for c, _ in pairs]
-        parts = [p for _, p in pairs]
-        pair_coeff = "\n".join(pair_comment) + "\n" + " &\n                ".join(parts)
-    else:
-        pair_coeff = field.pair_coeff(terms, sp, pairs[1:])
+    pair_coeff = _pair_coeff(parts, sp)
     if members is not None:
         _check_shared_laws(members, sps, pair_coeff, terms, sp)
 
-    rot = terms.rotation is not None
-    gf, ad = terms.groove_friction, terms.air_drag
-    need_plugin = needs_plugin(scene)
-    if need_plugin:
+    if parts.plugin:
         if plugin is None:
             raise GranchainError("deck: this scene needs the groove/drag plugin; pass "
                                  "plugin=PATH (write_deck builds it)")
         plugin_variable = ("# path of the fix groove/drag plugin (cached build); 'index' style, so\n"
                            "# 'lmp -var plugin PATH -in deck.lmp' overrides it\n"
                            f"variable        plugin index {plugin}")
-        fixes = ([groove_friction.lammps_fix(gf)] if gf is not None else []) + \
-            ([air_drag.lammps_fix(ad)] if ad is not None else [])
-        if groove_each:
-            fixes[0] = (fixes[0][0] + "; kt and gamma each sphere's own",
-                        field.groove_fix_args(fixes[0][1]))
-        notes = [c for c, _ in fixes]
-        args = [a for _, a in fixes]
-        args.append(f"rotation {'yes' if rot else 'no'}")
-        groove_fix = ("\n# groove friction / air drag: fix groove/drag (granchain plugin, "
-                      "lammps_inputs/plugin/fix_groove_drag.md)\n"
-                      "plugin          load ${plugin}\n" + "\n".join(notes) + "\n"
+        fixes = parts.collect("fix")
+        args = [a for _, a in fixes] + parts.collect("fix_option")
+        plugin_fix = ("\n# fix groove/drag: the granchain plugin "
+                      "(lammps_inputs/plugin/fix_groove_drag.md), the laws LAMMPS lacks\n"
+                      "plugin          load ${plugin}\n" + "\n".join(c for c, _ in fixes) + "\n"
                       "fix             gd all groove/drag " + " &\n                ".join(args) + "\n")
     else:
         plugin_variable = "# (this scene needs no LAMMPS plugin)"
-        groove_fix = ""
+        plugin_fix = ""
 
-    integrator = rotation.lammps_integrator(terms.rotation)
-
-    computes = ["compute         ke all ke"]
-    values = ["c_ke"]
-    ledger_note = ""
-    if rot:
-        computes.append("compute         erot all erotate/sphere")
-        values.append("c_erot")
-        ledger_note += ", rotational kinetic"
-    if need_plugin:
-        values += ["f_gd[1]", "f_gd[2]"]
-        ledger_note += ", cumulative work of the groove friction and of the air drag"
+    energies = parts.collect("energy")
+    computes = ["compute         ke all ke"] + [c for c, _, _ in energies]
+    values = ["c_ke"] + [v for _, v, _ in energies]
+    ledger_note = "".join(f", {what}" for _, _, what in energies)
+    if parts.plugin:
+        fix_energies = parts.collect("fix_energy")
+        values += [v for v, _ in fix_energies]
+        ledger_note += ", cumulative work of the " + " and of the ".join(w for _, w in fix_energies)
     ledger_note += " (energy 1e-15 J)"
 
     if pl.auto:
@@ -471,10 +437,8 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
     else:
         atoms_note = ("each sphere's own diameter and density (chain.data; rmass = 4/3 pi r^3 "
                       "rho)")
-    read_data_fix = ""
-    if groove_each:
-        props, read_data_fix = field.groove_property_fix()
-        atoms_note += props
+    atoms_note += "".join(parts.collect("atoms"))
+    read_data_fix = "".join(parts.collect("read_data"))
     subs = dict(
         name=scene.name, scene_hash=scene.hash, n_chains=B, n=n, spacing=_r(spacing),
         min_spacing=_r(D + skin), effects=", ".join(sorted(scene.effects)),
@@ -482,16 +446,15 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
         skin=_r(skin),
         mass_note=("scene.mass" if not terms.chain.heterogeneous else "the striker's mass"
                    if members is None else "chain 0's striker's mass"),
-        mass_expected=f"{mass_expected:.17g}", pair_coeff=pair_coeff, groove_fix=groove_fix,
-        contact_note=("Hertz (zero viscoelastic damping)" if terms.contact_damping is None
-                      else f"Hertz with contact damping ({terms.contact_damping.model})"),
-        end_fixes=field.end_fixes(terms, sp, B, _id_ranges),
-        integrator=integrator, timestep=_r(dt), nsteps=nsteps, t_run=_r(t_run_us),
+        mass_expected=f"{mass_expected:.17g}", pair_coeff=pair_coeff, plugin_fix=plugin_fix,
+        contact_note=parts.contact, end_fixes=field.end_fixes(terms, sp, parts, B, _id_ranges),
+        integrator=parts.integrator, timestep=_r(dt), nsteps=nsteps, t_run=_r(t_run_us),
         t_run_note=t_note, every=every, sample_us=f"{every * dt:.15g}",
         sample_note="round(sample_interval/dt) of the reference engine, finest member",
         trajectory=_trajectory_block(pl, _r(spacing)), ledger_note=ledger_note, energy_computes="\n".join(computes),
         energy_values=" ".join(values), thermo_values=" ".join(values),
-        thermo_every=max(1, nsteps // 10), halt=halt, chain_ledger=_ledger_block(scene, pl),
+        thermo_every=max(1, nsteps // 10), halt=halt,
+        chain_ledger=_ledger_block(scene, pl, parts),
     )
     deck_text = Template(template_path().read_text()).substitute(subs)
     return deck_text, data_text

@@ -10,10 +10,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from granchain.effects import SPECS
+from granchain.effects import SPECS, physics_terms
 from granchain.errors import GranchainError
 from granchain.guards import require_resolved
 from granchain.gaps import member_gaps, member_radii, members, realise
+from granchain.lammps.parts import Parts
 from granchain.scene import Scene
 from granchain.stoprule import auto_t_max, sample_interval
 
@@ -108,35 +109,13 @@ def _check_radii(scene: Scene, radii, B: int):
 
 def max_travel(scene: Scene, v_max: float, t: float) -> float:
     """A bound (m) on how far any sphere of a chain can move in a run of length t (s)
-    whose fastest striker starts at v_max (m/s).
-
-    Contacts are elastic (the Hertz potential is >= 0) and the groove and contact
-    frictions only take energy out, so every sphere's speed stays below W(t), the speed
-    of a sphere carrying the whole initial energy 1/2 m v_max^2: without air drag
-    W = v_max; with air drag F = -m (v/T0 - v^2/L) (or v|v|) the energy grows at most as
-    fast as for one sphere at W, dW/dt = W^2/L - W/T0, which is propulsive for
-    W > L/T0. Its solution, with u = 1/W and c = T0/L: u(t) = c + (1/v_max - c) e^(t/T0),
-    and the distance travelled is L (t/T0 + ln(W(t)/v_max)). When v_max <= L/T0 the
-    drag only slows (bound v_max t). Raises GranchainError if W diverges within t (the
-    drag would accelerate a sphere without bound).
-    """
+    whose fastest striker starts at v_max (m/s): v_max t, unless an effect can speed
+    spheres up, which gives the bound (``DeckPart.travel``; it raises GranchainError when
+    a sphere would speed up without bound within t)."""
     if v_max <= 0 or t <= 0:
         return 0.0
-    if not scene.has("air_drag"):
-        return v_max * t
-    st = scene.setting("air_drag")
-    T0, L = st.T0, st.L
-    if v_max <= L / T0:
-        return v_max * t
-    c, u0 = T0 / L, 1.0 / v_max
-    t_blow = T0 * math.log(c / (c - u0))
-    if t >= t_blow:
-        raise GranchainError(
-            f"LAMMPS deck: the propulsive air drag (T0 = {T0:g} s, L = {L:g} m) would speed a "
-            f"sphere moving at {v_max:g} m/s up without bound after {t_blow:.6g} s, within the "
-            f"run of {t:.6g} s; shorten t_end or lower the striker speed")
-    u = c + (u0 - c) * math.exp(t / T0)
-    return L * (t / T0 + math.log(u0 / u))
+    bounds = Parts(physics_terms(scene)).collect("travel")
+    return bounds[0](v_max, t) if bounds else v_max * t
 
 
 @dataclass(frozen=True)

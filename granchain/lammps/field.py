@@ -42,27 +42,16 @@ of the chapter's chain byte for byte (one atom type, ``pair_coeff * *``, x_1 = 0
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass
 
 import numpy as np
 
-from granchain.effects import contact_damping
 from granchain.units import lmp_float as _r, to_micro
 from granchain.materials import effective_modulus
 
 WALL_FIX = "wall"                    # fix ID of the end wall
 WALL_FORCE_INPUT = f"f_{WALL_FIX}[2]"   # its per-atom x force on the sphere (contacts col. 2)
 WALL_X = 0.0                         # um: the wall plane of a chain with an end wall
-# per-sphere groove stick springs: fix property/atom vectors, read from the data file
-GROOVE_PROPS = "groove_props"        # its fix ID
-GROOVE_SECTION = "Groove"            # chain.data section: atom-ID kt gamma
-
-
-def shear_mix(a, b) -> float:
-    """G* (Pa) of LAMMPS's ``mix_stiffnessG`` for materials a and b:
-    1/G* = 2(2 - nu_a)(1 + nu_a)/E_a + 2(2 - nu_b)(1 + nu_b)/E_b (Mindlin's k_t = 8 G* a)."""
-    return 1.0 / (2.0 * (2.0 - a.nu) * (1.0 + a.nu) / a.E + 2.0 * (2.0 - b.nu) * (1.0 + b.nu) / b.E)
 
 
 @dataclass(frozen=True)
@@ -144,56 +133,30 @@ def positions(sp: Spheres, gaps) -> np.ndarray:
     return np.array(x[::-1])
 
 
-def pair_coeff(terms, sp: Spheres, parts: list[tuple[str, str]]) -> str:
-    """The deck's pair_coeff lines for a chain of several materials (sp.ntypes > 1).
-
-    parts: the effects' (comment, pair_coeff part) after the normal law (tangential,
-    rolling), as for the one-material line; the tangential part of an unlike pair with
-    Mindlin friction is replaced by its explicit stiffness."""
-    pf = terms.particle_friction
-    cd = terms.contact_damping
-    mindlin = pf is not None and pf.model == "mindlin"
-    if cd is None:
-        lines = ["# pair_coeff I J per pair of atom types (materials below): hertz/material E "
-                 "eta_n0 nu with",
-                 "# eta_n0 = 0 (no damping; 'damping viscoelastic' is then exactly zero). I = J: "
-                 "the type's"]
-    else:
-        lines = ["# pair_coeff I J per pair of atom types (materials below): hertz/material E "
-                 "<damp> nu with",
-                 "# the contact damping below on every pair (its coefficient holds no material: "
-                 "m_eff and R*",
-                 "# come from the atoms, E*_IJ only enters F_el). I = J: the type's"]
-    lines += ["# own E and nu (LAMMPS: E* = E/(2(1-nu^2))). I != J: E = 2 E*_IJ, nu = 0, with",
+def pair_coeff(sp: Spheres, parts) -> str:
+    """The deck's pair_coeff lines for a chain of several materials (sp.ntypes > 1), from
+    the effects' parts (``lammps.parts.Parts``): per pair of atom types I <= J the
+    sub-models' words, I = J of the type's material, I != J of E = 2 E*_IJ, nu = 0 and the
+    unlike pair's own entries (``DeckPart.unlike``)."""
+    lines = ["# pair_coeff I J per pair of atom types (materials below): the normal model of E "
+             "<damp> nu damping <model>,",
+             "# the damping's coefficient holding no material (m_eff and R* come from the "
+             "atoms). I = J: the type's",
+             "# own E and nu (LAMMPS: E* = E/(2(1-nu^2))). I != J: E = 2 E*_IJ, nu = 0, with",
              "# 1/E*_IJ = (1-nu_I^2)/E_I + (1-nu_J^2)/E_J, which LAMMPS's one-material formula "
              "turns",
              "# back into E*_IJ (docs/explanation/lammps_laws.md section 12)."]
-    if mindlin:
-        lines += ["# Mindlin stiffness of an unlike pair given explicitly, k = 8 G*_IJ with "
-                  "1/G*_IJ =",
-                  "# 2(2-nu_I)(1+nu_I)/E_I + 2(2-nu_J)(1+nu_J)/E_J (LAMMPS's own mixing would "
-                  "derive it",
-                  "# from the mixed E*_IJ)."]
+    lines += [ln for notes in parts.collect("unlike_notes") for ln in notes]
     for t, m in enumerate(sp.type_materials, start=1):
         lines.append(f"# type {t}: {m.name} (E {_r(m.E)} Pa, nu {_r(m.nu)})")
-    if cd is not None:
-        lines.append(contact_damping.lammps_comment(cd))
-    lines += [c for c, _ in parts]
+    lines += list(parts.notes.values())
     mats = sp.type_materials
     for i in range(1, sp.ntypes + 1):
         for j in range(i, sp.ntypes + 1):
             a, b = mats[i - 1], mats[j - 1]
-            # the pair's normal law and damping: contact_damping.lammps_normal (undamped:
-            # hertz/material E 0.0 nu damping viscoelastic)
-            if i == j:
-                normal = contact_damping.lammps_normal(cd, a.E, a.nu)
-            else:
-                normal = contact_damping.lammps_normal(cd, 2.0 * effective_modulus(a, b), 0.0)
-            rest = [p for _, p in parts]
-            if mindlin and i != j:
-                rest[0] = (f"tangential mindlin {_r(to_micro(8.0 * shear_mix(a, b), 'pressure'))} "
-                           f"0.0 {_r(pf.mu)}")
-            lines.append(f"pair_coeff      {i} {j} " + " &\n                ".join([normal] + rest))
+            words = (parts.words(a.E, a.nu) if i == j
+                     else parts.words(2.0 * effective_modulus(a, b), 0.0, unlike=(a, b)))
+            lines.append(f"pair_coeff      {i} {j} " + " &\n                ".join(words))
     return "\n".join(lines)
 
 
@@ -203,8 +166,9 @@ def wall_modulus(terms) -> float:
     return effective_modulus(ch.materials[-1], ch.wall)
 
 
-def end_fixes(terms, sp: Spheres, n_chains: int, id_ranges) -> str:
-    """Deck lines of the end wall and the dead load ('' for neither); id_ranges formats
+def end_fixes(terms, sp: Spheres, parts, n_chains: int, id_ranges) -> str:
+    """Deck lines of the end wall and the dead load ('' for neither); the wall's normal
+    law and damping are the pairs' (``parts``: ``lammps.parts.Parts``); id_ranges formats
     an atom id list."""
     if sp.wall is None and sp.load <= 0:
         return ""
@@ -217,21 +181,18 @@ def end_fixes(terms, sp: Spheres, n_chains: int, id_ranges) -> str:
         out += [
             f"# end wall ({kind}): the plane x = {_r(WALL_X)} touches the last sphere "
             "of every chain",
-            "# (chains are laid out right to left from it). fix wall/gran hertz/material E 0 nu "
-            "gives",
+            "# (chains are laid out right to left from it). fix wall/gran's normal model of E "
+            "and nu gives",
             "# E* = E/(2(1-nu^2)) and R* = R_n (the wall takes the fix's own material): E = "
             "2 E*_w, nu = 0,",
             f"# 1/E*_w = (1-nu_n^2)/E_n + (1-nu_w^2)/E_w, E*_w = {_r(Ew)} Pa. No tangential "
             "force at the wall.",
             "# 'contacts': per-atom wall force (f_wall[2] = its x component on the sphere)."]
-        if terms.contact_damping is not None:
-            out += ["# contact damping at the wall: the pairs' law and coefficient, m_eff = m_n "
-                    "(fix wall/gran: the", "# sphere's rmass) and R* = R_n; f_wall[2] is the "
-                    "whole force, F_el + eta w."]
+        out += [ln for notes in parts.collect("wall_notes") for ln in notes]
         out += [
             f"group           lasts id {id_ranges([b * n + n for b in range(n_chains)])}",
             f"fix             {WALL_FIX} lasts wall/gran granular "
-            f"{contact_damping.lammps_normal(terms.contact_damping, 2.0 * Ew, 0.0)} &",
+            f"{parts.words(2.0 * Ew, 0.0)[0]} &",
             "                tangential linear_history 0.0 0.0 0.0 "
             f"xplane NULL {_r(WALL_X)} contacts"]
     if sp.load > 0:
@@ -258,52 +219,3 @@ def member_terms(scene, radii) -> list:
             seen[key] = physics_terms(scene.with_radii(r))
         out.append(seen[key])
     return out
-
-
-def groove_per_sphere(terms, members=None) -> bool:
-    """Do the spheres' groove stick springs differ (``groove_friction.kt_each``,
-    ``gamma_each``: each sphere's mass, radius and material), within a chain or, with
-    ``members`` (each chain's terms, a radius spread), between chains? Then fix
-    groove/drag reads kt and gamma per atom (d_groove_kt, d_groove_gamma of fix
-    property/atom, from the data file's Groove section); else it gets the one value of
-    every sphere."""
-    gf = terms.groove_friction
-    if gf is None:
-        return False
-    if members is None:
-        return len(set(gf.kt_each)) > 1 or len(set(gf.gamma_each)) > 1
-    kts = {k for t in members for k in t.groove_friction.kt_each}
-    gammas = {g for t in members for g in t.groove_friction.gamma_each}
-    return len(kts) > 1 or len(gammas) > 1
-
-
-def groove_fix_args(args: str) -> str:
-    """fix groove/drag arguments with kt and gamma read per atom."""
-    out, k = re.subn(r"\bkt \S+ gamma \S+", "kt d_groove_kt gamma d_groove_gamma", args)
-    assert k == 1, args
-    return out
-
-
-def groove_property_fix() -> tuple[str, str]:
-    """(deck lines before read_data, read_data suffix) of the per-sphere groove springs."""
-    return ("\n# per-sphere groove stick spring kt (1e-3 N/m) and dashpot gamma (1e-9 kg/s), read "
-            f"from\n# chain.data's {GROOVE_SECTION} section (fix groove/drag kt d_groove_kt gamma "
-            f"d_groove_gamma)\nfix             {GROOVE_PROPS} all property/atom d_groove_kt "
-            "d_groove_gamma",
-            f" fix {GROOVE_PROPS} NULL {GROOVE_SECTION}")
-
-
-def groove_section(terms, n_chains: int, members=None) -> list[str]:
-    """chain.data lines of the Groove section: atom-ID kt gamma of every sphere (with
-    ``members``, each chain's terms: each chain's own springs)."""
-    def values(t):
-        gf = t.groove_friction
-        return [f"{_r(to_micro(k, 'stiffness'))} {_r(to_micro(g, 'damping'))}"
-                for k, g in zip(gf.kt_each, gf.gamma_each)]
-    vals = None if members is not None else values(terms)
-    n = terms.n
-    lines = ["", GROOVE_SECTION, ""]
-    for b in range(n_chains):
-        v = vals if members is None else values(members[b])
-        lines += [f"{b * n + i + 1} {v[i]}" for i in range(n)]
-    return lines

@@ -27,11 +27,11 @@ from .table import (PROBES, MATERIAL_LABEL, VMAX_RE, NEEDS, read_table, read_tra
                     n_particles)
 from .chapter import (fit_through_origin, vmax_fits, packed_vg, peak_profile,
                       packed_profile, oscillation, band, gap_for_reduction, bound_ratios,
-                      pulse_width, work_fraction, non_hertz_work_fraction, sphere_mass,
+                      pulse_width, work_fraction, effects_work_fraction, sphere_mass,
                       groove_slide)
 from .vibrometer import (VIB_QUANTITIES, read_vibrometer_trace, vibrometer_bands,
                          nearest_bandwidth)
-from .field import (HERTZ_WALL_EXPONENT, precompression_rows, power_law_fit, wall_fits)
+from .field import (SOLITARY_WALL_EXPONENT, precompression_rows, power_law_fit, wall_fits)
 from .questions import (MEASURED_PEAKS, SPREAD_KINDS, spread_oscillation, first_reaching,
                         dissipation_curves, last_crossing, interpolate_at,
                         dissipation_match)
@@ -42,9 +42,9 @@ __all__ = [
     "material", "label", "nearest_speed", "striker_speed", "radius_or_default",
     "n_particles", "fit_through_origin", "vmax_fits", "packed_vg", "peak_profile",
     "packed_profile", "oscillation", "band", "gap_for_reduction", "bound_ratios",
-    "pulse_width", "work_fraction", "non_hertz_work_fraction", "sphere_mass",
+    "pulse_width", "work_fraction", "effects_work_fraction", "sphere_mass",
     "groove_slide", "VIB_QUANTITIES", "read_vibrometer_trace", "vibrometer_bands",
-    "nearest_bandwidth", "HERTZ_WALL_EXPONENT", "precompression_rows", "power_law_fit",
+    "nearest_bandwidth", "SOLITARY_WALL_EXPONENT", "precompression_rows", "power_law_fit",
     "wall_fits", "MEASURED_PEAKS", "SPREAD_KINDS", "spread_oscillation", "first_reaching",
     "dissipation_curves", "last_crossing", "interpolate_at", "dissipation_match",
 ]

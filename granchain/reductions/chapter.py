@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from ..analytic import eq54_group_velocity
+from ..effects import SPECS
 from ..errors import GranchainError
 from .table import (NEEDS, PROBES, arrived, materials_in, n_particles, reference_engine,
                     require, require_vmax, vmax_columns)
@@ -187,12 +188,16 @@ def work_fraction(row: pd.DataFrame, column: str) -> float:
     return float(row[column].iloc[0]) / float(row["energy_initial_J"].iloc[0])
 
 
-def non_hertz_work_fraction(row: pd.DataFrame) -> float:
-    """All non-Hertz work over the initial energy of the first row,
-    (W_groove + W_air + W_particle_friction + W_rolling) / E (dimensionless)."""
+def effects_work_fraction(row: pd.DataFrame) -> float:
+    """The work of every effect over the initial energy of the first row: the sum of the
+    effects' work columns the table has (``EffectSpec.table_column``, registry order) / E
+    (dimensionless, < 0 when the effects take energy)."""
     e0 = float(row["energy_initial_J"].iloc[0])
-    return (row["work_groove_J"] + row["work_air_J"] + row["work_particle_friction_J"]
-            + row["work_rolling_J"]).iloc[0] / e0
+    cols = [s.table_column for s in SPECS.values() if s.table_column in row]
+    total = row[cols[0]]
+    for c in cols[1:]:
+        total = total + row[c]
+    return total.iloc[0] / e0
 
 
 def sphere_mass(rho: float, radius: float) -> float:

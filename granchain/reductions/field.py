@@ -13,7 +13,7 @@ from .table import (NEEDS, arrived, material, materials_in, radius_or_default,
 
 # Hertz: the wall force of a solitary wave scales as v_s^(6/5) (F ~ delta^(3/2), delta ~
 # v_s^(4/5) for a wave of amplitude v_m ~ v_s: Nesterenko's xi_m ~ v_m^(4/5))
-HERTZ_WALL_EXPONENT = 1.2
+SOLITARY_WALL_EXPONENT = 1.2
 
 
 def precompression_rows(df: pd.DataFrame, radius: float | None = None) -> pd.DataFrame:
@@ -72,7 +72,7 @@ def wall_fits(df: pd.DataFrame) -> dict:
     """Per material of the wall study (reference engine when mixed), over the rows whose
     wall peak was measured (finite ``wall_force_max_N``): ``exponent`` and ``prefactor``
     (N at v_s = 1 m/s) of the power-law fit F_wall = a v_s^b (:func:`power_law_fit`),
-    ``prefactor_hertz`` (the fit with the exponent fixed at 6/5: a = exp(mean(ln F -
+    ``prefactor_solitary`` (the fit with the exponent fixed at 6/5: a = exp(mean(ln F -
     1.2 ln v_s))), ``local`` (the exponents between neighbouring speeds, ascending v_s),
     ``v`` and ``F`` (the rows, ascending v_s), ``n`` and ``missing`` (rows without a
     measured peak)."""
@@ -86,9 +86,9 @@ def wall_fits(df: pd.DataFrame) -> dict:
         ok = np.isfinite(F) & (F > 0)
         b, a = power_law_fit(v[ok], F[ok])
         v, F = v[ok], F[ok]
-        ah = float(np.exp(np.mean(np.log(F) - HERTZ_WALL_EXPONENT * np.log(v)))) if F.size \
+        ah = float(np.exp(np.mean(np.log(F) - SOLITARY_WALL_EXPONENT * np.log(v)))) if F.size \
             else math.nan
         local = np.diff(np.log(F)) / np.diff(np.log(v)) if F.size > 1 else np.array([])
-        out[mat] = {"exponent": b, "prefactor": a, "prefactor_hertz": ah, "local": local,
+        out[mat] = {"exponent": b, "prefactor": a, "prefactor_solitary": ah, "local": local,
                     "v": v, "F": F, "n": int(ok.sum()), "missing": int((~ok).sum())}
     return out

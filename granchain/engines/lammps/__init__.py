@@ -53,7 +53,8 @@ End wall: ``Trajectory.wall_force`` is the force fix wall/gran applied to the la
 sphere at each sample (its per-atom ``contacts`` output, summed per chain into the
 ledger; N, > 0 in compression), ``wall_static`` its static part K_w w_0^(3/2) as the
 reference engine states it. With contact damping it is the force at the sample's state,
-F_el + eta w of the dumped x and vx (``_damped_wall_force``), as the reference engine
+F_el + eta w of the dumped x and vx (``ledger.sampled_wall_force``: the reference
+kernels' own law, evaluated), as the reference engine
 records it: fix wall/gran's output is the force of the step, taken with the half-step
 velocity. Spheres of different radii: ``Trajectory.radii``.
 
@@ -228,7 +229,7 @@ def _trajectories(scene, pl, data, wall_each, info):
                                         dtype=float)
         if ch.K_wall is not None:
             # the wall force LAMMPS applied (fix wall/gran 'contacts'; with contact damping
-            # F_el + eta w at the sample's x and v, _damped_wall_force), and its static
+            # F_el + eta w at the sample's x and v, ledger.sampled_wall_force), and its static
             # part K_w w_0^1.5 as the reference engine states it (the chain's own K_w and
             # w_0 under a radius spread)
             extra["wall_force"] = WF[:keep, b].copy()

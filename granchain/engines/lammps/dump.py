@@ -14,8 +14,8 @@ from ...errors import GranchainError
 from ...lammps import deck as deckmod
 from ...scene import Scene
 from .binary import read_binary_dump
-from .ledger import (UM, _damped_wall_force, _fill_ledger, _fill_mechanical, _fill_residual,
-                     _hertz, _kinetic, _new_energies, _zeros, geometry)
+from .ledger import (UM, _fill_ledger, _fill_mechanical, _fill_residual, _kinetic,
+                     _new_energies, _potential, _zeros, geometry, sampled_wall_force)
 
 DUMP_READ = ("x", "vx")   # the dump columns read as MDAnalysis additional (float64) columns
 
@@ -68,12 +68,12 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     E = _new_energies(*EH.shape)
     _fill_mechanical(E, KE, EH, WL)
     walled = deckmod.WALL_FORCE_COLUMN in pl.ledger_columns
-    damped = parts[0][8] is not None      # the wall force from x and v (contact damping)
-    WF = (np.concatenate([p[8] for p in parts]) if damped else np.empty(EH.shape)) \
+    sampled = parts[0][8] is not None     # the wall force from x and v (geometry.wall_law)
+    WF = (np.concatenate([p[8] for p in parts]) if sampled else np.empty(EH.shape)) \
         if walled else None
     XL = np.concatenate([p[7] for p in parts]) if walled else None
     if ledger is not None:
-        _fill_ledger(E, None if damped else WF, pl, ledger)
+        _fill_ledger(E, None if sampled else WF, pl, ledger)
     _fill_residual(scene, E)
     return {"step": step, "v": V, "energy": E, "last_overlap": last_overlap, "wall_force": WF,
             "last_disp": XL}
@@ -110,12 +110,12 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
                        XL=np.empty((frames, B)) if walled else None)
         hi = lo + len(block["x"])
         x = block["x"].reshape(-1, B, n)
-        EH, out["OL"][lo:hi], WL = _hertz(x, geo)
+        EH, out["OL"][lo:hi], WL = _potential(x, geo)
         if walled:
             out["XL"][lo:hi] = (x[..., -1] - geo.x_last0) * UM
         v = block["vx"].reshape(-1, B, n)
-        if walled and geo.wall_damping is not None:
-            out["WF"][lo:hi] = _damped_wall_force(x[..., -1], v[..., -1], geo)
+        if walled and geo.wall_law is not None:
+            out["WF"][lo:hi] = sampled_wall_force(x[..., -1], v[..., -1], geo)
         _fill_mechanical(out["E"][lo:hi], _kinetic(v, geo), EH, WL)
         out["V"][:, lo:hi] = v.transpose(1, 0, 2)
 
@@ -130,14 +130,14 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
         lpath = path.with_name(deckmod.LEDGER_BINARY_NAME)
         lwhat = f"LAMMPS ledger {lpath}"
         lcols = deckmod.ledger_binary_columns(pl)
-        damped = geo.wall_damping is not None     # the wall force is from x and v, above
+        sampled = geo.wall_law is not None     # the wall force is from x and v, above
 
         def ledger(lo, block, frames):
             hi = lo + len(block[lcols[0]])
             if hi > S:
                 raise GranchainError(f"{lwhat} does not match the trajectory: more than {S} "
                                      f"samples; {path.name} has {S}")
-            _fill_ledger(E[lo:hi], None if WF is None or damped else WF[lo:hi], pl,
+            _fill_ledger(E[lo:hi], None if WF is None or sampled else WF[lo:hi], pl,
                          np.stack([block[c] for c in lcols], axis=2))
 
         lstep, _ = read_binary_dump(lpath, lcols, B, pl.nsamples, lwhat, consume=ledger)
@@ -221,10 +221,10 @@ def _halted(log: Path) -> bool:
 
 
 def _read_part(job: dict, part: int, nparts: int):
-    """Frames [part*S/nparts, (part+1)*S/nparts) of a dump: (S, step, V, E_hertz,
+    """Frames [part*S/nparts, (part+1)*S/nparts) of a dump: (S, step, V, E_potential,
     overlap of the last contact in m, kinetic energy, work of the dead load (None
-    without), displacement of the last sphere in m (NaN without an end wall), the damped
-    wall force in N (None without contact damping at a wall)), per chain."""
+    without), displacement of the last sphere in m (NaN without an end wall), the wall
+    force at the samples' state in N (None unless ``geometry.wall_law``)), per chain."""
     import MDAnalysis as mda
 
     path, B, n, geo = job["path"], job["B"], job["n"], job["geometry"]
@@ -246,7 +246,7 @@ def _read_part(job: dict, part: int, nparts: int):
             KE = np.empty((hi - lo, B))
             WL = np.zeros((hi - lo, B))
             XL = np.empty((hi - lo, B))
-            WD = np.empty((hi - lo, B)) if geo.wall_damping is not None else None
+            WD = np.empty((hi - lo, B)) if geo.wall_law is not None else None
             for s, ts in enumerate(traj[lo:hi]):
                 data = ts.data
                 step[s] = data["step"]
@@ -256,10 +256,10 @@ def _read_part(job: dict, part: int, nparts: int):
                 V[s] = v
                 KE[s] = _kinetic(v, geo)
                 x = data["x"].reshape(B, n)
-                EH[s], OL[s], wl = _hertz(x, geo)
+                EH[s], OL[s], wl = _potential(x, geo)
                 XL[s] = (x[:, -1] - geo.x_last0) * UM
                 if WD is not None:
-                    WD[s] = _damped_wall_force(x[:, -1], v[:, -1], geo)
+                    WD[s] = sampled_wall_force(x[:, -1], v[:, -1], geo)
                 if wl is not None:
                     WL[s] = wl
     except GranchainError:

@@ -10,15 +10,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...effects import contact_damping, physics_terms, residual_work
+from ...effects import SPECS, acts_on_normal, physics_terms, residual_work
 from ...lammps import deck as deckmod
 from ...scene import Scene
 from ...trajectory import ENERGY_COLUMNS
+from ..codes import E_KIN_ROT, E_KIN_TRANS, E_POT, E_WORK_LOAD
 
-(E_KIN_TRANS, E_KIN_ROT, E_HERTZ, E_WORK_GROOVE, E_WORK_DRAG, E_WORK_LOAD) = (
-    ENERGY_COLUMNS.index(c) for c in (
-        "kinetic_translational", "kinetic_rotational", "hertz_potential", "work_groove_friction",
-        "work_air_drag", "work_load"))
+# the ledger columns of the works LAMMPS outputs (per-atom cumulative works), registry order
+REPORTED_WORK = tuple(ENERGY_COLUMNS.index(s.work) for s in SPECS.values()
+                      if s.work and s.lammps_reports_work)
 # SI factors of 'units micro' values (docs/explanation/lammps_laws.md section 1)
 UM = 1e-6          # um -> m
 ENERGY = 1e-15     # 1e-15 J -> J
@@ -43,10 +43,11 @@ class Geometry:
     x2_0: np.ndarray              # (B,) um: particle 2's initial x in each chain
     x_last0: float | np.ndarray   # um: the last sphere's initial x (the same in every
     #                               chain of a deck with an end wall; (B,) under a spread)
-    # contact damping at the end wall (None: undamped or no wall): (model code of
-    # contact_damping, its constant, limit_damping, m_eff = m_n kg, R* = R_n m), the last
-    # two (B,) under a spread; the wall force is then F_el + eta w at each sample's state
-    wall_damping: tuple | None = None
+    # the end wall's law when its force depends on the sphere's velocity (an effect acts on
+    # the normal force after the elastic law, e.g. contact damping; None: it does not, or
+    # no wall): the reference kernels' (P, FL, G (B, G_LEN * n)) of the deck's chains; the
+    # wall force is then that law at each sample's state (:func:`sampled_wall_force`)
+    wall_law: tuple | None = None
 
 
 def chain_terms(scene: Scene, pl: "deckmod.DeckPlan") -> list:
@@ -72,8 +73,7 @@ def geometry(scene: Scene, pl: "deckmod.DeckPlan", members=None) -> Geometry:
     return Geometry(rsum=R[:-1] + R[1:], K=np.asarray(ch.K, dtype=float), masses=masses,
                     R_last=float(R[-1]), K_wall=ch.K_wall, load=float(ch.load), x2_0=x2,
                     x_last0=float(x0[0][-1]) if ch.wall and x0 else math.nan,
-                    wall_damping=_wall_damping(terms, float(ch.masses[-1]),
-                                               float(ch.radii[-1])))
+                    wall_law=_wall_law(terms, [terms] * pl.n_chains))
 
 
 def _member_geometry(scene: Scene, pl: "deckmod.DeckPlan", members) -> Geometry:
@@ -94,44 +94,43 @@ def _member_geometry(scene: Scene, pl: "deckmod.DeckPlan", members) -> Geometry:
                     load=float(ch0.load),
                     x2_0=np.array([x[1] for x in x0]) if loaded else np.zeros(pl.n_chains),
                     x_last0=np.array([x[-1] for x in x0]) if walled else math.nan,
-                    wall_damping=_wall_damping(
-                        members[0], np.array([t.chain.masses[-1] for t in members]),
-                        np.array([t.chain.radii[-1] for t in members])))
+                    wall_law=_wall_law(members[0], members))
 
 
-def _wall_damping(terms, m_last, R_last) -> tuple | None:
-    """:attr:`Geometry.wall_damping` of a chain with these terms (m_last kg, R_last m: the
-    last sphere's, or each chain's)."""
-    cd = terms.contact_damping
-    if cd is None or terms.chain.K_wall is None:
+def _wall_law(terms, members) -> tuple | None:
+    """:attr:`Geometry.wall_law` of a deck whose first chain has these terms (``members``:
+    each chain's)."""
+    if terms.chain.K_wall is None or not acts_on_normal([e for e in SPECS if terms.has(e)]):
         return None
-    params, flags = contact_damping.kernel(cd)
-    return (flags["F_DAMPING_MODEL"], params["P_DAMPING_COEF"], cd.limit_damping, m_last, R_last)
+    from ..reference import chain_rows, pack
+    rows: dict = {}
+    G = np.concatenate([rows.setdefault(id(t), chain_rows(t, np.zeros((1, t.n - 1))))
+                        for t in members])
+    return (*pack(terms), G)
 
 
-def _damped_wall_force(x_last, v_last, geo: Geometry) -> np.ndarray:
-    """The end wall's force (N, > 0 in compression) with contact damping at the samples'
-    state: F_el + eta w of the overlap of the dumped x and the last sphere's dumped vx (its
-    closing speed), held >= 0 under limit_damping, 0 off the wall. That is the force at
-    the sample, as the reference engine records it; fix wall/gran's own output is the
-    force of the step that ends there, which LAMMPS evaluates with the half-step velocity
-    (it differs by eta (v_k - v_k-1/2): 6e-5 to 1.5e-4 of the peak at 1 ns)."""
-    model, damp, limit, meff, Rs = geo.wall_damping
+def sampled_wall_force(x_last, v_last, geo: Geometry) -> np.ndarray:
+    """The end wall's force (N, > 0 in compression) at the samples' state, with the
+    reference engine's own law (``engines.compose.wall_force``: the effects' normal laws,
+    e.g. F_el + eta w with contact damping, held >= 0 under limit_damping) of the overlap
+    of the dumped x and of the last sphere's dumped vx (its closing speed); 0 off the wall.
+    That is the force at the sample, as the reference engine records it; fix wall/gran's
+    own output is the force of the step that ends there, which LAMMPS evaluates with the
+    half-step velocity (it differs by eta (v_k - v_k-1/2): 6e-5 to 1.5e-4 of the peak at
+    1 ns). x_last, v_last: (..., B)."""
+    from ..integrators import wall_forces
     d = np.maximum((x_last + geo.R_last - deckmod.field.WALL_X) * UM, 0.0)
-    fel = geo.K_wall * d * np.sqrt(d)
-    touching = d > 0.0
-    if model == contact_damping.VISCOELASTIC:
-        eta = damp * meff * np.sqrt(Rs * d)
-    else:
-        q = np.where(touching, meff * fel / np.where(touching, d, 1.0), 0.0)
-        eta = damp * np.sqrt(np.maximum(q, 0.0))
-    F = fel + eta * v_last
-    if limit:
-        F = np.maximum(F, 0.0)
-    return np.where(touching, F, 0.0)
+    P, FL, G = geo.wall_law
+    shape = np.shape(d)
+    d2 = np.ascontiguousarray(np.reshape(d, (-1, shape[-1])), dtype=np.float64)
+    w2 = np.ascontiguousarray(np.reshape(np.broadcast_to(v_last, shape), (-1, shape[-1])),
+                              dtype=np.float64)
+    out = np.empty_like(d2)
+    wall_forces(d2, w2, G, P, FL, int(P[0]), out)
+    return out.reshape(shape)
 
 
-def _hertz(x, geo: Geometry):
+def _potential(x, geo: Geometry):
     """From the positions x (..., B, n) in um: the Hertz energy per chain (J), the
     contacts' and the end wall's (the law of ``effects.hertz.energy``, each contact with
     its own K), the overlap of each chain's last contact (m) and the work of the dead
@@ -176,7 +175,7 @@ def _fill_mechanical(E, KE, EH, WL) -> None:
     """Kinetic translational energy, Hertz energy and the work of the dead load (or None)
     per chain into E (samples, B, len(ENERGY_COLUMNS))."""
     E[:, :, E_KIN_TRANS] = KE
-    E[:, :, E_HERTZ] = EH
+    E[:, :, E_POT] = EH
     if WL is not None:
         E[:, :, E_WORK_LOAD] = WL
 
@@ -184,8 +183,8 @@ def _fill_mechanical(E, KE, EH, WL) -> None:
 def _fill_ledger(E, WF, pl: "deckmod.DeckPlan", ledger) -> None:
     """The per-chain LAMMPS ledger (samples, B, k) into E's columns (1e-15 J) and the end
     wall's force on the last sphere into WF (samples, B) in N, as a compression (> 0);
-    WF None: not wanted (with contact damping it comes from the samples' state,
-    :func:`_damped_wall_force`)."""
+    WF None: not wanted (with a velocity-dependent wall law it comes from the samples'
+    state, :func:`sampled_wall_force`)."""
     for j, name in enumerate(pl.ledger_columns):
         if name == deckmod.WALL_FORCE_COLUMN:
             if WF is not None:
@@ -200,6 +199,8 @@ def _fill_residual(scene: Scene, E) -> None:
     (registry order; the others stay 0)."""
     cols = residual_work(scene.effects)
     if cols:
-        mech = E[:, :, E_KIN_TRANS] + E[:, :, E_KIN_ROT] + E[:, :, E_HERTZ]
-        E[:, :, ENERGY_COLUMNS.index(cols[0])] = (mech - mech[0] - E[:, :, E_WORK_GROOVE]
-                                                  - E[:, :, E_WORK_DRAG] - E[:, :, E_WORK_LOAD])
+        mech = E[:, :, E_KIN_TRANS] + E[:, :, E_KIN_ROT] + E[:, :, E_POT]
+        res = mech - mech[0]
+        for c in REPORTED_WORK + (E_WORK_LOAD,):
+            res = res - E[:, :, c]
+        E[:, :, ENERGY_COLUMNS.index(cols[0])] = res

@@ -90,7 +90,7 @@ def field_rows(pk: PackedChain, precompression: pd.DataFrame | None = None,
     chap = "a Hertz solitary wave: F_wall ~ v_s^(6/5)"
     if wall is None:
         rows.append(make_row("wall_force_exponent", quantity, BEYOND, chap,
-                             reductions.HERTZ_WALL_EXPONENT, math.nan, "-", "wall; wall.csv",
+                             reductions.SOLITARY_WALL_EXPONENT, math.nan, "-", "wall; wall.csv",
                              "wall table not given (the preset has no wall study)"))
         return rows
     fits = reductions.wall_fits(wall)
@@ -100,7 +100,8 @@ def field_rows(pk: PackedChain, precompression: pd.DataFrame | None = None,
              f"the lowest speeds" if f["local"].size else "one speed")
     rows.append(make_row(
         "wall_force_exponent", f"{reductions.label(mat)} {quantity}, fit over v_s = {f['v'].min():g}-"
-        f"{f['v'].max():g} m/s", BEYOND, chap, reductions.HERTZ_WALL_EXPONENT, f["exponent"], "-",
+        f"{f['v'].max():g} m/s", BEYOND, chap, reductions.SOLITARY_WALL_EXPONENT, f["exponent"],
+        "-",
         "wall; wall.csv",
         f"agrees: a = {f['prefactor']:.4g} N at 1 m/s over {f['n']} speeds ({local}); a pure "
         "Hertz chain gives exactly 6/5 (Hertz laws scale: F ~ v^(6/5) at any amplitude), "

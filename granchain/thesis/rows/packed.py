@@ -15,7 +15,7 @@ HERTZ_ONLY = ("not reproducible from Eq. 5.1 as specified: a Hertz-only chain gi
 
 
 def _loss_text(pk: PackedChain) -> str:
-    losses = reductions.non_hertz_work_fraction(pk.ref)
+    losses = reductions.effects_work_fraction(pk.ref)
     return (f"all non-Hertz work at {pk.vs_ref:g} m/s is {pct(losses)} of E, so it moves "
             f"v_max (~ sqrt E) by < {pct(abs(losses))}")
 
