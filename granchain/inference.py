@@ -187,7 +187,7 @@ import numpy as np
 
 from .errors import GranchainError
 from .fileio import atomic_write_bytes
-from .gapdesign import EMPHASIS, design
+from .gapdesign import EMPHASIS, KEY_PRIOR, design, prior_weights
 from .gaps import Member
 from .scene import Scene
 from .validate import short
@@ -514,6 +514,7 @@ class Grid:
     hashes: tuple[str, ...]
     simulated: int
     weights: np.ndarray | None = None
+    key_prior: str = KEY_PRIOR
 
     @property
     def realisations(self) -> int:
@@ -521,9 +522,10 @@ class Grid:
 
     @property
     def realisation_weights(self) -> np.ndarray:
-        """(R,) the realisations' weights (``granchain.gapdesign``; 1 each when the grid
-        has plain draws)."""
-        return np.ones(self.realisations) if self.weights is None else self.weights
+        """(R,) the realisations' weights in the likelihood: ``weights`` are the design's
+        prior / proposal (None for plain draws), ``key_prior`` says whether they are used
+        (``gapdesign.prior_weights``)."""
+        return prior_weights(self.weights, self.realisations, self.key_prior)
 
     @property
     def n_chains(self) -> int:
@@ -878,7 +880,7 @@ def infer(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
     return Inference(
         gap_mean_m=med, ci95_m=(lo, hi), eq54_gap_m=fit, eq54_gap_bound_m=bound,
         eq54_gap_rows_m=tuple(float(r) for r in rows), n_simulated=grid.n_chains,
-        n_simulated_now=grid.simulated, gap_law=_law(base), timing_column=meas.column,
+        n_simulated_now=grid.simulated, gap_law=_law(base, grid), timing_column=meas.column,
         method="grid posterior, simulated-ensemble kernel likelihood",
         realisations=grid.realisations,
         gap_grid_m=(float(grid.gaps[0]), float(grid.gaps[-1]), int(grid.gaps.size)),
@@ -958,6 +960,7 @@ class JointGrid:
     simulated: int
     wall_s: float = 0.0
     weights: np.ndarray | None = None
+    key_prior: str = KEY_PRIOR
 
     @property
     def realisations(self) -> int:
@@ -966,7 +969,7 @@ class JointGrid:
     @property
     def realisation_weights(self) -> np.ndarray:
         """(R,) the realisations' weights, as :attr:`Grid.realisation_weights`."""
-        return np.ones(self.realisations) if self.weights is None else self.weights
+        return prior_weights(self.weights, self.realisations, self.key_prior)
 
     @property
     def n_chains(self) -> int:
@@ -1503,7 +1506,7 @@ def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
         eq54_gap_m=fit54, eq54_gap_bound_m=bound54,
         eq54_gap_rows_m=tuple(float(r) for r in rows54), predictive_outside=outside,
         predictive_values=checked, predictive_rows=pred_rows,
-        n_simulated=grid.n_chains, n_simulated_now=grid.simulated, gap_law=_law(base), damping_model="coeff_restitution",
+        n_simulated=grid.n_chains, n_simulated_now=grid.simulated, gap_law=_law(base, grid), damping_model="coeff_restitution",
         timing_column=meas.column,
         method="2D grid posterior (mean gap x restitution), simulated-ensemble kernel "
                "likelihood of timing and both peaks",
@@ -1522,7 +1525,10 @@ def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
         posterior_pdf=pdf, marginal_g=mg, marginal_e=me, draws=draws, grid=grid)
 
 
-def _law(base: Scene) -> str:
-    if base.gap_distribution == "uniform":
-        return "uniform on [0, 2 mean], i.i.d. per contact"
-    return "exponential with the given mean, i.i.d. per contact"
+def _law(base: Scene, grid=None) -> str:
+    law = ("uniform on [0, 2 mean], i.i.d. per contact" if base.gap_distribution == "uniform"
+           else "exponential with the given mean, i.i.d. per contact")
+    if grid is not None and grid.weights is not None and grid.key_prior == "robust":
+        law += ("; the contacts beside the probes with a heavier prior toward contact (half "
+                "the law, half a Beta(1/3, 1) on the quantile: granchain.gapdesign)")
+    return law
