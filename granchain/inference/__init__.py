@@ -188,6 +188,7 @@ Modules, one job each (every public name is importable from ``granchain.inferenc
 - ``jointfit``       the joint fit (:func:`~granchain.inference.jointfit.infer_joint`,
                      :class:`~granchain.inference.jointfit.JointInference`): the zoom
                      on a narrow posterior, posterior draws, the predictive check;
+- ``result``         what the two results share (their JSON document);
 - ``synthetic``      synthetic measurements, for the tests, the calibration and the examples.
 """
 from __future__ import annotations
@@ -203,6 +204,7 @@ from .grid import (GAP_LAWS, DEFAULT_GAP_LAW, CACHE_FORMAT, GAP_MAX, GAP_POINTS,
 from .interpolation import interp_rel_error, joint_values, joint_interp_errors
 from .likelihood import (CHUNK_BYTES, kernel_log_density, log_likelihood, gap_model_check,
                          joint_log_likelihood, joint_model_check)
+from .result import FitResult
 from .gapfit import (FINE_POINTS, EDGE_WEIGHT, PRIOR, PRIOR_G0, Inference, log_prior,
                      posterior_summary, eq54_gaps, infer)
 from .jointfit import (FINE_G, FINE_E, ZOOM_DROP, PREDICTIVE_DRAWS, PREDICTIVE_SEED,
@@ -223,6 +225,7 @@ __all__ = [
     "interp_rel_error", "joint_values", "joint_interp_errors",
     "CHUNK_BYTES", "kernel_log_density", "log_likelihood", "gap_model_check",
     "joint_log_likelihood", "joint_model_check",
+    "FitResult",
     "FINE_POINTS", "EDGE_WEIGHT", "PRIOR", "PRIOR_G0", "Inference", "log_prior",
     "posterior_summary", "eq54_gaps", "infer",
     "FINE_G", "FINE_E", "ZOOM_DROP", "PREDICTIVE_DRAWS", "PREDICTIVE_SEED", "fine_axes",

@@ -11,11 +11,12 @@ import numpy as np
 
 from ..errors import GranchainError
 from ..scene import Scene
-from .grid import (GAP_MAX, GAP_POINTS, REALISATIONS, Grid, _law, check_base,
-                   complete_base, simulate_grid)
+from .grid import (GAP_MAX, GAP_POINTS, REALISATIONS, Grid, check_base, complete_base,
+                   simulate_grid)
 from .interpolation import _interp_speed, interp_rel_error
 from .likelihood import gap_model_check, log_likelihood
 from .measurements import Measurements, check_peaks, check_speeds
+from .result import FitResult, shared_fields
 
 FINE_POINTS = 801                         # posterior evaluation points over [0, gap_max]
 EDGE_WEIGHT = 1e-2        # posterior density at gap_max, relative to its peak, that flags
@@ -24,7 +25,7 @@ PRIOR_G0 = 2e-9
 
 
 @dataclass(frozen=True)
-class Inference:
+class Inference(FitResult):
     """Result of :func:`infer` (SI units; NaN where not measured, with ``flags``)."""
     gap_mean_m: float
     ci95_m: tuple[float, float]
@@ -52,14 +53,7 @@ class Inference:
     posterior_pdf: np.ndarray = dataclasses.field(repr=False, compare=False)
     grid: Grid | None = dataclasses.field(default=None, repr=False, compare=False)
 
-    def to_json(self) -> dict:
-        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-             if f.name not in ("posterior_g_m", "posterior_pdf", "grid")}
-        d["ci95_m"] = list(self.ci95_m)
-        for k, v in d.items():
-            if isinstance(v, tuple):
-                d[k] = list(v)
-        return d
+    HIDDEN = ("posterior_g_m", "posterior_pdf", "grid")
 
 
 def log_prior(fine: np.ndarray, prior: str = PRIOR) -> np.ndarray:
@@ -132,13 +126,7 @@ def infer(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
     fit, bound, rows = eq54_gaps(grid, meas, base.probes)
     return Inference(
         gap_mean_m=med, ci95_m=(lo, hi), eq54_gap_m=fit, eq54_gap_bound_m=bound,
-        eq54_gap_rows_m=tuple(float(r) for r in rows), n_simulated=grid.n_chains,
-        n_simulated_now=grid.simulated, gap_law=_law(base), timing_column=meas.column,
+        eq54_gap_rows_m=tuple(float(r) for r in rows),
         method="grid posterior, simulated-ensemble kernel likelihood",
-        realisations=grid.realisations,
-        gap_grid_m=(float(grid.gaps[0]), float(grid.gaps[-1]), int(grid.gaps.size)),
-        speeds_m_s=tuple(float(v) for v in grid.speeds), gap_law_source=src["gap_law"],
-        speeds_source=src["speeds"], interp_rel_error=rel,
-        rows=len(meas), chains=len(meas.groups), scene=base.name,
-        scene_hashes=grid.hashes, flags=tuple(flags), data_outside_model=mc.to_json(),
-        posterior_g_m=fine, posterior_pdf=pdf, grid=grid)
+        interp_rel_error=rel, flags=tuple(flags), posterior_g_m=fine, posterior_pdf=pdf,
+        **shared_fields(base, src, meas, grid, mc))

@@ -347,8 +347,3 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
     return JointGrid(gaps, es, speeds, out, tuple(hashes), simulated,
                      time.perf_counter() - t0, designed.weights)
 
-
-def _law(base: Scene) -> str:
-    if base.gap_distribution == "uniform":
-        return "uniform on [0, 2 mean], i.i.d. per contact"
-    return "exponential with the given mean, i.i.d. per contact"

@@ -14,12 +14,12 @@ import numpy as np
 from ..errors import GranchainError
 from ..scene import Scene
 from .gapfit import EDGE_WEIGHT, PRIOR, _eq54, log_prior
-from .grid import (E_MIN, E_POINTS, GAP_MAX, GAP_POINTS, REALISATIONS, JointGrid, _law,
-                   check_base, check_restitution_base, complete_base,
-                   simulate_joint_grid)
+from .grid import (E_MIN, E_POINTS, GAP_MAX, GAP_POINTS, REALISATIONS, JointGrid, check_base,
+                   check_restitution_base, complete_base, simulate_joint_grid)
 from .interpolation import _interp_e, joint_interp_errors, joint_values
 from .likelihood import _trapz_weights, joint_log_likelihood, joint_model_check
 from .measurements import Measurements, check_peaks, check_speeds
+from .result import FitResult, shared_fields
 
 FINE_G, FINE_E = 241, 161         # posterior evaluation points (mean gap, restitution)
 ZOOM_DROP = 20.0                  # the second pass covers log posterior >= peak - this
@@ -72,7 +72,7 @@ def _summary(x: np.ndarray, pdf: np.ndarray, low_flag: str | None, high_flag: st
 
 
 @dataclass(frozen=True)
-class JointInference:
+class JointInference(FitResult):
     """Result of :func:`infer_joint` (SI units; NaN where not measured, with ``flags``)."""
     fit: tuple[str, ...]
     gap_mean_m: float
@@ -116,14 +116,6 @@ class JointInference:
 
     HIDDEN = ("posterior_g_m", "posterior_e", "posterior_pdf", "marginal_g", "marginal_e",
               "draws", "grid")
-
-    def to_json(self) -> dict:
-        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-             if f.name not in self.HIDDEN}
-        for k, v in d.items():
-            if isinstance(v, tuple):
-                d[k] = list(v)
-        return d
 
 
 def posterior_draws(fine_g, fine_e, pdf, draws: int = PREDICTIVE_DRAWS,
@@ -232,20 +224,13 @@ def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
         eq54_gap_m=fit54, eq54_gap_bound_m=bound54,
         eq54_gap_rows_m=tuple(float(r) for r in rows54), predictive_outside=outside,
         predictive_values=checked, predictive_rows=pred_rows,
-        n_simulated=grid.n_chains, n_simulated_now=grid.simulated, gap_law=_law(base), damping_model="coeff_restitution",
-        timing_column=meas.column,
+        damping_model="coeff_restitution",
         method="2D grid posterior (mean gap x restitution), simulated-ensemble kernel "
                "likelihood of timing and both peaks",
-        realisations=grid.realisations,
-        gap_grid_m=(float(grid.gaps[0]), float(grid.gaps[-1]), int(grid.gaps.size)),
         gap_spacing="quadratic",
         restitution_grid=(float(grid.restitutions[0]), float(grid.restitutions[-1]),
                           int(grid.restitutions.size)),
-        speeds_m_s=tuple(float(v) for v in grid.speeds), gap_law_source=src["gap_law"],
-        speeds_source=src["speeds"],
         interp_rel_error={k: {"g_max": float(np.max(v["g"])), "e": float(v["e"]),
                               "speed": float(v["speed"])} for k, v in errs.items()},
-        rows=len(meas), chains=len(meas.groups), scene=base.name,
-        scene_hashes=grid.hashes, flags=tuple(flags), data_outside_model=mc.to_json(),
-        posterior_g_m=fg, posterior_e=fe,
-        posterior_pdf=pdf, marginal_g=mg, marginal_e=me, draws=draws, grid=grid)
+        flags=tuple(flags), posterior_g_m=fg, posterior_e=fe, posterior_pdf=pdf,
+        marginal_g=mg, marginal_e=me, draws=draws, **shared_fields(base, src, meas, grid, mc))
