@@ -8,9 +8,10 @@ one's ~0.7 v_s. Under the uniform law a given gap is below 0.05 of the mean in 2
 chains, so a grid of R = 64 plain draws holds one or two such patterns, or none; data from
 such a chain (about 5 % of all chains, counting the three contacts next to the two probes)
 lie in the tail of the kernel density and the posterior is narrow and biased. Drawing those
-contacts from a proposal with more weight near zero, and weighting each realisation by prior
-/ proposal, keeps the likelihood an unbiased average over the gap law while it holds several
-such patterns.
+contacts from a proposal with more weight near zero makes the grid hold several such
+patterns. The likelihood then takes that proposal as the key contacts' prior
+(``prior_weights``, "robust"), or weights each realisation by prior / proposal back to the
+law ("law").
 
 The design, for a law whose realisations scale with their mean (uniform on [0, 2 mean],
 exponential): realisation r draws its normalised pattern (mean 1) from the scene's own
