@@ -487,10 +487,11 @@ def describe_auto(scene: Scene) -> str:
 MEMBER_BYTES = 3000.0
 MEMBER_BYTES_PER_PARTICLE = 110.0
 DEFAULT_MAX_TOTAL_STEPS = 1e11      # whole run, raised with --max-total-steps
-# The reference engine's chunks (engines.reference: CHUNK_BYTES, CHUNK_CHAINS, and the
-# samples per kernel call WINDOW, BLOCK_WINDOW): while a chunk's records are joined their
-# pieces are held as well, and each chain of a chunk has its window of samples and, under
-# the event method, its peak-tracking buffers (tracemalloc: ~3.7 kB per particle).
+# The reference engine's chunks (engines.chunks: CHUNK_BYTES, CHUNK_CHAINS; the samples
+# per kernel call, engines.reference: WINDOW, BLOCK_WINDOW): while a chunk's records are
+# joined their pieces are held as well, and each chain of a chunk has its window of
+# samples and, under the event method, its peak-tracking buffers (tracemalloc: ~3.7 kB per
+# particle).
 RECORD_CHUNK_BYTES = 256 * 2**20
 CHUNK_CHAINS = 512
 WINDOW_SAMPLES = {"rk4": 256, "verlet": 256, "adaptive": 2048, "event": 2048}
@@ -498,7 +499,7 @@ EVENT_BYTES_PER_PARTICLE = 3700.0
 # The fixed-step methods measuring on the fly (no trace): per particle a ring of
 # RING_SAMPLES record samples (an index and two floats each), and the chain's state, rows
 # and running observables (~640 bytes a particle, tracemalloc), for every lane of the
-# chunk's blocks of BLOCK_LANES chains.
+# chunk's blocks of BLOCK_LANES chains (engines.chunks.LANES).
 RING_SAMPLES = 512
 OBSERVE_BYTES_PER_PARTICLE = 24.0 * RING_SAMPLES + 640.0
 BLOCK_LANES = 32

@@ -22,6 +22,7 @@ from ..guards import require_resolved, result_limits
 from ..scene import Scene
 from ..trajectory import OnTheFly, RunInfo, Trajectory
 from . import backend
+from . import chunks
 from . import codes
 from . import obscodes
 
@@ -36,9 +37,6 @@ STATUS_NAMES = {codes.S_DONE: "done", codes.S_PASSED: "passed", codes.S_TIMEOUT:
                 codes.S_RUNNING: "timeout"}
 WINDOW = 2048                    # samples per kernel call (adaptive method)
 BLOCK_WINDOW = 256               # samples per kernel call (fixed-step blocks)
-CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
-CHUNK_CHAINS = 512               # at most this many chains in a chunk
-LANES = 32                       # chains per block of the fixed-step kernels
 EVENT_LANES = 16                 # chains per block of the event method (``run_events_lanes``)
 
 
@@ -195,17 +193,11 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
 
 
 def _chunks(group, scene, terms, sample_dt, method, observe=False, sampling=None):
-    """Split chains into chunks whose memory fits in CHUNK_BYTES (and CHUNK_CHAINS): the
-    recorded samples of each chain or, for the fixed-step methods measuring on the fly
-    (``observe``), their observables' arrays (a chain keeps its first and last samples and
-    a ring of RECORD_RING record samples per particle, whatever its length; the chains
-    then go in as few chunks as those limits allow, as even as whole blocks make them).
-
-    The fixed-step methods run a chunk in blocks of LANES consecutive chains, and numba
-    hands each thread an equal contiguous share of the blocks; the chains come sorted by
-    expected length, so a chunk's full blocks are dealt to the threads' shares back and
-    forth (0, 1, .., T-1, T-1, .., 0, ..) and every thread gets long and short blocks
-    alike. A chain's result does not depend on its block or lane, nor on its chunk."""
+    """Split chains into chunks whose memory fits in ``chunks.CHUNK_BYTES`` (and
+    ``chunks.CHUNK_CHAINS``; ``chunks.split``): the recorded samples of each chain or, for
+    the fixed-step methods measuring on the fly (``observe``), their observables' arrays
+    (a chain keeps its first and last samples and a ring of RECORD_RING record samples
+    per particle, whatever its length)."""
     blocked = method in ("rk4", "verlet")          # blocks of LANES chains in lockstep
     if blocked and observe:
         n = terms.n
@@ -225,46 +217,7 @@ def _chunks(group, scene, terms, sample_dt, method, observe=False, sampling=None
                            else expected_duration(scene, max(v, 1e-6)))
         window = BLOCK_WINDOW if blocked else WINDOW
         per_chain = (t_est / sample_dt + window) * (terms.n + codes.E_LEN) * 8
-    size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, CHUNK_CHAINS)))
-    threads = backend.num_threads()
-    if blocked and observe and size < len(group):
-        # whole blocks; as few chunks as the limits allow, as even as blocks make them
-        parts = -(-len(group) // max(LANES, size // LANES * LANES))
-        size = -(-len(group) // (parts * LANES)) * LANES
-    elif blocked and size < len(group):
-        # whole blocks, as many on every thread
-        unit = LANES * threads
-        size = max(LANES, size // unit * unit)
-    for i in range(0, len(group), size):
-        chunk = group[i:i + size]
-        yield _deal_blocks(chunk, threads) if blocked else chunk
-
-
-def _deal_blocks(chunk, threads):
-    """``chunk`` with its full blocks of LANES chains reordered so that numba's contiguous
-    split of the blocks over ``threads`` gives each thread blocks dealt back and forth
-    from the sorted order; a partial block stays last (the padding lanes follow it)."""
-    full = len(chunk) // LANES
-    if threads < 2 or full <= threads:
-        return chunk
-    # numba's static schedule of range(nblk): equal contiguous shares, one more for each
-    # of the first nblk % threads threads
-    nblk = -(-len(chunk) // LANES)
-    share = [nblk // threads + (t < nblk % threads) for t in range(threads)]
-    share[-1] -= nblk - full                      # the partial block stays last
-    shares = [[] for _ in range(threads)]
-    turn = list(range(threads)) + list(range(threads - 1, -1, -1))
-    k = 0
-    for blk in range(full):
-        while True:
-            t = turn[k % len(turn)]
-            k += 1
-            if len(shares[t]) < share[t]:
-                break
-        shares[t].append(blk)
-    order = [b for s in shares for b in s]
-    blocks = chunk[:full * LANES].reshape(full, LANES)[order].reshape(-1)
-    return np.concatenate([blocks, chunk[full * LANES:]])
+    yield from chunks.split(group, per_chain, blocked, observe)
 
 
 def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt, radii=None,
@@ -576,15 +529,15 @@ def _wall_static(terms: Terms) -> float:
 def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V_parts,
                 E_parts, observe=False, sample_dt=0.0, wall_static=0.0):
     kern = backend.kernels(serial=gaps.shape[0] == 1)
-    """Fixed-step methods: the chains in blocks of LANES (consecutive chains share a block,
-    the last block padded with lanes at rest that record nothing), stepped in lockstep by
+    """Fixed-step methods: the chains in blocks of ``chunks.LANES`` (consecutive chains
+    share a block, the last block padded with lanes at rest that record nothing), stepped in lockstep by
     ``kernels.run_blocks``. Returns each chain's final state, time, steps and status, and
     the ``_Observed`` arrays (with ``observe``: the on-the-fly observables and NS, each
     chain's sample count; otherwise the records go to V_parts, E_parts)."""
     B, ny = Y0.shape
     ng = gaps.shape[1]
     n = int(P[codes.P_N_SPHERES])
-    Lb = LANES
+    Lb = chunks.LANES
     nblk = -(-B // Lb)
     Bp = nblk * Lb
     Yp = np.zeros((Bp, ny))
