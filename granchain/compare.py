@@ -29,10 +29,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .costmodel import resolve_auto
 from .effects import residual_work
 from .errors import GranchainError
 from .observables import OK_STATUSES, status_text, summarize
+from .plan import plan_run
 from .stoprule import arrival_speed
 from .scene import Scene
 from .trajectory import ENERGY_COLUMNS
@@ -111,7 +111,7 @@ def comparison_scene(scene: Scene) -> Scene:
     A scene with method auto is resolved first (its step is the one compared)."""
     from .lammps.deck import plan
     from .gaps import member_gaps, members
-    scene = resolve_auto(scene)
+    scene = plan_run(scene).scene
     mem = members(scene)
     pl = plan(scene, gaps=member_gaps(scene, mem), v_striker=[m.v_striker for m in mem])
     return scene.derive(**{"integrator.method": "verlet", "output.sample_dt": pl.sample_dt})
@@ -134,7 +134,7 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
     from .engines import reference
     from .gaps import member_gaps, member_radii, members
 
-    scene = resolve_auto(scene)
+    scene = plan_run(scene).scene
     cs = comparison_scene(scene)
     mem = members(cs)
     if not mem:

@@ -546,7 +546,7 @@ def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: in
     designed realisations (``gapdesign.design`` with ``emphasis``; 0: the gap law's own
     draws, weight 1 each). ``progress``: a bar of the chains still to simulate on stderr
     (``granchain.progress``; None: when stderr is a terminal)."""
-    from .costmodel import resolve_auto
+    from .plan import plan_run
     from .progress import bar
     from .simulate import run_scene
     check_base(base)
@@ -566,7 +566,7 @@ def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: in
     out = {c: np.full((gaps.size, speeds.size, realisations), np.nan) for c in TIMING_COLUMNS}
     hashes, simulated, todo = [], 0, []
     for k, g in enumerate(gaps):
-        scene = resolve_auto(grid_scene(base, g, realisations))
+        scene = plan_run(grid_scene(base, g, realisations)).scene
         hashes.append(scene.hash)
         path = _cache_file(cache_dir, scene, designed.tag) if cache_dir is not None else None
         if path is not None and path.exists():
@@ -598,12 +598,12 @@ def simulate_rows(base: Scene, gap_mean: float, speeds, realisations,
     """Simulated timings (s) of chains of the base scene at mean gap ``gap_mean`` (m), one
     per (speed, realisation) pair: synthetic measurements (realisations drawn with the
     base scene's ``gaps.seed``; give another seed for chains the grid never saw)."""
-    from .costmodel import resolve_auto
+    from .plan import plan_run
     from .observables import summarize
     from .simulate import trajectories
     speeds = [float(v) for v in speeds]
-    scene = resolve_auto(base.derive({"gaps": {"mean": float(gap_mean)},
-                                      "striker": {"velocity": sorted(set(speeds))}}))
+    scene = plan_run(base.derive({"gaps": {"mean": float(gap_mean)},
+                                  "striker": {"velocity": sorted(set(speeds))}})).scene
     mem = [Member(i, v, int(r)) for i, (v, r) in enumerate(zip(speeds, realisations))]
     out = np.empty(len(mem))
     for m, traj in trajectories(scene, mem, engine):
@@ -1002,7 +1002,7 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
     e_points)`` x the base scene's speeds x ``realisations`` designed realisations (module
     doc). ``progress`` and ``emphasis`` as :func:`simulate_grid`."""
     import time
-    from .costmodel import resolve_auto
+    from .plan import plan_run
     from .progress import bar
     from .simulate import run_scene
     check_base(base)
@@ -1021,7 +1021,7 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
     t0 = time.perf_counter()
     for k, g in enumerate(gaps):
         for j, e in enumerate(es):
-            scene = resolve_auto(joint_scene(base, g, e, realisations))
+            scene = plan_run(joint_scene(base, g, e, realisations)).scene
             hashes.append(scene.hash)
             path = (_joint_cache_file(cache_dir, scene, designed.tag) if cache_dir is not None
                     else None)
@@ -1058,14 +1058,14 @@ def simulate_joint_rows(base: Scene, gap_mean: float, e: float | None, speeds, r
     at mean gap ``gap_mean`` (m) and restitution ``e`` (None: the base scene's damping as
     it is, e.g. another law), one per (speed, realisation) pair: synthetic measurements
     (give the base scene another ``gaps.seed`` for chains the grid never saw)."""
-    from .costmodel import resolve_auto
+    from .plan import plan_run
     from .observables import summarize
     from .simulate import trajectories
     speeds = [float(v) for v in speeds]
     change = {"gaps": {"mean": float(gap_mean)}, "striker": {"velocity": sorted(set(speeds))}}
     if e is not None:
         change["damping"] = {"e": float(e)}
-    scene = resolve_auto(base.derive(change))
+    scene = plan_run(base.derive(change)).scene
     mem = [Member(i, v, int(r)) for i, (v, r) in enumerate(zip(speeds, realisations))]
     out = np.empty((len(mem), 3))
     for m, traj in trajectories(scene, mem, engine):

@@ -8,20 +8,44 @@ estimate) and physics warnings. ``simulate.run_scene`` runs from it (cost guard,
 warnings), the workflow's batches balance and time their jobs with it, and auto's choice
 reads its durations and sample intervals.
 
+Method auto is chosen here and nowhere else: :func:`auto_setting` gives the setting of the
+scene's class whose v_g error (``AUTO_OBSERVABLE``: arrival-time v_g on gapped chains)
+meets ``integrator.tolerance`` with a margin (``AUTO_SAFETY``), and keeps meeting it at
+every finer setting of its method (the envelope: a lucky cancellation at a coarse step is
+never taken for accuracy), at the least wall time on this scene: the measured wall time
+times the scene's work over the measurement's (``costmodel.chain_work``; a slow striker
+over wide gaps multiplies the fixed-step cost, not the event method's). A run plans it
+once, with the rest of its plan; the scene that runs is ``plan_run(scene).scene``.
+
 numpy only (no numba, scipy or engine), like the modules it draws on: ``stoprule``
-(sampling, duration, steps), ``costmodel`` (auto, wall time), ``guards`` (warnings).
+(sampling, duration, steps), ``costmodel`` (the cost model, wall time), ``guards``
+(warnings).
 """
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 
 from . import costmodel
+from .errors import SceneError
 from .guards import physics_warnings
 from .scene import TOLERANCE_METHODS, Scene
 from .stoprule import expected_duration, sample_interval
-from .costmodel import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, check_cost, cost_estimate
+from .costmodel import (DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, SCENE_METHODS, CostModel,
+                        check_cost, cost_estimate, fixed_step, load_model, scene_class,
+                        work_ratio)
 
 ENGINES = ("reference", "lammps")
+# method auto takes the cheapest setting whose measured error is <= tolerance / AUTO_SAFETY:
+# on other scenes (316 and 440C, 0.03-0.5 m/s, packed and 10-190 nm gaps) the error of a
+# setting at the same N was up to 2.3x the model's (docs/explanation/physics.md, "What
+# accuracy costs in time").
+AUTO_SAFETY = 4.0
+# the observable whose error auto bounds, per scene class: the peak-time v_g of a packed
+# chain; the arrival-time v_g (half-peak crossings) of a gapped one, whose probes often
+# peak on a flight plateau where the peak time is set to a few 1e-5 by the sample grid
+AUTO_OBSERVABLE = {"packed": "v_g", "gapped": "v_g_front"}
 
 
 @dataclass(frozen=True)
@@ -49,7 +73,7 @@ class SpeedPlan:
 class RunPlan:
     """The plan of one scene's run. ``scene``: the scene that runs (method auto
     resolved, one setting for every striker speed); ``auto``: auto's choice as text
-    (``costmodel.describe_auto``), "" unless the scene asked for auto; ``scene_class``:
+    (:func:`describe_auto`), "" unless the scene asked for auto; ``scene_class``:
     the cost model's class (packed, gapped); ``speeds``: one :class:`SpeedPlan` per
     striker speed, in the scene's order.
 
@@ -118,7 +142,7 @@ class RunPlan:
                    estimates=[sp.estimate() for sp in self.speeds])
 
 
-def plan_run(scene: Scene | RunPlan, model: costmodel.CostModel | None = None) -> RunPlan:
+def plan_run(scene: Scene | RunPlan, model: CostModel | None = None) -> RunPlan:
     """The run plan of ``scene`` (a plan is returned as it is). Each striker speed's
     sample interval and expected duration are computed once (neither depends on the
     integrator); auto's choice reads them; the steps, record, wall time and warnings
@@ -131,16 +155,16 @@ def plan_run(scene: Scene | RunPlan, model: costmodel.CostModel | None = None) -
     auto = ""
     own: dict[float, Scene] = {}
     if scene.method == "auto":
-        model = model or costmodel.load_model()
-        setting = costmodel.auto_setting(scene, model, durations=dur, sample_dts=sdt)
-        whole = costmodel.apply_auto(scene, setting)
+        model = model or load_model()
+        setting = auto_setting(scene, model, durations=dur, sample_dts=sdt)
+        whole = apply_auto(scene, setting)
         if len(set(vs)) > 1:
             own = _auto_per_speed(scene, whole, model, dur, sdt)
         scene = whole
-        auto = costmodel.describe_auto(scene)
+        auto = describe_auto(scene)
         if own:
             auto += "; per striker speed: " + ", ".join(
-                f"{v:g} m/s {costmodel.describe_auto(own[v]).split('-> ', 1)[1]}"
+                f"{v:g} m/s {describe_auto(own[v]).split('-> ', 1)[1]}"
                 for v in dict.fromkeys(vs))
     speeds = []
     for v in vs:
@@ -154,7 +178,7 @@ def plan_run(scene: Scene | RunPlan, model: costmodel.CostModel | None = None) -
                                          steps=lc["steps"]))
         speeds.append(SpeedPlan(sc, v, sdt[v], dur[v], c["steps"], c["samples"],
                                 c["record_bytes"], secs, tuple(physics_warnings(sc, v))))
-    return RunPlan(scene, auto, costmodel.scene_class(scene), tuple(speeds))
+    return RunPlan(scene, auto, scene_class(scene), tuple(speeds))
 
 
 def _auto_per_speed(scene: Scene, whole: Scene, model, dur, sdt) -> dict[float, Scene]:
@@ -168,10 +192,106 @@ def _auto_per_speed(scene: Scene, whole: Scene, model, dur, sdt) -> dict[float, 
         if v <= 0:
             continue
         alone = scene.derive(**{"striker.velocity": v})
-        pick = costmodel.auto_setting(alone, model, durations={v: dur[v]},
-                                      sample_dts={v: sdt[v]})
-        own[v] = costmodel.apply_auto(alone, pick)
+        pick = auto_setting(alone, model, durations={v: dur[v]}, sample_dts={v: sdt[v]})
+        own[v] = apply_auto(alone, pick)
     if all(o.method == whole.method and o.dt == whole.dt and o.tolerance == whole.tolerance
            for o in own.values()):
         return {}
     return own
+
+
+# ---------------------------------------------------------------------------------------
+# method auto: the setting it chooses from the cost model
+# ---------------------------------------------------------------------------------------
+def _round_up(x: float) -> float:
+    """x rounded up to two significant digits (a bound that prints as what it is)."""
+    if not (x > 0 and math.isfinite(x)):
+        return x
+    e = math.floor(math.log10(x)) - 1
+    return math.ceil(round(x / 10.0**e, 9)) * 10.0**e
+
+
+def auto_setting(scene: Scene, model: CostModel | None = None, *,
+                 durations: dict | None = None, sample_dts: dict | None = None
+                 ) -> tuple[str, float, float | None]:
+    """(method, dt, tolerance) of the cheapest setting meeting ``scene.tolerance`` on v_g
+    (``AUTO_OBSERVABLE`` of the scene's class) with a margin: its measured error
+    (envelope) is <= tolerance / AUTO_SAFETY. Cheapest on this scene: measured wall time
+    times ``costmodel.work_ratio`` (the cost ``costmodel.member_seconds`` gives the scene
+    at that setting, summed over its striker speeds). The event method is offered only on
+    chains no longer than the model measured it on (its step count grows faster than n).
+
+    Pure: reads only the scene and the cost model (rows of the scene's class, packed or
+    gapped). dt = ``costmodel.fixed_step(scene, N)``, as in the measurement, so that the
+    samples fall on the reference's. With several sample intervals (a sweep of striker
+    speeds at auto sampling) that cannot hold for every member, so when the target is
+    below the measured misalignment floor only the tolerance methods are used. They keep
+    the scene's dt as their first step and get the model's tolerance as their rtol.
+    ``durations`` and ``sample_dts`` (striker speed -> ``stoprule.expected_duration``,
+    ``stoprule.sample_interval``): the run plan's, if already computed
+    (:func:`plan_run`)."""
+    model = model or load_model()
+    tol = float(scene.tolerance)
+    target = tol / AUTO_SAFETY
+    cls = scene_class(scene)
+    obs = AUTO_OBSERVABLE[cls]
+    lo = _round_up(AUTO_SAFETY * model.achievable(obs, scene_class=cls))
+    if tol < lo:
+        raise SceneError("integrator.tolerance",
+                         f"{tol:g} is tighter than method auto can deliver on {obs} "
+                         f"({cls} chains: {lo:.2g} to 0.1, granchain/data/cost_model.csv)",
+                         f"give a tolerance in [{lo:.2g}, 0.1], or choose method adaptive "
+                         "with its own tolerance")
+    vs = [v for v in scene.striker_velocities if v > 0]
+    sdt = sample_dts or {v: sample_interval(scene, v) for v in vs}
+    methods = list(SCENE_METHODS)
+    if (len({sdt[v] for v in vs}) > 1
+            and target < float(model.provenance["sampling_floor_v_g"][cls])):
+        methods = list(TOLERANCE_METHODS)
+    if scene.n > model.event_max_n() or scene.wall is not None:
+        # not measured on chains this long; an end wall is not an event the method locates
+        methods = [m for m in methods if m != "event"]
+    pick = model.cheapest(target, obs, methods=methods, scene_class=cls,
+                          work=work_ratio(scene, model, cls, durations))
+    if pick is None:
+        raise SceneError("integrator.tolerance", f"{tol:g}: no setting of the cost model meets it",
+                         f"give a tolerance in [{lo:.2g}, 0.1]")
+    if pick["method"] in TOLERANCE_METHODS:
+        return pick["method"], scene.dt, pick["tolerance"]
+    if not vs:                                   # nothing moves: any step will do
+        return pick["method"], scene.dt, None
+    return pick["method"], fixed_step(scene, pick["steps_per_contact"]), None
+
+
+def apply_auto(scene: Scene, setting: tuple[str, float, float | None]) -> Scene:
+    """The scene of method auto with ``setting`` ((method, dt, tolerance) of
+    :func:`auto_setting`) in its spec, hence in its hash, and the requested tolerance as
+    ``auto_tolerance``, checked like any scene with that setting (the step guard,
+    sample_dt >= dt). A dt the scene file gave is refused when auto chooses a fixed step
+    of its own."""
+    m, dt, rtol = setting
+    if "integrator.dt" in scene.given and m not in TOLERANCE_METHODS:
+        raise SceneError("integrator.dt", f"has no effect: method auto chose {m} with its "
+                         f"own step ({dt:.3g} s) for tolerance {scene.tolerance:g}",
+                         "drop dt, or choose method rk4 or verlet to set the step")
+    resolved = scene.derive({"integrator": {"method": m, "dt": dt, "tolerance": rtol}})
+    return dataclasses.replace(resolved, auto_tolerance=scene.tolerance, given=scene.given)
+
+
+def resolve_auto(scene: Scene, model: CostModel | None = None) -> Scene:
+    """Auto's one setting for every striker speed, without the rest of a plan: ``scene``
+    itself unless its method is auto; else :func:`apply_auto` of :func:`auto_setting`
+    (what :func:`plan_run` gives as its ``scene``; the package plans a run with
+    :func:`plan_run`)."""
+    if scene.method != "auto":
+        return scene
+    return apply_auto(scene, auto_setting(scene, model))
+
+
+def describe_auto(scene: Scene) -> str:
+    """'auto (tolerance 0.0001) -> rk4, dt 1.23e-09 s' for a resolved auto scene."""
+    if scene.auto_tolerance is None:
+        return scene.method
+    how = (f"tolerance {scene.tolerance:g}" if scene.method in TOLERANCE_METHODS
+           else f"dt {scene.dt:.6g} s")
+    return f"auto (tolerance {scene.auto_tolerance:g}) -> {scene.method}, {how}"

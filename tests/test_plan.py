@@ -7,6 +7,7 @@ import math
 import pytest
 
 from granchain import costmodel, stoprule
+from granchain import plan as plan_mod
 from granchain import workflow as gw
 from granchain.errors import GranchainError
 from granchain.plan import plan_run
@@ -31,8 +32,8 @@ def test_plan_resolves_auto_as_resolve_auto_does():
     for tol in (1e-3, 1e-4, 1e-5):
         raw = _scene(tolerance=tol)
         p = plan_run(raw)
-        assert p.scene.hash == costmodel.resolve_auto(raw).hash
-        assert p.auto.startswith(costmodel.describe_auto(p.scene) + "; per striker speed: 0.05 m/s ")
+        assert p.scene.hash == plan_mod.resolve_auto(raw).hash
+        assert p.auto.startswith(plan_mod.describe_auto(p.scene) + "; per striker speed: 0.05 m/s ")
     rk4 = _scene("rk4", dt=1e-9)
     assert plan_run(rk4).scene is rk4 and plan_run(rk4).auto == ""
     p = plan_run(rk4)
@@ -120,10 +121,9 @@ def test_run_scene_plans_once(monkeypatch):
     """run_scene of an auto scene asks the cost model for auto's settings once (the
     sweep's, and each speed's) and computes each striker speed's sampling and duration once (the engine aside); given a plan, not
     at all."""
-    from granchain import plan as plan_mod
     from granchain import simulate
     calls = {"auto": 0, "dur": 0}
-    real_auto, real_dur = costmodel.auto_setting, plan_mod.expected_duration
+    real_auto, real_dur = plan_mod.auto_setting, plan_mod.expected_duration
 
     def auto(*a, **k):
         calls["auto"] += 1
@@ -133,7 +133,7 @@ def test_run_scene_plans_once(monkeypatch):
         calls["dur"] += 1
         return real_dur(*a, **k)
 
-    monkeypatch.setattr(costmodel, "auto_setting", auto)
+    monkeypatch.setattr(plan_mod, "auto_setting", auto)
     monkeypatch.setattr(plan_mod, "expected_duration", dur)
 
     def fake_trajectories(scene, mem, engine="reference", **kw):
@@ -196,14 +196,14 @@ def test_auto_chooses_per_striker_speed():
     assert "per striker speed: 0.01 m/s event" in p.auto
     # each speed's setting is auto's own choice for that speed alone
     for v, own in ((0.01, slow), (1.0, fast)):
-        alone = costmodel.resolve_auto(sc.derive(**{"striker.velocity": v}))
+        alone = plan_mod.resolve_auto(sc.derive(**{"striker.velocity": v}))
         assert (own.method, own.dt, own.tolerance) == (alone.method, alone.dt, alone.tolerance)
     res = simulate.run_scene(p)
     assert [r.member for r in res] == list(range(4))
     assert sorted((r.v_striker, r.method) for r in res) == [
         (0.01, "event"), (0.01, "event"), (1.0, fast.method), (1.0, fast.method)]
     for v in (0.01, 1.0):
-        alone = simulate.run_scene(costmodel.resolve_auto(sc.derive(**{"striker.velocity": v})))
+        alone = simulate.run_scene(plan_mod.resolve_auto(sc.derive(**{"striker.velocity": v})))
         assert [r.v_max for r in res if r.v_striker == v] == [r.v_max for r in alone]
         assert [r.realisation for r in res if r.v_striker == v] == [0, 1]
     # LAMMPS runs the plan's one setting: its estimate is that setting's, per speed
