@@ -2,11 +2,17 @@
 
 :func:`plan_run` takes a scene (method auto or not) and returns one frozen
 :class:`RunPlan`: the scene that runs (auto's choice from the packaged cost model), and
-per striker speed its sample interval, expected duration, integration steps, sample
-record, estimated wall time (``costmodel.member_seconds``, the one per-member cost
-estimate) and physics warnings. ``simulate.run_scene`` runs from it (cost guard,
-warnings), the workflow's batches balance and time their jobs with it, and auto's choice
-reads its durations and sample intervals.
+per striker speed (:class:`SpeedPlan`) its sample interval, expected duration, sample
+count, integration steps, sample record, estimated wall time (``costmodel.member_seconds``,
+the one per-member cost estimate) and physics warnings. ``simulate.run_scene`` runs from it
+(cost guard, warnings), the workflow's batches balance and time their jobs with it, and
+auto's choice reads its durations and sample intervals.
+
+Both engines take their sampling and run length from it and compute neither themselves:
+the reference engine each chain's sample interval (:attr:`SpeedPlan.sample_dt`, on a fixed
+step :func:`step_grid`) and sample count (:meth:`SpeedPlan.sample_count`), and the
+expected durations that size its chunks; the LAMMPS deck its cadence and run length
+(``lammps.plan.plan``).
 
 Method auto is chosen here and nowhere else: :func:`auto_setting` gives the setting of the
 scene's class whose v_g error (``AUTO_OBSERVABLE``: arrival-time v_g on gapped chains)
@@ -18,8 +24,8 @@ over wide gaps multiplies the fixed-step cost, not the event method's). A run pl
 once, with the rest of its plan; the scene that runs is ``plan_run(scene).scene``.
 
 numpy only (no numba, scipy or engine), like the modules it draws on: ``stoprule``
-(sampling, duration, steps), ``costmodel`` (the cost model, wall time), ``guards``
-(warnings).
+(sampling, duration, the time cap), ``costmodel`` (the cost model, steps, wall time),
+``guards`` (warnings).
 """
 from __future__ import annotations
 
@@ -31,7 +37,7 @@ from . import costmodel
 from .errors import SceneError
 from .guards import physics_warnings
 from .scene import TOLERANCE_METHODS, Scene
-from .stoprule import expected_duration, sample_interval
+from .stoprule import auto_t_max, expected_duration, sample_interval
 from .costmodel import (DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, SCENE_METHODS, CostModel,
                         check_cost, cost_estimate, fixed_step, load_model, scene_class,
                         work_ratio)
@@ -48,17 +54,27 @@ AUTO_SAFETY = 4.0
 AUTO_OBSERVABLE = {"packed": "v_g", "gapped": "v_g_front"}
 
 
+def step_grid(sample_dt: float, dt: float) -> tuple[int, float]:
+    """(every, interval) of a sample grid on a fixed step ``dt``: a sample every ``every``
+    steps (the whole number of steps nearest ``sample_dt``, at least one), which are
+    ``every * dt`` s apart (the reference engine's fixed-step methods, the LAMMPS deck)."""
+    every = max(1, int(round(sample_dt / dt)))
+    return every, every * dt
+
+
 @dataclass(frozen=True)
 class SpeedPlan:
     """One striker speed of a run plan: what one chain (member) at that speed needs.
     ``scene``: the scene its chains run with on the reference engine (under method auto,
-    the setting chosen for this speed alone)."""
+    the setting chosen for this speed alone). The engines read its sample interval,
+    duration (sizing the reference engine's chunks), :meth:`run_length` and
+    :meth:`sample_count`."""
     scene: Scene
     v_striker: float
     sample_dt: float            # s, stoprule.sample_interval
     duration_s: float           # simulated time, stoprule.expected_duration
     steps: float                # integration steps (costmodel.cost_estimate)
-    samples: float
+    samples: float              # expected samples, t = 0 included (costmodel.cost_estimate)
     record_bytes: float         # its sample record
     seconds: tuple[float, ...]  # estimated wall time of one chain, per engine (ENGINES)
     warnings: tuple[str, ...]   # guards.physics_warnings
@@ -68,6 +84,27 @@ class SpeedPlan:
         return {"duration_s": self.duration_s, "steps": self.steps, "samples": self.samples,
                 "record_bytes": self.record_bytes}
 
+    def run_length(self, gaps) -> float:
+        """Simulated time (s) a chain at this speed with ``gaps`` (its n-1 gaps, m) runs
+        at most: the scene's t_end or, with t_end auto, the stop rule's cap
+        (``stoprule.auto_t_max``; 0 for a striker at rest)."""
+        if self.scene.t_end is not None:
+            return self.scene.t_end
+        if not self.v_striker > 0:
+            return 0.0
+        return auto_t_max(self.scene, gaps, self.v_striker)
+
+    def sample_count(self, gaps, sample_dt: float) -> int:
+        """Samples (t = 0 included) of a chain with ``gaps`` on a grid of ``sample_dt``
+        (s): its :meth:`run_length` over ``sample_dt``, rounded up, plus one. With t_end
+        auto that is the cap, where the chain stops unless the wave has left it first;
+        a striker at rest keeps its initial sample only."""
+        if self.scene.t_end is not None:
+            return int(math.ceil(self.scene.t_end / sample_dt - 1e-9)) + 1
+        if not self.v_striker > 0:
+            return 1
+        return int(math.ceil(self.run_length(gaps) / sample_dt)) + 1
+
 
 @dataclass(frozen=True)
 class RunPlan:
@@ -75,7 +112,8 @@ class RunPlan:
     resolved, one setting for every striker speed); ``auto``: auto's choice as text
     (:func:`describe_auto`), "" unless the scene asked for auto; ``scene_class``:
     the cost model's class (packed, gapped); ``speeds``: one :class:`SpeedPlan` per
-    striker speed, in the scene's order.
+    striker speed, in the scene's order; ``model``: the cost model it was planned with
+    (None: the packaged one).
 
     Under method auto each striker speed gets the cheapest setting for itself
     (``SpeedPlan.scene``), which the reference engine runs: a sweep may run its slow
@@ -86,6 +124,7 @@ class RunPlan:
     auto: str
     scene_class: str
     speeds: tuple[SpeedPlan, ...]
+    model: CostModel | None = dataclasses.field(default=None, compare=False, repr=False)
 
     @property
     def method(self) -> str:
@@ -106,6 +145,17 @@ class RunPlan:
                 return sp
         raise KeyError(f"scene '{self.scene.name}' has no striker speed {v:g} m/s")
 
+    def speed(self, v: float) -> SpeedPlan:
+        """The plan of striker speed ``v`` for an engine: the scene's own (:meth:`at`) or,
+        for a speed the scene lacks (an engine given other speeds), one planned here for
+        ``scene`` at ``v``."""
+        v = float(v)
+        for sp in self.speeds:
+            if sp.v_striker == v:
+                return sp
+        return _speed_plan(self.scene, self.scene, v, sample_interval(self.scene, v),
+                           expected_duration(self.scene, v), self.model)
+
     @property
     def per_speed(self) -> bool:
         return any(sp.scene is not self.scene for sp in self.speeds)
@@ -114,12 +164,6 @@ class RunPlan:
     def warnings(self) -> list[str]:
         """Warnings of every striker speed, in order, without repeats."""
         return list(dict.fromkeys(w for sp in self.speeds for w in sp.warnings))
-
-    @property
-    def sampling(self) -> dict[float, tuple[float, float]]:
-        """Striker speed -> (sample interval, expected duration) s, as the engines take
-        it (``engines.reference.run``'s ``sampling``)."""
-        return {sp.v_striker: (sp.sample_dt, sp.duration_s) for sp in self.speeds}
 
     def member_seconds(self, engine: str = "reference") -> float:
         """Estimated wall time (s) of one realisation: every striker speed's chain."""
@@ -166,19 +210,25 @@ def plan_run(scene: Scene | RunPlan, model: CostModel | None = None) -> RunPlan:
             auto += "; per striker speed: " + ", ".join(
                 f"{v:g} m/s {describe_auto(own[v]).split('-> ', 1)[1]}"
                 for v in dict.fromkeys(vs))
-    speeds = []
-    for v in vs:
-        sc = own.get(v, scene)
-        c = cost_estimate(sc, v, duration=dur[v], sample_dt=sdt[v])
-        # LAMMPS runs the plan's one setting for every speed
-        lc = c if sc is scene else cost_estimate(scene, v, duration=dur[v], sample_dt=sdt[v])
-        secs = (costmodel.member_seconds(sc, v, "reference", model, duration=dur[v],
-                                         steps=c["steps"]),
-                costmodel.member_seconds(scene, v, "lammps", model, duration=dur[v],
-                                         steps=lc["steps"]))
-        speeds.append(SpeedPlan(sc, v, sdt[v], dur[v], c["steps"], c["samples"],
-                                c["record_bytes"], secs, tuple(physics_warnings(sc, v))))
-    return RunPlan(scene, auto, scene_class(scene), tuple(speeds))
+    speeds = tuple(_speed_plan(scene, own.get(v, scene), v, sdt[v], dur[v], model)
+                   for v in vs)
+    return RunPlan(scene, auto, scene_class(scene), speeds, model)
+
+
+def _speed_plan(scene: Scene, sc: Scene, v: float, sdt: float, dur: float,
+                model: CostModel | None) -> SpeedPlan:
+    """The plan of striker speed ``v`` whose chains run ``sc`` on the reference engine
+    and ``scene`` (the plan's one setting) on LAMMPS; ``sdt``, ``dur``: its sample
+    interval and expected duration."""
+    c = cost_estimate(sc, v, duration=dur, sample_dt=sdt)
+    # LAMMPS runs the plan's one setting for every speed
+    lc = c if sc is scene else cost_estimate(scene, v, duration=dur, sample_dt=sdt)
+    secs = (costmodel.member_seconds(sc, v, "reference", model, duration=dur,
+                                     steps=c["steps"]),
+            costmodel.member_seconds(scene, v, "lammps", model, duration=dur,
+                                     steps=lc["steps"]))
+    return SpeedPlan(sc, v, sdt, dur, c["steps"], c["samples"], c["record_bytes"], secs,
+                     tuple(physics_warnings(sc, v)))
 
 
 def _auto_per_speed(scene: Scene, whole: Scene, model, dur, sdt) -> dict[float, Scene]:
