@@ -85,8 +85,8 @@ def make_trials(base, sets, n_trials: int, rows: tuple[int, int], joint: bool,
     pats = patterns(base.n, 20000)
     keys = key_contacts(base)
     rare = [r for r in range(len(pats)) if np.min(pats[r, list(keys)]) < STRESS_BELOW]
-    plain = iter(range(len(pats)))
-    rare_it = iter(rare)
+    plain = iter(rng.permutation(len(pats)).tolist())   # the seed picks the chains too
+    rare_it = iter(rng.permutation(rare).tolist())
     out = []
     for name in sets:
         for k in range(n_trials):
@@ -221,11 +221,14 @@ def main() -> None:
     ap.add_argument("--emphasis", type=float, nargs="+", default=[0.5, 0.0])
     ap.add_argument("--truth", default="reference", choices=["reference", "independent"])
     ap.add_argument("--speeds", type=float, nargs="+", default=SPEEDS)
-    ap.add_argument("--realisations", type=int, default=64)
-    ap.add_argument("--gap-points", type=int, default=None,
-                    help="default: the command's (21 joint, 26 gap-only)")
+    ap.add_argument("--realisations", type=int, default=inference.REALISATIONS)
+    ap.add_argument("--gap-points", type=int, default=inference.GAP_POINTS,
+                    help="mean gaps from 0 to the command's largest (default: the command's)")
     ap.add_argument("--e-points", type=int, default=inference.E_POINTS)
     ap.add_argument("--cache-dir", default=None)
+    ap.add_argument("--seed", type=int, default=7, help="the experiments' seed; each material "
+                    "adds its position in --materials, so the materials' rows are independent "
+                    "samples (the Hertz chain is scale-free: shared draws would repeat one)")
     ap.add_argument("--out", default=None, help="also write every experiment's outcome "
                     "(JSON lines: fit, material, design, set, coverage, width, p-value)")
     ap.add_argument("--cost", type=int, default=0, metavar="REPEATS",
@@ -238,9 +241,9 @@ def main() -> None:
     out = open(a.out, "w") if a.out else None
     for fit in a.fits:
         joint = fit == "joint"
-        for material in a.materials:
+        for k, material in enumerate(a.materials):
             base = base_scene(material, fit, a.truth, a.speeds)
-            trials = make_trials(base, a.sets, a.trials, tuple(a.rows), joint)
+            trials = make_trials(base, a.sets, a.trials, tuple(a.rows), joint, seed=a.seed + k)
             t0 = time.perf_counter()
             truths = [truth_rows(base, tr, joint, a.truth) for tr in trials]
             print(f"\n{fit} fit, {material}: {len(trials)} experiments, truths from "
@@ -249,10 +252,10 @@ def main() -> None:
                 t0 = time.perf_counter()
                 if joint:
                     grid = inference.simulate_joint_grid(
-                        base, 500e-9, a.gap_points or 21, inference.E_MIN, a.e_points,
+                        base, inference.GAP_MAX, a.gap_points, inference.E_MIN, a.e_points,
                         a.realisations, a.cache_dir, emphasis=em)
                 else:
-                    grid = inference.simulate_grid(base, 250e-9, a.gap_points or 26,
+                    grid = inference.simulate_grid(base, inference.GAP_MAX, a.gap_points,
                                                    a.realisations, a.cache_dir, emphasis=em)
                 t_grid = time.perf_counter() - t0
                 res, t_inf = [], []

@@ -99,14 +99,14 @@ def timed(owner, name, key):
     setattr(owner, name, w)
 
 import granchain.cli as cli
-from granchain import plan, simulate
+from granchain import runplan, simulate
 from granchain.engines import backend
 T1 = time.perf_counter()
 acc["imports"] = T1 - T0
 for name in ("load", "check_cost", "run_estimate", "check_whole_run"):
     timed(cli, name, "planning")
 timed(simulate, "plan_run", "planning")
-timed(plan.RunPlan, "check", "planning")
+timed(runplan.RunPlan, "check", "planning")
 timed(simulate, "run_scene", "engine around the kernel")
 timed(simulate, "summarize", "summarise")
 timed(cli, "cmd_run", "output")

@@ -39,7 +39,7 @@ def _workdir_files(args) -> list:
     """(--workdir, path) of every file the LAMMPS engine writes into a kept --workdir."""
     if not getattr(args, "workdir", None):
         return []
-    from .lammps.plan import WORKDIR_FILES
+    from .lammps.deckplan import WORKDIR_FILES
     return [("--workdir", Path(args.workdir) / name) for name in WORKDIR_FILES]
 
 
@@ -135,12 +135,12 @@ def _residual_note(scene, r) -> str:
 
 def load(args):
     """The scene of a command's arguments, method auto resolved."""
-    from .plan import plan_run
+    from .runplan import plan_run
     return plan_run(load_scene(args.scene, args.set)).scene
 
 
 def cmd_validate(args) -> int:
-    from .plan import describe_auto, plan_run
+    from .runplan import describe_auto, plan_run
     plan = plan_run(load_scene(args.scene, args.set))
     scene = plan.scene
     print(f"{args.scene}: valid scene '{scene.name}' ({scene.hash}), {scene.n} particles, "
@@ -161,7 +161,7 @@ def check_whole_run(scene, args, est) -> None:
 
 
 def cmd_run(args) -> int:
-    from .plan import plan_run
+    from .runplan import plan_run
     from .simulate import run_scene
     check_paths(args, [("--out", args.out)])          # refuse before spending the compute
     # the run plan: method auto chooses per striker speed for the reference engine
@@ -373,7 +373,7 @@ def check_grid(base, args, src) -> None:
     inference itself refuses (too few points or realisations) are left to it. ``base``:
     the completed base scene, ``src`` its sources (``inference.complete_base``)."""
     from .inference import check_base, grid_scene
-    from .plan import plan_run
+    from .runplan import plan_run
     check_base(base)
     G, R = args.gap_points, args.realisations
     if G < 3 or R < 2 or min(base.striker_velocities) <= 0:
@@ -481,7 +481,7 @@ def check_joint_grid(base, args, src) -> None:
     realisations) is beyond the whole-run limits, as :func:`check_grid`."""
     from .errors import SceneError
     from .inference import check_joint_options, gap_nodes, joint_scene
-    from .plan import plan_run
+    from .runplan import plan_run
     check_joint_options(args.gap_max_nm * 1e-9, args.gap_points, args.e_min, args.e_points,
                         args.realisations)
     if min(base.striker_velocities) <= 0:
@@ -519,7 +519,7 @@ def cmd_infer(args) -> int:
     from .errors import SceneError
     from .inference import (check_restitution_base, complete_base, infer, parse_fit,
                             read_measurements)
-    from .plan import plan_run
+    from .runplan import plan_run
     fit = parse_fit(args.fit)
     check_paths(args, [("--out", args.out), ("--plot", args.plot)],
                 [("the measurement file", args.measurements)])
@@ -628,7 +628,7 @@ def _cost_args(sp) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .inference import E_MIN, E_POINTS
+    from .inference import E_MIN, E_POINTS, GAP_MAX, GAP_POINTS, REALISATIONS
     p = _Parser(prog="granchain", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
@@ -720,12 +720,12 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--force", action="store_true",
                     help="allow --out and --plot to replace an earlier infer JSON and image "
                          "(never an input)")
-    sp.add_argument("--gap-max-nm", type=_limit, default=500.0, metavar="NM",
-                    help="largest simulated mean gap in nm (default 500)")
-    sp.add_argument("--gap-points", type=int, default=21, metavar="N",
-                    help="simulated mean gaps from 0 to --gap-max-nm (default 21)")
-    sp.add_argument("--realisations", type=int, default=64, metavar="R",
-                    help="gap realisations per mean gap and speed (default 64)")
+    sp.add_argument("--gap-max-nm", type=_limit, default=GAP_MAX * 1e9, metavar="NM",
+                    help=f"largest simulated mean gap in nm (default {GAP_MAX * 1e9:g})")
+    sp.add_argument("--gap-points", type=int, default=GAP_POINTS, metavar="N",
+                    help=f"simulated mean gaps from 0 to --gap-max-nm (default {GAP_POINTS})")
+    sp.add_argument("--realisations", type=int, default=REALISATIONS, metavar="R",
+                    help=f"gap realisations per mean gap and speed (default {REALISATIONS})")
     sp.add_argument("--e-min", type=float, default=E_MIN, metavar="E",
                     help=f"--fit ...,restitution: smallest simulated e (default {E_MIN:g}; "
                          "the largest is 1)")

@@ -32,7 +32,7 @@ import numpy as np
 from .effects import residual_work
 from .errors import GranchainError
 from .observables import OK_STATUSES, status_text, summarize
-from .plan import plan_run
+from .runplan import plan_run
 from .stoprule import arrival_speed
 from .scene import Scene
 from .trajectory import ENERGY_COLUMNS

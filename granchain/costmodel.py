@@ -14,7 +14,7 @@ dt is stored as N steps per contact time: under Hertz scaling the error of a set
 given N transfers across striker speeds, materials and radii (the auto sample interval is
 a fixed fraction of the contact time t_c).
 
-Method auto's choice from the model, and the run plan around it, are ``granchain.plan``'s.
+Method auto's choice from the model, and the run plan around it, are ``granchain.runplan``'s.
 """
 from __future__ import annotations
 
@@ -284,7 +284,7 @@ def fixed_step(scene, steps_per_contact: int) -> float:
     grid). Under Hertz scaling sample_dt / t_c is the same for every scene (auto sampling:
     400 samples per solitary-wave width, t_c / 163), so a given N gives the same dt / t_c
     and the same sampling everywhere: the measurement and method auto
-    (``granchain.plan.auto_setting``) both use it."""
+    (``granchain.runplan.auto_setting``) both use it."""
     v = max(scene.striker_velocities)
     dt = scene.contact_time(v) / steps_per_contact
     sdt = sample_interval(scene, v)
@@ -420,7 +420,7 @@ def run_estimate(scene, realisations=None, engine: str = "reference", *,
     members; steps (integration steps, all members); worst_chain_steps; record_bytes
     (sample records held, :func:`holds_records`); result_bytes (per-member results);
     bytes (their sum); seconds (wall time on one core, :func:`member_seconds`). A run
-    plan (:meth:`granchain.plan.RunPlan.estimate`) gives the same from its own
+    plan (:meth:`granchain.runplan.RunPlan.estimate`) gives the same from its own
     estimates."""
     per_v = [cost_estimate(scene, v) for v in scene.striker_velocities]
     secs = [member_seconds(scene, v, engine, duration=c["duration_s"], steps=c["steps"])

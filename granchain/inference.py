@@ -203,6 +203,7 @@ CACHE_FORMAT = 1                          # bump when the cached arrays change m
 FINE_POINTS = 801                         # posterior evaluation points over [0, gap_max]
 EDGE_WEIGHT = 1e-2        # posterior density at gap_max, relative to its peak, that flags
 PRIOR = "scale"
+GAP_MAX, GAP_POINTS, REALISATIONS = 500e-9, 21, 64   # the grid of both fits (and the CLI)
 PRIOR_G0 = 2e-9
 SPEED_RTOL = 1e-9         # a row's speed may exceed the simulated range by this (rounding)
 PEAK_RTOL = 1e-3          # a peak may exceed what the striker can give by this (rounding,
@@ -546,7 +547,7 @@ def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: in
     designed realisations (``gapdesign.design`` with ``emphasis``; 0: the gap law's own
     draws, weight 1 each). ``progress``: a bar of the chains still to simulate on stderr
     (``granchain.progress``; None: when stderr is a terminal)."""
-    from .plan import plan_run
+    from .runplan import plan_run
     from .progress import bar
     from .simulate import run_scene
     check_base(base)
@@ -598,7 +599,7 @@ def simulate_rows(base: Scene, gap_mean: float, speeds, realisations,
     """Simulated timings (s) of chains of the base scene at mean gap ``gap_mean`` (m), one
     per (speed, realisation) pair: synthetic measurements (realisations drawn with the
     base scene's ``gaps.seed``; give another seed for chains the grid never saw)."""
-    from .plan import plan_run
+    from .runplan import plan_run
     from .observables import summarize
     from .simulate import trajectories
     speeds = [float(v) for v in speeds]
@@ -732,7 +733,8 @@ def kernel_log_density(X: np.ndarray, y: np.ndarray, var: np.ndarray,
     Xz = np.where(ok[..., None], X, 0.0)
     L = kernel_factor(Xz, w, weights, var)                                 # (P, d, d)
     resid = np.where(ok[..., None], y[None, None, :] - X, 0.0)             # (P, R, d)
-    Z = np.linalg.solve(L, np.swapaxes(resid, 1, 2))                       # (P, d, R)
+    # L^-1 once per point, then one batched product (a general solve would factor L again)
+    Z = np.matmul(np.linalg.inv(L), np.swapaxes(resid, 1, 2))            # (P, d, R)
     logdet = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
     lp = -0.5 * (Z * Z).sum(axis=1) - 0.5 * logdet[:, None] - 0.5 * d * math.log(2 * math.pi)
     lp = np.where(ok, lp, -np.inf)
@@ -850,8 +852,8 @@ def _eq54(T0: np.ndarray, speeds: np.ndarray, meas: Measurements, probes):
     return fit, float(np.min(rows)), rows
 
 
-def infer(base: Scene, meas: Measurements, *, gap_max: float = 250e-9, gap_points: int = 26,
-          realisations: int = 64, cache_dir=None, grid: Grid | None = None,
+def infer(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
+          gap_points: int = GAP_POINTS, realisations: int = REALISATIONS, cache_dir=None, grid: Grid | None = None,
           source: str = "", prior: str = PRIOR, progress: bool | None = None) -> Inference:
     """Infer the mean gap (module doc) from ``meas`` with the base scene's model, completed
     by :func:`complete_base`; a given ``grid`` is used as is (it must come from
@@ -1002,7 +1004,7 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
     e_points)`` x the base scene's speeds x ``realisations`` designed realisations (module
     doc). ``progress`` and ``emphasis`` as :func:`simulate_grid`."""
     import time
-    from .plan import plan_run
+    from .runplan import plan_run
     from .progress import bar
     from .simulate import run_scene
     check_base(base)
@@ -1058,7 +1060,7 @@ def simulate_joint_rows(base: Scene, gap_mean: float, e: float | None, speeds, r
     at mean gap ``gap_mean`` (m) and restitution ``e`` (None: the base scene's damping as
     it is, e.g. another law), one per (speed, realisation) pair: synthetic measurements
     (give the base scene another ``gaps.seed`` for chains the grid never saw)."""
-    from .plan import plan_run
+    from .runplan import plan_run
     from .observables import summarize
     from .simulate import trajectories
     speeds = [float(v) for v in speeds]
@@ -1431,9 +1433,9 @@ def predictive(grid: JointGrid, meas: Measurements, draws: np.ndarray,
     return tuple(rows), outside, 3 * len(meas)
 
 
-def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = 500e-9,
-                gap_points: int = 21, e_min: float = E_MIN, e_points: int = E_POINTS,
-                realisations: int = 64, cache_dir=None, grid: JointGrid | None = None,
+def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
+                gap_points: int = GAP_POINTS, e_min: float = E_MIN, e_points: int = E_POINTS,
+                realisations: int = REALISATIONS, cache_dir=None, grid: JointGrid | None = None,
                 source: str = "", prior: str = PRIOR,
                 progress: bool | None = None) -> JointInference:
     """Infer the mean gap and the coefficient of restitution together (module doc) from

@@ -80,7 +80,8 @@ def weighted_cov(X: np.ndarray, w: np.ndarray) -> np.ndarray:
     mean = (X * w[..., None]).sum(axis=1) / sw[:, None]
     D = np.where(w[..., None] > 0, X - mean[:, None, :], 0.0) * np.sqrt(w)[..., None]
     norm = sw - (w * w).sum(axis=1) / sw
-    return np.einsum("kri,krj->kij", D, D) / np.where(norm > 0, norm, 1.0)[:, None, None]
+    return (np.matmul(np.swapaxes(D, 1, 2), D)        # batched BLAS: faster than einsum
+            / np.where(norm > 0, norm, 1.0)[:, None, None])
 
 
 def effective_size(weights: np.ndarray) -> float:

@@ -1,7 +1,7 @@
 """Run a scene: its members (striker speed x gap realisation) through an engine.
 
 This is the one entry point the CLI and the workflow use:
-scene -> run plan (method auto resolved, cost guard, warnings: ``granchain.plan``, once)
+scene -> run plan (method auto resolved, cost guard, warnings: ``granchain.runplan``, once)
 -> physics terms -> engine -> trajectories -> observables.
 """
 from __future__ import annotations
@@ -16,7 +16,7 @@ from .errors import GranchainError
 from .gaps import Member, member_gaps, member_radii, members
 from .vibrometer import measure, needs_trace
 from .observables import ChainResult, bounded, summarize
-from .plan import RunPlan, plan_run
+from .runplan import RunPlan, plan_run
 from .costmodel import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS
 from .scene import Scene
 
@@ -84,7 +84,7 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
     """Observables of every member of the scene, one :class:`~granchain.observables.ChainResult`
     each, with its member fields set.
 
-    ``scene``: a scene or its run plan (``plan.plan_run``, built here from a scene, once).
+    ``scene``: a scene or its run plan (``runplan.plan_run``, built here from a scene, once).
     A scene with method auto runs with the setting its plan chose (each result's
     ``method`` and ``dt``). Before integrating, refuses (GranchainError) a scene whose
     chains need more than ``max_steps`` integration steps or ``max_memory_gb`` GB of

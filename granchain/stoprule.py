@@ -4,7 +4,7 @@ rule for both engines and the observables.
 Sampling: ``sample_interval`` (the scene's, or 400 samples per solitary-wave width).
 Run length: ``expected_duration`` (what a chain is expected to need) and ``auto_t_max``
 (the cap of a ``t_end: auto`` run). A run computes the sampling and the expected length
-once, in its run plan (``granchain.plan.RunPlan``).
+once, in its run plan (``granchain.runplan.RunPlan``).
 
 A particle has *seen the wave* once its velocity exceeds ``ARRIVAL_FRACTION * v_s``.
 Its peak velocity is *final* (a measured maximum, inside the run) when:

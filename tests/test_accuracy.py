@@ -1,5 +1,5 @@
 """What accuracy costs in time (granchain.accuracy) and
-integrator.method auto (granchain.costmodel, granchain.plan).
+integrator.method auto (granchain.costmodel, granchain.runplan).
 
 No timing assertions: wall times only rank settings; every check here is on errors,
 steps and settings."""
@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from granchain import accuracy, costmodel
-from granchain.plan import AUTO_OBSERVABLE, resolve_auto
+from granchain.runplan import AUTO_OBSERVABLE, resolve_auto
 from granchain.errors import GranchainError, SceneError
 from granchain.scene import TOLERANCE_METHODS, load_scene, scene_from_dict
 from granchain.simulate import run_scene

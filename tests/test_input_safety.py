@@ -950,7 +950,7 @@ def test_validate_imports_no_numba_scipy_or_engine(tmp_path, scene):
 
 
 def test_validate_of_auto_shows_the_resolved_setting(tmp_path, capsys):
-    from granchain.plan import resolve_auto
+    from granchain.runplan import resolve_auto
     path = write(tmp_path, AUTO_SCENE, "auto.yaml")
     assert main(["validate", path]) == 0
     out = capsys.readouterr().out

@@ -31,7 +31,7 @@ from granchain.engines import reference
 from granchain.gaps import member_gaps, members
 from granchain.lammps import deck as lammps_deck
 from granchain.lammps import run_lammps
-from granchain.lammps.plan import ledger_binary_columns
+from granchain.lammps.deckplan import ledger_binary_columns
 from granchain.materials import effective_modulus, library
 from granchain.scene import scene_from_dict
 from granchain.simulate import run_scene

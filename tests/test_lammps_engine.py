@@ -17,6 +17,7 @@ from granchain.cli import main as cli_main
 from granchain.compare import compare
 from granchain.effects import residual_work
 from granchain.engines import lammps as lammps_engine
+from granchain.engines.lammps import binary as lammps_binary
 from granchain.engines import reference
 from granchain.errors import GranchainError
 from granchain.lammps import deck as lammps_deck
@@ -223,7 +224,7 @@ def test_binary_reader_reads_what_lammps_holds(tmp_path, monkeypatch):
     # frames read one by one (the reader's path for files whose frames differ in layout)
     # and in blocks of strided views (the regular layout LAMMPS writes): the same arrays
     whole = lammps_engine.read_binary(tmp_path / "b" / lammps_deck.BINARY_NAME, scene, pl)
-    monkeypatch.setattr(lammps_engine, "_frame_layout", lambda *a: None)
+    monkeypatch.setattr(lammps_binary, "_frame_layout", lambda *a: None)
     frames = lammps_engine.read_binary(tmp_path / "b" / lammps_deck.BINARY_NAME, scene, pl)
     for k in ("step", "v", "energy", "last_overlap"):
         assert frames[k].tobytes() == whole[k].tobytes()

@@ -20,7 +20,7 @@ from granchain.engines import lammps as lammps_engine
 from granchain.engines import reference
 from granchain.lammps import deck as lammps_deck
 from granchain.lammps import run_lammps
-from granchain.lammps.plan import ledger_binary_columns
+from granchain.lammps.deckplan import ledger_binary_columns
 from granchain.materials import library
 from granchain.observables import summarize
 from granchain.scene import load_scene

@@ -1,4 +1,4 @@
-"""The run plan (granchain.plan): computed once per run, and the one cost estimate that
+"""The run plan (granchain.runplan): computed once per run, and the one cost estimate that
 auto, the cost guard and the workflow's batches read."""
 from __future__ import annotations
 
@@ -13,10 +13,10 @@ import pytest
 import granchain
 
 from granchain import costmodel, stoprule
-from granchain import plan as plan_mod
+from granchain import runplan as plan_mod
 from granchain import workflow as gw
 from granchain.errors import GranchainError
-from granchain.plan import plan_run
+from granchain.runplan import plan_run
 from granchain.scene import scene_from_dict
 
 EFFECTS = ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction"]
@@ -205,11 +205,11 @@ PLANNERS = {"sample_interval", "expected_duration", "auto_t_max"}
 
 def test_only_the_run_plan_chooses_method_auto():
     """Method auto's choice (resolve_auto, auto_setting, apply_auto) is named in
-    granchain/plan.py only: every other module of the package takes the scene that runs
+    granchain/runplan.py only: every other module of the package takes the scene that runs
     from the run plan (plan_run(scene).scene)."""
     files = sorted(PACKAGE.rglob("*.py"))
-    assert len(files) > 50 and _names_in([PACKAGE / "plan.py"], AUTO_CHOICE)
-    outside = _names_in([f for f in files if f != PACKAGE / "plan.py"], AUTO_CHOICE)
+    assert len(files) > 50 and _names_in([PACKAGE / "runplan.py"], AUTO_CHOICE)
+    outside = _names_in([f for f in files if f != PACKAGE / "runplan.py"], AUTO_CHOICE)
     assert not outside, outside
 
 
@@ -218,7 +218,7 @@ def test_the_engines_plan_nothing_themselves():
     rule's planners (sample interval, expected duration, time cap): they read them from
     the run plan (SpeedPlan)."""
     files = sorted((PACKAGE / "engines").glob("*.py")) + sorted((PACKAGE / "lammps").glob("*.py"))
-    assert len(files) > 10 and _names_in([PACKAGE / "plan.py"], PLANNERS)
+    assert len(files) > 10 and _names_in([PACKAGE / "runplan.py"], PLANNERS)
     assert not _names_in(files, PLANNERS), _names_in(files, PLANNERS)
 
 
@@ -230,8 +230,8 @@ def _packed(method, **integrator):
 
 def _scaled(p, factor):
     """The plan ``p`` with every speed's sample interval times ``factor``."""
-    return dataclasses.replace(p, speeds=tuple(dataclasses.replace(sp, sample_dt=factor * sp.sample_dt)
-                                               for sp in p.speeds))
+    return dataclasses.replace(p, speeds=tuple(
+        dataclasses.replace(sp, sample_dt=factor * sp.sample_dt) for sp in p.speeds))
 
 
 @pytest.mark.parametrize("method,integrator", [("rk4", {"dt": 1e-9}),
@@ -239,10 +239,10 @@ def _scaled(p, factor):
                                                ("event", {"tolerance": 1e-6})])
 def test_the_reference_engine_samples_as_its_speed_plans_say(monkeypatch, method, integrator):
     """Each chain's sample interval is its SpeedPlan's sample_dt (on a fixed step, the
-    whole steps nearest it: plan.step_grid), and its sample count SpeedPlan.sample_count's:
+    whole steps nearest it: runplan.step_grid), and its sample count SpeedPlan.sample_count's:
     a plan with other values gives another grid and another length."""
     from granchain.engines import reference
-    from granchain.plan import step_grid
+    from granchain.runplan import step_grid
     sc = _packed(method, **integrator)
     p3 = _scaled(plan_run(sc), 3.0)
     gaps = np.zeros((2, sc.n - 1))
@@ -270,19 +270,19 @@ def test_the_reference_engines_chunks_follow_the_plans_durations():
         return [len(c) for c in reference._chunks(np.arange(100), sc, physics_terms(sc), sdt,
                                                   "adaptive", False, plan)]
     assert cut(p) == [100]
-    longer = dataclasses.replace(p, speeds=tuple(dataclasses.replace(sp, duration_s=1e6 * sp.duration_s)
-                                                 for sp in p.speeds))
+    longer = dataclasses.replace(p, speeds=tuple(
+        dataclasses.replace(sp, duration_s=1e6 * sp.duration_s) for sp in p.speeds))
     assert cut(longer) == [1] * 100
 
 
 def test_the_lammps_deck_runs_as_its_speed_plans_say(monkeypatch):
-    """The deck plan takes its cadence from the finest SpeedPlan.sample_dt (plan.step_grid
+    """The deck plan takes its cadence from the finest SpeedPlan.sample_dt (runplan.step_grid
     on the scene's step), its run length from the longest SpeedPlan.run_length, and each
     chain's sample cap (where the LAMMPS engine cuts a chain the wave has not left) from
     SpeedPlan.sample_count."""
     from granchain.engines.lammps import auto_stop
     from granchain.lammps.deck import plan as deck_plan
-    from granchain.plan import step_grid
+    from granchain.runplan import step_grid
     sc = _packed("rk4", dt=1e-9)
     p = plan_run(sc)
     for plan in (p, _scaled(p, 3.0)):

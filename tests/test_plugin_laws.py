@@ -40,7 +40,7 @@ from granchain.engines import kernels
 from granchain.engines.reference import Layout, chain_rows, pack
 from granchain.lammps import build_plugin, run_lammps
 from granchain.lammps.deck import render
-from granchain.lammps.units import to_micro
+from granchain.units import to_micro
 
 from conftest import packed
 

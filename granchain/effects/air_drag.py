@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..lammps.units import lmp_float as _r, to_micro
+from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from .spec import EffectSpec
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..lammps.units import lmp_float as _r, to_micro
+from ..units import lmp_float as _r, to_micro
 from .spec import EffectSpec
 
 SPEC = EffectSpec("hertz", params=("P_HERTZ_K",))

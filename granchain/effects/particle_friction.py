@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 
 from ..errors import SceneError
-from ..lammps.units import lmp_float as _r, to_micro
+from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from .spec import EffectSpec
 

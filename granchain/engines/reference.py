@@ -19,7 +19,7 @@ import numpy as np
 from ..stoprule import arrival_speed, last_detached
 from ..effects import MODULES, SPECS, Terms, chain as chain_mod, physics_terms
 from ..guards import require_resolved, result_limits
-from ..plan import RunPlan, SpeedPlan, plan_run, step_grid
+from ..runplan import RunPlan, SpeedPlan, plan_run, step_grid
 from ..scene import Scene
 from ..trajectory import OnTheFly, RunInfo, Trajectory
 from . import backend
@@ -137,7 +137,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
     (``events.PAIRS``; default ``events.DEFAULT_PAIR``). ``lanes``: without a trace, the
     event method runs its chains in SIMD lanes (``events.run_events_lanes``); False runs
     one chain per thread (``events.run_events``), with the same result bit for bit.
-    ``plan``: the run plan of ``scene`` (``granchain.plan.plan_run``; planned here if
+    ``plan``: the run plan of ``scene`` (``granchain.runplan.plan_run``; planned here if
     None), whose striker speeds give each chain its sample interval, sample count and
     expected duration (``RunPlan.speed``); the engine computes none of them."""
     require_resolved(scene, "reference engine")
@@ -521,10 +521,10 @@ def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V
                 E_parts, observe=False, sample_dt=0.0, wall_static=0.0):
     kern = backend.kernels(serial=gaps.shape[0] == 1)
     """Fixed-step methods: the chains in blocks of ``chunks.LANES`` (consecutive chains
-    share a block, the last block padded with lanes at rest that record nothing), stepped in lockstep by
-    ``kernels.run_blocks``. Returns each chain's final state, time, steps and status, and
-    the ``_Observed`` arrays (with ``observe``: the on-the-fly observables and NS, each
-    chain's sample count; otherwise the records go to V_parts, E_parts)."""
+    share a block, the last block padded with lanes at rest that record nothing), stepped
+    in lockstep by ``kernels.run_blocks``. Returns each chain's final state, time, steps
+    and status, and the ``_Observed`` arrays (with ``observe``: the on-the-fly observables
+    and NS, each chain's sample count; otherwise the records go to V_parts, E_parts)."""
     B, ny = Y0.shape
     ng = gaps.shape[1]
     n = int(P[codes.P_N_SPHERES])

@@ -1,8 +1,9 @@
-"""LAMMPS support: micro units (``units``), deck plans and texts (``plan``, ``deck``), the
-``fix groove/drag`` plugin (``plugin``) and the LAMMPS runner (``runner``).
+"""LAMMPS support: deck plans and texts (``deckplan``, ``deck``), the ``fix groove/drag``
+plugin (``plugin``) and the LAMMPS runner (``runner``); micro units are
+``granchain.units``, at the bottom layer, for the effects' deck fragments.
 
-The runner and plugin names below load on first use, so that ``granchain.lammps.units``
-(which the effects' deck fragments use) imports nothing of the engine.
+The runner and plugin names below load on first use, so that importing the deck writer
+loads neither.
 The granular contact laws that LAMMPS applies, and the exact Verlet sequence the
 reference integrator has to mirror, are written down in ``docs/explanation/lammps_laws.md``.
 """

@@ -27,15 +27,15 @@ Choices (also stated in the deck's comments):
   tangential law is then ``linear_history 0.0 0.0 0.0`` (k_t = 0, mu = 0: the force
   -k_t xi is exactly zero, and the cap test 0 > 0 never fires, so no division by k_t).
   Rotation on: ``fix nve/sphere``.
-* Run length and cadence come from the scene's run plan (``granchain.plan.RunPlan``), as
+* Run length and cadence come from the scene's run plan (``granchain.runplan.RunPlan``), as
   the reference engine's. Run length: ``scene.t_end``, else the stop rule's cap
   (``SpeedPlan.run_length``, ``stoprule.auto_t_max``) of the slowest member (the largest
-  cap over all members); rounded up to whole samples as the reference engine does, so the last sample falls at the same time. With t_end auto
-  the run also stops (``fix halt``) at the first sample at which the wave has left
+  cap over all members); rounded up to whole samples as the reference engine does, so
+  the last sample falls at the same time. With t_end auto the run also stops (``fix halt``) at the first sample at which the wave has left
   every moving chain (its last particle moves and has no contact left,
   ``granchain.stoprule``): the reference engine's stop rule, applied to the whole batch. ``granchain.engines.lammps`` then cuts each chain's
   record where the reference engine would have stopped that chain.
-* Cadence: every = round(sample_interval / dt) (``plan.step_grid``, as the reference
+* Cadence: every = round(sample_interval / dt) (``runplan.step_grid``, as the reference
   engine), from the member with the finest sampling (``SpeedPlan.sample_dt``).
 * Per-sample output, by the deck option ``output`` (:data:`OUTPUTS`, default ``"dump"``):
   ``"dump"`` the text trajectory dump (``traj.dump``, every sample, sorted by id,
@@ -74,16 +74,16 @@ from granchain.effects import (air_drag, contact_damping, groove_friction, hertz
                                particle_friction, physics_terms, rolling_friction, rotation)
 from granchain.errors import GranchainError
 from granchain.fileio import OutputKind, file_head, atomic_write_text, check_output_path
-from granchain.plan import RunPlan
+from granchain.runplan import RunPlan
 from granchain.scene import NAME_RE, NAME_RULE, Scene
-from granchain.lammps.plan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, DECK_NAME,
+from granchain.lammps.deckplan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, DECK_NAME,
                                    DUMP_COLUMNS, DUMP_NAME, ENERGY_NAME, LEDGER_BINARY_NAME,
                                    LEDGER_INPUTS, LEDGER_NAME, LOG_NAME, OUTPUTS, SCREEN_NAME,
                                    WALL_FORCE_COLUMN, WORKDIR_FILES,
                                    WORK_COLUMNS, DeckPlan,
                                    ledger_binary_columns, max_travel, plan)
 from granchain.lammps import field
-from granchain.lammps.units import MICRO_EXPONENT, lmp_float as _r, to_micro
+from granchain.units import MICRO_EXPONENT, lmp_float as _r, to_micro
 from granchain.stoprule import ARRIVAL_FRACTION, arrival_speed
 
 __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "write_deck",
@@ -326,10 +326,10 @@ def needs_plugin(scene: Scene) -> bool:
 def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str | None = None,
            output: str = "dump", run_plan: RunPlan | None = None) -> tuple[str, str]:
     """The texts of deck.lmp and chain.data (no files written). ``run_plan``: the scene's
-    run plan (``granchain.plan.plan_run``; planned here if None), see :func:`plan`.
+    run plan (``granchain.runplan.plan_run``; planned here if None), see :func:`plan`.
 
     ``radii`` (B, n) m: each chain's own radii (a radius spread; default for a scene's
-    own members: ``gaps.member_radii``, see :func:`granchain.lammps.plan.batch_members`).
+    own members: ``gaps.member_radii``, see :func:`granchain.lammps.deckplan.batch_members`).
     Each chain then has its own diameters and masses (chain.data), its own contacts (pair
     granular takes R* from the atoms; no pair_coeff depends on a radius), its own groove
     springs (the Groove section), static overlaps and wall overlap (its positions).

@@ -2,7 +2,7 @@
 an end wall and a dead load (docs/explanation/lammps_laws.md section 12).
 
 All of it comes from the chain record of :func:`granchain.effects.physics_terms`
-(``terms.chain``, SI) and is converted once with :func:`~granchain.lammps.units.to_micro`.
+(``terms.chain``, SI) and is converted once with :func:`~granchain.units.to_micro`.
 A chain of identical spheres with a free end and no load gives the deck and data file
 of the chapter's chain byte for byte (one atom type, ``pair_coeff * *``, x_1 = 0).
 
@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from granchain.effects import contact_damping
-from granchain.lammps.units import lmp_float as _r, to_micro
+from granchain.units import lmp_float as _r, to_micro
 from granchain.materials import effective_modulus
 
 WALL_FIX = "wall"                    # fix ID of the end wall

@@ -8,7 +8,7 @@ as gw``). One job per module; each imports only those above it:
 - ``studies``     a study -> its :class:`StudyScene` list; packed and trace scenes; the
                   field's studies, the chapter's questions and lammps_check's field chains
 - ``batches``     cost estimates, :class:`Batch`, cutting a study into jobs, runtimes
-- ``plan``        :class:`Plan`: a preset's scenes and batches, built once (the check)
+- ``presetplan``  :class:`Plan`: a preset's scenes and batches, built once (the check)
 - ``captions``    study sizes for the report's captions
 - ``run``         a job: one batch, the traces, the packed reference; threads and logs
 - ``gather``      batch tables -> a study's table, summary, provenance and timing
@@ -27,7 +27,7 @@ from .config import (ENGINES, ENSEMBLE_STUDIES, FIELD_STUDIES, OPTIONAL_STUDIES,
                      config_error_message,
                      read_config, select_preset, study_engine, validate_config, with_engine)
 from .gather import gather, study_provenance
-from .plan import Plan, load_config
+from .presetplan import Plan, load_config
 from .rerun import rerun_member
 from .run import (engine_options, log_to, member_rows, packed_reference, run_batch,
                   run_members, run_traces, set_threads, write_batch)

@@ -4,7 +4,7 @@ The members of a study (per engine) are cut into ``ceil(members / batch.members_
 jobs of about equal *estimated cost*, in whole realisations of a scene, so a job calls
 :func:`granchain.simulate.run_scene` with ``realisations=[...]`` once per scene it holds.
 The cost of a realisation is its scene's run plan's (``StudyScene.plan``,
-:meth:`granchain.plan.RunPlan.member_seconds`): the one per-member estimate of
+:meth:`granchain.runplan.RunPlan.member_seconds`): the one per-member estimate of
 ``costmodel.member_seconds``, from the packaged cost model and ``stoprule``'s expected
 duration, that auto ranks its settings by and the cost guard reports. The estimates
 balance jobs and set their runtime limits; they never enter a result.

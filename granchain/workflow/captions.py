@@ -1,7 +1,7 @@
 """Sizes of a preset's studies for the report's captions (workflow/report/*.rst).
 
 The rules pass them as params: ``describe`` to the table captions, ``caption_sizes`` to
-the figure captions; both read a :class:`~granchain.workflow.plan.Plan`.
+the figure captions; both read a :class:`~granchain.workflow.presetplan.Plan`.
 """
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import math
 from ..errors import GranchainError
 from ..scene import DEFAULTS
 from .config import FIELD_STUDIES, OPTIONAL_STUDIES, QUESTION_STUDIES
-from .plan import Plan
+from .presetplan import Plan
 from .studies import ENGINE_ORDER
 
 FIGURES = {"packed_sweep": "chapter Fig. 5.1b, 5.1c", "packed_trace": "chapter Fig. 5.1a",

@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 from .. import analytic
 from ..errors import GranchainError
 from ..costmodel import fixed_step
-from ..plan import RunPlan, plan_run
+from ..runplan import RunPlan, plan_run
 from ..scene import RANDOM_GAPS, TOLERANCE_METHODS, Scene, apply_overrides, scene_from_dict
 from .config import FIELD_STUDIES, OPTIONAL_STUDIES, QUESTION_STUDIES, ConfigError, \
     study_engine
@@ -75,7 +75,7 @@ class StudyScene:
     # a question study's setting columns and their values (tables.SETTING_COLUMNS): the
     # radius spread, the contact damping
     setting: tuple[tuple[str, object], ...] = ()
-    # the scene's run plan (granchain.plan), built once with the scene
+    # the scene's run plan (granchain.runplan), built once with the scene
     run_plan: RunPlan | None = field(default=None, compare=False, repr=False)
 
     @property

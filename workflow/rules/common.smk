@@ -11,7 +11,7 @@ try:
     validate(config, "../schemas/config.schema.yaml")
 except WorkflowError as exc:
     raise WorkflowError(gw.config_error_message(exc)) from None
-# The plan: every study's scenes and job batches, built once (granchain.workflow.plan);
+# The plan: every study's scenes and job batches, built once (granchain.workflow.presetplan);
 # batches, trace materials and report captions all come from it.
 try:
     PLAN = gw.Plan.build(config)

@@ -1,15 +1,17 @@
 # Figures (the chapter's panels) and the thesis comparison table, drawn from the contract's
 # tables and traces. Logic: granchain/figures/ (figures.render, through
 # scripts/figure.py) and granchain/thesis/ (scripts/thesis_comparison.py), both built on
-# granchain/reductions.py. Every output
+# granchain/reductions/. Every output
 # goes into the report (`snakemake --report report.html`) with a caption from
 # workflow/report/ (rendered with this preset's sizes, SIZES in common.smk).
 
 # The drawing code is an input: a changed figure module redraws (the tables stay).
-FIG_CODE = [str(Path(workflow.basedir) / "granchain" / "reductions.py")] + sorted(
+REDUCTIONS_CODE = sorted(
+    str(p) for p in (Path(workflow.basedir) / "granchain" / "reductions").glob("*.py"))
+FIG_CODE = REDUCTIONS_CODE + sorted(
     str(p) for p in (Path(workflow.basedir) / "granchain" / "figures").glob("*.py"))
-THESIS_CODE = [str(Path(workflow.basedir) / "granchain" / "reductions.py")] + sorted(
-    str(p) for p in (Path(workflow.basedir) / "granchain" / "thesis").glob("*.py"))
+THESIS_CODE = REDUCTIONS_CODE + sorted(
+    str(p) for p in (Path(workflow.basedir) / "granchain" / "thesis").rglob("*.py"))
 
 
 rule fig5_1a:

@@ -1,6 +1,6 @@
 """What a LAMMPS deck runs: its members (chains), run length and sample cadence.
 
-The deck plan is built from the scene's run plan (``granchain.plan.RunPlan``: each
+The deck plan is built from the scene's run plan (``granchain.runplan.RunPlan``: each
 striker speed's sample interval, each chain's run length and sample count, as the
 reference engine takes them) for a batch of chains; the engine needs it again to read
 the output back.
@@ -16,7 +16,7 @@ from granchain.effects import SPECS
 from granchain.errors import GranchainError
 from granchain.guards import require_resolved
 from granchain.gaps import member_gaps, member_radii, members, realise
-from granchain.plan import RunPlan, plan_run, step_grid
+from granchain.runplan import RunPlan, plan_run, step_grid
 from granchain.scene import Scene
 
 # The files a deck writes, and what the engine reads back from them.
@@ -187,8 +187,8 @@ def plan(scene: Scene, *, gaps=None, v_striker=None, radii=None,
     writes at every sample, one of :data:`OUTPUTS`. ``radii`` (B, n) m: each chain's own
     (:func:`batch_members` says which radii a deck gets when they are not given).
     Run length and cadence come from ``run_plan``, the scene's run plan
-    (``granchain.plan.plan_run``; planned here if None): the finest member's sample
-    interval on the scene's step (``plan.step_grid``), and each member's run length
+    (``granchain.runplan.plan_run``; planned here if None): the finest member's sample
+    interval on the scene's step (``runplan.step_grid``), and each member's run length
     (``SpeedPlan.run_length``: the scene's, its nominal radii under a spread), as the
     reference engine's."""
     require_resolved(scene, "LAMMPS deck")

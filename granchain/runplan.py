@@ -12,7 +12,7 @@ Both engines take their sampling and run length from it and compute neither them
 the reference engine each chain's sample interval (:attr:`SpeedPlan.sample_dt`, on a fixed
 step :func:`step_grid`) and sample count (:meth:`SpeedPlan.sample_count`), and the
 expected durations that size its chunks; the LAMMPS deck its cadence and run length
-(``lammps.plan.plan``).
+(``lammps.deckplan.plan``).
 
 Method auto is chosen here and nowhere else: :func:`auto_setting` gives the setting of the
 scene's class whose v_g error (``AUTO_OBSERVABLE``: arrival-time v_g on gapped chains)

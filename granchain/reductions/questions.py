@@ -1,0 +1,145 @@
+"""Reductions of the chapter's questions, beyond Eq. 5.1: a sphere-size tolerance and
+contact dissipation (tables/radius_spread.csv, tables/dissipation.csv)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from .chapter import band, oscillation, peak_profile
+from .table import NEEDS, arrived, materials_in, reference_engine, require, require_vmax
+
+# The chapter's measured peaks (Fig. 5.2b, 5.2c): (value, half-width of its 95% interval),
+# v_max,2/v_max,1 and v_max,1, v_max,2 in units of v_s
+MEASURED_PEAKS = {"ratio": (0.80, 0.08), "v1": (0.57, 0.09), "v2": (0.46, 0.07)}
+SPREAD_KINDS = ("packed", "spread", "gaps")
+
+
+def spread_oscillation(df: pd.DataFrame) -> pd.DataFrame:
+    """Per scene group of the radius_spread study (reference engine when mixed): material,
+    ``kind`` (packed: neither spread nor gaps; spread: radius sd > 0; gaps: mean gap > 0),
+    ``radius_sd_m``, ``gap_mean_nm``, ``n`` (chains) and the median, 5th and 95th
+    percentiles (``osc_median``, ``osc_p5``, ``osc_p95``) over its chains of the chapter's
+    Fig. 5.3b measure: :func:`oscillation` of v_max,i / v_s over particles 2..13, every
+    chain (the gap20_oscillation row's and fig5_3b's measure, exactly). Ordered by
+    material, then packed, the spreads by sd, the gaps by mean."""
+    require(df, NEEDS["radius_spread"], "radius_spread")
+    require_vmax(df, "radius_spread")
+    d = reference_engine(df)
+    rows = []
+    for mat in materials_in(d):
+        dm = d[d["material"] == mat]
+        sd = dm["radius_sd_m"].to_numpy(dtype=float)
+        gap = dm["gap_mean_nm"].to_numpy(dtype=float)
+        kind = np.where(gap > 0, "gaps", np.where(sd > 0, "spread", "packed"))
+        for k in SPREAD_KINDS:
+            mk = dm[kind == k]
+            for key, g in mk.groupby(["radius_sd_m", "gap_mean_nm"], sort=True):
+                o = oscillation(peak_profile(g, "radius_spread"))
+                lo, med, hi = band(o)
+                rows.append({"material": mat, "kind": k, "radius_sd_m": float(key[0]),
+                             "gap_mean_nm": float(key[1]), "n": int(len(g)),
+                             "osc_median": med, "osc_p5": lo, "osc_p95": hi})
+    return pd.DataFrame(rows, columns=["material", "kind", "radius_sd_m", "gap_mean_nm", "n",
+                                       "osc_median", "osc_p5", "osc_p95"])
+
+
+def first_reaching(x, y, target: float) -> float:
+    """The smallest x (x ascending) at which the piecewise-linear y(x) through the points
+    reaches ``target`` from below: the first x itself if y is there already, else linear
+    interpolation between the two neighbouring points that bracket it; NaN if no y
+    reaches it."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    for k in range(x.size):
+        if y[k] >= target:
+            if k == 0:
+                return float(x[0])
+            return float(x[k - 1] + (target - y[k - 1]) / (y[k] - y[k - 1]) * (x[k] - x[k - 1]))
+    return math.nan
+
+
+def dissipation_curves(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, v_striker_m_s, restitution_e) of the dissipation study
+    (reference engine when mixed), ascending e within each (material, gap, v_s): ``n``,
+    and the median, 5th and 95th percentiles over its chains of v_max,1 / v_s (``v1``),
+    v_max,2 / v_s (``v2``) and v_max,2 / v_max,1 (``ratio``, the rows' v_max_ratio), and
+    over its arrived chains (``n_arrived``) of v_g in m/s (``vg``): columns ``<q>_median``,
+    ``<q>_p5``, ``<q>_p95``."""
+    require(df, NEEDS["dissipation"], "dissipation")
+    d = reference_engine(df)
+    vs = d["v_striker_m_s"].to_numpy(dtype=float)
+    d = d.assign(_v1=d["v_max_1_m_s"].to_numpy(dtype=float) / vs,
+                 _v2=d["v_max_2_m_s"].to_numpy(dtype=float) / vs)
+    keys = ["material", "gap_mean_nm", "v_striker_m_s", "restitution_e"]
+    rows = []
+    for mat in materials_in(d):
+        for key, g in d[d["material"] == mat].groupby(keys[1:], sort=True):
+            row = {"material": mat, **dict(zip(keys[1:], (float(k) for k in key))),
+                   "n": int(len(g))}
+            ok = arrived(g)
+            row["n_arrived"] = int(len(ok))
+            for q, vals in (("v1", g["_v1"]), ("v2", g["_v2"]), ("ratio", g["v_max_ratio"]),
+                            ("vg", ok["v_g_m_s"])):
+                lo, med, hi = band(vals)
+                row.update({f"{q}_median": med, f"{q}_p5": lo, f"{q}_p95": hi})
+            rows.append(row)
+    cols = keys + ["n", "n_arrived"] + [f"{q}_{s}" for q in ("v1", "v2", "ratio", "vg")
+                                        for s in ("median", "p5", "p95")]
+    return pd.DataFrame(rows, columns=cols)
+
+
+def last_crossing(x, y, target: float) -> float:
+    """The largest x (x ascending) at which the piecewise-linear y(x) through the points
+    equals ``target`` (a point on it, or linear interpolation between the two neighbouring
+    points on either side of it); NaN if y never does. For the dissipation study: the
+    weakest damping (largest e) that brings a curve to ``target``."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float) - target
+    for k in range(x.size - 1, -1, -1):
+        if y[k] == 0.0:
+            return float(x[k])
+        if k > 0 and np.isfinite(y[k - 1]) and np.isfinite(y[k]) and y[k - 1] * y[k] < 0:
+            return float(x[k - 1] - y[k - 1] / (y[k] - y[k - 1]) * (x[k] - x[k - 1]))
+    return math.nan
+
+
+def interpolate_at(x, y, x0: float) -> float:
+    """y(x0) on the piecewise-linear curve through the points (x ascending); NaN for x0
+    NaN or outside [x_0, x_last]."""
+    x = np.asarray(x, dtype=float)
+    if not (math.isfinite(x0) and x[0] <= x0 <= x[-1]):
+        return math.nan
+    return float(np.interp(x0, x, np.asarray(y, dtype=float)))
+
+
+def dissipation_match(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, v_striker_m_s) of the dissipation study, on the median
+    curves of :func:`dissipation_curves`: ``e_ratio`` the largest e at which the median
+    v_max,2/v_max,1 equals the chapter's measured 0.80 (:func:`last_crossing`),
+    ``e_ratio_lo`` and ``e_ratio_hi`` where it equals the ends of the measured interval,
+    0.72 and 0.88 (NaN where it never does), the medians v_max,1/v_s (``v1``),
+    v_max,2/v_s (``v2``) and v_g (``vg``, m/s) at ``e_ratio`` (linear in e), the
+    striker-side factors the measured peaks need there, ``striker_v1`` = 0.57 / v1 and
+    ``striker_v2`` = 0.46 / v2, and the largest e's ``e_max``, ``ratio_at_e_max``,
+    ``v1_at_e_max``; ``n_e`` the number of e values."""
+    c = dissipation_curves(df)
+    rm, rh = MEASURED_PEAKS["ratio"]
+    rows = []
+    for key, g in c.groupby(["material", "gap_mean_nm", "v_striker_m_s"], sort=False):
+        e = g["restitution_e"].to_numpy(dtype=float)
+        ratio = g["ratio_median"].to_numpy(dtype=float)
+        es = last_crossing(e, ratio, rm)
+        v1 = interpolate_at(e, g["v1_median"], es)
+        v2 = interpolate_at(e, g["v2_median"], es)
+        rows.append({"material": key[0], "gap_mean_nm": float(key[1]),
+                     "v_striker_m_s": float(key[2]), "n_e": int(e.size), "e_ratio": es,
+                     "e_ratio_lo": last_crossing(e, ratio, rm - rh),
+                     "e_ratio_hi": last_crossing(e, ratio, rm + rh),
+                     "v1": v1, "v2": v2, "vg": interpolate_at(e, g["vg_median"], es),
+                     "striker_v1": MEASURED_PEAKS["v1"][0] / v1,
+                     "striker_v2": MEASURED_PEAKS["v2"][0] / v2,
+                     "e_max": float(e[-1]), "ratio_at_e_max": float(ratio[-1]),
+                     "v1_at_e_max": float(g["v1_median"].iloc[-1])})
+    return pd.DataFrame(rows)
