@@ -136,7 +136,7 @@ def _residual_note(scene, r) -> str:
 def load(args):
     """The scene of a command's arguments, method auto resolved."""
     from .runplan import plan_run
-    return plan_run(load_scene(args.scene, args.set)).scene
+    return plan_run(load_scene(args.scene, args.set), per_speed=False).scene
 
 
 def cmd_validate(args) -> int:
@@ -382,7 +382,7 @@ def check_grid(base, args, src) -> None:
     base = base.derive(striker={"velocity": speeds})
     # a chain's steps and record grow linearly with its gaps' mean (flight over them):
     # the grid's total is G times the mean of its two ends
-    ends = [run_estimate(plan_run(grid_scene(base, g, R)).scene)
+    ends = [run_estimate(plan_run(grid_scene(base, g, R), per_speed=False).scene)
             for g in (0.0, args.gap_max_nm * 1e-9)]
     est = {k: G * (ends[0][k] + ends[1][k]) / 2 for k in ("members", "steps", "seconds")}
     est["worst_chain_steps"] = ends[1]["worst_chain_steps"]
@@ -491,7 +491,8 @@ def check_joint_grid(base, args, src) -> None:
     base = base.derive(striker={"velocity": speeds})
     gmax = args.gap_max_nm * 1e-9
     try:
-        ends = [run_estimate(plan_run(joint_scene(base, g, args.e_min, R)).scene)
+        ends = [run_estimate(plan_run(joint_scene(base, g, args.e_min, R),
+                                      per_speed=False).scene)
                 for g in (0.0, gmax)]
     except SceneError as exc:
         raise GranchainError(f"--e-min {args.e_min:g}: the base scene at this e is refused "
@@ -535,7 +536,7 @@ def cmd_infer(args) -> int:
     # the gap law and speeds the base scene leaves out are filled in before method auto
     # is resolved, so that auto chooses for the scene that runs
     base, src = complete_base(load_scene(args.scene, args.set), meas)
-    base = plan_run(base).scene
+    base = plan_run(base, per_speed=False).scene
     if joint:
         try:
             check_restitution_base(base)

@@ -111,7 +111,7 @@ def comparison_scene(scene: Scene) -> Scene:
     A scene with method auto is resolved first (its step is the one compared)."""
     from .lammps.deck import plan
     from .gaps import member_gaps, members
-    run_plan = plan_run(scene)
+    run_plan = plan_run(scene, per_speed=False)
     scene = run_plan.scene
     mem = members(scene)
     pl = plan(scene, gaps=member_gaps(scene, mem), v_striker=[m.v_striker for m in mem],
@@ -136,7 +136,7 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
     from .engines import reference
     from .gaps import member_gaps, member_radii, members
 
-    scene = plan_run(scene).scene
+    scene = plan_run(scene, per_speed=False).scene
     cs = comparison_scene(scene)
     cplan = plan_run(cs)                  # both engines run from the one plan
     mem = members(cs)

@@ -567,7 +567,7 @@ def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: in
     out = {c: np.full((gaps.size, speeds.size, realisations), np.nan) for c in TIMING_COLUMNS}
     hashes, simulated, todo = [], 0, []
     for k, g in enumerate(gaps):
-        scene = plan_run(grid_scene(base, g, realisations)).scene
+        scene = plan_run(grid_scene(base, g, realisations), per_speed=False).scene
         hashes.append(scene.hash)
         path = _cache_file(cache_dir, scene, designed.tag) if cache_dir is not None else None
         if path is not None and path.exists():
@@ -604,7 +604,8 @@ def simulate_rows(base: Scene, gap_mean: float, speeds, realisations,
     from .simulate import trajectories
     speeds = [float(v) for v in speeds]
     scene = plan_run(base.derive({"gaps": {"mean": float(gap_mean)},
-                                  "striker": {"velocity": sorted(set(speeds))}})).scene
+                                  "striker": {"velocity": sorted(set(speeds))}}),
+                     per_speed=False).scene
     mem = [Member(i, v, int(r)) for i, (v, r) in enumerate(zip(speeds, realisations))]
     out = np.empty(len(mem))
     for m, traj in trajectories(scene, mem, engine):
@@ -1023,7 +1024,7 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
     t0 = time.perf_counter()
     for k, g in enumerate(gaps):
         for j, e in enumerate(es):
-            scene = plan_run(joint_scene(base, g, e, realisations)).scene
+            scene = plan_run(joint_scene(base, g, e, realisations), per_speed=False).scene
             hashes.append(scene.hash)
             path = (_joint_cache_file(cache_dir, scene, designed.tag) if cache_dir is not None
                     else None)
@@ -1067,7 +1068,7 @@ def simulate_joint_rows(base: Scene, gap_mean: float, e: float | None, speeds, r
     change = {"gaps": {"mean": float(gap_mean)}, "striker": {"velocity": sorted(set(speeds))}}
     if e is not None:
         change["damping"] = {"e": float(e)}
-    scene = plan_run(base.derive(change)).scene
+    scene = plan_run(base.derive(change), per_speed=False).scene
     mem = [Member(i, v, int(r)) for i, (v, r) in enumerate(zip(speeds, realisations))]
     out = np.empty((len(mem), 3))
     for m, traj in trajectories(scene, mem, engine):

@@ -21,7 +21,8 @@ every finer setting of its method (the envelope: a lucky cancellation at a coars
 never taken for accuracy), at the least wall time on this scene: the measured wall time
 times the scene's work over the measurement's (``costmodel.chain_work``; a slow striker
 over wide gaps multiplies the fixed-step cost, not the event method's). A run plans it
-once, with the rest of its plan; the scene that runs is ``plan_run(scene).scene``.
+once, with the rest of its plan; the one setting for every striker speed is
+``plan_run(scene, per_speed=False).scene``.
 
 numpy only (no numba, scipy or engine), like the modules it draws on: ``stoprule``
 (sampling, duration, the time cap), ``costmodel`` (the cost model, steps, wall time),
@@ -186,11 +187,17 @@ class RunPlan:
                    estimates=[sp.estimate() for sp in self.speeds])
 
 
-def plan_run(scene: Scene | RunPlan, model: CostModel | None = None) -> RunPlan:
+def plan_run(scene: Scene | RunPlan, model: CostModel | None = None, *,
+             per_speed: bool = True) -> RunPlan:
     """The run plan of ``scene`` (a plan is returned as it is). Each striker speed's
     sample interval and expected duration are computed once (neither depends on the
     integrator); auto's choice reads them; the steps, record, wall time and warnings
-    follow for the scene that runs."""
+    follow for the scene that runs. ``per_speed``: under method auto, each striker speed
+    of a sweep may get its own setting (the reference engine's run, ``SpeedPlan.scene``);
+    False gives every speed the one setting (``RunPlan.scene``), for a caller that runs
+    or writes that scene as it is (a LAMMPS deck, the comparison of engines, the
+    inference's grid), so a setting that only one speed alone would get (and might
+    refuse, e.g. a given dt) plays no part."""
     if isinstance(scene, RunPlan):
         return scene
     vs = [float(v) for v in scene.striker_velocities]
@@ -202,7 +209,7 @@ def plan_run(scene: Scene | RunPlan, model: CostModel | None = None) -> RunPlan:
         model = model or load_model()
         setting = auto_setting(scene, model, durations=dur, sample_dts=sdt)
         whole = apply_auto(scene, setting)
-        if len(set(vs)) > 1:
+        if per_speed and len(set(vs)) > 1:
             own = _auto_per_speed(scene, whole, model, dur, sdt)
         scene = whole
         auto = describe_auto(scene)

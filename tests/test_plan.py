@@ -46,6 +46,30 @@ def test_plan_resolves_auto_as_resolve_auto_does():
     assert plan_run(p) is p
 
 
+def test_the_one_setting_plan_is_resolve_autos_scene():
+    """per_speed=False plans auto's one setting for every striker speed: the scene
+    resolve_auto gives, which a LAMMPS deck, the comparison of engines and the inference's
+    grid run. A sweep whose fast striker alone would get a fixed step of its own, which
+    the given dt refuses, keeps its one setting; the per-speed plan refuses it."""
+    from granchain.errors import SceneError
+    raw = scene_from_dict({"material": "ss440c", "chain": {"n": 8}, "probes": [2, 7],
+                           "striker": {"velocity": [0.01, 1.0]},
+                           "gaps": {"distribution": "uniform", "mean": 1.9e-7, "seed": 3},
+                           "effects": ["hertz", "groove_friction", "rotation",
+                                       "particle_friction"],
+                           "integrator": {"method": "auto", "tolerance": 1e-4, "dt": 1e-9}})
+    with pytest.raises(SceneError, match="integrator.dt"):
+        plan_run(raw)
+    one = plan_run(raw, per_speed=False)
+    assert not one.per_speed and one.scene.method in ("adaptive", "event")
+    assert one.scene.hash == plan_mod.resolve_auto(raw).hash
+    for tol in (1e-3, 1e-4, 1e-5):
+        sweep = _scene(tolerance=tol)
+        one = plan_run(sweep, per_speed=False)
+        assert not one.per_speed and one.scene.hash == plan_mod.resolve_auto(sweep).hash
+        assert one.auto == plan_mod.describe_auto(one.scene)
+
+
 def test_plan_estimates_match_the_planning_modules():
     """Per striker speed the plan holds the stop rule's sampling, duration, steps and record,
     guards' warnings; its whole-run estimate is costmodel.run_estimate's."""
