@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from granchain import inference
+from granchain.inference import gapfit
 from granchain.cli import main
 from granchain.fileio import json_text
 from granchain.scene import load_scene, scene_from_dict
@@ -51,6 +52,15 @@ def synthetic_grid(base, gap_max, gap_points, realisations, cache_dir=None,
     timings = {"dt_peak_s": T, "dt_front_s": 0.97 * T}
     hashes = tuple(f"{k:016x}" for k in range(gaps.size))
     return inference.Grid(gaps, speeds, timings, hashes, gaps.size * speeds.size * R)
+
+
+def use_synthetic_grid(monkeypatch) -> list:
+    """The gap-only fit reads :func:`synthetic_grid` (patched where ``infer`` calls
+    ``simulate_grid``); returns the list of grids it made, to check that it was read."""
+    grids = []
+    monkeypatch.setattr(gapfit, "simulate_grid",
+                        lambda *a, **k: grids.append(synthetic_grid(*a, **k)) or grids[-1])
+    return grids
 
 
 def run_cli(argv) -> tuple[int, str]:
@@ -96,9 +106,9 @@ def test_gap_only_output_is_todays_to_the_byte(tmp_path, monkeypatch, name, extr
     for f in ("base.yaml", "m.csv"):
         shutil.copy(GOLDEN / f, tmp_path / f)
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(inference, "simulate_grid", synthetic_grid)
+    grids = use_synthetic_grid(monkeypatch)
     code, out = run_cli(["infer", "m.csv", "--scene", "base.yaml", *GOLDEN_ARGS, *extra, *fit])
-    assert code == 0
+    assert code == 0 and len(grids) == 1
     got, want = without_sources(out, name), (GOLDEN / f"{name}.out").read_text()
     if name == "text":
         assert got == want
@@ -126,9 +136,9 @@ def test_gap_only_fit_ignores_the_peak_columns(tmp_path, monkeypatch):
              "0.078,0.061,0.002", "0.092,0.072,0.002"]
     (tmp_path / "m.csv").write_text("\n".join(f"{a},{b}" for a, b in zip(rows, peaks)) + "\n")
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(inference, "simulate_grid", synthetic_grid)
+    grids = use_synthetic_grid(monkeypatch)
     code, out = run_cli(["infer", "m.csv", "--scene", "base.yaml", *GOLDEN_ARGS, "--json"])
-    assert code == 0
+    assert code == 0 and len(grids) == 1
     assert same_numbers(json.loads(without_sources(out, "json")),
                         json.loads((GOLDEN / "json.out").read_text()))
 

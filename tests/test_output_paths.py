@@ -22,8 +22,10 @@ from conftest import REPO, SCENES, refused
 
 ENTRIES = [("granchain.simulate", "run_scene"), ("granchain.simulate", "trajectories"),
            ("granchain.compare", "compare"), ("granchain.engines.reference", "run"),
-           ("granchain.engines.lammps", "run"), ("granchain.inference", "simulate_grid"),
-           ("granchain.inference", "simulate_joint_grid")]
+           ("granchain.engines.lammps", "run"),
+           # where the fits call them
+           ("granchain.inference.gapfit", "simulate_grid"),
+           ("granchain.inference.jointfit", "simulate_joint_grid")]
 
 
 @pytest.fixture
