@@ -12,8 +12,7 @@ import re
 import sys
 from pathlib import Path
 
-from .costmodel import (DEFAULT_MAX_TOTAL_STEPS, add_estimates, describe_auto, resolve_auto,
-                        run_estimate)
+from .costmodel import DEFAULT_MAX_TOTAL_STEPS, add_estimates, run_estimate
 from .errors import GranchainError
 from .fileio import (IMAGE, atomic_write_text, check_distinct, check_output_path, json_output,
                      json_text)
@@ -136,11 +135,12 @@ def _residual_note(scene, r) -> str:
 
 def load(args):
     """The scene of a command's arguments, method auto resolved."""
-    return resolve_auto(load_scene(args.scene, args.set))
+    from .runplan import plan_run
+    return plan_run(load_scene(args.scene, args.set), per_speed=False).scene
 
 
 def cmd_validate(args) -> int:
-    from .runplan import plan_run
+    from .runplan import describe_auto, plan_run
     plan = plan_run(load_scene(args.scene, args.set))
     scene = plan.scene
     print(f"{args.scene}: valid scene '{scene.name}' ({scene.hash}), {scene.n} particles, "
@@ -373,6 +373,7 @@ def check_grid(base, args, src) -> None:
     inference itself refuses (too few points or realisations) are left to it. ``base``:
     the completed base scene, ``src`` its sources (``inference.complete_base``)."""
     from .inference import check_base, grid_scene
+    from .runplan import plan_run
     check_base(base)
     G, R = args.gap_points, args.realisations
     if G < 3 or R < 2 or min(base.striker_velocities) <= 0:
@@ -381,7 +382,7 @@ def check_grid(base, args, src) -> None:
     base = base.derive(striker={"velocity": speeds})
     # a chain's steps and record grow linearly with its gaps' mean (flight over them):
     # the grid's total is G times the mean of its two ends
-    ends = [run_estimate(resolve_auto(grid_scene(base, g, R)))
+    ends = [run_estimate(plan_run(grid_scene(base, g, R), per_speed=False).scene)
             for g in (0.0, args.gap_max_nm * 1e-9)]
     est = {k: G * (ends[0][k] + ends[1][k]) / 2 for k in ("members", "steps", "seconds")}
     est["worst_chain_steps"] = ends[1]["worst_chain_steps"]
@@ -480,6 +481,7 @@ def check_joint_grid(base, args, src) -> None:
     realisations) is beyond the whole-run limits, as :func:`check_grid`."""
     from .errors import SceneError
     from .inference import check_joint_options, gap_nodes, joint_scene
+    from .runplan import plan_run
     check_joint_options(args.gap_max_nm * 1e-9, args.gap_points, args.e_min, args.e_points,
                         args.realisations)
     if min(base.striker_velocities) <= 0:
@@ -489,7 +491,8 @@ def check_joint_grid(base, args, src) -> None:
     base = base.derive(striker={"velocity": speeds})
     gmax = args.gap_max_nm * 1e-9
     try:
-        ends = [run_estimate(resolve_auto(joint_scene(base, g, args.e_min, R)))
+        ends = [run_estimate(plan_run(joint_scene(base, g, args.e_min, R),
+                                      per_speed=False).scene)
                 for g in (0.0, gmax)]
     except SceneError as exc:
         raise GranchainError(f"--e-min {args.e_min:g}: the base scene at this e is refused "
@@ -517,6 +520,7 @@ def cmd_infer(args) -> int:
     from .errors import SceneError
     from .inference import (check_restitution_base, complete_base, infer, parse_fit,
                             read_measurements)
+    from .runplan import plan_run
     fit = parse_fit(args.fit)
     check_paths(args, [("--out", args.out), ("--plot", args.plot)],
                 [("the measurement file", args.measurements)])
@@ -532,7 +536,7 @@ def cmd_infer(args) -> int:
     # the gap law and speeds the base scene leaves out are filled in before method auto
     # is resolved, so that auto chooses for the scene that runs
     base, src = complete_base(load_scene(args.scene, args.set), meas)
-    base = resolve_auto(base)
+    base = plan_run(base, per_speed=False).scene
     if joint:
         try:
             check_restitution_base(base)

@@ -7,7 +7,7 @@ fills defaults, validates, and returns a frozen :class:`Scene`. Every problem is
 
 This layer parses and validates only. A scene with ``integrator.method: auto`` keeps
 ``method == "auto"`` and its tolerance; the step it runs with comes from the cost model
-(``granchain.costmodel.resolve_auto``), applied where a run starts.
+through the run plan (``granchain.runplan.plan_run``), made where a run starts.
 
 Every key's default is in ``DEFAULTS`` below (an effect's section: in its module), and
 every key is declared once beside it (``KEYS``; an effect's: its module's ``KEYS``) with its

@@ -151,7 +151,7 @@ def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: in
     designed realisations (``gapdesign.design`` with ``emphasis``; 0: the gap law's own
     draws, weight 1 each). ``progress``: a bar of the chains still to simulate on stderr
     (``granchain.progress``; None: when stderr is a terminal)."""
-    from ..costmodel import resolve_auto
+    from ..runplan import plan_run
     from ..progress import bar
     from ..simulate import run_scene
     check_base(base)
@@ -171,7 +171,7 @@ def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: in
     out = {c: np.full((gaps.size, speeds.size, realisations), np.nan) for c in TIMING_COLUMNS}
     hashes, simulated, todo = [], 0, []
     for k, g in enumerate(gaps):
-        scene = resolve_auto(grid_scene(base, g, realisations))
+        scene = plan_run(grid_scene(base, g, realisations), per_speed=False).scene
         hashes.append(scene.hash)
         path = _cache_file(cache_dir, scene, designed.tag) if cache_dir is not None else None
         if path is not None and path.exists():
@@ -301,7 +301,7 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
     e_points)`` x the base scene's speeds x ``realisations`` designed realisations (module
     doc). ``progress`` and ``emphasis`` as :func:`simulate_grid`."""
     import time
-    from ..costmodel import resolve_auto
+    from ..runplan import plan_run
     from ..progress import bar
     from ..simulate import run_scene
     check_base(base)
@@ -320,7 +320,7 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
     t0 = time.perf_counter()
     for k, g in enumerate(gaps):
         for j, e in enumerate(es):
-            scene = resolve_auto(joint_scene(base, g, e, realisations))
+            scene = plan_run(joint_scene(base, g, e, realisations), per_speed=False).scene
             hashes.append(scene.hash)
             path = (_joint_cache_file(cache_dir, scene, designed.tag) if cache_dir is not None
                     else None)

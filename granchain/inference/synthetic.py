@@ -18,12 +18,13 @@ def simulate_rows(base: Scene, gap_mean: float, speeds, realisations,
     """Simulated timings (s) of chains of the base scene at mean gap ``gap_mean`` (m), one
     per (speed, realisation) pair: synthetic measurements (realisations drawn with the
     base scene's ``gaps.seed``; give another seed for chains the grid never saw)."""
-    from ..costmodel import resolve_auto
+    from ..runplan import plan_run
     from ..observables import summarize
     from ..simulate import trajectories
     speeds = [float(v) for v in speeds]
-    scene = resolve_auto(base.derive({"gaps": {"mean": float(gap_mean)},
-                                      "striker": {"velocity": sorted(set(speeds))}}))
+    scene = plan_run(base.derive({"gaps": {"mean": float(gap_mean)},
+                                  "striker": {"velocity": sorted(set(speeds))}}),
+                     per_speed=False).scene
     mem = [Member(i, v, int(r)) for i, (v, r) in enumerate(zip(speeds, realisations))]
     out = np.empty(len(mem))
     for m, traj in trajectories(scene, mem, engine):
@@ -37,14 +38,14 @@ def simulate_joint_rows(base: Scene, gap_mean: float, e: float | None, speeds, r
     at mean gap ``gap_mean`` (m) and restitution ``e`` (None: the base scene's damping as
     it is, e.g. another law), one per (speed, realisation) pair: synthetic measurements
     (give the base scene another ``gaps.seed`` for chains the grid never saw)."""
-    from ..costmodel import resolve_auto
+    from ..runplan import plan_run
     from ..observables import summarize
     from ..simulate import trajectories
     speeds = [float(v) for v in speeds]
     change = {"gaps": {"mean": float(gap_mean)}, "striker": {"velocity": sorted(set(speeds))}}
     if e is not None:
         change["damping"] = {"e": float(e)}
-    scene = resolve_auto(base.derive(change))
+    scene = plan_run(base.derive(change), per_speed=False).scene
     mem = [Member(i, v, int(r)) for i, (v, r) in enumerate(zip(speeds, realisations))]
     out = np.empty((len(mem), 3))
     for m, traj in trajectories(scene, mem, engine):

@@ -27,15 +27,16 @@ Choices (also stated in the deck's comments):
   tangential law is then ``linear_history 0.0 0.0 0.0`` (k_t = 0, mu = 0: the force
   -k_t xi is exactly zero, and the cap test 0 > 0 never fires, so no division by k_t).
   Rotation on: ``fix nve/sphere``.
-* Run length: ``scene.t_end``, else ``stoprule.auto_t_max`` of the slowest
-  member (the largest cap over all members); rounded up to whole samples as the
-  reference engine does, so the last sample falls at the same time. With t_end auto
-  the run also stops (``fix halt``) at the first sample at which the wave has left
+* Run length and cadence come from the scene's run plan (``granchain.runplan.RunPlan``), as
+  the reference engine's. Run length: ``scene.t_end``, else the stop rule's cap
+  (``SpeedPlan.run_length``, ``stoprule.auto_t_max``) of the slowest member (the largest
+  cap over all members); rounded up to whole samples as the reference engine does, so
+  the last sample falls at the same time. With t_end auto the run also stops (``fix halt``) at the first sample at which the wave has left
   every moving chain (its last particle moves and has no contact left,
   ``granchain.stoprule``): the reference engine's stop rule, applied to the whole batch. ``granchain.engines.lammps`` then cuts each chain's
   record where the reference engine would have stopped that chain.
-* Cadence: every = round(sample_interval / dt) (as the reference engine), from the
-  member with the finest sampling.
+* Cadence: every = round(sample_interval / dt) (``runplan.step_grid``, as the reference
+  engine), from the member with the finest sampling (``SpeedPlan.sample_dt``).
 * Per-sample output, by the deck option ``output`` (:data:`OUTPUTS`, default ``"dump"``):
   ``"dump"`` the text trajectory dump (``traj.dump``, every sample, sorted by id,
   ``%.17g``: ``id x y z vx`` only, :data:`DUMP_COLUMNS`; the engine's ``output="dump"``
@@ -73,6 +74,7 @@ from granchain.effects import (air_drag, contact_damping, groove_friction, hertz
                                particle_friction, physics_terms, rolling_friction, rotation)
 from granchain.errors import GranchainError
 from granchain.fileio import OutputKind, file_head, atomic_write_text, check_output_path
+from granchain.runplan import RunPlan
 from granchain.scene import NAME_RE, NAME_RULE, Scene
 from granchain.lammps.deckplan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, DECK_NAME,
                                    DUMP_COLUMNS, DUMP_NAME, ENERGY_NAME, LEDGER_BINARY_NAME,
@@ -322,8 +324,9 @@ def needs_plugin(scene: Scene) -> bool:
 
 
 def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str | None = None,
-           output: str = "dump") -> tuple[str, str]:
-    """The texts of deck.lmp and chain.data (no files written).
+           output: str = "dump", run_plan: RunPlan | None = None) -> tuple[str, str]:
+    """The texts of deck.lmp and chain.data (no files written). ``run_plan``: the scene's
+    run plan (``granchain.runplan.plan_run``; planned here if None), see :func:`plan`.
 
     ``radii`` (B, n) m: each chain's own radii (a radius spread; default for a scene's
     own members: ``gaps.member_radii``, see :func:`granchain.lammps.deckplan.batch_members`).
@@ -336,7 +339,8 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
     ``&`` or quote can reach LAMMPS' input parser."""
     if not NAME_RE.fullmatch(scene.name):
         raise GranchainError(f"deck: scene name {scene.name!r} is not a valid name; {NAME_RULE}")
-    pl = plan(scene, gaps=gaps, v_striker=v_striker, radii=radii, output=output)
+    pl = plan(scene, gaps=gaps, v_striker=v_striker, radii=radii, output=output,
+              run_plan=run_plan)
     gaps, vs = pl.gaps, pl.v_striker
     B, n = gaps.shape[0], scene.n
     # each chain's terms under a radius spread (None: every chain has the scene's)
@@ -506,7 +510,7 @@ DECK_FILES = OutputKind("a deck.lmp or chain.data granchain wrote",
 
 def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=None,
                force: bool = False, plugin: str | None = None, output: str = "dump",
-               durable: bool = True) -> Path:
+               durable: bool = True, run_plan: RunPlan | None = None) -> Path:
     """Write ``deck.lmp`` and ``chain.data`` into ``outdir``; return the path of deck.lmp.
 
     output: what the deck writes at every sample (:data:`OUTPUTS`): ``"dump"`` (default)
@@ -522,7 +526,7 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=N
     built/cached). ``durable``: each file written atomically and synced to disk
     (``fileio.atomic_write_text``); False writes them plainly, for a private directory
     that only this process reads and that is removed after the run (the engine's
-    temporary directory).
+    temporary directory). ``run_plan``: the scene's run plan (planned here if None).
     """
     outdir = Path(outdir)
     targets = [outdir / DECK_NAME, outdir / DATA_NAME]
@@ -536,7 +540,7 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=N
         from granchain.lammps.plugin import build_plugin
         plugin = str(build_plugin())
     deck_text, data_text = render(scene, gaps=gaps, v_striker=v_striker, radii=radii,
-                                  plugin=plugin, output=output)
+                                  plugin=plugin, output=output, run_plan=run_plan)
     try:
         outdir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
