@@ -47,9 +47,14 @@ def _workdir_files(args) -> list:
 def check_paths(args, outputs, inputs=()) -> None:
     """Refuse, before any work, an output of a command that is one of its inputs (the
     scene file, the measurement file) or another of its outputs (``--out``, ``--plot``, the
-    files of a kept ``--workdir``), with or without --force (``fileio.check_distinct``)."""
+    files of a kept ``--workdir``), with or without --force (``fileio.check_distinct``),
+    and a kept ``--workdir`` holding a file the run would replace that is not an earlier
+    run's (``lammps.deck.check_workdir``)."""
     check_distinct(_workdir_files(args) + list(outputs),
                    [("the scene file", getattr(args, "scene", None)), *inputs])
+    if getattr(args, "workdir", None):
+        from .lammps.deck import check_workdir
+        check_workdir(args.workdir, args.force)
 
 
 def _fmt(x, unit="", digits=4):
