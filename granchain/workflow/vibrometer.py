@@ -33,7 +33,7 @@ from .. import columns, tables
 from ..errors import GranchainError
 from ..gaps import members as scene_members
 from ..vibrometer import extract, measure, needs_trace, record
-from ..observables import bounded, probe_span, summarize
+from ..observables import bounded, probe_span, status_summary, summarize
 from ..scene import MEASUREMENT_DEFAULTS
 from ..simulate import trajectories
 from .studies import VIBROMETER, StudyScene, vibrometer_scenes, vibrometer_settings
@@ -132,11 +132,13 @@ def run_vibrometer(preset: dict) -> tuple[pd.DataFrame, dict[str, dict], pd.Data
         t0 = time.perf_counter()
         trace_speed = min(sc.striker_velocities, key=lambda v: abs(math.log(v / TRACE_SPEED)))
         steps = 0
+        statuses = []
         for m, traj in trajectories(sc, mem, "reference"):
             if not trace:
                 raise GranchainError(f"{sc.name}: the vibrometer study needs traces")
             steps += int(traj.steps)
             rows += _rows(ss, settings, m, traj)
+            statuses += [r["status"] for r in rows[-len(settings):]]
             if (ss.gap_mean_nm == 0 and m.v_striker == trace_speed
                     and ss.material not in traces):
                 traces[ss.material] = _trace(ss, settings, m, traj)
@@ -144,8 +146,11 @@ def run_vibrometer(preset: dict) -> tuple[pd.DataFrame, dict[str, dict], pd.Data
         timing.append({"study": VIBROMETER, "engine": "reference", "batch": sc.name,
                        "scene_hash": sc.hash, "members": len(mem), "steps": steps,
                        "wall_s": wall, "wall_per_member_s": wall / max(1, len(mem))})
+        ended = status_summary(statuses)
         print(f"[granchain] {VIBROMETER}: {sc.name} {len(mem)} chains x {len(settings)} "
-              f"instrument settings in {wall:.2f} s", file=sys.stderr, flush=True)
+              f"instrument settings in {wall:.2f} s" + (
+                  f"; {ended} (the table's status and warnings columns say which)"
+                  if ended else ""), file=sys.stderr, flush=True)
     df = pd.DataFrame(rows) if rows else pd.DataFrame(columns=list(VIB_COLUMNS))
     for c in ("realisation", "seed", "order"):
         df[c] = df[c].astype("int64")
