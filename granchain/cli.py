@@ -532,6 +532,8 @@ def cmd_infer(args) -> int:
         check_output_path(args.plot, args.force, "--plot", kind=IMAGE)
     if args.out:
         check_output_path(args.out, args.force, "--out", kind=INFER_JSON)
+    if not args.no_cache:
+        _check_cache_dir(args.cache_dir)
     joint = "restitution" in fit
     meas = read_measurements(args.measurements, peaks=joint)
     # the gap law and speeds the base scene leaves out are filled in before method auto
@@ -549,6 +551,20 @@ def cmd_infer(args) -> int:
                 realisations=args.realisations, cache_dir=None if args.no_cache else args.cache_dir,
                 source=f"{args.measurements}, ", prior=args.prior, progress=_progress(args))
     return _report_inference(args, res, meas, base, _print_inference, "plot_inference")
+
+
+def _check_cache_dir(path) -> None:
+    """Refuse, before any work, a --cache-dir that is not (and cannot become) a directory."""
+    d = Path(path)
+    if d.exists() and not d.is_dir():
+        raise GranchainError(f"--cache-dir: {str(d)!r} is not a directory; give a directory "
+                             "for the simulated grids (it is created if missing), or pass "
+                             "--no-cache")
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise GranchainError(f"--cache-dir: cannot create {str(d)!r} ({exc.strerror or exc}); "
+                             "choose another directory, or pass --no-cache") from None
 
 
 def _infer_joint(args, meas, base, src) -> int:

@@ -457,6 +457,8 @@ def summarize(traj: Trajectory, probes=(2, 13)) -> ChainResult:
 # statuses of a run that ended as planned; what any other means, for the human output
 OK_STATUSES = ("passed", "done")
 STATUS_TEXT = {
+    "passed": "the run ended once the wave had left the chain",
+    "done": "the run reached its end time",
     "timeout": "the run hit its time cap before the wave left the chain",
     "nonfinite": "the integration reached a non-finite state",
     "stepfail": "the adaptive step control failed",

@@ -65,6 +65,15 @@ def test_infer_out_and_plot_on_one_file_is_refused_before_the_grid(files, capsys
     assert not Path("x.png").exists() and unchanged(files)
 
 
+def test_infer_cache_dir_that_is_a_file_is_refused_before_the_grid(files, capsys, no_work):
+    """Fails on a build that simulated the first grid point, then raised FileExistsError
+    (a traceback) making the cache directory."""
+    argv = ["infer", "m.csv", "--scene", "base.yaml", "--no-progress", "--cache-dir"]
+    refused(capsys, argv + ["m.csv"], "--cache-dir", "not a directory")
+    refused(capsys, argv + ["m.csv/sub"], "--cache-dir", "cannot create")
+    assert unchanged(files)
+
+
 @pytest.mark.parametrize("target", ["m.csv", "link.csv", "hard.csv", "./sub/../m.csv",
                                     "base.yaml"])
 @pytest.mark.parametrize("option", ["--out", "--plot"])

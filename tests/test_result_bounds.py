@@ -159,6 +159,18 @@ def test_the_text_output_shows_a_timeout_the_json_has():
     assert "status" not in printed(scene, [r])
 
 
+def test_a_run_without_a_measured_peak_says_what_its_status_means(one_run):
+    """A run whose probes have no final peak prints the status with what it means, not a
+    bare 'status passed' or 'status done' beside values that are n/a."""
+    scene = scene_from_dict({"name": "short", "chain": {"n": 6}, "probes": [2, 6]})
+    cut = dataclasses.replace(one_run, wave_arrived=False, not_final=(5, 6))
+    for status, words in (("passed", "the wave had left the chain"),
+                          ("done", "reached its end time")):
+        line, = [ln for ln in printed(scene, [dataclasses.replace(cut, status=status)])
+                 .splitlines() if "no measured peak" in ln]
+        assert f"(status {status}: the run" in line and words in line, line
+
+
 def test_the_text_output_of_an_impossible_run_shows_no_number(monkeypatch, tmp_path):
     """``granchain run`` of the 1e3 N chain: no v_g number, the status and the key."""
     (tmp_path / "s.yaml").write_text("name: s\n")
