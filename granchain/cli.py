@@ -560,11 +560,13 @@ def _check_cache_dir(path) -> None:
         raise GranchainError(f"--cache-dir: {str(d)!r} is not a directory; give a directory "
                              "for the simulated grids (it is created if missing), or pass "
                              "--no-cache")
-    try:
-        d.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise GranchainError(f"--cache-dir: cannot create {str(d)!r} ({exc.strerror or exc}); "
-                             "choose another directory, or pass --no-cache") from None
+    up = d
+    while not up.exists() and up != up.parent:
+        up = up.parent
+    if up != d and not up.is_dir():
+        # created when the first grid point is cached: refused now, not after that work
+        raise GranchainError(f"--cache-dir: cannot create {str(d)!r} ({str(up)!r} is a file); "
+                             "choose another directory, or pass --no-cache")
 
 
 def _infer_joint(args, meas, base, src) -> int:
