@@ -148,6 +148,9 @@ def test_force_replaces_no_file_of_the_users_in_the_kept_workdir(files, capsys, 
     Path("wd-x").mkdir()
     Path("wd-x/keep.txt").write_text("x")
     refused(capsys, [cmd, "s.yaml", *extra, "--workdir", "wd-x"], "--workdir", "not empty")
+    # a file as the workdir: refused before the reference run of compare, not after it
+    refused(capsys, [cmd, "s.yaml", *extra, "--workdir", "m.csv", "--force"], "--workdir",
+            "not a directory")
     assert unchanged(files)
 
 

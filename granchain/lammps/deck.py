@@ -64,6 +64,7 @@ Choices (also stated in the deck's comments):
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from string import Template
 
@@ -529,8 +530,12 @@ def check_workdir(workdir, force: bool, field: str = "--workdir") -> None:
     """Refuse (one line naming ``field``) a kept working directory whose files a run
     would replace: a non-empty one without ``force``; with it, any of ``WORKDIR_FILES``
     there that is not an earlier output of its kind (``WORKDIR_KINDS``), a directory or
-    a special file. A missing directory is fine (the run creates it)."""
+    a special file; a path that is not a directory. A missing directory is fine (the run
+    creates it)."""
     wd = Path(workdir)
+    if os.path.lexists(wd) and not wd.is_dir():
+        raise GranchainError(f"{field}: '{wd}' is not a directory; give a directory for the "
+                             "LAMMPS files (it is created if missing)")
     if not wd.is_dir():
         return
     if not force:
