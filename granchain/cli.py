@@ -46,9 +46,14 @@ def _workdir_files(args) -> list:
 def check_paths(args, outputs, inputs=()) -> None:
     """Refuse, before any work, an output of a command that is one of its inputs (the
     scene file, the measurement file) or another of its outputs (``--out``, ``--plot``, the
-    files of a kept ``--workdir``), with or without --force (``fileio.check_distinct``)."""
+    files of a kept ``--workdir``), with or without --force (``fileio.check_distinct``),
+    and a kept ``--workdir`` holding a file the run would replace that is not an earlier
+    run's (``lammps.deck.check_workdir``)."""
     check_distinct(_workdir_files(args) + list(outputs),
                    [("the scene file", getattr(args, "scene", None)), *inputs])
+    if getattr(args, "workdir", None):
+        from .lammps.deck import check_workdir
+        check_workdir(args.workdir, args.force)
 
 
 def _fmt(x, unit="", digits=4):
@@ -531,6 +536,8 @@ def cmd_infer(args) -> int:
         check_output_path(args.plot, args.force, "--plot", kind=IMAGE)
     if args.out:
         check_output_path(args.out, args.force, "--out", kind=INFER_JSON)
+    if not args.no_cache:
+        _check_cache_dir(args.cache_dir)
     joint = "restitution" in fit
     meas = read_measurements(args.measurements, peaks=joint)
     # the gap law and speeds the base scene leaves out are filled in before method auto
@@ -548,6 +555,22 @@ def cmd_infer(args) -> int:
                 realisations=args.realisations, cache_dir=None if args.no_cache else args.cache_dir,
                 source=f"{args.measurements}, ", prior=args.prior, progress=_progress(args))
     return _report_inference(args, res, meas, base, _print_inference, "plot_inference")
+
+
+def _check_cache_dir(path) -> None:
+    """Refuse, before any work, a --cache-dir that is not (and cannot become) a directory."""
+    d = Path(path)
+    if d.exists() and not d.is_dir():
+        raise GranchainError(f"--cache-dir: {str(d)!r} is not a directory; give a directory "
+                             "for the simulated grids (it is created if missing), or pass "
+                             "--no-cache")
+    up = d
+    while not up.exists() and up != up.parent:
+        up = up.parent
+    if up != d and not up.is_dir():
+        # created when the first grid point is cached: refused now, not after that work
+        raise GranchainError(f"--cache-dir: cannot create {str(d)!r} ({str(up)!r} is a file); "
+                             "choose another directory, or pass --no-cache")
 
 
 def _infer_joint(args, meas, base, src) -> int:

@@ -1039,7 +1039,7 @@ def _validate_once(data: bytes) -> None:
             assert text == "" and "valid scene" in out.getvalue()
 
 
-@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(mutation, min_size=1, max_size=4), st.randoms(use_true_random=False))
 def test_fuzz_mutated_scenes(mutations, rnd):
     doc = json.loads(json.dumps(BASE))

@@ -196,7 +196,8 @@ Modules, one job each (every public name is importable from ``granchain.inferenc
 from __future__ import annotations
 
 from .measurements import (TIMING_COLUMNS, PEAK_COLUMNS, COLUMNS, FITS, SPEED_RTOL, PEAK_RTOL,
-                           PEAK_SIGMAS, Measurements, read_measurements, parse_fit, fit_for,
+                           PEAK_SIGMAS, MAX_ROWS, MAX_PEAK_ROWS, MAX_CHAIN_ROWS, Measurements,
+                           read_measurements, parse_fit, fit_for,
                            check_speeds, peak_bounds, check_peaks)
 from .grid import (GAP_LAWS, DEFAULT_GAP_LAW, CACHE_FORMAT, GAP_MAX, GAP_POINTS, REALISATIONS,
                    E_MIN, E_POINTS, JOINT_OBS, JOINT_CACHE_FORMAT, timing, peak, complete_base,

@@ -24,6 +24,14 @@ PEAK_COLUMNS = ("vmax_1_m_s", "vmax_2_m_s")     # measured peaks at the two prob
 COLUMNS = ("v_striker_m_s", *TIMING_COLUMNS, "dt_err_s", "chain_id", *PEAK_COLUMNS,
            "vmax_err_m_s")
 FITS = ("gap_mean", "restitution")      # what --fit may name
+# the most data rows a measurement file may hold (the joint fit of the peaks: fewer, each
+# row costs ~0.4-1 s of likelihood; 1000 rows took 7 min on a small grid), and one chain's
+# series (its rows enter the likelihood together: a kernel density in as many dimensions,
+# three per row when the peaks are fitted too; the joint fit of a 20-row chain took 22 s
+# and 0.9 GB on a small grid, of 50 rows over 15 min); a lab's file is far smaller
+MAX_ROWS = 10_000
+MAX_PEAK_ROWS = 200
+MAX_CHAIN_ROWS = 20
 SPEED_RTOL = 1e-9         # a row's speed may exceed the simulated range by this (rounding)
 PEAK_RTOL = 1e-3          # a peak may exceed what the striker can give by this (rounding,
                           # the drag's small propulsive work, a preload's)
@@ -153,6 +161,11 @@ def read_measurements(path, peaks: bool = False) -> Measurements:
                            "probes, m/s), or fit gap_mean alone")
     if len(rows) < 2:
         raise _bad(name, "no data rows under the header", "add at least one measurement")
+    most = MAX_PEAK_ROWS if peaks else MAX_ROWS
+    if len(rows) - 1 > most:
+        raise _bad(name, f"has {len(rows) - 1} data rows, more than {most}"
+                   + (" for a fit of the peaks" if peaks else ""),
+                   "give one row per measurement (average repeated ones), or split the file")
     v, t, err, ids, where_lines = [], [], [], [], []
     peak_cols = [c for c in PEAK_COLUMNS if c in header]
     pk = {c: [] for c in peak_cols}
@@ -201,6 +214,15 @@ def read_measurements(path, peaks: bool = False) -> Measurements:
         pk_err.append(pe)
         cid = cell.get("chain_id", "") or None
         v.append(vs), t.append(dt), err.append(e), ids.append(cid), where_lines.append(line)
+    per_chain: dict = {}
+    for cid in ids:
+        per_chain[cid] = per_chain.get(cid, 0) + 1
+    for cid, rows_of in per_chain.items():
+        if cid is not None and rows_of > MAX_CHAIN_ROWS:
+            raise _bad(f"{name}, column 'chain_id'", f"chain {short(cid)} has {rows_of} rows, "
+                       f"more than {MAX_CHAIN_ROWS} (a chain's rows are fitted as one series)",
+                       "give one row per striker speed of that chain, or leave chain_id empty "
+                       "for rows of separate chains")
     group, seen = [], {}
     for cid in ids:
         if cid is None:

@@ -65,6 +65,7 @@ Choices (also stated in the deck's comments):
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from string import Template
 
@@ -91,7 +92,7 @@ __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "wr
            "LEDGER_NAME", "DUMP_COLUMNS", "WORK_COLUMNS", "LEDGER_INPUTS", "OUTPUTS",
            "BINARY_NAME", "LEDGER_BINARY_NAME", "BINARY_COLUMNS", "max_travel",
            "ledger_binary_columns", "WALL_FORCE_COLUMN", "field", "LOG_NAME", "SCREEN_NAME",
-           "WORKDIR_FILES"]
+           "WORKDIR_FILES", "WORKDIR_KINDS", "check_workdir"]
 
 def template_path() -> Path:
     return Path(__file__).resolve().parents[2] / "lammps_inputs" / "templates" / "chain.lmp.in"
@@ -506,6 +507,48 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
 DECK_FILES = OutputKind("a deck.lmp or chain.data granchain wrote",
                         lambda p: file_head(p, 64).startswith((b"# granchain LAMMPS deck",
                                                            b"granchain chain.data")))
+
+
+def _starts(*heads: bytes, empty: bool = False):
+    def looks_like(p) -> bool:
+        head = file_head(p, 64)
+        return head.startswith(heads) or (empty and head == b"")
+    return looks_like
+
+
+_AVE_TIME = OutputKind("a LAMMPS fix ave/time file", _starts(b"# Time-averaged data for fix"))
+_BINARY = OutputKind("a LAMMPS binary dump",
+                     lambda p: file_head(p, 18)[8:18] == b"DUMPCUSTOM")
+# an empty log: LAMMPS did not start (nothing to lose)
+_LOG = OutputKind("a LAMMPS log", _starts(b"LAMMPS (", empty=True))
+# what force may replace in a kept working directory: each file the engine writes there,
+# an earlier run's (recognised by its first bytes), never a file of the user's that
+# happens to bear the name
+WORKDIR_KINDS = {DECK_NAME: DECK_FILES, DATA_NAME: DECK_FILES,
+                 DUMP_NAME: OutputKind("a LAMMPS text dump", _starts(b"ITEM: TIMESTEP")),
+                 ENERGY_NAME: _AVE_TIME, LEDGER_NAME: _AVE_TIME, BINARY_NAME: _BINARY,
+                 LEDGER_BINARY_NAME: _BINARY, LOG_NAME: _LOG, SCREEN_NAME: _LOG}
+
+
+def check_workdir(workdir, force: bool, field: str = "--workdir") -> None:
+    """Refuse (one line naming ``field``) a kept working directory whose files a run
+    would replace: a non-empty one without ``force``; with it, any of ``WORKDIR_FILES``
+    there that is not an earlier output of its kind (``WORKDIR_KINDS``), a directory or
+    a special file; a path that is not a directory. A missing directory is fine (the run
+    creates it)."""
+    wd = Path(workdir)
+    if os.path.lexists(wd) and not wd.is_dir():
+        raise GranchainError(f"{field}: '{wd}' is not a directory; give a directory for the "
+                             "LAMMPS files (it is created if missing)")
+    if not wd.is_dir():
+        return
+    if not force:
+        if any(wd.iterdir()):
+            raise GranchainError(f"{field}: '{wd}' is not empty; choose an empty directory or "
+                                 "allow replacing its files (--force)")
+        return
+    for name in WORKDIR_FILES:
+        check_output_path(wd / name, True, field, probe=False, kind=WORKDIR_KINDS[name])
 
 
 def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=None,

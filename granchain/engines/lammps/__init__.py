@@ -151,6 +151,7 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         if wd.is_dir() and any(wd.iterdir()) and not force:
             raise GranchainError(f"LAMMPS workdir '{wd}' is not empty; choose an empty "
                                  "directory or allow replacing its files (force / --force)")
+        deckmod.check_workdir(wd, force, "LAMMPS workdir")
         try:
             wd.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -164,8 +165,11 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
                           run_plan=plan)
         deck = deckmod.write_deck(scene, wd, gaps=gaps, v_striker=vs, radii=pl.radii, force=True,
                                   output=output, durable=not tmp, run_plan=plan)
+        # every earlier output goes (checked above): LAMMPS then writes new files, never
+        # through a symlink left under one of their names
         for stale in (deckmod.DUMP_NAME, deckmod.ENERGY_NAME, deckmod.LEDGER_NAME,
-                      deckmod.BINARY_NAME, deckmod.LEDGER_BINARY_NAME):
+                      deckmod.BINARY_NAME, deckmod.LEDGER_BINARY_NAME, deckmod.LOG_NAME,
+                      deckmod.SCREEN_NAME):
             (wd / stale).unlink(missing_ok=True)
         if progress:
             print(f"[granchain] {scene.name}: LAMMPS, {B} chain(s) x {scene.n} spheres, "
