@@ -181,7 +181,8 @@ def test_plain_draws_miss_the_rare_series_and_the_check_says_so(rare_case):
 # ---------------------------------------------------------------------------------------
 def test_the_likelihood_takes_the_key_contacts_heavier_prior_by_default():
     d = gapdesign.design(scene(), 32)
-    assert gapdesign.KEY_PRIOR == "robust"
+    assert gapdesign.KEY_PRIOR == "robust" and gapdesign.GAP_ONLY_KEY_PRIOR == "law"
+    assert inference.JointGrid.key_prior == "robust" and inference.Grid.key_prior == "law"
     assert np.array_equal(gapdesign.prior_weights(d.weights, 32), np.ones(32))
     assert np.array_equal(gapdesign.prior_weights(d.weights, 32, "law"), d.weights)
     assert np.array_equal(gapdesign.prior_weights(None, 32, "law"), np.ones(32))

@@ -24,10 +24,10 @@ ensembles (never from Eq. 5.4).
   (``granchain.gapdesign``): the law's own draws, but with the gaps on either side of each
   probe drawn toward small values from a heavier prior, so that the few-percent of
   chains with a near-zero gap next to a probe (whose peaks, and peak times, are a packed
-  pair's) are represented by several realisations rather than by one or none. The
-  likelihood keeps that heavier prior for those contacts (w_r = 1; with key prior "law",
-  w_r = prior / proposal weights the realisations back to the gap law:
-  ``gapdesign.prior_weights`` says why the fits do not). So the timing of realisation
+  pair's) are represented by several realisations rather than by one or none. The joint
+  fit's likelihood keeps that heavier prior for those contacts (w_r = 1); the gap-only
+  fit's weights the realisations back to the gap law (w_r = prior / proposal):
+  ``gapdesign.prior_weights`` says why. So the timing of realisation
   r is a smooth function of the mean gap and of the striker speed, and is interpolated:
   linearly in the mean gap between grid points, linearly in (log v, log t) between
   striker speeds. The interpolation error is measured on the grid itself (each interior

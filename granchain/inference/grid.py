@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import GranchainError
 from ..fileio import atomic_write_bytes
-from ..gapdesign import EMPHASIS, KEY_PRIOR, design, prior_weights
+from ..gapdesign import EMPHASIS, GAP_ONLY_KEY_PRIOR, KEY_PRIOR, design, prior_weights
 from ..scene import Scene
 from .measurements import TIMING_COLUMNS, Measurements
 
@@ -116,7 +116,7 @@ class Grid:
     hashes: tuple[str, ...]
     simulated: int
     weights: np.ndarray | None = None
-    key_prior: str = KEY_PRIOR
+    key_prior: str = GAP_ONLY_KEY_PRIOR
 
     @property
     def realisations(self) -> int:
