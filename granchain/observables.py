@@ -483,6 +483,8 @@ def status_summary(statuses) -> str:
         return ""
     return (f"{sum(bad.values())} of {len(statuses)} runs ended "
             + ", ".join(f"{s} ({k})" for s, k in sorted(bad.items())))
+
+
 # (delay, group velocity) pairs: a delay that is not positive, or a group velocity above
 # the sound speed, makes both impossible (v_g = span / delay)
 _TIMING_PAIRS = (("dt_peak", "v_g"), ("dt_front", "v_g_front"),

@@ -122,13 +122,13 @@ def test_a_chains_result_does_not_depend_on_its_chunk_block_or_thread(method, mo
     """On the fly, in large dealt chunks of small blocks, against each chain's trace run
     with one chain per block in chunks of one block (no dealing), summarised in Python."""
     sc = _scene(method, **{"striker.velocity": "[0.0, 0.07, 0.1]"})
-    gaps, vs = _members(27, sc.n)
-    monkeypatch.setattr(chunks, "LANES", 3)            # 27 chains: 9 blocks
+    gaps, vs = _members(15, sc.n)
+    monkeypatch.setattr(chunks, "LANES", 3)            # 15 chains: 5 blocks
     monkeypatch.setattr(reference.backend, "num_threads", lambda: 4)
     dealt = list(reference.run(sc, gaps, vs, progress=False, trace=False))
     assert all(t.observed is not None for t in dealt)
     assert len({t.steps for t in dealt}) > 5 and {t.status for t in dealt} >= {"passed", "done"}
-    monkeypatch.setattr(chunks, "CHUNK_CHAINS", 6)     # chunks of 2 blocks of 3
+    monkeypatch.setattr(chunks, "CHUNK_CHAINS", 6)     # chunks of 2 blocks of 3, and 1
     small = list(reference.run(sc, gaps, vs, progress=False, trace=False))
     monkeypatch.setattr(chunks, "LANES", 1)
     monkeypatch.setattr(chunks, "CHUNK_CHAINS", 1)

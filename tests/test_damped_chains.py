@@ -166,8 +166,8 @@ LEDGER_CASES = {
     "limit_packed_e0.7": dict(damping="coeff_restitution", e=0.7, limit_damping=True),
 }
 # 2-4 s each (the gaps' many restarts): in the full suite; the fast tier checks the same
-# laws' ledgers on the packed chain
-SLOW_LEDGER = ("visco_gapped", "limit_gapped_e0.7")
+# laws' ledgers on the packed chain, and the damped wall's in preload_e0.9
+SLOW_LEDGER = ("visco_gapped", "limit_gapped_e0.7", "wall_e0.9")
 
 
 @pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW_LEDGER

@@ -113,7 +113,8 @@ ENERGY_WALL_LOAD = {(0.01, "rigid"): 6.3e-13, (0.01, "ss440c"): 6.6e-13,
                     (0.1, "rigid"): 5.6e-13, (0.1, "ss440c"): 4.4e-13}
 
 
-@pytest.mark.parametrize("F0, wall", list(ENERGY_WALL_LOAD))
+@pytest.mark.parametrize("F0, wall", [pytest.param(*k, marks=pytest.mark.slow) if k[0] == 0.01
+                                      else k for k in ENERGY_WALL_LOAD])
 def test_general_solver_conserves_energy_with_wall_and_load(F0, wall):
     """Energy = kinetic + Hertz potential (the wall's included) - F0 x_2, relative to the
     static state; bound 3x the measured error."""
