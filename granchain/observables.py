@@ -1,5 +1,6 @@
 """Observables of a chain, engine-neutral: they read a Trajectory, whatever produced it.
 
+The rules are ``granchain.obsrules``' (which the engines' on-the-fly observables apply too).
 Peak of particle i: v_max,i = max_t v_i(t), refined below the sample spacing:
 - a sharp peak (at most PLATEAU_SAMPLES samples within PEAK_TOL of the maximum) is
   refined by the vertex of the parabola through the three samples around the maximum;
@@ -38,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import stoprule
+from . import obsrules, stoprule
 from .effects import SPECS
 from .trajectory import ENERGY_COLUMNS, Trajectory
 
@@ -54,8 +55,7 @@ def _crossing(t, y, level, stop):
     j = int(idx[0])
     if j == 0:
         return float(t[0])
-    y0, y1 = y[j - 1], y[j]
-    return float(t[j - 1] + (level - y0) / (y1 - y0) * (t[j] - t[j - 1]))
+    return float(obsrules.crossing(t[j - 1], t[j], y[j - 1], y[j], level))
 
 
 def peak(t: np.ndarray, y: np.ndarray) -> tuple[float, float, float, bool]:
@@ -64,7 +64,7 @@ def peak(t: np.ndarray, y: np.ndarray) -> tuple[float, float, float, bool]:
     top = float(y[j])
     if not top > 0.0:
         return 0.0, math.nan, math.nan, False
-    near = y >= (1.0 - PEAK_TOL) * top
+    near = obsrules.near(y, top)
     # contiguous run of near-maximum samples containing j
     lo = j
     while lo > 0 and near[lo - 1]:
@@ -72,21 +72,17 @@ def peak(t: np.ndarray, y: np.ndarray) -> tuple[float, float, float, bool]:
     hi = j
     while hi < len(y) - 1 and near[hi + 1]:
         hi += 1
-    plateau = (hi - lo + 1) > PLATEAU_SAMPLES
+    plateau = obsrules.plateau(hi - lo + 1)
     if not plateau and 0 < j < len(y) - 1:
-        y0, y1, y2 = float(y[j - 1]), top, float(y[j + 1])
-        den = y0 - 2.0 * y1 + y2
-        off = 0.5 * (y0 - y2) / den if den < 0.0 else 0.0
-        off = min(max(off, -0.5), 0.5)
-        vmax = y1 - 0.25 * (y0 - y2) * off
+        off, vmax = obsrules.vertex(float(y[j - 1]), top, float(y[j + 1]))
         h = float(t[j + 1] - t[j])
         tpk = float(t[j]) + off * h
     elif not plateau:
         vmax, tpk = top, float(t[j])
     else:
         vmax = top
-        tpk = _crossing(t, y, (1.0 - PEAK_TOL) * top, j)
-    tfront = _crossing(t, y, 0.5 * vmax, j)
+        tpk = _crossing(t, y, obsrules.near_level(top), j)
+    tfront = _crossing(t, y, obsrules.front_level(vmax), j)
     return float(vmax), float(tpk), tfront, bool(plateau)
 
 
@@ -119,10 +115,7 @@ def wall_peak(traj: Trajectory) -> tuple[float, float, bool]:
         return math.nan, math.nan, False
     tpk = float(traj.t[j])
     if 0 < j < len(F) - 1:
-        y0, y2 = float(F[j - 1]), float(F[j + 1])
-        den = y0 - 2.0 * top + y2
-        off = min(max(0.5 * (y0 - y2) / den, -0.5), 0.5) if den < 0.0 else 0.0
-        top = top - 0.25 * (y0 - y2) * off
+        off, top = obsrules.vertex(float(F[j - 1]), top, float(F[j + 1]))
         tpk += off * float(traj.t[j + 1] - traj.t[j])
     return top, tpk, True
 

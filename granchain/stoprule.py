@@ -22,10 +22,11 @@ run (the chapter's Fig. 5.3b plots every particle). A peak that is not final (a 
 ``t_end`` cut it off, or an auto run hit its time cap) is reported as NaN with the
 particle flagged, never as a number.
 
-The reference kernels (``engines/kernels.py``, ``run_window``), the LAMMPS deck
-(``fix halt`` on ``compute contact/atom``, ``lammps/deck.py``), the LAMMPS engine's
-per-chain cut (``engines/lammps.auto_stop``) and ``observables.peak_final`` implement
-these definitions with the constants below.
+The rules are written once, in ``granchain.obsrules`` (with their constants): the
+reference kernels (``engines.kernels``, ``engines.events``), the LAMMPS engine's per-chain
+cut (``engines/lammps.auto_stop``) and ``observables.peak_final`` apply them; the LAMMPS
+deck states the stop rule again in its own language (``fix halt`` on ``compute
+contact/atom``, ``lammps/deck.py``).
 """
 from __future__ import annotations
 
@@ -33,14 +34,12 @@ import math
 
 import numpy as np
 
-from . import analytic
+from . import analytic, obsrules
 from .guards import crossing_time, require_resolved
+# the observable rules' constants (``granchain.obsrules``)
+from .obsrules import ARRIVAL_FRACTION, PASS_FRACTION, PEAK_TOL, PLATEAU_SAMPLES  # noqa: F401
 
 SAMPLES_PER_PULSE = 400    # auto sampling: samples per solitary-wave width
-ARRIVAL_FRACTION = 1e-3    # a particle has seen the wave once v > ARRIVAL_FRACTION * v_s
-PASS_FRACTION = 0.5        # the wave has passed an inner particle once v < this * its peak
-PEAK_TOL = 1e-4            # a peak: samples within PEAK_TOL of the maximum (observables.peak)
-PLATEAU_SAMPLES = 5        # a plateau: a near-peak run longer than this many samples
 
 
 def sample_interval(scene, v_striker: float) -> float:
@@ -70,38 +69,40 @@ def auto_t_max(scene, gaps, v_striker: float) -> float:
         scene.material, scene.radius, 0.5 * v_striker)
 
 
-def arrival_speed(v_striker: float) -> float:
-    """Velocity (m/s) above which a particle has seen the wave."""
-    return ARRIVAL_FRACTION * v_striker
+def arrival_speed(v_striker):
+    """Velocity (m/s) above which a particle has seen the wave (``obsrules.arrival``)."""
+    return obsrules.arrival(v_striker)
 
 
 def last_detached(v_last, overlap_last, v_striker):
-    """Has the last particle taken the wave and left? (elementwise on arrays)
+    """Has the last particle taken the wave and left? (elementwise on arrays;
+    ``obsrules.detached``)
 
-    v_last: velocity of particle n (m/s); overlap_last: Hertz overlap of contact n-1, n
+    v_last: velocity of particle n (m/s); overlap_last: the overlap of contact n-1, n
     (m, > 0 in contact)."""
-    return (np.asarray(v_last) > arrival_speed(v_striker)) & (np.asarray(overlap_last) <= 0.0)
+    return obsrules.detached(np.asarray(v_last), np.asarray(overlap_last),
+                             arrival_speed(v_striker))
 
 
 def wall_left(v_last, x_last, v_striker):
-    """Has the wave left a chain that ends on a wall? (elementwise on arrays)
+    """Has the wave left a chain that ends on a wall? (elementwise on arrays;
+    ``obsrules.wall_left``)
 
     v_last: velocity of particle n (m/s); x_last: its displacement from its initial
-    (static) position (m). The last particle moves back from the wall faster than the
-    arrival speed and is back at or behind its start: the wave has reflected and the wall
-    force is back at or below its static value, so the wall's dynamic peak is behind."""
-    return (np.asarray(v_last) < -arrival_speed(v_striker)) & (np.asarray(x_last) <= 0.0)
+    (static) position (m)."""
+    return obsrules.wall_left(np.asarray(v_last), np.asarray(x_last), arrival_speed(v_striker))
 
 
 def wall_passed(f_after_peak: np.ndarray, f_peak: float) -> bool:
     """Has the end wall's dynamic force passed its peak? f_after_peak: its samples
-    after the peak, which must fall below PASS_FRACTION of it."""
-    return bool(np.any(np.asarray(f_after_peak) < PASS_FRACTION * f_peak))
+    after the peak, one of which must fall below the pass level (``obsrules.passed``)."""
+    return bool(np.any(obsrules.passed(np.asarray(f_after_peak), f_peak)))
 
 
 def inner_passed(v_after_peak: np.ndarray, v_peak: float) -> bool:
-    """Has the wave passed an inner particle? v_after_peak: its samples after the peak."""
-    return bool(np.any(np.asarray(v_after_peak) < PASS_FRACTION * v_peak))
+    """Has the wave passed an inner particle? v_after_peak: its samples after the peak
+    (``obsrules.passed``)."""
+    return bool(np.any(obsrules.passed(np.asarray(v_after_peak), v_peak)))
 
 
 # ---------------------------------------------------------------------------------------

@@ -86,7 +86,8 @@ EDITS = {
     "effect": ("effects/hertz.py", "return K * d * math.sqrt(d) if d > 0.0",
                "return 0.5 * K * d * math.sqrt(d) if d > 0.0"),
     "codes": ("engines/codes.py", "RB_SIZE = 48 ", "RB_SIZE = 47 "),
-    "stoprule": ("stoprule.py", "PEAK_TOL = 1e-4 ", "PEAK_TOL = 2e-4 "),
+    "obsrules": ("obsrules.py", "PEAK_TOL = 1e-4 ", "PEAK_TOL = 2e-4 "),
+    "compose": ("engines/compose.py", '"    best = -1.0"', '"    best = -2.0"'),
 }
 
 
@@ -122,7 +123,7 @@ def _module_name_in(*pythonpath: Path) -> str:
 def test_module_name_and_jit_cache_folder_change_with_every_compiled_source(what, tmp_path):
     # a module built from other sources has another name: it is simply not found. And
     # numba keys its cache by the stamp of the kernel's own file only: the kernels inline
-    # the effects' laws and freeze codes/stoprule constants, so an edit in any of them
+    # the effects' laws and freeze codes/obsrules constants, so an edit in any of them
     # must move the JIT cache to another folder, or old machine code would run
     rel, old, new = EDITS[what]
     pkg = _copy_package(tmp_path)
@@ -137,9 +138,12 @@ def test_module_name_and_jit_cache_folder_change_with_every_compiled_source(what
 
 
 def test_the_jit_kernels_cache_into_the_hashed_folder():
-    from granchain.engines import events, kernels
+    from granchain.engines import compose, events, kernels
     folder = str(backend.jit_cache_dir())
-    for disp in (kernels.forces, kernels.run_blocks, kernels._drag_force, events.run_events):
+    # the composed physics and an effect's compiled law too
+    law = next(iter(compose._DISPATCHERS.values()))
+    for disp in (kernels.forces, kernels.run_blocks, compose.effect_forces, law,
+                 events.run_events):
         assert disp._cache._cache_path.startswith(folder + os.sep), disp
 
 

@@ -77,7 +77,7 @@ class Chain:
 
 
 def balance(E):
-    tot = E[:, kernels.E_KIN_TRANS] + E[:, kernels.E_KIN_ROT] + E[:, kernels.E_HERTZ]
+    tot = E[:, kernels.E_KIN_TRANS] + E[:, kernels.E_KIN_ROT] + E[:, kernels.E_POT]
     return np.abs(tot - tot[0] - E[:, kernels.E_WORK_GROOVE:].sum(axis=1)).max() / tot[0]
 
 
@@ -271,7 +271,7 @@ def test_spinning_chain_with_rolling_stays_bounded():
     c = Chain(five(ROLL, **{"rolling.k_roll": 1e7, "rolling.gamma_roll": 1.0}), w0=SPINS)
     Y, E = c.run("rk4", 1e-9, 20000, every=10)
     assert np.all(np.isfinite(Y))
-    mech = E[:, kernels.E_KIN_TRANS] + E[:, kernels.E_KIN_ROT] + E[:, kernels.E_HERTZ]
+    mech = E[:, kernels.E_KIN_TRANS] + E[:, kernels.E_KIN_ROT] + E[:, kernels.E_POT]
     assert mech.max() <= mech[0] * (1 + 2e-9)
     assert balance(E) < 1e-9
 

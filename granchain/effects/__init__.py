@@ -1,42 +1,43 @@
 """Physical effects of chapter Eq. 5.1: one module each, and the registry that adds them up.
 
 Each effect module (``hertz``, ``rotation``, ``groove_friction``, ``air_drag``,
-``particle_friction``, ``rolling_friction``) declares, once:
-- ``SPEC`` (:class:`~granchain.effects.spec.EffectSpec`): its state blocks, its work
-  column in the energy ledger and results tables, and what LAMMPS reports of it;
-- its parameter record (a frozen dataclass, SI units) and ``build(scene)``;
-- its law as plain scalar functions (no law calls another), which the reference kernels
-  compile with numba (``engines/kernels.py``) and use in every integrator and in the
-  return mapping;
-- its LAMMPS deck fragment (``lammps_pair`` / ``lammps_fix`` / ``lammps_integrator``).
+``particle_friction``, ``rolling_friction``, ``contact_damping``) declares, once:
+- ``SPEC`` (:class:`~granchain.effects.spec.EffectSpec`): its parameter and flag slots,
+  per-sphere and per-contact rows, state blocks, its work column in the energy ledger and
+  results tables, and what LAMMPS reports of it;
+- its parameter record (a frozen dataclass, SI units) and ``build(scene)``, and for an
+  effect with parameters its scene section (``SECTION``, ``DEFAULTS``, ``KEYS`` declaring
+  each key's unit, bounds and meaning, and ``settings``, which validates the section);
+- its kernel parameters and flags by slot name (``kernel(term)``), its per-sphere and
+  per-contact rows (``rows(term, chain)``), and for an effect with a history the error
+  scale the adaptive method judges it on (``error_scale``);
+- its law, as plain functions marked ``spec.compiled``: the scalar laws, and the parts of
+  ``spec.HOOKS`` it needs (its normal force on a contact, its forces and torques on the
+  spheres with its history and work rates, its history projection, its energy, its
+  switches for the event method). The engines compile them with numba and compose the
+  kernels from them in registry order (``granchain.engines.compose``); every integrator
+  and the return mapping use the same law;
+- its LAMMPS deck fragment.
 
 ``physics_terms(scene)`` returns a :class:`Terms` holding one record per enabled effect.
 Both engines take the physics from here; no engine reads scene fields for physics.
 
-Conventions: z along the chain, theta the rotation about the
-horizontal axis perpendicular to it (LAMMPS: x and omega_y); a sphere rolling forward has
-omega > 0. Slip at the groove: u = v - s R omega. Slip at the contact of spheres k, k+1:
+Conventions: z along the chain, theta the rotation about the horizontal axis
+perpendicular to it (LAMMPS: x and omega_y); a sphere rolling forward has omega > 0. Slip
+at the groove: u = v - s R omega. Slip at the contact of spheres k, k+1:
 w = R (omega_k + omega_{k+1}).
 
-- its kernel parameters and flags by slot name (``kernel(term)``), and for an effect with
-  a history the error scale the adaptive method judges it on (``error_scale``).
-
-- its per-sphere and per-contact kernel rows (``rows(term, chain)``), when the parameters
-  differ from sphere to sphere.
-
 The kernels' numbering (P, FL, G, LO, the energy columns) is generated from the SPECs
-(``engines/codes.py``). To add an effect: a module here with these parts, its entry in
-``MODULES`` (``Terms`` gets its field from there), its block in ``engines/kernels.py`` (``forces``, and
-``project`` if it has a history), and, for an effect with parameters, its scene section
-(``SECTION``, ``DEFAULTS``, ``KEYS`` declaring each key's unit, bounds and meaning, and
-``settings``, which validates the section against those declarations).
+(``slots``). To add an effect: a module here with these parts and its entry in
+``MODULES`` (``Terms`` gets its field from there); docs/tutorials/add-a-physical-effect.md
+walks through one.
 """
 from __future__ import annotations
 
 import dataclasses
 
 from . import (air_drag, chain, contact_damping, groove_friction, hertz, particle_friction,
-               rolling_friction, rotation)
+               rolling_friction, rotation, slots)
 from .chain import Chain
 from .air_drag import AirDrag
 from .groove_friction import GrooveFriction
@@ -56,6 +57,8 @@ SPECS: dict[str, EffectSpec] = {m.SPEC.name: m.SPEC for m in MODULES}
 # the work of the dead load (precompression: F0 times particle 2's displacement).
 ENERGY_COLUMNS = ("kinetic_translational", "kinetic_rotational", "hertz_potential") + tuple(
     s.work for s in SPECS.values() if s.work) + (chain.SPEC.work,)
+# the kernels' numbering of every declared slot (``slots``)
+slots.number((chain.SPEC,) + tuple(SPECS.values()), ENERGY_COLUMNS)
 
 
 def residual_work(effects) -> tuple[str, ...]:
@@ -66,6 +69,12 @@ def residual_work(effects) -> tuple[str, ...]:
 
 def _has(self, name: str) -> bool:
     return getattr(self, name) is not None
+
+
+def _overlap_scale(self, v: float) -> float:
+    """The peak overlap (m) of a head-on collision of two beads at closing speed v (m/s),
+    by the normal law (``hertz.peak_overlap``)."""
+    return hertz.peak_overlap(self.m / 2.0, self.hertz.K, v)
 
 
 def _dissipative(self) -> tuple[str, ...]:
@@ -81,6 +90,7 @@ Terms = dataclasses.make_dataclass(
               ("chain", Chain, dataclasses.field(default=None))]
     + [(m.SPEC.name, object, dataclasses.field(default=None)) for m in MODULES if m is not hertz],
     frozen=True, namespace={"has": _has, "dissipative": property(_dissipative),
+                            "overlap_scale": _overlap_scale,
                             "__doc__": "The physics of one scene: the chain and its enabled "
                                        "effects (one field per registered effect)."})
 Terms.__module__ = __name__

@@ -11,11 +11,15 @@ import numpy as np
 
 from ..units import lmp_float as _r, to_micro
 from ..validate import Key
-from .spec import EffectSpec
+from . import slots as S
+from .lanes import moving
+from .spec import EffectSpec, compiled
 
+# order -1: the drag is added to a sphere's force before the groove friction
 SPEC = EffectSpec("air_drag", work="work_air_drag", work_slot="L_WORK_DRAG",
                   table_column="work_air_J", lammps_ledger="f_gd[3]",
-                  params=("P_DRAG_T0", "P_DRAG_L"), flags=("F_AIR_DRAG", "F_DRAG_ODD"))
+                  params=("P_DRAG_T0", "P_DRAG_L"), flags=("F_AIR_DRAG", "F_DRAG_ODD"),
+                  order=-1)
 
 
 # The scene section of this effect, its defaults (the chapter's Chapter-4 constants), its
@@ -51,10 +55,35 @@ def settings(sec: dict, given: frozenset, on: bool) -> Settings:
                     _KEY["form"].choice(sec["form"], "form"))
 
 
+@compiled
 def force(m, v, T0, L, odd):
     """Drag force (N) on a sphere of mass m (kg) moving at v (m/s); scalar or array v."""
     q = v * abs(v) if odd else v * v
     return -m * (v / T0 - q / L)
+
+
+@compiled
+def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
+    """The drag on every moving sphere (``spec.HOOKS['force']``) and its work rate."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ov = LO[S.L_VEL]
+    oM = S.G_MASS * n
+    T0 = P[S.P_DRAG_T0]
+    Ld = P[S.P_DRAG_L]
+    odd = FL[S.F_DRAG_ODD] != 0
+    owd = LO[S.L_WORK_DRAG]
+    for l in range(L):
+        dy[owd, l] = 0.0
+    for i in range(n):
+        if not moving(y, ov + i, L):
+            continue
+        for l in range(L):
+            v = y[ov + i, l]
+            m = G[oM + i, l]
+            F = force(m, v, T0, Ld, odd)
+            dy[ov + i, l] += F / m
+            dy[owd, l] += F * v
 
 
 @dataclass(frozen=True)
@@ -73,7 +102,7 @@ def build(scene) -> AirDrag:
 
 
 def kernel(ad: AirDrag) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return {"P_DRAG_T0": ad.T0, "P_DRAG_L": ad.L}, {"F_AIR_DRAG": 1, "F_DRAG_ODD": int(ad.odd)}
 
 

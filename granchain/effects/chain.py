@@ -9,8 +9,8 @@ every contact from particle 2 to the wall overlapping by (F0/K)^(2/3), and the s
 holds displacements from there (so no coordinate of ~1e-2 m turns rounding into force
 noise).
 
-For the kernels (``engines/kernels.py``) a chain is a block of rows of its per-chain
-array G, one row per sphere or contact (``engines.codes.G_*``): the kernel gaps (the
+For the kernels (``engines.integrators``) a chain is a block of rows of its per-chain
+array G, one row per sphere or contact (``slots.G_*``): the kernel gaps (the
 physical gaps less the static overlaps; the wall's in the last row), masses, inertias,
 radii and Hertz constants (the wall's last).
 """

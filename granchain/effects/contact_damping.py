@@ -34,7 +34,9 @@ from dataclasses import dataclass
 from ..errors import SceneError
 from ..units import lmp_float as _r, to_micro
 from ..validate import Key, number_text, short
-from .spec import EffectSpec
+from . import slots as S
+from .lanes import bit, overlap
+from .spec import EffectSpec, compiled
 
 SPEC = EffectSpec("contact_damping", work="work_contact_damping", work_slot="L_WORK_DAMPING",
                   table_column="work_damping_J", lammps_reports_work=False,
@@ -129,6 +131,7 @@ def tsuji_damp(e: float) -> float:
     return d * math.sqrt(2.0)
 
 
+@compiled
 def damping_force(fel, d, w, meff, Rs, model, damp):
     """Damping part eta w (N, > 0 while closing) of a contact of overlap d > 0 (m),
     overlap rate w (m/s) and elastic force fel (N)."""
@@ -136,6 +139,59 @@ def damping_force(fel, d, w, meff, Rs, model, damp):
         return damp * meff * math.sqrt(Rs * d) * w
     q = meff * fel / d if d > 0.0 else 0.0
     return damp * math.sqrt(q if q > 0.0 else 0.0) * w
+
+
+@compiled
+def net(fel, d, w, meff, Rs, model, damp, limit):
+    """The net normal force F = F_el + eta w (N) of a contact of overlap d > 0: the
+    damping law's one place. Held at >= 0 with ``limit`` (limit_damping)."""
+    F = fel + damping_force(fel, d, w, meff, Rs, model, damp)
+    return 0.0 if (limit and F < 0.0) else F
+
+
+# The compiled parts the engines compose (``spec.HOOKS``): each contact's m_eff and R*
+# are rows G_DAMPING_MEFF and G_DAMPING_RSTAR (the end wall's last).
+@compiled
+def normal(y, G, P, FL, LO, dy, f, shut):
+    """f becomes the net normal force F_el + eta w of every closed contact (and of the
+    end wall), w its overlap rate; the work rate -(F - F_el) w."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    ov = LO[S.L_VEL]
+    wall = FL[S.F_END_WALL] != 0
+    model = FL[S.F_DAMPING_MODEL]
+    dmp = P[S.P_DAMPING_COEF]
+    lim = FL[S.F_DAMPING_LIMIT] != 0
+    oME = S.G_DAMPING_MEFF * n
+    oRS = S.G_DAMPING_RSTAR * n
+    owc = LO[S.L_WORK_DAMPING]
+    for l in range(L):
+        dy[owc, l] = 0.0
+    for k in range(n if wall else n - 1):
+        if bit(shut, k):
+            continue
+        for l in range(L):
+            if k < n - 1:
+                d = overlap(y, ox, G, k, l)
+                w = y[ov + k, l] - y[ov + k + 1, l]
+            else:
+                d = y[ox + n - 1, l] - G[n - 1, l]
+                w = y[ov + n - 1, l]
+            fel = f[k, l]
+            F = net(fel, d, w, G[oME + k, l], G[oRS + k, l], model, dmp, lim)
+            F = F if d > 0.0 else 0.0
+            f[k, l] = F
+            a = dy[owc, l]
+            dy[owc, l] = a - (F - fel) * w if d > 0.0 else a
+    return shut
+
+
+@compiled
+def contact_normal(F, d, w, G, P, FL, n, k, l):
+    """The net normal force of contact k in lane l: :func:`net` of the force F before it."""
+    return net(F, d, w, G[S.G_DAMPING_MEFF * n + k, l], G[S.G_DAMPING_RSTAR * n + k, l],
+               FL[S.F_DAMPING_MODEL], P[S.P_DAMPING_COEF], FL[S.F_DAMPING_LIMIT] != 0)
 
 
 @dataclass(frozen=True)
@@ -217,7 +273,7 @@ def _round_down(x: float) -> str:
 
 
 def kernel(cd: ContactDamping) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return ({"P_DAMPING_COEF": cd.damp},
             {"F_CONTACT_DAMPING": 1,
              "F_DAMPING_MODEL": VISCOELASTIC if cd.model == "viscoelastic" else SQRT_FORM,

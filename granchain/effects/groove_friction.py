@@ -28,7 +28,9 @@ from dataclasses import dataclass
 from ..errors import SceneError
 from ..units import lmp_float as _r, to_micro
 from ..validate import Key
-from .spec import EffectSpec
+from . import slots as S
+from .lanes import moving
+from .spec import EffectSpec, compiled, hermite_root
 
 SPEC = EffectSpec("groove_friction", state=(("L_GROOVE_HIST", "particle"),),
                   work="work_groove_friction", work_slot="L_WORK_GROOVE",
@@ -97,11 +99,13 @@ def settings(sec: dict, given: frozenset, on: bool) -> Settings:
     return Settings(s, mu, g, kt, damping)
 
 
+@compiled
 def slip(v, omega, sR, rot):
     """Slip velocity (m/s) of a sphere on the groove walls: v - s R omega."""
     return v - sR * omega if rot else v
 
 
+@compiled
 def groove_map(xi, u, kg, gam, Fc):
     """Return mapping of a groove history when the trial force -kg xi - gam u exceeds the
     Coulomb cap: the spring alone holds the cap (xi = Fc sgn / kg)."""
@@ -111,6 +115,7 @@ def groove_map(xi, u, kg, gam, Fc):
     return xi
 
 
+@compiled
 def groove_force(xi, u, kg, gam, Fc):
     """(F, xi') of a groove contact: the capped spring-dashpot force (N) and the history
     rate (u in stick, 0 while sliding at the cap)."""
@@ -119,6 +124,119 @@ def groove_force(xi, u, kg, gam, Fc):
     if abs(F) >= Fc:
         F = math.copysign(Fc, F)
     return F, rate
+
+
+# The compiled parts the engines compose (``spec.HOOKS``): each sphere's Coulomb limit,
+# spring and dashpot are rows G_GROOVE_LIMIT, G_GROOVE_SPRING, G_GROOVE_DASHPOT; its
+# history block L_GROOVE_HIST. With rotation off the slip is v alone (the spin row read in
+# its place is never used).
+@compiled
+def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
+    """The groove's force (and torque -s R F with rotation on) on every sphere that moves
+    or holds a history, its history rate and its work rate."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ov = LO[S.L_VEL]
+    ow = LO[S.L_SPIN]
+    rot = FL[S.F_ROTATION] != 0
+    owr = ow if rot else ov
+    oM = S.G_MASS * n
+    oI = S.G_INERTIA * n
+    oR = S.G_RADIUS * n
+    s_g = P[S.P_GROOVE_S]
+    oFc = S.G_GROOVE_LIMIT * n
+    oKg = S.G_GROOVE_SPRING * n
+    oGg = S.G_GROOVE_DASHPOT * n
+    og = LO[S.L_GROOVE_HIST]
+    owg = LO[S.L_WORK_GROOVE]
+    for l in range(L):
+        dy[owg, l] = 0.0
+    for i in range(n):
+        if not (moving(y, ov + i, L) or moving(y, og + i, L)
+                or (rot and moving(y, ow + i, L))):
+            for l in range(L):
+                dy[og + i, l] = 0.0
+            continue
+        if hist_dt > 0.0:
+            for l in range(L):
+                sR = s_g * G[oR + i, l]
+                u = slip(y[ov + i, l], y[owr + i, l], sR, rot)
+                xi = groove_map(y[og + i, l] + u * hist_dt, u, G[oKg + i, l],
+                                G[oGg + i, l], G[oFc + i, l])
+                y[og + i, l] = xi
+        for l in range(L):
+            sR = s_g * G[oR + i, l]
+            u = slip(y[ov + i, l], y[owr + i, l], sR, rot)
+            # history rate: xi' = u in stick; held while sliding at the cap
+            F, rate = groove_force(y[og + i, l], u, G[oKg + i, l], G[oGg + i, l],
+                                   G[oFc + i, l])
+            dy[og + i, l] = rate
+            dy[ov + i, l] += F / G[oM + i, l]
+            dy[owg, l] += F * u
+            if rot:
+                dy[ow + i, l] += -sR * F / G[oI + i, l]
+
+
+@compiled
+def project(y, G, P, FL, LO):
+    """Return mapping of the groove histories onto their Coulomb caps."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ov = LO[S.L_VEL]
+    ow = LO[S.L_SPIN]
+    rot = FL[S.F_ROTATION] != 0
+    owr = ow if rot else ov
+    oFc = S.G_GROOVE_LIMIT * n
+    oKg = S.G_GROOVE_SPRING * n
+    oGg = S.G_GROOVE_DASHPOT * n
+    oR = S.G_RADIUS * n
+    s_g = P[S.P_GROOVE_S]
+    og = LO[S.L_GROOVE_HIST]
+    for i in range(n):
+        if not (moving(y, ov + i, L) or moving(y, og + i, L)
+                or (rot and moving(y, ow + i, L))):
+            continue
+        for l in range(L):
+            u = slip(y[ov + i, l], y[owr + i, l], s_g * G[oR + i, l], rot)
+            y[og + i, l] = groove_map(y[og + i, l], u, G[oKg + i, l], G[oGg + i, l],
+                                      G[oFc + i, l])
+
+
+@compiled
+def locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol):
+    """The first tau in (0, 1) at which a sphere's groove contact switches between stick
+    and slip inside the trial step, i.e. its trial force q = k_g xi + gamma_g u crosses
+    +-Fc beyond a band of rtol times the bead's Fc, or -1 if none does (one chain: 1D
+    states and rows)."""
+    band = rtol * P[S.P_GROOVE_LIMIT]
+    s_g = P[S.P_GROOVE_S]
+    rot = FL[S.F_ROTATION] != 0
+    og = LO[S.L_GROOVE_HIST]
+    ov = LO[S.L_VEL]
+    ow = LO[S.L_SPIN]
+    best = 2.0
+    for i in range(n):
+        kg = G[S.G_GROOVE_SPRING * n + i]
+        gam = G[S.G_GROOVE_DASHPOT * n + i]
+        Fc = G[S.G_GROOVE_LIMIT * n + i]
+        sR = s_g * G[S.G_RADIUS * n + i]
+        u0 = y[ov + i] - (sR * y[ow + i] if rot else 0.0)
+        u1 = ynew[ov + i] - (sR * ynew[ow + i] if rot else 0.0)
+        du0 = K0[ov + i] - (sR * K0[ow + i] if rot else 0.0)
+        du1 = K1[ov + i] - (sR * K1[ow + i] if rot else 0.0)
+        q0 = kg * y[og + i] + gam * u0
+        q1 = kg * ynew[og + i] + gam * u1
+        w0 = kg * K0[og + i] + gam * du0
+        w1 = kg * K1[og + i] + gam * du1
+        for lev in (Fc, -Fc):
+            tau = -1.0
+            if q0 < lev - band and q1 > lev + band:
+                tau = hermite_root(q0, w0, q1, w1, h, lev, True)
+            elif q0 > lev + band and q1 < lev - band:
+                tau = hermite_root(q0, w0, q1, w1, h, lev, False)
+            if tau > 0.0 and tau < best:
+                best = tau
+    return best if best < 1.0 else -1.0
 
 
 @dataclass(frozen=True)
@@ -182,7 +300,7 @@ def build(scene) -> GrooveFriction:
 
 
 def kernel(gf: GrooveFriction) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return ({"P_GROOVE_S": gf.s, "P_GROOVE_LIMIT": gf.Fc, "P_GROOVE_SPRING": gf.kt,
              "P_GROOVE_DASHPOT": gf.gamma}, {"F_GROOVE_FRICTION": 1})
 

@@ -13,19 +13,98 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..units import lmp_float as _r, to_micro
-from .spec import EffectSpec
+from . import slots as S
+from .lanes import any_contact, overlap
+from .spec import EffectSpec, compiled
 
 SPEC = EffectSpec("hertz", params=("P_HERTZ_K",))
 
 
+@compiled
 def force(K, d):
     """Hertz force (N) of a contact of overlap d (m): K d^(3/2), 0 when open."""
     return K * d * math.sqrt(d) if d > 0.0 else 0.0
 
 
+@compiled
 def energy(K, d):
     """Hertz potential energy (J) of a contact of overlap d (m): (2/5) K d^(5/2)."""
     return 0.4 * K * d * d * math.sqrt(d) if d > 0.0 else 0.0
+
+
+def peak_overlap(m_red, K, v):
+    """The largest overlap (m) of a head-on collision of reduced mass m_red (kg) at
+    closing speed v (m/s): (5 m_red v^2 / (4 K))^(2/5)."""
+    return (5.0 * m_red * v * v / (4.0 * K)) ** 0.4
+
+
+@compiled
+def cap(coef, K, d):
+    """The Coulomb cap coef K d^(3/2) (N) of a contact of overlap d > 0 (m), multiplied
+    in this order (the return mappings' order of operations)."""
+    return coef * K * d * math.sqrt(d)
+
+
+# The compiled parts the engines compose (``spec.HOOKS``). The Hertz constant of contact k
+# is row G_HERTZ_K (each contact's own; row n-1 the end wall's).
+@compiled
+def normal(y, G, P, FL, LO, dy, f, shut):
+    """f (n, L): the Hertz force of every contact (row n-1: the end wall's, when there is
+    one, else left as it is); returns the open-contact mask (bit k: contact k open in
+    every lane, its row of f zero)."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    oK = S.G_HERTZ_K * n
+    for k in range(n - 1):
+        if any_contact(y, ox, G, k, L):
+            for l in range(L):
+                f[k, l] = force(G[oK + k, l], overlap(y, ox, G, k, l))
+        else:
+            for l in range(L):
+                f[k, l] = 0.0
+            if k < 63:
+                shut |= 1 << k
+    if FL[S.F_END_WALL] != 0:
+        # the end wall: contact n-1, overlap x_n - G_{n-1}
+        c = 0
+        for l in range(L):
+            d = y[ox + n - 1, l] - G[n - 1, l]
+            c += 1 if d > 0.0 else 0
+            f[n - 1, l] = force(G[oK + n - 1, l], d)
+        if c == 0 and n - 1 < 63:
+            shut |= 1 << (n - 1)
+    return shut
+
+
+@compiled
+def contact_normal(F, d, w, G, P, FL, n, k, l):
+    """The Hertz force of contact k in lane l at overlap d (the first normal law: F is
+    not read)."""
+    return force(G[S.G_HERTZ_K * n + k, l], d)
+
+
+@compiled
+def contact_cap(coef, d, G, n, k, l):
+    """coef times the Hertz force of contact k in lane l at overlap d > 0 (:func:`cap`)."""
+    return cap(coef, G[S.G_HERTZ_K * n + k, l], d)
+
+
+@compiled
+def energies(y, G, P, FL, LO, out):
+    """out[E_POT]: the Hertz energy of the contacts and the end wall."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    oK = S.G_HERTZ_K * n
+    for k in range(n - 1):
+        if not any_contact(y, ox, G, k, L):
+            continue
+        for l in range(L):
+            out[S.E_POT, l] += energy(G[oK + k, l], overlap(y, ox, G, k, l))
+    if FL[S.F_END_WALL] != 0:
+        for l in range(L):
+            out[S.E_POT, l] += energy(G[oK + n - 1, l], y[ox + n - 1, l] - G[n - 1, l])
 
 
 @dataclass(frozen=True)
@@ -51,7 +130,7 @@ def build(scene) -> Hertz:
 
 
 def kernel(h: Hertz) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return {"P_HERTZ_K": h.K}, {}
 
 

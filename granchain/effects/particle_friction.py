@@ -17,7 +17,9 @@ from dataclasses import dataclass
 from ..errors import SceneError
 from ..units import lmp_float as _r, to_micro
 from ..validate import Key
-from .spec import EffectSpec
+from . import slots as S
+from .lanes import any_contact, bit, overlap
+from .spec import EffectSpec, compiled, normal_cap
 
 SPEC = EffectSpec("particle_friction", state=(("L_PARTICLE_HIST", "contact"),),
                   work="work_particle_friction", work_slot="L_WORK_PARTICLE",
@@ -68,6 +70,7 @@ def settings(sec: dict, given: frozenset, on: bool) -> Settings:
     return Settings(mu, model, kt)
 
 
+@compiled
 def contact_map(xi, kt, cap):
     """Return mapping of a contact history onto the Coulomb cap |kt xi| <= cap."""
     if kt * abs(xi) > cap:
@@ -75,6 +78,7 @@ def contact_map(xi, kt, cap):
     return xi
 
 
+@compiled
 def contact_force(xi, w, kt, cap):
     """(T, xi') of a loaded contact: the capped spring force (N) and the history rate
     (w, or 0 while sliding at the cap away from the origin)."""
@@ -85,6 +89,104 @@ def contact_force(xi, w, kt, cap):
         if w * xi > 0.0:
             rate = 0.0
     return T, rate
+
+
+# The compiled parts the engines compose (``spec.HOOKS``): each contact's spring constant
+# is row G_PARTICLE_SPRING (Mindlin: k_t / sqrt(delta)), its history block
+# L_PARTICLE_HIST; the Coulomb cap is mu_pp times the contact's net normal force |F|
+# (LAMMPS's Fncrit = |Fntot|; F < 0 only damped).
+@compiled
+def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
+    """The tangential force T of every loaded contact: torques (R - delta/2) T on both
+    spheres, the history rate and the work rate (with hist_dt > 0 the history is first
+    advanced by the slip and return-mapped, as LAMMPS does inside its force call)."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    ow = LO[S.L_SPIN]
+    oI = S.G_INERTIA * n
+    oR = S.G_RADIUS * n
+    mu = P[S.P_PARTICLE_MU]
+    oKt = S.G_PARTICLE_SPRING * n
+    mindlin = FL[S.F_PARTICLE_MINDLIN] != 0
+    ot = LO[S.L_PARTICLE_HIST]
+    owt = LO[S.L_WORK_PARTICLE]
+    for l in range(L):
+        dy[owt, l] = 0.0
+    for k in range(n - 1):
+        if bit(shut, k) or (k >= 63 and not any_contact(y, ox, G, k, L)):
+            for l in range(L):
+                dy[ot + k, l] = 0.0
+            if hist_dt > 0.0:
+                for l in range(L):
+                    y[ot + k, l] = 0.0
+            continue
+        if hist_dt > 0.0:
+            for l in range(L):
+                fn = f[k, l]
+                d = overlap(y, ox, G, k, l)
+                ktc = G[oKt + k, l]
+                kt = ktc * math.sqrt(d) if mindlin else ktc
+                Ra = G[oR + k, l]
+                Rb = G[oR + k + 1, l]
+                wk = y[ow + k, l]
+                wk1 = y[ow + k + 1, l]
+                w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
+                # the Coulomb cap on |F| (LAMMPS's Fncrit = |Fntot|; F < 0 only damped)
+                xi = contact_map(y[ot + k, l] + w * hist_dt, kt, mu * abs(fn))
+                y[ot + k, l] = xi if d > 0.0 else 0.0
+        for l in range(L):
+            fn = f[k, l]
+            d = overlap(y, ox, G, k, l)
+            loaded = d > 0.0
+            ktc = G[oKt + k, l]
+            kt = ktc * math.sqrt(d) if mindlin else ktc
+            Ra = G[oR + k, l]
+            Rb = G[oR + k + 1, l]
+            wk = y[ow + k, l]
+            wk1 = y[ow + k + 1, l]
+            # slip R_k omega_k + R_k+1 omega_k+1 (LAMMPS: radi omega_i + radj omega_j)
+            w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
+            T, rate = contact_force(y[ot + k, l], w, kt, mu * abs(fn))
+            # LAMMPS applies the tangential force at the contact point: lever arm
+            # R_i - delta/2 on each sphere (the slip above uses full radii, as LAMMPS
+            # does)
+            arm = Ra - 0.5 * d
+            arm1 = Rb - 0.5 * d
+            tq = arm * T / G[oI + k, l]
+            tq1 = arm1 * T / G[oI + k + 1, l]
+            pw = T * arm * (wk + wk1) if Ra == Rb else T * (arm * wk + arm1 * wk1)
+            dy[ot + k, l] = rate if loaded else 0.0
+            a = dy[ow + k, l]
+            dy[ow + k, l] = a + tq if loaded else a
+            a = dy[ow + k + 1, l]
+            dy[ow + k + 1, l] = a + tq1 if loaded else a
+            a = dy[owt, l]
+            dy[owt, l] = a + pw if loaded else a
+
+
+@compiled
+def project(y, G, P, FL, LO):
+    """Return mapping of the contact histories onto mu_pp |F| (zero on an open contact)."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    ov = LO[S.L_VEL]
+    ot = LO[S.L_PARTICLE_HIST]
+    mu = P[S.P_PARTICLE_MU]
+    oKt = S.G_PARTICLE_SPRING * n
+    mindlin = FL[S.F_PARTICLE_MINDLIN] != 0
+    for k in range(n - 1):
+        if not any_contact(y, ox, G, k, L):
+            for l in range(L):
+                y[ot + k, l] = 0.0
+            continue
+        for l in range(L):
+            d = overlap(y, ox, G, k, l)
+            ktc = G[oKt + k, l]
+            kt = ktc * math.sqrt(d) if mindlin else ktc
+            xi = contact_map(y[ot + k, l], kt, normal_cap(mu, y, G, P, FL, ov, n, k, l, d))
+            y[ot + k, l] = 0.0 if d <= 0.0 else xi
 
 
 @dataclass(frozen=True)
@@ -128,7 +230,7 @@ def rows(pf: ParticleFriction, chain) -> dict:
 
 
 def kernel(pf: ParticleFriction) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return ({"P_PARTICLE_MU": pf.mu, "P_PARTICLE_SPRING": pf.kt},
             {"F_PARTICLE_FRICTION": 1, "F_PARTICLE_MINDLIN": int(pf.model == "mindlin")})
 

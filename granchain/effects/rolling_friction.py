@@ -19,7 +19,9 @@ from dataclasses import dataclass
 from ..errors import SceneError
 from ..units import lmp_float as _r, to_micro
 from ..validate import Key
-from .spec import EffectSpec
+from . import slots as S
+from .lanes import any_contact, bit, overlap
+from .spec import EffectSpec, compiled, normal_cap
 
 SPEC = EffectSpec("rolling_friction", state=(("L_ROLLING_HIST", "contact"),),
                   work="work_rolling_friction", work_slot="L_WORK_ROLLING",
@@ -65,6 +67,7 @@ def settings(sec: dict, given: frozenset, on: bool) -> Settings:
                     _KEY["mu_roll"].number(sec["mu_roll"]))
 
 
+@compiled
 def rolling_map(rho, vr, kr, gr, cap):
     """LAMMPS ``rolling sds`` return mapping: when the trial moment -kr rho - gr vr exceeds
     the cap, the moment is the cap and rho = -(cap sgn + gr vr)/kr (LAMMPS stores the
@@ -75,6 +78,7 @@ def rolling_map(rho, vr, kr, gr, cap):
     return rho
 
 
+@compiled
 def moment_lammps_order(rho, vr, kr, gr, cap, dt):
     """(rho, M) after one LAMMPS step: history += dt v_r, trial moment, strict cap test,
     return map with the dashpot stored; LAMMPS zeroes the moment of a zero history."""
@@ -91,6 +95,7 @@ def moment_lammps_order(rho, vr, kr, gr, cap, dt):
     return rho, M
 
 
+@compiled
 def moment(rho, vr, kr, gr, cap):
     """Moment (N m / m) of the continuous law (RK4, DOP853): clipped to the cap; the
     history is return-mapped after the step. Not held at the cap: the cap mu_roll f(t) and
@@ -100,6 +105,103 @@ def moment(rho, vr, kr, gr, cap):
     if abs(M) > cap:
         M = math.copysign(cap, M)
     return M
+
+
+# The compiled parts the engines compose (``spec.HOOKS``): each contact's R_eff is row
+# G_ROLLING_REFF, its history block L_ROLLING_HIST (docs/explanation/lammps_laws.md
+# sections 5 and 8).
+@compiled
+def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
+    """The rolling moment M of every loaded contact: v_roll = R_eff (omega_k -
+    omega_{k+1}), rho' = v_roll, M = -k_roll rho - gamma_roll v_roll capped at mu_roll |F|,
+    torque +R_eff M on the left sphere and -R_eff M on the right one, its work rate M
+    v_roll. With hist_dt > 0 (Verlet) LAMMPS's order with the half-step spins
+    (:func:`moment_lammps_order`); else the continuous law (:func:`moment`), return-mapped
+    after the step."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    ow = LO[S.L_SPIN]
+    oI = S.G_INERTIA * n
+    kr = P[S.P_ROLLING_SPRING]
+    gr = P[S.P_ROLLING_DASHPOT]
+    mur = P[S.P_ROLLING_MU]
+    oRe = S.G_ROLLING_REFF * n
+    op = LO[S.L_ROLLING_HIST]
+    owro = LO[S.L_WORK_ROLLING]
+    for l in range(L):
+        dy[owro, l] = 0.0
+    for k in range(n - 1):
+        if bit(shut, k) or (k >= 63 and not any_contact(y, ox, G, k, L)):
+            for l in range(L):
+                dy[op + k, l] = 0.0
+            if hist_dt > 0.0:
+                for l in range(L):
+                    y[op + k, l] = 0.0
+            continue
+        if hist_dt > 0.0:
+            for l in range(L):
+                # Verlet: LAMMPS's order with the half-step spins
+                fn = f[k, l]
+                loaded = overlap(y, ox, G, k, l) > 0.0
+                Reff = G[oRe + k, l]
+                vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
+                rho, M = moment_lammps_order(y[op + k, l], vr, kr, gr, mur * abs(fn),
+                                                hist_dt)
+                y[op + k, l] = rho if loaded else 0.0
+                dy[op + k, l] = vr if loaded else 0.0
+                tq = Reff * M / G[oI + k, l]
+                tq1 = Reff * M / G[oI + k + 1, l]
+                a = dy[ow + k, l]
+                dy[ow + k, l] = a + tq if loaded else a
+                a = dy[ow + k + 1, l]
+                dy[ow + k + 1, l] = a - tq1 if loaded else a
+                a = dy[owro, l]
+                dy[owro, l] = a + M * vr if loaded else a
+        else:
+            for l in range(L):
+                # continuous law (RK4, DOP853): rho' = v_roll, project() return-maps
+                # rho after the step
+                fn = f[k, l]
+                loaded = overlap(y, ox, G, k, l) > 0.0
+                Reff = G[oRe + k, l]
+                vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
+                M = moment(y[op + k, l], vr, kr, gr, mur * abs(fn))
+                dy[op + k, l] = vr if loaded else 0.0
+                tq = Reff * M / G[oI + k, l]
+                tq1 = Reff * M / G[oI + k + 1, l]
+                a = dy[ow + k, l]
+                dy[ow + k, l] = a + tq if loaded else a
+                a = dy[ow + k + 1, l]
+                dy[ow + k + 1, l] = a - tq1 if loaded else a
+                a = dy[owro, l]
+                dy[owro, l] = a + M * vr if loaded else a
+
+
+@compiled
+def project(y, G, P, FL, LO):
+    """Return mapping of the rolling histories onto mu_roll |F| (zero on an open contact)."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    ov = LO[S.L_VEL]
+    ow = LO[S.L_SPIN]
+    op = LO[S.L_ROLLING_HIST]
+    oRe = S.G_ROLLING_REFF * n
+    kr = P[S.P_ROLLING_SPRING]
+    gr = P[S.P_ROLLING_DASHPOT]
+    mur = P[S.P_ROLLING_MU]
+    for k in range(n - 1):
+        if not any_contact(y, ox, G, k, L):
+            for l in range(L):
+                y[op + k, l] = 0.0
+            continue
+        for l in range(L):
+            d = overlap(y, ox, G, k, l)
+            vr = G[oRe + k, l] * (y[ow + k, l] - y[ow + k + 1, l])
+            rho = rolling_map(y[op + k, l], vr, kr, gr,
+                               normal_cap(mur, y, G, P, FL, ov, n, k, l, d))
+            y[op + k, l] = 0.0 if d <= 0.0 else rho
 
 
 @dataclass(frozen=True)
@@ -125,7 +227,7 @@ def rows(rf: RollingFriction, chain) -> dict:
 
 
 def kernel(rf: RollingFriction) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return ({"P_ROLLING_SPRING": rf.k_roll, "P_ROLLING_DASHPOT": rf.gamma_roll,
              "P_ROLLING_MU": rf.mu_roll}, {"F_ROLLING_FRICTION": 1})
 

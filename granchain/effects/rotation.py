@@ -6,10 +6,31 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .spec import EffectSpec
+from . import slots as S
+from .spec import EffectSpec, compiled
 
-SPEC = EffectSpec("rotation", state=(("L_SPIN", "particle"),), lammps_ledger="c_erot_atom",
-                  params=("P_INERTIA",), flags=("F_ROTATION",))
+SPEC = EffectSpec("rotation", state=(("L_SPIN", "particle"),), kicked=("L_SPIN",),
+                  lammps_ledger="c_erot_atom", params=("P_INERTIA",), flags=("F_ROTATION",))
+
+
+@compiled
+def energies(y, G, P, FL, LO, out):
+    """out[E_KIN_ROT]: the rotational kinetic energy (1/2) I_i omega_i^2 of the spheres
+    (one inertia: (1/2) I sum omega_i^2)."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ow = LO[S.L_SPIN]
+    oI = S.G_INERTIA * n
+    if FL[S.F_HETEROGENEOUS] != 0:
+        for i in range(n):
+            for l in range(L):
+                out[S.E_KIN_ROT, l] += 0.5 * G[oI + i, l] * y[ow + i, l] * y[ow + i, l]
+    else:
+        for i in range(n):
+            for l in range(L):
+                out[S.E_KIN_ROT, l] += y[ow + i, l] * y[ow + i, l]
+        for l in range(L):
+            out[S.E_KIN_ROT, l] *= 0.5 * G[oI, l]
 
 
 @dataclass(frozen=True)
@@ -22,7 +43,7 @@ def build(scene) -> Rotation:
 
 
 def kernel(rot: Rotation) -> tuple[dict, dict]:
-    """(parameters, flags) of the reference kernels, by slot name (engines/kernels.py)."""
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
     return {"P_INERTIA": rot.inertia}, {"F_ROTATION": 1}
 
 

@@ -1,5 +1,7 @@
 """What every physical effect declares, once (the registry in ``granchain.effects`` adds
-these up, as LAMMPS' granular sub-models declare their coefficients and history sizes)."""
+these up, as LAMMPS' granular sub-models declare their coefficients and history sizes),
+and the compiled parts an effect module may hold, with the signatures the engines'
+composer (``granchain.engines.compose``) calls them with."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -12,10 +14,15 @@ class EffectSpec:
     name: the scene's ``effects`` entry.
     state: blocks the effect adds to a chain's state vector, as (kernel layout slot,
         'particle' (n entries) or 'contact' (n-1 entries)), in state order.
+    kicked: those of its state blocks that are integrated as velocities are (the spins:
+        their rates start at zero in each force call and the effects' torques add to
+        them; velocity Verlet kicks them); the others are histories, return-mapped by the
+        effect's ``project`` after a step.
     work: the energy-ledger column of the work the effect does on the particles
         (``granchain.trajectory.ENERGY_COLUMNS``), or None if it does none.
     work_slot: the kernel layout slot accumulating that work.
     table_column: the results-table column of that work (J).
+    work_note: what that work is, for the column's description (``granchain.columns``).
     lammps_ledger: the per-atom LAMMPS quantity summed per chain into the ledger for
         this effect (its work, or for rotation the rotational kinetic energy), or None.
     lammps_reports_work: False when LAMMPS has no per-atom output for the work (contact
@@ -25,22 +32,94 @@ class EffectSpec:
         the effect's ``kernel(term)`` fills (``P_*``, ``F_*``).
     rows: the per-sphere or per-contact rows of the kernels' per-chain array G that the
         effect's ``rows(term, chain)`` fills (``G_*``).
-    ``engines.codes`` numbers every slot, row, state block and ledger column from these
-    declarations, in registry order.
+    order: where its forces enter the sums on a sphere: the composer calls the effects'
+        ``forces`` in ascending order, ties in registry order (the sums are rounded in
+        that order, so a change of order moves trajectories by rounding).
+    ``granchain.effects.slots`` numbers every slot, row, state block and ledger column
+    from these declarations, in registry order.
     """
     name: str
     state: tuple[tuple[str, str], ...] = ()
+    kicked: tuple[str, ...] = ()
     work: str | None = None
     work_slot: str | None = None
     table_column: str | None = None
+    work_note: str | None = None
     lammps_ledger: str | None = None
     lammps_reports_work: bool = True
     params: tuple[str, ...] = ()
     flags: tuple[str, ...] = ()
     rows: tuple[str, ...] = ()
+    order: int = 0
 
     @property
     def work_code(self) -> str | None:
         """The kernels' name of the effect's ledger column (``E_`` and the work slot's
         suffix: L_WORK_GROOVE -> E_WORK_GROOVE)."""
         return "E_" + self.work_slot[2:] if self.work_slot else None
+
+    @property
+    def switch(self) -> str | None:
+        """The flag that is 1 while the effect is on: ``F_<NAME>``, if it declares it; an
+        effect without it (hertz) is always on."""
+        flag = "F_" + self.name.upper()
+        return flag if flag in self.flags else None
+
+    @property
+    def histories(self) -> tuple[str, ...]:
+        """Its state blocks that are histories (not kicked)."""
+        return tuple(b for b, _ in self.state if b not in self.kicked)
+
+
+def compiled(fn):
+    """Mark a function of an effect module as compiled by the engines (numba, inlined
+    into the kernels that call it). It stays a plain Python function here: the effects
+    load no compiler. In compiled code a marked function may call the other marked
+    functions of its module and of ``lanes``, the numbered slots (``slots``) and the
+    composed contact laws below."""
+    fn.granchain_compiled = True
+    return fn
+
+
+# The hooks the composer knows, each optional: its name -> its signature and what it does.
+# G: the per-chain rows (G_LEN * n, L), y/dy: a block's state and rates (ny, L), f: the
+# normal force of each contact (n, L; row n-1 the end wall's), shut: bit k set when contact
+# k is open in every lane. k: a contact (n-1: the end wall), l: a lane.
+HOOKS = {
+    "normal": ("(y, G, P, FL, LO, dy, f, shut) -> shut",
+               "its part of every contact's normal force f (and its work rate), in registry "
+               "order, before the spheres' accelerations are summed"),
+    "contact_normal": ("(F, d, w, G, P, FL, n, k, l) -> F",
+                       "the same law on one contact of overlap d > 0 and closing speed w, "
+                       "given the normal force F of the effects before it (the end wall's "
+                       "force, the Coulomb caps)"),
+    "contact_cap": ("(coef, d, G, n, k, l) -> cap",
+                    "coef times its contact_normal when no other contact_normal is on, in "
+                    "its own order of operations"),
+    "forces": ("(y, G, P, FL, LO, hist_dt, dy, f, shut)",
+              "its forces and torques on the spheres, its history rates (with hist_dt > 0, "
+              "velocity Verlet: the histories advanced by hist_dt and return-mapped first) "
+              "and its work rate, in ``order``"),
+    "project": ("(y, G, P, FL, LO)", "the return mapping of its histories after a step"),
+    "energies": ("(y, G, P, FL, LO, out)", "adds its mechanical energy to its column of out "
+                 "(E_LEN, L)"),
+    "locate": ("(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol) -> tau",
+               "the event method: the first tau in (0, 1) of a switch of its law inside a "
+               "trial step y -> ynew of length h (rates K0, K1 at its ends), -1 if none"),
+}
+
+
+# A composed contact law an effect's compiled code may call (the composer puts the
+# composed function in its place; called from Python it is not defined).
+def normal_cap(coef, y, G, P, FL, ov, n, k, l, d):
+    """coef |F|: the Coulomb cap of inner contact k of lane l at overlap d > 0, F the net
+    normal force of every effect's ``contact_normal`` (registry order); ov: the offset of
+    the velocities in y (``LO[L_VEL]``, read before the lane loop: a load from LO inside it
+    keeps LLVM from vectorising the loop)."""
+    raise NotImplementedError("normal_cap is composed by granchain.engines.compose")
+
+
+def hermite_root(d0, w0, d1, w1, h, level, up):
+    """The first tau in (0, 1] at which the cubic Hermite of a value (d0, d1 at the ends
+    of a step of length h, rates w0, w1) crosses level (up: from below), -1 if none."""
+    raise NotImplementedError("hermite_root is given by granchain.engines.compose")

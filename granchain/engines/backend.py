@@ -1,7 +1,8 @@
 """Where the reference engine's compiled kernels come from: numba's JIT, or a module compiled
 ahead of time for this machine.
 
-The kernels (``engines/kernels.py``, and the effects' laws they inline) are numba code.
+The kernels (``engines/kernels.py``, ``engines/events.py``, ``engines/eventlanes.py``, the
+modules they import, and the effects' laws they compile) are numba code.
 Calling them through numba's JIT costs about half a second per process before the first
 step, however small the run: numba sets up its compiler and target context even when it
 loads the machine code from its cache. A one-chain ``granchain run`` would spend most of its
@@ -41,11 +42,11 @@ from ..fileio import cache_dir, source_hash
 
 # The kernels' entry points that the engines call (:func:`kernels`), by module.
 ENTRY_POINTS = {"run_window": "kernels", "run_blocks": "kernels", "energies": "kernels",
-                "run_events": "events", "run_events_lanes": "events",
+                "run_events": "events", "run_events_lanes": "eventlanes",
                 "finalize": "events"}
 # The modules that define the entry points; every module of the package they import,
 # transitively, is compiled into them (:func:`kernel_sources`).
-_ENTRY_MODULES = ("granchain.engines.kernels", "granchain.engines.events")
+_ENTRY_MODULES = tuple(sorted({f"granchain.engines.{m}" for m in ENTRY_POINTS.values()}))
 _PKG = Path(__file__).resolve().parents[1]
 
 

@@ -1,57 +1,32 @@
 """The reference engine's numbering, shared by the numba kernels and their Python callers.
 
 numba-free (numpy only), so that an engine running the ahead-of-time kernels
-(``engines.backend``) never imports numba: indices of the parameter vector P, the flags FL,
-the layout offsets LO, the per-chain rows G and the energy columns, numbered from what the
-chain and each effect declare (``EffectSpec``: params, flags, rows, state, work_slot) in
-registry order; the method codes and the statuses; the Runge-Kutta tableaux (DOP853 from
-scipy's own coefficient file, Dormand-Prince 5(4)); the event method's record-step buffer.
-
-The generated names (``P_HERTZ_K``, ``F_GROOVE_FRICTION``, ``G_MASS``, ``L_GROOVE_HIST``,
-``E_WORK_GROOVE``, ...) are module constants, so numba freezes them into the kernels like any
-other. Their prefix names the array they index: P parameters, F flags, G per-chain rows,
-L layout offsets (state blocks and accumulated works), E energy columns.
+(``engines.backend``) never imports numba: the indices of the parameter vector P, the flags
+FL, the layout offsets LO, the per-chain rows G and the energy columns that
+``granchain.effects.slots`` numbers from what the chain and each effect declare (module
+constants here too, so numba freezes them into the kernels like any other); the method
+codes and the statuses; the Runge-Kutta tableaux (DOP853 from scipy's own coefficient file,
+Dormand-Prince 5(4)); the event method's record-step buffer.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..effects import ENERGY_COLUMNS, MODULES, chain as _chain
+from ..effects import slots as _slots
 
-
-def _number(names) -> dict[str, int]:
-    """Consecutive indices of names in order of first appearance."""
-    out: dict[str, int] = {}
-    for name in names:
-        out.setdefault(name, len(out))
-    return out
-
-
-_SPECS = (_chain.SPEC,) + tuple(m.SPEC for m in MODULES)
-# parameter vector P (scalars of a run) and flags FL
-P_SLOTS = _number(p for s in _SPECS for p in s.params)
-F_SLOTS = _number(f for s in _SPECS for f in s.flags)
-# rows of a chain's per-chain array G (B, G_LEN * n), each block n rows long: row
-# G_X * n + i is entry i of block G_X. Per contact (G_GAP, G_HERTZ_K, G_PARTICLE_SPRING,
-# G_ROLLING_REFF, G_DAMPING_MEFF, G_DAMPING_RSTAR): contacts 0 .. n-2 (spheres k, k+1), then
-# the end wall at n-1. Per sphere: the rest.
-# G_GAP: kernel gaps (overlap_k = x_k - x_{k+1} - G_GAP_k; the wall's x_n - G_GAP_{n-1})
-G_SLOTS = _number(r for s in _SPECS for r in s.rows)
-# layout offsets LO (-1: absent): the state blocks (displacements and velocities, then
-# each effect's), then one accumulated-work entry per effect that does work, then
-# L_STATE_SIZE (the state's length)
-L_SLOTS = _number([b for s in _SPECS for b, _ in s.state]
-                  + [s.work_slot for s in _SPECS if s.work_slot] + ["L_STATE_SIZE"])
-# sample columns of the energy array, in ENERGY_COLUMNS order: kinetic translational,
-# kinetic rotational, Hertz potential, then the works (each effect's, then the dead load's)
-E_SLOTS = {"E_KIN_TRANS": 0, "E_KIN_ROT": 1, "E_HERTZ": 2,
-           **{s.work_code: ENERGY_COLUMNS.index(s.work) for s in _SPECS if s.work_code},
-           "E_WORK_LOAD": ENERGY_COLUMNS.index(_chain.SPEC.work)}
-globals().update({**P_SLOTS, **F_SLOTS, **G_SLOTS, **L_SLOTS, **E_SLOTS})
-P_LEN, F_LEN, G_LEN, L_LEN, E_LEN = (len(P_SLOTS), len(F_SLOTS), len(G_SLOTS), len(L_SLOTS),
-                                     len(ENERGY_COLUMNS))
+P_SLOTS, F_SLOTS, G_SLOTS, L_SLOTS, E_SLOTS = (_slots.P_SLOTS, _slots.F_SLOTS, _slots.G_SLOTS,
+                                              _slots.L_SLOTS, _slots.E_SLOTS)
+NAMES = _slots.NAMES          # every numbered slot, by name
+globals().update(NAMES)
+P_LEN, F_LEN, G_LEN, L_LEN, E_LEN = (_slots.P_LEN, _slots.F_LEN, _slots.G_LEN, _slots.L_LEN,
+                                     _slots.E_LEN)
 # (layout slot, energy column) of every accumulated work, in registry order
-WORK_SLOTS = tuple((L_SLOTS[s.work_slot], E_SLOTS[s.work_code]) for s in _SPECS if s.work_slot)
+WORK_SLOTS = _slots.WORK_SLOTS
+# the effects' state blocks integrated as velocities (``EffectSpec.kicked``)
+KICKED = _slots.KICKED
+# the mechanical energy columns (kinetic translational and rotational, potential); the
+# work columns follow them
+E_MECHANICAL = 3
 
 # methods
 M_RK4, M_VERLET, M_DOP853 = 0, 1, 2

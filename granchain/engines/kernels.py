@@ -1,22 +1,13 @@
-"""Numba kernels of the reference engine.
+"""The reference engine's drivers of the fixed-step and adaptive methods: each advances
+many chains in parallel (numba's prange), window by window of samples, and stops each
+chain by the stop rule.
 
-State of one chain is a flat float64 vector laid out by ``engines.reference.Layout``:
-displacements x (from the initial, gapped positions), velocities v, and only when the
-scene enables them: spins omega, groove histories xi_g, contact histories xi_t, rolling
-histories rho, and one accumulated-work entry per dissipative effect. Effects are switched
-by runtime flags checked once per force call (not per particle), so a Hertz-only chain
-carries no rotational state and its force loop never touches friction code.
-
-One force routine, ``forces``, holds the physics of every effect; the three integrators
-call it:
-- ``rk4``: classical fixed-step RK4 on the full state (histories integrate xi' = slip,
-  held at the Coulomb cap while sliding; the rolling history is not held, see
-  ``forces``), then the return mapping ``project``.
-- ``verlet``: velocity Verlet in LAMMPS's order (half kick, drift, forces at the
-  half-step velocities with the history update xi += slip*dt and return mapping inside
-  the force call, half kick; no history update at setup), like ``fix nve/sphere``.
-- ``dop853``: adaptive Dormand-Prince 8(5,3) with error control, stepping exactly onto
-  sample times, ``project`` after each accepted step. Serves as converged truth.
+- ``run_blocks``: rk4 and verlet on blocks of L chains (``integrators.rk4_block``,
+  ``verlet_block``; chains in SIMD lanes), recording the samples or measuring the
+  observables on the fly (``engines.onthefly``);
+- ``run_window``: one chain per thread, rk4, verlet or the adaptive DOP853.
+The event method's drivers are in ``engines.events``. The integrators and the physics
+they call: ``engines.integrators``, ``engines.compose``.
 """
 from __future__ import annotations
 
@@ -29,680 +20,27 @@ from .backend import use_jit_cache
 
 use_jit_cache()   # before the first @njit(cache=True): a cache keyed by every source compiled in
 
-from ..stoprule import PEAK_TOL, PLATEAU_SAMPLES  # noqa: E402  the sampled peak rules
-from ..stoprule import PASS_FRACTION  # noqa: E402
-from .obscodes import (BAL_E0, BAL_MAX, OF_AFTER, OF_BEFORE, OF_MAX, OF_RECENT,  # noqa: E402
-                       OI_AFTER_OPEN, OI_ARGMAX, OI_NAN, OI_NEAR_AFTER, OI_NEAR_BEFORE, OI_PASSED,
-                       OI_RING_COUNT, OI_RING_HEAD, OI_RING_OVERFLOW, OUT_MAX_SAMPLE, OUT_PLATEAU,
-                       OUT_T_FRONT, OUT_T_PEAK, OUT_VMAX, WF_AFTER, WF_BEFORE, WF_MAX, WF_PREV,
-                       WI_ARGMAX, WI_NAN, WI_PASSED)
-
-from ..effects import (air_drag, contact_damping, groove_friction, hertz, particle_friction,
-                       rolling_friction)
-
+from .. import obsrules  # noqa: E402
 # the kernels' numbering of parameters, flags, layout blocks, methods, energy columns,
 # statuses, and the DOP853 tableau (numba-free, shared with the engines' Python side)
-from .codes import (DOP_A, DOP_B, DOP_C, DOP_E3, DOP_E5, E_HERTZ, E_KIN_ROT,  # noqa: E402,F401
-                    E_KIN_TRANS, E_LEN, E_WORK_DAMPING, E_WORK_DRAG, E_WORK_GROOVE, E_WORK_LOAD,
-                    E_WORK_PARTICLE, E_WORK_ROLLING, F_AIR_DRAG, F_CONTACT_DAMPING,
-                    F_DAMPING_LIMIT, F_DAMPING_MODEL, F_DEAD_LOAD, F_DRAG_ODD, F_END_WALL,
-                    F_GROOVE_FRICTION, F_HETEROGENEOUS, F_LEN, F_PARTICLE_FRICTION,
-                    F_PARTICLE_MINDLIN, F_ROLLING_FRICTION, F_ROTATION, G_DAMPING_MEFF,
-                    G_DAMPING_RSTAR, G_GROOVE_DASHPOT, G_GROOVE_LIMIT, G_GROOVE_SPRING, G_HERTZ_K,
-                    G_INERTIA, G_LEN, G_MASS, G_PARTICLE_SPRING, G_RADIUS, G_ROLLING_REFF, L_DISP,
-                    L_GROOVE_HIST, L_LEN, L_PARTICLE_HIST, L_ROLLING_HIST, L_SPIN, L_STATE_SIZE,
-                    L_VEL, L_WORK_DAMPING, L_WORK_DRAG, L_WORK_GROOVE, L_WORK_PARTICLE,
-                    L_WORK_ROLLING, M_DOP853, M_RK4, M_VERLET, NST, P_DAMPING_COEF, P_DEAD_LOAD,
-                    P_DRAG_L, P_DRAG_T0, P_GROOVE_DASHPOT, P_GROOVE_LIMIT, P_GROOVE_S,
-                    P_GROOVE_SPRING, P_HERTZ_K, P_INERTIA, P_LEN, P_MASS, P_N_SPHERES,
-                    P_PARTICLE_MU, P_PARTICLE_SPRING, P_RADIUS, P_ROLLING_DASHPOT, P_ROLLING_MU,
-                    P_ROLLING_SPRING, S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL,
-                    S_TIMEOUT, WORK_SLOTS)
+from . import codes  # noqa: E402
+from .codes import (E_LEN, F_END_WALL, L_DISP, L_VEL, M_RK4, M_VERLET, NST,  # noqa: E402
+                    P_N_SPHERES, S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL)
+from .compose import compiled, overlap as _overlap_l  # noqa: E402
+# the integrators (and their per-chain entry points, which the tests call through here)
+from .integrators import (_wall_force, dop853_try, energies, energies_block,  # noqa: E402,F401
+                          error_norm, forces, forces_block, project, project_block, rk4_block,
+                          rk4_step, rk_trial, verlet_block, verlet_step)
+from .onthefly import _finish_lane, _sample_lane  # noqa: E402
+
+# every numbered slot as an attribute here too (callers index the kernels' arrays by them)
+globals().update(codes.NAMES)
+_detached, _wall_left = compiled(obsrules.detached), compiled(obsrules.wall_left)
 
 
 @njit(cache=True, inline="always")
 def _overlap(y, ox, gaps, k):
     return y[ox + k] - y[ox + k + 1] - gaps[k]
-
-
-# The laws of the effects (granchain/effects/), compiled once here and used by every
-# integrator and by the return mapping.
-_law = njit(cache=True, inline="always")
-_hertz_force = _law(hertz.force)
-_hertz_energy = _law(hertz.energy)
-_damping_force = _law(contact_damping.damping_force)
-_drag_force = _law(air_drag.force)
-_groove_slip = _law(groove_friction.slip)
-_groove_map = _law(groove_friction.groove_map)
-_groove_force = _law(groove_friction.groove_force)
-_contact_map = _law(particle_friction.contact_map)
-_contact_force = _law(particle_friction.contact_force)
-_rolling_map = _law(rolling_friction.rolling_map)
-_rolling_moment = _law(rolling_friction.moment)
-_rolling_moment_lammps = _law(rolling_friction.moment_lammps_order)
-
-
-# Block kernels: the state of L chains is stored as an (ny, L) array, chains innermost,
-# and every loop runs over the lanes innermost, so that LLVM vectorises across chains.
-# Each effect's law is still called per lane; its branches become selects (no per-lane
-# branch: a lane-dependent ``if`` is written as ``a if cond else b`` on values that are
-# computed for every lane, and a lane's discarded value (e.g. the sqrt of a negative
-# overlap of an open contact) never reaches the state). The arithmetic of a lane is the
-# same, operation for operation, as that of one chain alone (no fastmath: no reassociation
-# and no FMA contraction), so a chain's trajectory does not depend on its lane or block.
-_blk = njit(cache=True, error_model="numpy", boundscheck=False)
-
-
-@njit(cache=True, inline="always")
-def _flat(a):
-    return a.reshape(a.size)
-
-
-@njit(cache=True, inline="always")
-def _overlap_l(y, ox, gaps, k, l):
-    return y[ox + k, l] - y[ox + k + 1, l] - gaps[k, l]
-
-
-# Activity tests of a block row. Work whose result is exactly nothing for every lane is
-# skipped: a contact open in every lane (no Hertz force, no friction), a sphere exactly
-# at rest with a zero groove history in every lane (zero drag and groove force). The
-# skipped work would only add zeros (to sums that are never -0.0), so skipping it does
-# not change a bit; most contacts are open and most spheres ahead of the wave at rest.
-@njit(cache=True, inline="always")
-def _bit(mask, k):
-    return k < 63 and (mask >> k) & 1 != 0
-
-
-@njit(cache=True, inline="always")
-def _any_contact(y, ox, gaps, k, L):
-    c = 0
-    for l in range(L):
-        c += 1 if _overlap_l(y, ox, gaps, k, l) > 0.0 else 0
-    return c > 0
-
-
-@njit(cache=True, inline="always")
-def _moving(a, r, L):
-    c = 0
-    for l in range(L):
-        c += 1 if a[r, l] != 0.0 else 0
-    return c > 0
-
-
-@_blk
-def forces_block(y, gaps, P, FL, LO, hist_dt, dy, f):
-    """Time derivative dy (ny, L) of the block state y (ny, L); f (n, L) receives the
-    Hertz force of every contact (row n-1: the end wall's, when there is one).
-
-    gaps (G_LEN * n, L): each chain's own rows (``codes.G_*``): kernel gaps, masses,
-    inertias, radii, Hertz constants and the effects' per-sphere and per-contact
-    parameters.
-
-    With hist_dt > 0 (velocity Verlet), the friction histories in y are first advanced
-    by slip*hist_dt and return-mapped, as LAMMPS does inside its force call; with
-    hist_dt = 0 (RK4, DOP853, Verlet setup) y is not modified and dy carries the
-    history rates.
-    """
-    n = int(P[P_N_SPHERES])
-    L = y.shape[1]
-    ox = LO[L_DISP]
-    ov = LO[L_VEL]
-    ow = LO[L_SPIN]
-    oM = G_MASS * n
-    oI = G_INERTIA * n
-    oR = G_RADIUS * n
-    oK = G_HERTZ_K * n
-    rot = FL[F_ROTATION] != 0
-    wall = FL[F_END_WALL] != 0
-    # a row that exists when rotation is off (its value is then never used)
-    owr = ow if rot else ov
-    # bit k of shut: contact k (k < 63) is open in every lane, its row of f is zero
-    shut = 0
-    for k in range(n - 1):
-        if _any_contact(y, ox, gaps, k, L):
-            for l in range(L):
-                f[k, l] = _hertz_force(gaps[oK + k, l], _overlap_l(y, ox, gaps, k, l))
-        else:
-            for l in range(L):
-                f[k, l] = 0.0
-            if k < 63:
-                shut |= 1 << k
-    load = FL[F_DEAD_LOAD] != 0
-    if wall:
-        # the end wall: contact n-1, overlap x_n - G_{n-1}
-        c = 0
-        for l in range(L):
-            d = y[ox + n - 1, l] - gaps[n - 1, l]
-            c += 1 if d > 0.0 else 0
-            f[n - 1, l] = _hertz_force(gaps[oK + n - 1, l], d)
-        if c == 0 and n - 1 < 63:
-            shut |= 1 << (n - 1)
-    if FL[F_CONTACT_DAMPING] != 0:
-        # contact damping (effects/contact_damping.py): f becomes the net normal force
-        # F_el + eta w of every closed contact, w its overlap rate; its work -(F - F_el) w
-        model = FL[F_DAMPING_MODEL]
-        dmp = P[P_DAMPING_COEF]
-        lim = FL[F_DAMPING_LIMIT] != 0
-        oME = G_DAMPING_MEFF * n
-        oRS = G_DAMPING_RSTAR * n
-        owc = LO[L_WORK_DAMPING]
-        for l in range(L):
-            dy[owc, l] = 0.0
-        for k in range(n if wall else n - 1):
-            if _bit(shut, k):
-                continue
-            for l in range(L):
-                if k < n - 1:
-                    d = _overlap_l(y, ox, gaps, k, l)
-                    w = y[ov + k, l] - y[ov + k + 1, l]
-                else:
-                    d = y[ox + n - 1, l] - gaps[n - 1, l]
-                    w = y[ov + n - 1, l]
-                fel = f[k, l]
-                fd = _damping_force(fel, d, w, gaps[oME + k, l], gaps[oRS + k, l], model, dmp)
-                F = fel + fd
-                F = 0.0 if (lim and F < 0.0) else F
-                F = F if d > 0.0 else 0.0
-                f[k, l] = F
-                a = dy[owc, l]
-                dy[owc, l] = a - (F - fel) * w if d > 0.0 else a
-    if wall or load:
-        # the end wall's force and the dead load on particle 2
-        F0 = P[P_DEAD_LOAD]
-        for i in range(n):
-            if (i == 0 or _bit(shut, i - 1)) and (_bit(shut, i) if (i < n - 1 or wall) else True) \
-                    and not (load and i == 1):
-                # no force on sphere i in any lane
-                for l in range(L):
-                    dy[ov + i, l] = 0.0
-                continue
-            for l in range(L):
-                fl = f[i - 1, l] if i > 0 else 0.0
-                fr = f[i, l] if (i < n - 1 or wall) else 0.0
-                ext = F0 if i == 1 else 0.0
-                dy[ov + i, l] = (0.0 + fl - fr + ext) / gaps[oM + i, l]
-    else:
-        for i in range(n):
-            if (i == 0 or _bit(shut, i - 1)) and (i == n - 1 or _bit(shut, i)):
-                # no force on sphere i in any lane: (0 + 0 - 0) / m
-                for l in range(L):
-                    dy[ov + i, l] = 0.0
-            elif i == 0:
-                for l in range(L):
-                    dy[ov, l] = (0.0 - f[0, l]) / gaps[oM, l]
-            elif i == n - 1:
-                for l in range(L):
-                    dy[ov + i, l] = (0.0 + f[i - 1, l]) / gaps[oM + i, l]
-            else:
-                for l in range(L):
-                    dy[ov + i, l] = (0.0 + f[i - 1, l] - f[i, l]) / gaps[oM + i, l]
-    yf, dyf = _flat(y), _flat(dy)
-    nL = n * L
-    for j in range(nL):
-        dyf[ox * L + j] = yf[ov * L + j]
-    if rot:
-        for j in range(nL):
-            dyf[ow * L + j] = 0.0
-
-    if FL[F_AIR_DRAG] != 0:
-        T0 = P[P_DRAG_T0]
-        Ld = P[P_DRAG_L]
-        odd = FL[F_DRAG_ODD] != 0
-        owd = LO[L_WORK_DRAG]
-        for l in range(L):
-            dy[owd, l] = 0.0
-        for i in range(n):
-            if not _moving(y, ov + i, L):
-                continue
-            for l in range(L):
-                v = y[ov + i, l]
-                m = gaps[oM + i, l]
-                F = _drag_force(m, v, T0, Ld, odd)
-                dy[ov + i, l] += F / m
-                dy[owd, l] += F * v
-
-    if FL[F_GROOVE_FRICTION] != 0:
-        s_g = P[P_GROOVE_S]
-        oFc = G_GROOVE_LIMIT * n
-        oKg = G_GROOVE_SPRING * n
-        oGg = G_GROOVE_DASHPOT * n
-        og = LO[L_GROOVE_HIST]
-        owg = LO[L_WORK_GROOVE]
-        for l in range(L):
-            dy[owg, l] = 0.0
-        for i in range(n):
-            if not (_moving(y, ov + i, L) or _moving(y, og + i, L)
-                    or (rot and _moving(y, ow + i, L))):
-                for l in range(L):
-                    dy[og + i, l] = 0.0
-                continue
-            if hist_dt > 0.0:
-                for l in range(L):
-                    sR = s_g * gaps[oR + i, l]
-                    u = _groove_slip(y[ov + i, l], y[owr + i, l], sR, rot)
-                    xi = _groove_map(y[og + i, l] + u * hist_dt, u, gaps[oKg + i, l],
-                                     gaps[oGg + i, l], gaps[oFc + i, l])
-                    y[og + i, l] = xi
-            for l in range(L):
-                sR = s_g * gaps[oR + i, l]
-                u = _groove_slip(y[ov + i, l], y[owr + i, l], sR, rot)
-                # history rate: xi' = u in stick; held while sliding at the cap
-                F, rate = _groove_force(y[og + i, l], u, gaps[oKg + i, l], gaps[oGg + i, l],
-                                        gaps[oFc + i, l])
-                dy[og + i, l] = rate
-                dy[ov + i, l] += F / gaps[oM + i, l]
-                dy[owg, l] += F * u
-                if rot:
-                    dy[ow + i, l] += -sR * F / gaps[oI + i, l]
-
-    if FL[F_PARTICLE_FRICTION] != 0:
-        mu = P[P_PARTICLE_MU]
-        oKt = G_PARTICLE_SPRING * n
-        mindlin = FL[F_PARTICLE_MINDLIN] != 0
-        ot = LO[L_PARTICLE_HIST]
-        owt = LO[L_WORK_PARTICLE]
-        for l in range(L):
-            dy[owt, l] = 0.0
-        for k in range(n - 1):
-            if _bit(shut, k) or (k >= 63 and not _any_contact(y, ox, gaps, k, L)):
-                for l in range(L):
-                    dy[ot + k, l] = 0.0
-                if hist_dt > 0.0:
-                    for l in range(L):
-                        y[ot + k, l] = 0.0
-                continue
-            if hist_dt > 0.0:
-                for l in range(L):
-                    fn = f[k, l]
-                    d = _overlap_l(y, ox, gaps, k, l)
-                    ktc = gaps[oKt + k, l]
-                    kt = ktc * math.sqrt(d) if mindlin else ktc
-                    Ra = gaps[oR + k, l]
-                    Rb = gaps[oR + k + 1, l]
-                    wk = y[ow + k, l]
-                    wk1 = y[ow + k + 1, l]
-                    w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
-                    # the Coulomb cap on |F| (LAMMPS's Fncrit = |Fntot|; F < 0 only damped)
-                    xi = _contact_map(y[ot + k, l] + w * hist_dt, kt, mu * abs(fn))
-                    y[ot + k, l] = xi if d > 0.0 else 0.0
-            for l in range(L):
-                fn = f[k, l]
-                d = _overlap_l(y, ox, gaps, k, l)
-                loaded = d > 0.0
-                ktc = gaps[oKt + k, l]
-                kt = ktc * math.sqrt(d) if mindlin else ktc
-                Ra = gaps[oR + k, l]
-                Rb = gaps[oR + k + 1, l]
-                wk = y[ow + k, l]
-                wk1 = y[ow + k + 1, l]
-                # slip R_k omega_k + R_k+1 omega_k+1 (LAMMPS: radi omega_i + radj omega_j)
-                w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
-                T, rate = _contact_force(y[ot + k, l], w, kt, mu * abs(fn))
-                # LAMMPS applies the tangential force at the contact point: lever arm
-                # R_i - delta/2 on each sphere (the slip above uses full radii, as LAMMPS
-                # does)
-                arm = Ra - 0.5 * d
-                arm1 = Rb - 0.5 * d
-                tq = arm * T / gaps[oI + k, l]
-                tq1 = arm1 * T / gaps[oI + k + 1, l]
-                pw = T * arm * (wk + wk1) if Ra == Rb else T * (arm * wk + arm1 * wk1)
-                dy[ot + k, l] = rate if loaded else 0.0
-                a = dy[ow + k, l]
-                dy[ow + k, l] = a + tq if loaded else a
-                a = dy[ow + k + 1, l]
-                dy[ow + k + 1, l] = a + tq1 if loaded else a
-                a = dy[owt, l]
-                dy[owt, l] = a + pw if loaded else a
-
-    if FL[F_ROLLING_FRICTION] != 0:
-        # LAMMPS rolling sds on the 1D line (docs/explanation/lammps_laws.md sections 5 and 8):
-        # v_roll = Reff (omega_k - omega_{k+1}), rho' = v_roll, moment
-        # M = -k_roll rho - gamma_roll v_roll capped at mu_roll Fn, torque +Reff M on the
-        # left sphere and -Reff M on the right one.
-        kr = P[P_ROLLING_SPRING]
-        gr = P[P_ROLLING_DASHPOT]
-        mur = P[P_ROLLING_MU]
-        oRe = G_ROLLING_REFF * n
-        op = LO[L_ROLLING_HIST]
-        owro = LO[L_WORK_ROLLING]
-        for l in range(L):
-            dy[owro, l] = 0.0
-        for k in range(n - 1):
-            if _bit(shut, k) or (k >= 63 and not _any_contact(y, ox, gaps, k, L)):
-                for l in range(L):
-                    dy[op + k, l] = 0.0
-                if hist_dt > 0.0:
-                    for l in range(L):
-                        y[op + k, l] = 0.0
-                continue
-            if hist_dt > 0.0:
-                for l in range(L):
-                    # Verlet: LAMMPS's order with the half-step spins
-                    fn = f[k, l]
-                    loaded = _overlap_l(y, ox, gaps, k, l) > 0.0
-                    Reff = gaps[oRe + k, l]
-                    vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
-                    rho, M = _rolling_moment_lammps(y[op + k, l], vr, kr, gr, mur * abs(fn),
-                                                    hist_dt)
-                    y[op + k, l] = rho if loaded else 0.0
-                    dy[op + k, l] = vr if loaded else 0.0
-                    tq = Reff * M / gaps[oI + k, l]
-                    tq1 = Reff * M / gaps[oI + k + 1, l]
-                    a = dy[ow + k, l]
-                    dy[ow + k, l] = a + tq if loaded else a
-                    a = dy[ow + k + 1, l]
-                    dy[ow + k + 1, l] = a - tq1 if loaded else a
-                    a = dy[owro, l]
-                    dy[owro, l] = a + M * vr if loaded else a
-            else:
-                for l in range(L):
-                    # continuous law (RK4, DOP853): rho' = v_roll, project() return-maps
-                    # rho after the step
-                    fn = f[k, l]
-                    loaded = _overlap_l(y, ox, gaps, k, l) > 0.0
-                    Reff = gaps[oRe + k, l]
-                    vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
-                    M = _rolling_moment(y[op + k, l], vr, kr, gr, mur * abs(fn))
-                    dy[op + k, l] = vr if loaded else 0.0
-                    tq = Reff * M / gaps[oI + k, l]
-                    tq1 = Reff * M / gaps[oI + k + 1, l]
-                    a = dy[ow + k, l]
-                    dy[ow + k, l] = a + tq if loaded else a
-                    a = dy[ow + k + 1, l]
-                    dy[ow + k + 1, l] = a - tq1 if loaded else a
-                    a = dy[owro, l]
-                    dy[owro, l] = a + M * vr if loaded else a
-
-
-@njit(cache=True, inline="always")
-def _cap(coef, y, gaps, P, FL, ox, ov, n, k, l, d):
-    """Coulomb cap coef |F| of inner contact k in lane l at overlap d > 0: F the Hertz
-    force, or with contact damping the net normal force (as ``forces_block`` computes
-    it), for the return mapping."""
-    K = gaps[G_HERTZ_K * n + k, l]
-    if FL[F_CONTACT_DAMPING] == 0:
-        return coef * K * d * math.sqrt(d)
-    fel = K * d * math.sqrt(d)
-    w = y[ov + k, l] - y[ov + k + 1, l]
-    F = fel + _damping_force(fel, d, w, gaps[G_DAMPING_MEFF * n + k, l],
-                             gaps[G_DAMPING_RSTAR * n + k, l], FL[F_DAMPING_MODEL],
-                             P[P_DAMPING_COEF])
-    return coef * abs(0.0 if (FL[F_DAMPING_LIMIT] != 0 and F < 0.0) else F)
-
-
-@_blk
-def project_block(y, gaps, P, FL, LO, f):
-    """Return mapping of the friction histories of a block onto their Coulomb caps
-    (after a step)."""
-    n = int(P[P_N_SPHERES])
-    L = y.shape[1]
-    ox = LO[L_DISP]
-    ov = LO[L_VEL]
-    ow = LO[L_SPIN]
-    rot = FL[F_ROTATION] != 0
-    owr = ow if rot else ov
-    oK = G_HERTZ_K * n
-    if FL[F_GROOVE_FRICTION] != 0:
-        oFc = G_GROOVE_LIMIT * n
-        oKg = G_GROOVE_SPRING * n
-        oGg = G_GROOVE_DASHPOT * n
-        oR = G_RADIUS * n
-        s_g = P[P_GROOVE_S]
-        og = LO[L_GROOVE_HIST]
-        for i in range(n):
-            if not (_moving(y, ov + i, L) or _moving(y, og + i, L)
-                    or (rot and _moving(y, ow + i, L))):
-                continue
-            for l in range(L):
-                u = _groove_slip(y[ov + i, l], y[owr + i, l], s_g * gaps[oR + i, l], rot)
-                y[og + i, l] = _groove_map(y[og + i, l], u, gaps[oKg + i, l], gaps[oGg + i, l],
-                                           gaps[oFc + i, l])
-    if FL[F_PARTICLE_FRICTION] != 0:
-        ot = LO[L_PARTICLE_HIST]
-        mu = P[P_PARTICLE_MU]
-        oKt = G_PARTICLE_SPRING * n
-        mindlin = FL[F_PARTICLE_MINDLIN] != 0
-        for k in range(n - 1):
-            if not _any_contact(y, ox, gaps, k, L):
-                for l in range(L):
-                    y[ot + k, l] = 0.0
-                continue
-            for l in range(L):
-                d = _overlap_l(y, ox, gaps, k, l)
-                ktc = gaps[oKt + k, l]
-                kt = ktc * math.sqrt(d) if mindlin else ktc
-                xi = _contact_map(y[ot + k, l], kt, _cap(mu, y, gaps, P, FL, ox, ov, n, k, l, d))
-                y[ot + k, l] = 0.0 if d <= 0.0 else xi
-    if FL[F_ROLLING_FRICTION] != 0:
-        op = LO[L_ROLLING_HIST]
-        oRe = G_ROLLING_REFF * n
-        kr = P[P_ROLLING_SPRING]
-        gr = P[P_ROLLING_DASHPOT]
-        mur = P[P_ROLLING_MU]
-        for k in range(n - 1):
-            if not _any_contact(y, ox, gaps, k, L):
-                for l in range(L):
-                    y[op + k, l] = 0.0
-                continue
-            for l in range(L):
-                d = _overlap_l(y, ox, gaps, k, l)
-                vr = gaps[oRe + k, l] * (y[ow + k, l] - y[ow + k + 1, l])
-                rho = _rolling_map(y[op + k, l], vr, kr, gr,
-                                   _cap(mur, y, gaps, P, FL, ox, ov, n, k, l, d))
-                y[op + k, l] = 0.0 if d <= 0.0 else rho
-
-
-@_blk
-def energies_block(y, gaps, P, FL, LO, out):
-    """Energy ledger (E_LEN, L) of a block: kinetic, Hertz potential, accumulated works."""
-    n = int(P[P_N_SPHERES])
-    L = y.shape[1]
-    ox = LO[L_DISP]
-    ov = LO[L_VEL]
-    oK = G_HERTZ_K * n
-    het = FL[F_HETEROGENEOUS] != 0
-    for e in range(E_LEN):
-        for l in range(L):
-            out[e, l] = 0.0
-    if het:
-        oM = G_MASS * n
-        for i in range(n):
-            for l in range(L):
-                out[E_KIN_TRANS, l] += 0.5 * gaps[oM + i, l] * y[ov + i, l] * y[ov + i, l]
-    else:
-        for i in range(n):
-            for l in range(L):
-                out[E_KIN_TRANS, l] += y[ov + i, l] * y[ov + i, l]
-        for l in range(L):
-            out[E_KIN_TRANS, l] = 0.5 * gaps[G_MASS * n, l] * out[E_KIN_TRANS, l]
-    if FL[F_ROTATION] != 0:
-        ow = LO[L_SPIN]
-        oI = G_INERTIA * n
-        if het:
-            for i in range(n):
-                for l in range(L):
-                    out[E_KIN_ROT, l] += 0.5 * gaps[oI + i, l] * y[ow + i, l] * y[ow + i, l]
-        else:
-            for i in range(n):
-                for l in range(L):
-                    out[E_KIN_ROT, l] += y[ow + i, l] * y[ow + i, l]
-            for l in range(L):
-                out[E_KIN_ROT, l] *= 0.5 * gaps[oI, l]
-    for k in range(n - 1):
-        if not _any_contact(y, ox, gaps, k, L):
-            continue
-        for l in range(L):
-            out[E_HERTZ, l] += _hertz_energy(gaps[oK + k, l], _overlap_l(y, ox, gaps, k, l))
-    if FL[F_END_WALL] != 0:
-        for l in range(L):
-            out[E_HERTZ, l] += _hertz_energy(gaps[oK + n - 1, l], y[ox + n - 1, l] - gaps[n - 1, l])
-    if FL[F_DEAD_LOAD] != 0:
-        F0 = P[P_DEAD_LOAD]
-        for l in range(L):
-            out[E_WORK_LOAD, l] = F0 * y[ox + 1, l]
-    for slot, col in WORK_SLOTS:
-        o = LO[slot]
-        if o >= 0:
-            for l in range(L):
-                out[col, l] = y[o, l]
-
-
-@_blk
-def rk4_block(y, h, gaps, P, FL, LO, k1, k2, k3, k4, tmp, f):
-    """One classical RK4 step of a block, then the return mapping."""
-    ny, L = y.shape
-    hh = 0.5 * h
-    h6 = h / 6.0
-    forces_block(y, gaps, P, FL, LO, 0.0, k1, f)
-    for j in range(ny):
-        for l in range(L):
-            tmp[j, l] = y[j, l] + hh * k1[j, l]
-    forces_block(tmp, gaps, P, FL, LO, 0.0, k2, f)
-    for j in range(ny):
-        for l in range(L):
-            tmp[j, l] = y[j, l] + hh * k2[j, l]
-    forces_block(tmp, gaps, P, FL, LO, 0.0, k3, f)
-    for j in range(ny):
-        for l in range(L):
-            tmp[j, l] = y[j, l] + h * k3[j, l]
-    forces_block(tmp, gaps, P, FL, LO, 0.0, k4, f)
-    for j in range(ny):
-        for l in range(L):
-            y[j, l] += h6 * (k1[j, l] + 2.0 * k2[j, l] + 2.0 * k3[j, l] + k4[j, l])
-    project_block(y, gaps, P, FL, LO, f)
-
-
-@_blk
-def verlet_block(y, acc, h, gaps, P, FL, LO, f):
-    """One LAMMPS-order velocity-Verlet step of a block; acc holds the derivative of the
-    last call."""
-    n = int(P[P_N_SPHERES])
-    L = y.shape[1]
-    ox = LO[L_DISP]
-    ov = LO[L_VEL]
-    ow = LO[L_SPIN]
-    rot = FL[F_ROTATION] != 0
-    hh = 0.5 * h
-    for i in range(n):
-        for l in range(L):
-            y[ov + i, l] += hh * acc[ov + i, l]
-        if rot:
-            for l in range(L):
-                y[ow + i, l] += hh * acc[ow + i, l]
-    for i in range(n):
-        for l in range(L):
-            y[ox + i, l] += h * y[ov + i, l]
-    forces_block(y, gaps, P, FL, LO, h, acc, f)
-    for c, _ in WORK_SLOTS:
-        o = LO[c]
-        if o >= 0:
-            for l in range(L):
-                y[o, l] += h * acc[o, l]
-    for i in range(n):
-        for l in range(L):
-            y[ov + i, l] += hh * acc[ov + i, l]
-        if rot:
-            for l in range(L):
-                y[ow + i, l] += hh * acc[ow + i, l]
-
-
-# Per-chain entry points (1D state of one chain): the block routines on a block of one
-# lane. The adaptive method and the tests use these.
-@njit(cache=True, inline="always")
-def _col(a):
-    return a.reshape((a.shape[0], 1))
-
-
-@njit(cache=True)
-def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
-    """Time derivative dy of one chain's state y; f receives the Hertz force of every
-    contact (``forces_block`` on one lane)."""
-    forces_block(_col(y), _col(gaps), P, FL, LO, hist_dt, _col(dy), _col(f))
-
-
-@njit(cache=True)
-def project(y, gaps, P, FL, LO, f):
-    """Return mapping of one chain's friction histories (``project_block`` on one lane)."""
-    project_block(_col(y), _col(gaps), P, FL, LO, _col(f))
-
-
-@njit(cache=True)
-def energies(y, gaps, P, FL, LO, out):
-    """Energy ledger of one chain (``energies_block`` on one lane)."""
-    energies_block(_col(y), _col(gaps), P, FL, LO, _col(out))
-
-
-@njit(cache=True)
-def rk4_step(y, h, gaps, P, FL, LO, k1, k2, k3, k4, tmp, f):
-    rk4_block(_col(y), h, _col(gaps), P, FL, LO, _col(k1), _col(k2), _col(k3), _col(k4),
-              _col(tmp), _col(f))
-
-
-@njit(cache=True)
-def verlet_step(y, acc, h, gaps, P, FL, LO, f):
-    """One LAMMPS-order velocity-Verlet step; acc holds the derivative of the last call."""
-    verlet_block(_col(y), _col(acc), h, _col(gaps), P, FL, LO, _col(f))
-
-@njit(cache=True)
-def rk_trial(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol,
-             A, Bw, E5, E3, dopnorm):
-    """One trial step of an explicit embedded Runge-Kutta pair (tableau ``A``, weights
-    ``Bw``, error weights ``E5``/``E3`` over the stages and f(ynew)) from y, with
-    K[0] = f(y) already evaluated; leaves ynew and K[S] = f(ynew). Returns the scaled
-    error norm (accept if <= 1): DOP853's combined 5th/3rd-order norm if ``dopnorm``,
-    else the RMS of the ``E5`` estimate."""
-    ny = y.shape[0]
-    S = Bw.shape[0]
-    for s in range(1, S):
-        for j in range(ny):
-            acc = 0.0
-            for q in range(s):
-                acc += A[s, q] * K[q, j]
-            tmp[j] = y[j] + h * acc
-        forces(tmp, gaps, P, FL, LO, 0.0, K[s], f)
-    for j in range(ny):
-        acc = 0.0
-        for q in range(S):
-            acc += Bw[q] * K[q, j]
-        ynew[j] = y[j] + h * acc
-    forces(ynew, gaps, P, FL, LO, 0.0, K[S], f)
-    e5 = 0.0
-    e3 = 0.0
-    for j in range(ny):
-        sc = rtol * scale_abs[j]
-        if rel[j] != 0:
-            sc += rtol * max(abs(y[j]), abs(ynew[j]))
-        if sc <= 0.0:
-            continue
-        a5 = 0.0
-        a3 = 0.0
-        for q in range(S + 1):
-            a5 += E5[q] * K[q, j]
-            a3 += E3[q] * K[q, j]
-        e5 += (a5 / sc) ** 2
-        e3 += (a3 / sc) ** 2
-    return error_norm(e5, e3, h, ny, dopnorm)
-
-
-@njit(cache=True, inline="always")
-def error_norm(e5, e3, h, ny, dopnorm):
-    """The scaled error norm of a trial step of size h from the sums of squares of its
-    scaled 5th- and 3rd-order estimates over ny components (accept if <= 1): DOP853's
-    combined norm if ``dopnorm``, else the RMS of the 5th-order one."""
-    if e5 == 0.0 and e3 == 0.0:
-        return 0.0
-    if dopnorm != 0:
-        return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * ny)
-    return abs(h) * math.sqrt(e5 / ny)
-
-
-@njit(cache=True)
-def dop853_try(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol):
-    """One DOP853 trial step from y (evaluates K[0] = f(y) first); returns the scaled
-    error norm (accept if <= 1)."""
-    forces(y, gaps, P, FL, LO, 0.0, K[0], f)
-    return rk_trial(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol,
-                    DOP_A, DOP_B, DOP_E5, DOP_E3, 1)
 
 
 @njit(cache=True)
@@ -720,10 +58,10 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
 
     Per chain b: Y[b] state, ACC[b] last derivative (Verlet), T[b] time, H[b] adaptive
     step, NS[b] samples recorded so far, STEPS/REJ counters, STATUS[b] (S_*), VTHR[b]
-    the arrival speed of chain b (``stoprule.arrival_speed``). A sample is taken every
+    the arrival speed of chain b (``obsrules.arrival``). A sample is taken every
     ``every`` fixed steps (rk4, verlet) or exactly every ``sample_dt`` (dop853). A chain
     stops after NT[b] samples, or (auto_stop) at the first sample at which its last
-    particle has taken the wave and left (``stoprule.last_detached``: velocity above
+    particle has taken the wave and left (``obsrules.detached``: velocity above
     VTHR[b], contact with its neighbour open), with status S_PASSED.
     """
     B = Y.shape[0]
@@ -819,42 +157,9 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
 
 @njit(cache=True, inline="always")
 def _left(v_last, overlap_last, x_last, vthr, wall):
-    """Has the wave left the chain (``stoprule.last_detached``, ``stoprule.wall_left``)?
-    Free end: the last
-    sphere moves faster than the arrival speed with its contact open. End wall: the last
-    sphere moves back from the wall faster than the arrival speed and is back at (or
-    behind) its starting position x_last = 0: the wave has reflected and the wall force
-    is back at (or below) its static value, so its dynamic peak is behind."""
-    if wall:
-        return v_last < -vthr and x_last <= 0.0
-    return v_last > vthr and overlap_last <= 0.0
-
-
-@njit(cache=True, inline="always")
-def _wall_force_of(K, d, w, meff, rs, P, FL):
-    """Force (N) of the end wall at overlap d and closing speed w: Hertz, and with contact
-    damping the net force as ``forces_block`` applies it."""
-    fel = _hertz_force(K, d)
-    if FL[F_CONTACT_DAMPING] == 0 or d <= 0.0:
-        return fel
-    F = fel + _damping_force(fel, d, w, meff, rs, FL[F_DAMPING_MODEL], P[P_DAMPING_COEF])
-    return 0.0 if (FL[F_DAMPING_LIMIT] != 0 and F < 0.0) else F
-
-
-@njit(cache=True, inline="always")
-def _wall_force(y, g, n, LO, P, FL):
-    """Force (N) of the end wall on one chain (state y, per-chain array g)."""
-    return _wall_force_of(g[G_HERTZ_K * n + n - 1], y[LO[L_DISP] + n - 1] - g[n - 1],
-                          y[LO[L_VEL] + n - 1], g[G_DAMPING_MEFF * n + n - 1],
-                          g[G_DAMPING_RSTAR * n + n - 1], P, FL)
-
-
-@njit(cache=True, inline="always")
-def _wall_force_l(y, g, n, LO, P, FL, l):
-    """Force (N) of the end wall on lane l of a block."""
-    return _wall_force_of(g[G_HERTZ_K * n + n - 1, l], y[LO[L_DISP] + n - 1, l] - g[n - 1, l],
-                          y[LO[L_VEL] + n - 1, l], g[G_DAMPING_MEFF * n + n - 1, l],
-                          g[G_DAMPING_RSTAR * n + n - 1, l], P, FL)
+    """Has the wave left the chain? Free end: ``obsrules.detached``; end wall:
+    ``obsrules.wall_left`` (x_last: the last sphere's displacement from its start)."""
+    return _wall_left(v_last, x_last, vthr) if wall else _detached(v_last, overlap_last, vthr)
 
 
 @njit(cache=True, inline="always")
@@ -867,254 +172,6 @@ def _stop_lane(y, acc, l, YF, b, status, STATUS):
         YF[b, j] = y[j, l]
         y[j, l] = 0.0
         acc[j, l] = 0.0
-
-
-# On-the-fly observables of the fixed-step blocks (``run_blocks`` with observe): the rules
-# of ``granchain.observables`` (``peak``, ``peak_final``, ``wall_peak``, ``energy_ledger``)
-# applied to the samples as they are taken, with the same floating-point operations, so
-# that the results equal those of the Python summariser on the sampled record. Array
-# slots: ``engines.obscodes``.
-
-
-@njit(cache=True, inline="always")
-def _pymax(a, b):
-    """Python's max(a, b) (a unless b > a)."""
-    return b if b > a else a
-
-
-@njit(cache=True, inline="always")
-def _pymin(a, b):
-    """Python's min(a, b) (a unless b < a)."""
-    return b if b < a else a
-
-
-@njit(cache=True)
-def _obs_velocity(k, y, of, oi, rk, rv):
-    """Sample k of one particle's velocity y into its running peak state (of, oi) and its
-    record samples (rk: sample index, rv: (previous sample, sample)): the samples that set a
-    new maximum, which are the only candidates for a first crossing of a level below the
-    final maximum; those below PASS_FRACTION of the running maximum are dropped (a level
-    the summariser crosses is at least half the final maximum)."""
-    if oi[OI_NAN] != 0:
-        return
-    if y != y:
-        oi[OI_NAN] = 1
-        return
-    cap = rk.shape[0]
-    if k == 0:
-        of[OF_MAX] = y
-        oi[OI_ARGMAX] = 0
-        oi[OI_NEAR_BEFORE] = 0
-        oi[OI_NEAR_AFTER] = 0
-        oi[OI_AFTER_OPEN] = 1
-        oi[OI_PASSED] = 0
-        oi[OI_RING_OVERFLOW] = 0
-        rk[0] = 0
-        rv[0, 0] = y
-        rv[0, 1] = y
-        oi[OI_RING_HEAD] = 0
-        oi[OI_RING_COUNT] = 1
-    elif y > of[OF_MAX]:
-        prev = of[OF_RECENT + (k - 1) % PLATEAU_SAMPLES]
-        of[OF_MAX] = y
-        of[OF_BEFORE] = prev
-        oi[OI_ARGMAX] = k
-        thr = (1.0 - PEAK_TOL) * y
-        bwd = 0
-        for d in range(1, PLATEAU_SAMPLES + 1):
-            if k - d < 0 or not (of[OF_RECENT + (k - d) % PLATEAU_SAMPLES] >= thr):
-                break
-            bwd += 1
-        oi[OI_NEAR_BEFORE] = bwd
-        oi[OI_NEAR_AFTER] = 0
-        oi[OI_AFTER_OPEN] = 1
-        oi[OI_PASSED] = 0
-        head = oi[OI_RING_HEAD]
-        count = oi[OI_RING_COUNT]
-        half = PASS_FRACTION * y
-        while count > 0 and rv[head, 1] < half:
-            head = (head + 1) % cap
-            count -= 1
-        if count == cap:
-            oi[OI_RING_OVERFLOW] = 1
-            head = (head + 1) % cap
-            count -= 1
-        s = (head + count) % cap
-        rk[s] = k
-        rv[s, 0] = prev
-        rv[s, 1] = y
-        oi[OI_RING_HEAD] = head
-        oi[OI_RING_COUNT] = count + 1
-    else:
-        top = of[OF_MAX]
-        if k == oi[OI_ARGMAX] + 1:
-            of[OF_AFTER] = y
-        if oi[OI_AFTER_OPEN] != 0:
-            if y >= (1.0 - PEAK_TOL) * top:
-                if oi[OI_NEAR_AFTER] < PLATEAU_SAMPLES:
-                    oi[OI_NEAR_AFTER] += 1
-            else:
-                oi[OI_AFTER_OPEN] = 0
-        if y < PASS_FRACTION * top:
-            oi[OI_PASSED] = 1
-    of[OF_RECENT + k % PLATEAU_SAMPLES] = y
-
-
-@njit(cache=True)
-def _obs_crossing(level, oi, rk, rv, sdt):
-    """``observables._crossing`` from the record samples: the first sample at or above
-    ``level``, linearly interpolated from the sample before it (times k * sdt)."""
-    cap = rk.shape[0]
-    head = oi[OI_RING_HEAD]
-    for q in range(oi[OI_RING_COUNT]):
-        s = (head + q) % cap
-        if rv[s, 1] >= level:
-            j = rk[s]
-            if j == 0:
-                return 0.0
-            y0 = rv[s, 0]
-            y1 = rv[s, 1]
-            ta = float(j - 1) * sdt
-            tb = float(j) * sdt
-            return ta + (level - y0) / (y1 - y0) * (tb - ta)
-    return math.nan
-
-
-@njit(cache=True)
-def _obs_finish(S, of, oi, rk, rv, sdt, out):
-    """``observables.peak`` of one particle after its S samples, into out (R_*)."""
-    top = of[OF_MAX]
-    if oi[OI_NAN] != 0 or not top > 0.0:
-        out[OUT_VMAX] = 0.0
-        out[OUT_T_PEAK] = math.nan
-        out[OUT_T_FRONT] = math.nan
-        out[OUT_PLATEAU] = 0.0
-        out[OUT_MAX_SAMPLE] = math.nan if oi[OI_NAN] != 0 else top
-        return
-    j = oi[OI_ARGMAX]
-    plateau = (oi[OI_NEAR_BEFORE] + 1 + oi[OI_NEAR_AFTER]) > PLATEAU_SAMPLES
-    if not plateau and 0 < j < S - 1:
-        y0 = of[OF_BEFORE]
-        y1 = top
-        y2 = of[OF_AFTER]
-        den = y0 - 2.0 * y1 + y2
-        off = 0.5 * (y0 - y2) / den if den < 0.0 else 0.0
-        off = _pymin(_pymax(off, -0.5), 0.5)
-        vmax = y1 - 0.25 * (y0 - y2) * off
-        h = float(j + 1) * sdt - float(j) * sdt
-        tpk = float(j) * sdt + off * h
-    elif not plateau:
-        vmax = top
-        tpk = float(j) * sdt
-    else:
-        vmax = top
-        tpk = _obs_crossing((1.0 - PEAK_TOL) * top, oi, rk, rv, sdt)
-    out[OUT_VMAX] = vmax
-    out[OUT_T_PEAK] = tpk
-    out[OUT_T_FRONT] = _obs_crossing(0.5 * vmax, oi, rk, rv, sdt)
-    out[OUT_MAX_SAMPLE] = top
-    out[OUT_PLATEAU] = 1.0 if plateau else 0.0
-
-
-@njit(cache=True)
-def _obs_wall(k, F, wf, wi):
-    """Sample k of the end wall's dynamic force F into its running peak state."""
-    if wi[WI_NAN] != 0:
-        return
-    if F != F:
-        wi[WI_NAN] = 1
-        return
-    if k == 0:
-        wf[WF_MAX] = F
-        wi[WI_ARGMAX] = 0
-        wi[WI_PASSED] = 0
-    elif F > wf[WF_MAX]:
-        wf[WF_MAX] = F
-        wf[WF_BEFORE] = wf[WF_PREV]
-        wi[WI_ARGMAX] = k
-        wi[WI_PASSED] = 0
-    else:
-        if k == wi[WI_ARGMAX] + 1:
-            wf[WF_AFTER] = F
-        if F < PASS_FRACTION * wf[WF_MAX]:
-            wi[WI_PASSED] = 1
-    wf[WF_PREV] = F
-
-
-@njit(cache=True)
-def _obs_wall_finish(S, wf, wi, sdt, wout):
-    """``observables.wall_peak`` after S samples, into wout (F_max, t_peak, final)."""
-    top = wf[WF_MAX]
-    if wi[WI_NAN] != 0 or not (top > 0.0 and wi[WI_PASSED] != 0):
-        wout[0] = math.nan
-        wout[1] = math.nan
-        wout[2] = 0.0
-        return
-    j = wi[WI_ARGMAX]
-    tpk = float(j) * sdt
-    if 0 < j < S - 1:
-        y0 = wf[WF_BEFORE]
-        y2 = wf[WF_AFTER]
-        den = y0 - 2.0 * top + y2
-        off = _pymin(_pymax(0.5 * (y0 - y2) / den, -0.5), 0.5) if den < 0.0 else 0.0
-        top = top - 0.25 * (y0 - y2) * off
-        tpk += off * (float(j + 1) * sdt - float(j) * sdt)
-    wout[0] = top
-    wout[1] = tpk
-    wout[2] = 1.0
-
-
-@njit(cache=True, inline="always")
-def _obs_balance(k, ebuf, l, bal):
-    """Sample k of the energy balance of lane l: |E_mech - E_mech(0) - sum of works|, its
-    running maximum (NaN once NaN, as np.max), summed in ``observables.energy_ledger``'s
-    order."""
-    total = ebuf[0, l] + ebuf[1, l] + ebuf[2, l]
-    work = 0.0
-    for e in range(3, ebuf.shape[0]):
-        work += ebuf[e, l]
-    if k == 0:
-        bal[BAL_E0] = total
-    a = abs(total - bal[BAL_E0] - work)
-    if k == 0 or a != a:
-        bal[BAL_MAX] = a
-    elif a > bal[BAL_MAX]:
-        bal[BAL_MAX] = a
-
-
-@njit(cache=True)
-def _sample_lane(c, k, y, g, ebuf, l, b, n, LO, P, FL, observe, wall_static, Vout, Eout,
-                 OF, OI, RK, RV, WF, WI, BAL):
-    """Sample k of the chain in lane l (chain b): into row c of its record, or with
-    observe into its on-the-fly observables (row 0 of Vout/Eout keeps sample 0, row 1 the
-    latest sample)."""
-    ov = LO[L_VEL]
-    r = c if not observe else (0 if k == 0 else 1)
-    for i in range(n):
-        Vout[b, r, i] = y[ov + i, l]
-    wall = Vout.shape[2] > n
-    if wall:
-        Vout[b, r, n] = _wall_force_l(y, g, n, LO, P, FL, l)
-    for e in range(E_LEN):
-        Eout[b, r, e] = ebuf[e, l]
-    if observe:
-        for i in range(n):
-            _obs_velocity(k, y[ov + i, l], OF[b, i], OI[b, i], RK[b, i], RV[b, i])
-        if wall:
-            _obs_wall(k, Vout[b, r, n] - wall_static, WF[b], WI[b])
-        _obs_balance(k, ebuf, l, BAL[b])
-
-
-@njit(cache=True)
-def _finish_lane(b, n, NS, sdt, observe, OF, OI, RK, RV, WF, WI, OUT, WOUT, wall):
-    """On-the-fly observables of chain b once it has stopped (after NS[b] samples)."""
-    if not observe:
-        return
-    S = NS[b]
-    for i in range(n):
-        _obs_finish(S, OF[b, i], OI[b, i], RK[b, i], RV[b, i], sdt, OUT[b, i])
-    if wall:
-        _obs_wall_finish(S, WF[b], WI[b], sdt, WOUT[b])
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
@@ -1154,9 +211,6 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
     wall = Vout.shape[2] > n
     for blk in prange(nblk):
         base = blk * L
-        y = Y[blk]
-        acc = ACC[blk]
-        g = gaps[blk]
         ns = -1
         for l in range(L):
             counts[base + l] = 0
@@ -1164,6 +218,16 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                 ns = NS[base + l]
         if ns < 0:
             continue
+        # the block's own copies of its state and rows and of the run's vectors, the state
+        # written back at the end: the kernels reference-count their array arguments, and
+        # counting on arrays that every thread shares (views of Y, the one P) would move
+        # their cache lines from core to core at every call
+        y = Y[blk].copy()
+        acc = ACC[blk].copy()
+        g = gaps[blk].copy()
+        Pb = P.copy()
+        FLb = FL.copy()
+        LOb = LO.copy()
         f = np.zeros((n, L))
         k1 = np.empty((ny, L))
         k2 = np.empty((ny, L))
@@ -1174,13 +238,13 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
         c = 0
         if ns == 0:
             if method == M_VERLET:
-                forces_block(y, g, P, FL, LO, 0.0, acc, f)
-            energies_block(y, g, P, FL, LO, ebuf)
+                forces_block(y, g, Pb, FLb, LOb, 0.0, acc, f)
+            energies_block(y, g, Pb, FLb, LOb, ebuf)
             for l in range(L):
                 b = base + l
                 if STATUS[b] != S_RUNNING:
                     continue
-                _sample_lane(0, 0, y, g, ebuf, l, b, n, LO, P, FL, observe, wall_static,
+                _sample_lane(0, 0, y, g, ebuf, l, b, n, LOb, Pb, FLb, observe, wall_static,
                              Vout, Eout, OF, OI, RK, RV, WF, WI, BAL)
                 counts[b] = 1
                 NS[b] = 1
@@ -1204,18 +268,18 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                 break
             if method == M_RK4:
                 for _ in range(every):
-                    rk4_block(y, dt, g, P, FL, LO, k1, k2, k3, k4, tmp, f)
+                    rk4_block(y, dt, g, Pb, FLb, LOb, k1, k2, k3, k4, tmp, f)
             else:
                 for _ in range(every):
-                    verlet_block(y, acc, dt, g, P, FL, LO, f)
-            energies_block(y, g, P, FL, LO, ebuf)
+                    verlet_block(y, acc, dt, g, Pb, FLb, LOb, f)
+            energies_block(y, g, Pb, FLb, LOb, ebuf)
             for l in range(L):
                 b = base + l
                 if STATUS[b] != S_RUNNING:
                     continue
                 STEPS[b] += every
                 T[b] += every * dt
-                _sample_lane(c, NS[b], y, g, ebuf, l, b, n, LO, P, FL, observe, wall_static,
+                _sample_lane(c, NS[b], y, g, ebuf, l, b, n, LOb, Pb, FLb, observe, wall_static,
                              Vout, Eout, OF, OI, RK, RV, WF, WI, BAL)
                 counts[b] = c + 1
                 NS[b] += 1
@@ -1228,8 +292,10 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                     _finish_lane(b, n, NS, sample_dt, observe, OF, OI, RK, RV, WF, WI, OUT,
                                  WOUT, wall)
                 elif auto_stop and _left(y[ov + n - 1, l], _overlap_l(y, ox, g, n - 2, l),
-                                         y[ox + n - 1, l], VTHR[b], FL[F_END_WALL] != 0):
+                                         y[ox + n - 1, l], VTHR[b], FLb[F_END_WALL] != 0):
                     _stop_lane(y, acc, l, YF, b, S_PASSED, STATUS)
                     _finish_lane(b, n, NS, sample_dt, observe, OF, OI, RK, RV, WF, WI, OUT,
                                  WOUT, wall)
             c += 1
+        Y[blk] = y
+        ACC[blk] = acc

@@ -587,8 +587,7 @@ def _error_scales(scene, terms, layout, v):
     LO, n = layout.LO, terms.n
     scale = np.zeros(layout.ny)
     rel = np.ones(layout.ny, dtype=np.int64)
-    mu_red = terms.m / 2.0
-    delta = (5.0 * mu_red * v * v / (4.0 * terms.hertz.K)) ** 0.4
+    delta = terms.overlap_scale(v)
     e0 = 0.5 * terms.m * v * v
     # displacements: judged on the overlap scale only (their size grows in free flight)
     scale[LO[codes.L_DISP]:LO[codes.L_DISP] + n] = delta

@@ -22,17 +22,17 @@ GROUPS = (RUNS[:4], RUNS[4:])
 
 
 def _warm_up_runs(runs=RUNS, done=None) -> None:
-    """Small chains through the reference engine's methods (every effect on, gaps);
-    ``done(1)`` after each run, if given."""
+    """Small chains through the reference engine's methods (every registered effect on,
+    gaps); ``done(1)`` after each run, if given."""
     import numpy as np
 
     from ..scene import scene_from_dict
     from . import reference
+    from ..effects import SPECS
     raw = {"name": "warm-up", "material": "ss440c", "chain": {"n": 4, "radius": 150e-6},
            "striker": {"velocity": 0.1}, "gaps": {"distribution": "fixed", "mean": 5e-9},
-           "effects": ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
-                       "rolling_friction"],
-           "rolling": {"k_roll": 1e3}, "probes": [2, 3], "t_end": 2e-7}
+           "effects": list(SPECS), "rolling": {"k_roll": 1e3}, "damping": {"e": 0.95},
+           "probes": [2, 3], "t_end": 2e-7}
     for method, trace in runs:
         integ = {"method": method, "dt": 1e-9}
         if method not in ("rk4", "verlet"):

@@ -1,0 +1,49 @@
+"""Lane helpers of the effects' compiled block laws (``spec.compiled``).
+
+A block holds the state of L chains as an (ny, L) array, chains innermost, and every loop
+runs over the lanes innermost, so that LLVM vectorises across chains. A law is called per
+lane; its branches become selects (a lane-dependent ``if`` is written as ``a if cond else
+b`` on values computed for every lane, and a lane's discarded value, e.g. the sqrt of a
+negative overlap of an open contact, never reaches the state). The arithmetic of a lane is
+that of one chain alone, operation for operation (no fastmath), so a chain's trajectory
+does not depend on its lane or block.
+
+Work whose result is exactly nothing for every lane is skipped: a contact open in every
+lane (no normal force, no friction), a sphere exactly at rest with a zero history in
+every lane. The skipped work would only add zeros (to sums that are never -0.0), so
+skipping it does not change a bit; most contacts are open and most spheres ahead of the
+wave at rest.
+"""
+from __future__ import annotations
+
+from .spec import compiled
+
+
+@compiled
+def overlap(y, ox, G, k, l):
+    """Overlap (m) of inner contact k in lane l: x_k - x_{k+1} - G_GAP_k."""
+    return y[ox + k, l] - y[ox + k + 1, l] - G[k, l]
+
+
+@compiled
+def bit(mask, k):
+    """Is bit k (k < 63) of mask set?"""
+    return k < 63 and (mask >> k) & 1 != 0
+
+
+@compiled
+def any_contact(y, ox, G, k, L):
+    """Is inner contact k closed in any of the L lanes?"""
+    c = 0
+    for l in range(L):
+        c += 1 if overlap(y, ox, G, k, l) > 0.0 else 0
+    return c > 0
+
+
+@compiled
+def moving(a, r, L):
+    """Is row r of a non-zero in any of the L lanes?"""
+    c = 0
+    for l in range(L):
+        c += 1 if a[r, l] != 0.0 else 0
+    return c > 0

@@ -1,0 +1,206 @@
+"""The event method's on-the-fly observables (``engines.events``): per particle the running
+maximum of its velocity and its time, the record-setting steps' velocity interpolants
+(``engines.hermite``), when its near-peak run ended and whether the wave has passed it;
+``finalize`` turns them into v_max, t_peak, t_front and the plateau flag. The levels are
+``granchain.obsrules``' (the sampled rules of ``granchain.observables`` in continuous
+time; see ``engines.events`` for the method).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .backend import use_jit_cache
+
+use_jit_cache()   # before the first @njit(cache=True)
+
+from .. import obsrules  # noqa: E402
+from .codes import L_DISP, L_VEL, RB_C, RB_H, RB_MAX, RB_T0  # noqa: E402
+from .compose import compiled  # noqa: E402
+from .hermite import first_cross, poly_dv, poly_v, turn, v_bound, vcoef  # noqa: E402
+
+_near_level, _pass_level, _front_level = (
+    compiled(r) for r in (obsrules.near_level, obsrules.pass_level, obsrules.front_level))
+
+
+@njit(cache=True)
+def _peak_inside(y, ynew, K0, K1, LO, n, h, VMAX, bc, land, c):
+    """First tau in (0, 1) of a record-setting velocity maximum inside the step, more
+    than ``land`` above both step ends; -1 if none. VMAX[bc]: the chain's running maxima."""
+    ox = LO[L_DISP]
+    ov = LO[L_VEL]
+    best = 2.0
+    for i in range(n):
+        a0 = K0[ov + i]
+        a1 = K1[ov + i]
+        if not (a0 > 0.0 and a1 < 0.0):
+            continue
+        vcoef(y[ox + i], y[ov + i], a0, ynew[ox + i], ynew[ov + i], a1, h, c)
+        ub = v_bound(c)
+        if ub <= VMAX[bc, i] or ub - max(y[ov + i], ynew[ov + i]) <= land:
+            continue          # no maximum inside the step can pass either test
+        tau = turn(c, 0.0, 1.0)
+        vp = poly_v(c, tau)
+        if vp > VMAX[bc, i] and vp - max(y[ov + i], ynew[ov + i]) > land and tau < best:
+            best = tau
+    return best if best < 1.0 else -1.0
+
+
+@njit(cache=True)
+def _merge_oldest(rb, m, DROP, i):
+    """Make room in a full record-step buffer: merge the two adjacent steps (contiguous
+    in time, in its older half) of shortest combined length into one, interpolated by
+    the cubic Hermite of v and its slope at the outer ends; if no two are contiguous,
+    the oldest step is lost (DROP: its crossings are unknown). Returns the new count."""
+    best = -1
+    blen = math.inf
+    for q in range(max(1, m // 2)):
+        t_end = rb[q, RB_T0] + rb[q, RB_H]
+        if abs(t_end - rb[q + 1, RB_T0]) <= 1e-9 * rb[q, RB_H]:
+            L = rb[q, RB_H] + rb[q + 1, RB_H]
+            if L < blen:
+                blen = L
+                best = q
+    if best < 0:
+        DROP[i] = max(DROP[i], rb[0, RB_MAX])
+        for q in range(1, m):
+            rb[q - 1, :] = rb[q, :]
+        return m - 1
+    q = best
+    h0 = rb[q, RB_H]
+    h1 = rb[q + 1, RB_H]
+    Hm = h0 + h1
+    v0 = rb[q, RB_C]
+    a0 = rb[q, RB_C + 1] / h0
+    c1 = rb[q + 1, RB_C:RB_C + 5]
+    v1 = poly_v(c1, 1.0)
+    a1 = poly_dv(c1, 1.0) / h1
+    dv = v1 - v0
+    rb[q, RB_H] = Hm
+    rb[q, RB_MAX] = max(rb[q, RB_MAX], rb[q + 1, RB_MAX])
+    rb[q, RB_C] = v0
+    rb[q, RB_C + 1] = Hm * a0
+    rb[q, RB_C + 2] = 3.0 * dv - 2.0 * Hm * a0 - Hm * a1
+    rb[q, RB_C + 3] = -2.0 * dv + Hm * a0 + Hm * a1
+    rb[q, RB_C + 4] = 0.0
+    for k in range(q + 2, m):
+        rb[k - 1, :] = rb[k, :]
+    return m - 1
+
+
+@njit(cache=True)
+def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, c):
+    """Update the running per-particle observables of chain bc (row bc of VMAX ... DROP)
+    with one accepted step."""
+    ox = LO[L_DISP]
+    ov = LO[L_VEL]
+    for i in range(n):
+        v0 = y[ov + i]
+        v1 = ynew[ov + i]
+        a0 = K0[ov + i]
+        a1 = K1[ov + i]
+        built = False
+        # largest velocity inside the step
+        vmx = v1
+        tmx = 1.0
+        if v0 > vmx:
+            vmx = v0
+            tmx = 0.0
+        if a0 > 0.0 and a1 < 0.0:
+            vcoef(y[ox + i], v0, a0, ynew[ox + i], v1, a1, h, c)
+            built = True
+            # a maximum that cannot set a record leaves every result below unchanged
+            # (without it, vmx > VMAX[bc, i] only if an end of the step is above VMAX[bc, i])
+            if v_bound(c) > VMAX[bc, i]:
+                tau = turn(c, 0.0, 1.0)
+                vp = poly_v(c, tau)
+                if vp > vmx:
+                    vmx = vp
+                    tmx = tau
+        tafter = 0.0
+        if vmx > VMAX[bc, i]:
+            if not built:
+                vcoef(y[ox + i], v0, a0, ynew[ox + i], v1, a1, h, c)
+                built = True
+            VMAX[bc, i] = vmx
+            TPK[bc, i] = t0 + tmx * h
+            PASSED[bc, i] = 0
+            RUNEND[bc, i] = -1.0
+            tafter = tmx
+            # drop record steps that cannot hold the half-peak crossing any more
+            m = RBN[bc, i]
+            keep = 0
+            while keep < m and RB[bc, i, keep, RB_MAX] < _front_level(vmx):
+                keep += 1
+            if keep > 0:
+                for q in range(keep, m):
+                    RB[bc, i, q - keep, :] = RB[bc, i, q, :]
+                m -= keep
+            if m == RB.shape[2]:
+                m = _merge_oldest(RB[bc, i], m, DROP[bc], i)
+            RB[bc, i, m, RB_T0] = t0
+            RB[bc, i, m, RB_H] = h
+            RB[bc, i, m, RB_MAX] = vmx
+            for q in range(5):
+                RB[bc, i, m, RB_C + q] = c[q]
+            RBN[bc, i] = m + 1
+        # after the peak: end of the near-peak run, and the pass rule
+        if VMAX[bc, i] > 0.0 and (RUNEND[bc, i] < 0.0 or PASSED[bc, i] == 0):
+            lo_run = _near_level(VMAX[bc, i])
+            lo_pass = _pass_level(VMAX[bc, i])
+            vmn = min(v1, v0 if tafter == 0.0 else v1)
+            interior = a0 < 0.0 and a1 > 0.0
+            if vmn < lo_run or interior:
+                if not built:
+                    vcoef(y[ox + i], v0, a0, ynew[ox + i], v1, a1, h, c)
+                    built = True
+                if RUNEND[bc, i] < 0.0:
+                    tau = first_cross(c, lo_run, tafter, False)
+                    if tau >= 0.0:
+                        RUNEND[bc, i] = t0 + tau * h
+                if PASSED[bc, i] == 0:
+                    tau = first_cross(c, lo_pass, tafter, False)
+                    if tau >= 0.0:
+                        PASSED[bc, i] = 1
+
+
+@njit(cache=True)
+def finalize(VMAX, TPK, RUNEND, RB, RBN, DROP, VINIT, t_last, plateau_span):
+    """Per particle (v_max, t_peak, t_front, plateau) of one chain from its running
+    observables (module docstring); v_max 0 and NaN times for a particle that never moved
+    forward."""
+    n = VMAX.shape[0]
+    vmax = np.zeros(n)
+    tpk = np.full(n, np.nan)
+    tfr = np.full(n, np.nan)
+    plat = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        top = VMAX[i]
+        if not top > 0.0:
+            continue
+        vmax[i] = top
+        t_near = _level_time(RB[i], RBN[i], DROP[i], VINIT[i], _near_level(top))
+        t_half = _level_time(RB[i], RBN[i], DROP[i], VINIT[i], _front_level(top))
+        end = RUNEND[i] if RUNEND[i] >= 0.0 else t_last
+        plat[i] = (end - t_near) > plateau_span
+        tpk[i] = t_near if plat[i] else TPK[i]
+        tfr[i] = t_half
+    return vmax, tpk, tfr, plat
+
+
+@njit(cache=True)
+def _level_time(rb, m, drop, vinit, level):
+    """First time the velocity reached ``level`` (NaN if that step was not kept)."""
+    if vinit >= level:
+        return 0.0
+    if drop >= level:
+        return np.nan
+    for q in range(m):
+        if rb[q, RB_MAX] >= level:
+            tau = first_cross(rb[q, RB_C:RB_C + 5], level, 0.0, True)
+            if tau < 0.0:
+                return np.nan
+            return rb[q, RB_T0] + tau * rb[q, RB_H]
+    return np.nan
