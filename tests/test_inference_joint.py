@@ -494,15 +494,21 @@ def calibration(calibration_grids, cal_trials):
 def test_joint_intervals_cover_both_parameters(cal_trials, calibration):
     """104 synthetic experiments (440C and 316, independent chains and one-chain series,
     mean gaps 10-200 nm, e 0.85-1, realisations the grid never saw): the 95 % intervals of
-    each parameter cover the truth in 90-99 % of them. Measured: mean gap 0.962, e 0.981
-    (both 0.942; none flagged); median widths 69 nm (independent chains 63, series 92) and
-    0.020 in e. benchmarks/inference_joint_calibration.py runs 200 at two peak-noise
-    levels."""
+    each parameter cover the truth in at least 90 % of them, the mean gap's in at most 99 %.
+    The joint fit's heavier prior on the contacts beside the probes
+    (``gapdesign.prior_weights``) makes e's intervals conservative on chains drawn from the
+    law itself: measured mean gap 0.962, e 1.000 (2 flagged, counted as misses), median
+    widths 80 nm and 0.0365 in e (0.020 with the law's weights, which covered e in 0.981
+    but only 0.85-0.875 of chains with a near-contact beside a probe). So e's interval is
+    bounded in width instead: a median above 0.05 would tell less than the data do.
+    benchmarks/inference_outside.py gives both priors side by side."""
     cov, text = cal_summary("coeff_restitution truth", cal_trials, calibration)
     print("\n" + text)
     assert len(calibration) >= 100
     assert 0.90 <= cov[:, 0].mean() <= 0.99
-    assert 0.90 <= cov[:, 1].mean() <= 0.99
+    assert cov[:, 1].mean() >= 0.90
+    widths = [r.restitution_ci95[1] - r.restitution_ci95[0] for r in calibration]
+    assert np.nanmedian(widths) <= 0.05, np.nanmedian(widths)
 
 
 @pytest.mark.slow
