@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 
-from granchain import costmodel
+from granchain import costmodel, runplan
 from granchain.scene import TOLERANCE_METHODS, scene_from_dict
 from granchain.simulate import run_scene
 
@@ -56,7 +56,7 @@ def main() -> int:
                    "integrator": {"method": "auto", "tolerance": tol}}
             got = []
             for label, m in models:
-                sc = costmodel.resolve_auto(scene_from_dict(raw), m)
+                sc = runplan.resolve_auto(scene_from_dict(raw), m)
                 evals, wall = measure(sc)
                 got.append((evals, wall))
                 print(f"{gap:6g} {v:5g} {tol:6g}  {label:14s} {setting(sc):28s} "

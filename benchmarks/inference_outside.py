@@ -20,12 +20,13 @@ grid's model); ``--truth independent`` with tests/independent.py (scipy DOP853, 
 code, no engine import) on a Hertz chain (with coeff_restitution damping for the joint
 fit), the base scene then having only those effects.
 
-Grid designs (``--emphasis``): 0.5, the inference's default (the gaps next to the probes
-importance-sampled toward small values, ``granchain.gapdesign``); 0, the gap law's own
-draws (the design before).
+Grid designs (``--designs``): ``robust``, the inference's default (the gaps next to the
+probes drawn from a heavier prior toward contact, and that prior used by the likelihood,
+``granchain.gapdesign``); ``law``, the same realisations weighted back to the gap law
+(prior / proposal); ``plain``, the gap law's own draws.
 
     python benchmarks/inference_outside.py [--fits gap joint] [--materials ss440c ss316]
-        [--natural N] [--stress N] [--emphasis 0.5 0] [--truth reference|independent]
+        [--trials N] [--designs robust law plain] [--truth reference|independent]
         [--speeds ...] [--gap-points G] [--e-points E] [--realisations R] [--cache-dir D]
         [--out FILE.jsonl]
     python benchmarks/inference_outside.py --cost 3 [--materials ss316]
@@ -36,6 +37,7 @@ time printed is then the cache's read).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import sys
@@ -55,6 +57,7 @@ NOISE_T, NOISE_PEAK = 0.3e-6, 0.02
 COLUMN = "dt_peak_s"
 G_RANGE, E_RANGE = (10e-9, 200e-9), (0.85, 1.0)
 STRESS_BELOW = 0.05
+DESIGNS = {"robust": (0.5, "robust"), "law": (0.5, "law"), "plain": (0.0, "law")}
 
 
 def base_scene(material: str, fit: str, truth: str, speeds) -> object:
@@ -218,7 +221,8 @@ def main() -> None:
                     choices=["natural", "stress"])
     ap.add_argument("--trials", type=int, default=40, help="experiments per set, material, fit")
     ap.add_argument("--rows", type=int, nargs=2, default=[3, 10])
-    ap.add_argument("--emphasis", type=float, nargs="+", default=[0.5, 0.0])
+    ap.add_argument("--designs", nargs="+", default=["robust", "law", "plain"],
+                    choices=list(DESIGNS))
     ap.add_argument("--truth", default="reference", choices=["reference", "independent"])
     ap.add_argument("--speeds", type=float, nargs="+", default=SPEEDS)
     ap.add_argument("--realisations", type=int, default=inference.REALISATIONS)
@@ -248,7 +252,8 @@ def main() -> None:
             truths = [truth_rows(base, tr, joint, a.truth) for tr in trials]
             print(f"\n{fit} fit, {material}: {len(trials)} experiments, truths from "
                   f"{a.truth} in {time.perf_counter() - t0:.1f} s", flush=True)
-            for em in a.emphasis:
+            for design in a.designs:
+                em, key_prior = DESIGNS[design]
                 t0 = time.perf_counter()
                 if joint:
                     grid = inference.simulate_joint_grid(
@@ -257,6 +262,7 @@ def main() -> None:
                 else:
                     grid = inference.simulate_grid(base, inference.GAP_MAX, a.gap_points,
                                                    a.realisations, a.cache_dir, emphasis=em)
+                grid = dataclasses.replace(grid, key_prior=key_prior)
                 t_grid = time.perf_counter() - t0
                 res, t_inf = [], []
                 for tr, X in zip(trials, truths):
@@ -267,12 +273,12 @@ def main() -> None:
                     t_inf.append(time.perf_counter() - t1)
                     res.append((tr["set"], outcome(tr, r, base.probes, joint)))
                     if out is not None:
-                        out.write(json.dumps(dict(fit=fit, material=material, emphasis=em,
+                        out.write(json.dumps(dict(fit=fit, material=material, design=design,
                                                   set=tr["set"], series=tr["series"],
                                                   rows=len(tr["v"]), g=tr["g"], e=tr["e"],
                                                   **res[-1][1])) + "\n")
                         out.flush()
-                print(f"  design emphasis {em:g}: grid {grid.n_chains} chains "
+                print(f"  design {design}: grid {grid.n_chains} chains "
                       f"({grid.simulated} simulated now) in {t_grid:.1f} s; one inference "
                       f"median {np.median(t_inf):.2f} s", flush=True)
                 for name in a.sets:

@@ -12,8 +12,7 @@ import re
 import sys
 from pathlib import Path
 
-from .costmodel import (DEFAULT_MAX_TOTAL_STEPS, add_estimates, describe_auto, resolve_auto,
-                        run_estimate)
+from .costmodel import DEFAULT_MAX_TOTAL_STEPS, add_estimates, run_estimate
 from .errors import GranchainError
 from .fileio import (IMAGE, atomic_write_text, check_distinct, check_output_path, json_output,
                      json_text)
@@ -47,9 +46,14 @@ def _workdir_files(args) -> list:
 def check_paths(args, outputs, inputs=()) -> None:
     """Refuse, before any work, an output of a command that is one of its inputs (the
     scene file, the measurement file) or another of its outputs (``--out``, ``--plot``, the
-    files of a kept ``--workdir``), with or without --force (``fileio.check_distinct``)."""
+    files of a kept ``--workdir``), with or without --force (``fileio.check_distinct``),
+    and a kept ``--workdir`` holding a file the run would replace that is not an earlier
+    run's (``lammps.deck.check_workdir``)."""
     check_distinct(_workdir_files(args) + list(outputs),
                    [("the scene file", getattr(args, "scene", None)), *inputs])
+    if getattr(args, "workdir", None):
+        from .lammps.deck import check_workdir
+        check_workdir(args.workdir, args.force)
 
 
 def _fmt(x, unit="", digits=4):
@@ -136,11 +140,12 @@ def _residual_note(scene, r) -> str:
 
 def load(args):
     """The scene of a command's arguments, method auto resolved."""
-    return resolve_auto(load_scene(args.scene, args.set))
+    from .runplan import plan_run
+    return plan_run(load_scene(args.scene, args.set), per_speed=False).scene
 
 
 def cmd_validate(args) -> int:
-    from .runplan import plan_run
+    from .runplan import describe_auto, plan_run
     plan = plan_run(load_scene(args.scene, args.set))
     scene = plan.scene
     print(f"{args.scene}: valid scene '{scene.name}' ({scene.hash}), {scene.n} particles, "
@@ -373,6 +378,7 @@ def check_grid(base, args, src) -> None:
     inference itself refuses (too few points or realisations) are left to it. ``base``:
     the completed base scene, ``src`` its sources (``inference.complete_base``)."""
     from .inference import check_base, grid_scene
+    from .runplan import plan_run
     check_base(base)
     G, R = args.gap_points, args.realisations
     if G < 3 or R < 2 or min(base.striker_velocities) <= 0:
@@ -381,7 +387,7 @@ def check_grid(base, args, src) -> None:
     base = base.derive(striker={"velocity": speeds})
     # a chain's steps and record grow linearly with its gaps' mean (flight over them):
     # the grid's total is G times the mean of its two ends
-    ends = [run_estimate(resolve_auto(grid_scene(base, g, R)))
+    ends = [run_estimate(plan_run(grid_scene(base, g, R), per_speed=False).scene)
             for g in (0.0, args.gap_max_nm * 1e-9)]
     est = {k: G * (ends[0][k] + ends[1][k]) / 2 for k in ("members", "steps", "seconds")}
     est["worst_chain_steps"] = ends[1]["worst_chain_steps"]
@@ -480,6 +486,7 @@ def check_joint_grid(base, args, src) -> None:
     realisations) is beyond the whole-run limits, as :func:`check_grid`."""
     from .errors import SceneError
     from .inference import check_joint_options, gap_nodes, joint_scene
+    from .runplan import plan_run
     check_joint_options(args.gap_max_nm * 1e-9, args.gap_points, args.e_min, args.e_points,
                         args.realisations)
     if min(base.striker_velocities) <= 0:
@@ -489,7 +496,8 @@ def check_joint_grid(base, args, src) -> None:
     base = base.derive(striker={"velocity": speeds})
     gmax = args.gap_max_nm * 1e-9
     try:
-        ends = [run_estimate(resolve_auto(joint_scene(base, g, args.e_min, R)))
+        ends = [run_estimate(plan_run(joint_scene(base, g, args.e_min, R),
+                                      per_speed=False).scene)
                 for g in (0.0, gmax)]
     except SceneError as exc:
         raise GranchainError(f"--e-min {args.e_min:g}: the base scene at this e is refused "
@@ -517,6 +525,7 @@ def cmd_infer(args) -> int:
     from .errors import SceneError
     from .inference import (check_restitution_base, complete_base, infer, parse_fit,
                             read_measurements)
+    from .runplan import plan_run
     fit = parse_fit(args.fit)
     check_paths(args, [("--out", args.out), ("--plot", args.plot)],
                 [("the measurement file", args.measurements)])
@@ -527,12 +536,14 @@ def cmd_infer(args) -> int:
         check_output_path(args.plot, args.force, "--plot", kind=IMAGE)
     if args.out:
         check_output_path(args.out, args.force, "--out", kind=INFER_JSON)
+    if not args.no_cache:
+        _check_cache_dir(args.cache_dir)
     joint = "restitution" in fit
     meas = read_measurements(args.measurements, peaks=joint)
     # the gap law and speeds the base scene leaves out are filled in before method auto
     # is resolved, so that auto chooses for the scene that runs
     base, src = complete_base(load_scene(args.scene, args.set), meas)
-    base = resolve_auto(base)
+    base = plan_run(base, per_speed=False).scene
     if joint:
         try:
             check_restitution_base(base)
@@ -544,6 +555,22 @@ def cmd_infer(args) -> int:
                 realisations=args.realisations, cache_dir=None if args.no_cache else args.cache_dir,
                 source=f"{args.measurements}, ", prior=args.prior, progress=_progress(args))
     return _report_inference(args, res, meas, base, _print_inference, "plot_inference")
+
+
+def _check_cache_dir(path) -> None:
+    """Refuse, before any work, a --cache-dir that is not (and cannot become) a directory."""
+    d = Path(path)
+    if d.exists() and not d.is_dir():
+        raise GranchainError(f"--cache-dir: {str(d)!r} is not a directory; give a directory "
+                             "for the simulated grids (it is created if missing), or pass "
+                             "--no-cache")
+    up = d
+    while not up.exists() and up != up.parent:
+        up = up.parent
+    if up != d and not up.is_dir():
+        # created when the first grid point is cached: refused now, not after that work
+        raise GranchainError(f"--cache-dir: cannot create {str(d)!r} ({str(up)!r} is a file); "
+                             "choose another directory, or pass --no-cache")
 
 
 def _infer_joint(args, meas, base, src) -> int:

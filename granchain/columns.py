@@ -409,6 +409,9 @@ _VIB_OWN = {
     "v_max_2_measured_over_true": _f("1", "Recorded over true v_max at the second probe."),
     "dt_peak_bias_s": _f("s", "Recorded minus true peak-to-peak delay."),
     "dt_front_bias_s": _f("s", "Recorded minus true half-peak arrival delay."),
+    "warnings": _s("One line per kind of value, true or recorded, that left its physical "
+                   "bounds (';'-separated): that value is NaN here and the status "
+                   "unphysical."),
 }
 _VIB_NAMES = (
     "study", "material", "gap_distribution", "gap_mean_nm", "v_striker_m_s", "realisation",
@@ -417,7 +420,7 @@ _VIB_NAMES = (
     "dt_front_s", "v_g_m_s", "v_max_1_measured_m_s", "v_max_2_measured_m_s",
     "dt_peak_measured_s", "dt_front_measured_s", "v_g_measured_m_s", "measured_not_final",
     "v_max_1_measured_over_true", "v_max_2_measured_over_true", "dt_peak_bias_s",
-    "dt_front_bias_s")
+    "dt_front_bias_s", "warnings")
 VIBROMETER = {c: _VIB_OWN.get(c) or MEMBER[c] for c in _VIB_NAMES}
 
 # ---------------------------------------------------------------------------------------

@@ -29,10 +29,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .costmodel import resolve_auto
 from .effects import residual_work
 from .errors import GranchainError
 from .observables import OK_STATUSES, status_text, summarize
+from .runplan import plan_run
 from .stoprule import arrival_speed
 from .scene import Scene
 from .trajectory import ENERGY_COLUMNS
@@ -111,9 +111,11 @@ def comparison_scene(scene: Scene) -> Scene:
     A scene with method auto is resolved first (its step is the one compared)."""
     from .lammps.deck import plan
     from .gaps import member_gaps, members
-    scene = resolve_auto(scene)
+    run_plan = plan_run(scene, per_speed=False)
+    scene = run_plan.scene
     mem = members(scene)
-    pl = plan(scene, gaps=member_gaps(scene, mem), v_striker=[m.v_striker for m in mem])
+    pl = plan(scene, gaps=member_gaps(scene, mem), v_striker=[m.v_striker for m in mem],
+              run_plan=run_plan)
     return scene.derive(**{"integrator.method": "verlet", "output.sample_dt": pl.sample_dt})
 
 
@@ -134,8 +136,9 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
     from .engines import reference
     from .gaps import member_gaps, member_radii, members
 
-    scene = resolve_auto(scene)
+    scene = plan_run(scene, per_speed=False).scene
     cs = comparison_scene(scene)
+    cplan = plan_run(cs)                  # both engines run from the one plan
     mem = members(cs)
     if not mem:
         raise GranchainError("compare: the scene has no members (no striker speed)")
@@ -146,16 +149,16 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
     t0 = time.perf_counter()
     try:
         ref = list(reference.run(cs, gaps, vs, method="verlet", dt=cs.dt, progress=False,
-                                 trace=trajectory, radii=radii))
+                                 trace=trajectory, radii=radii, plan=cplan))
         # a member re-run alone gives the same bits, so its record belongs to ref[i]
         traced = ref[:k] if trajectory else list(reference.run(
             cs, gaps[:k], vs[:k], method="verlet", dt=cs.dt, progress=False, trace=True,
-            radii=None if radii is None else radii[:k])) if k else []
+            radii=None if radii is None else radii[:k], plan=cplan)) if k else []
     except NotImplementedError as exc:
         raise GranchainError(f"compare: the reference engine cannot run this scene: {exc}") from None
     t1 = time.perf_counter()
     lmp = list(lmp_engine.run(cs, gaps, vs, nprocs=nprocs, workdir=workdir, force=force,
-                              keep=keep, progress=False, radii=radii,
+                              keep=keep, progress=False, radii=radii, plan=cplan,
                               output="dump" if trajectory else "binary"))
     t2 = time.perf_counter()
     rows, status, notes = [], {"reference": [], "lammps": []}, []

@@ -1,4 +1,5 @@
-"""``integrator.method: auto`` at run time: the packaged cost model and its lookup.
+"""The packaged cost model (what ``integrator.method: auto`` chooses from) and what a chain
+and a run cost: steps, sample records, wall time, the cost guards.
 
 numpy only (no pandas, numba or scipy), so ``granchain validate`` can show what auto
 resolves to.
@@ -13,13 +14,7 @@ dt is stored as N steps per contact time: under Hertz scaling the error of a set
 given N transfers across striker speeds, materials and radii (the auto sample interval is
 a fixed fraction of the contact time t_c).
 
-:func:`resolve_auto` turns a scene with ``method == "auto"`` into the scene that runs: the
-setting of the scene's class whose v_g error (``AUTO_OBSERVABLE``: arrival-time v_g on
-gapped chains) meets ``integrator.tolerance`` with a margin (``AUTO_SAFETY``), and keeps
-meeting it at every finer setting of its method (the envelope: a lucky cancellation at a
-coarse step is never taken for accuracy), at the least wall time on this scene: the
-measured wall time times the scene's work over the measurement's (:func:`chain_work`; a
-slow striker over wide gaps multiplies the fixed-step cost, not the event method's).
+Method auto's choice from the model, and the run plan around it, are ``granchain.runplan``'s.
 """
 from __future__ import annotations
 
@@ -34,8 +29,8 @@ from importlib import resources
 
 import numpy as np
 
-from .errors import GranchainError, SceneError
-from .scene import TOLERANCE_METHODS, Scene
+from .errors import GranchainError
+from .scene import TOLERANCE_METHODS
 from .guards import require_resolved
 from .effects import ENERGY_COLUMNS
 from .stoprule import expected_duration, sample_interval
@@ -48,15 +43,6 @@ RECORD_EXTRA_COLUMNS = len(ENERGY_COLUMNS) + 1
 
 SCENE_METHODS = ("rk4", "verlet", "adaptive", "event")   # what ``method: auto`` may resolve to
 SCENE_CLASSES = ("packed", "gapped")
-# method auto takes the cheapest setting whose measured error is <= tolerance / AUTO_SAFETY:
-# on other scenes (316 and 440C, 0.03-0.5 m/s, packed and 10-190 nm gaps) the error of a
-# setting at the same N was up to 2.3x the model's (docs/explanation/physics.md, "What
-# accuracy costs in time").
-AUTO_SAFETY = 4.0
-# the observable whose error auto bounds, per scene class: the peak-time v_g of a packed
-# chain; the arrival-time v_g (half-peak crossings) of a gapped one, whose probes often
-# peak on a flight plateau where the peak time is set to a few 1e-5 by the sample grid
-AUTO_OBSERVABLE = {"packed": "v_g", "gapped": "v_g_front"}
 MODEL_FILE = "data/cost_model.csv"
 MODEL_PROVENANCE = "data/cost_model.provenance.json"
 MODEL_COLUMNS = ("scene_class", "method", "steps_per_contact", "tolerance", "wall_s_per_chain",
@@ -297,7 +283,8 @@ def fixed_step(scene, steps_per_contact: int) -> float:
     longer than the auto sample interval, to k sample_dt (a sample every step, on the
     grid). Under Hertz scaling sample_dt / t_c is the same for every scene (auto sampling:
     400 samples per solitary-wave width, t_c / 163), so a given N gives the same dt / t_c
-    and the same sampling everywhere: the measurement and ``resolve_auto`` both use it."""
+    and the same sampling everywhere: the measurement and method auto
+    (``granchain.runplan.auto_setting``) both use it."""
     v = max(scene.striker_velocities)
     dt = scene.contact_time(v) / steps_per_contact
     sdt = sample_interval(scene, v)
@@ -385,99 +372,6 @@ def member_seconds(scene, v: float, engine: str = "reference", model: CostModel 
     return wall * speed_work(scene, m, v, duration) / model.work(cls)[m]
 
 
-def _round_up(x: float) -> float:
-    """x rounded up to two significant digits (a bound that prints as what it is)."""
-    if not (x > 0 and math.isfinite(x)):
-        return x
-    e = math.floor(math.log10(x)) - 1
-    return math.ceil(round(x / 10.0**e, 9)) * 10.0**e
-
-
-def auto_setting(scene: Scene, model: CostModel | None = None, *,
-                 durations: dict | None = None, sample_dts: dict | None = None
-                 ) -> tuple[str, float, float | None]:
-    """(method, dt, tolerance) of the cheapest setting meeting ``scene.tolerance`` on v_g
-    (``AUTO_OBSERVABLE`` of the scene's class) with a margin: its measured error
-    (envelope) is <= tolerance / AUTO_SAFETY. Cheapest on this scene: measured wall time
-    times :func:`work_ratio` (the cost :func:`member_seconds` gives the scene at that
-    setting, summed over its striker speeds). The event method is offered only on chains
-    no longer than the model measured it on (its step count grows faster than n).
-
-    Pure: reads only the scene and the cost model (rows of the scene's class, packed or
-    gapped). dt = ``fixed_step(scene, N)``, as in the measurement, so that the samples
-    fall on the reference's. With several sample intervals (a sweep of striker speeds at
-    auto sampling) that cannot hold for every member, so when the target is below the
-    measured misalignment floor only the tolerance methods are used. They keep the
-    scene's dt as their first step and get the model's tolerance as their rtol.
-    ``durations`` and ``sample_dts`` (striker speed -> ``stoprule.expected_duration``,
-    ``stoprule.sample_interval``): the run plan's, if already computed
-    (:func:`granchain.runplan.plan_run`)."""
-    model = model or load_model()
-    tol = float(scene.tolerance)
-    target = tol / AUTO_SAFETY
-    cls = scene_class(scene)
-    obs = AUTO_OBSERVABLE[cls]
-    lo = _round_up(AUTO_SAFETY * model.achievable(obs, scene_class=cls))
-    if tol < lo:
-        raise SceneError("integrator.tolerance",
-                         f"{tol:g} is tighter than method auto can deliver on {obs} "
-                         f"({cls} chains: {lo:.2g} to 0.1, granchain/data/cost_model.csv)",
-                         f"give a tolerance in [{lo:.2g}, 0.1], or choose method adaptive "
-                         "with its own tolerance")
-    vs = [v for v in scene.striker_velocities if v > 0]
-    sdt = sample_dts or {v: sample_interval(scene, v) for v in vs}
-    methods = list(SCENE_METHODS)
-    if (len({sdt[v] for v in vs}) > 1
-            and target < float(model.provenance["sampling_floor_v_g"][cls])):
-        methods = list(TOLERANCE_METHODS)
-    if scene.n > model.event_max_n() or scene.wall is not None:
-        # not measured on chains this long; an end wall is not an event the method locates
-        methods = [m for m in methods if m != "event"]
-    pick = model.cheapest(target, obs, methods=methods, scene_class=cls,
-                          work=work_ratio(scene, model, cls, durations))
-    if pick is None:
-        raise SceneError("integrator.tolerance", f"{tol:g}: no setting of the cost model meets it",
-                         f"give a tolerance in [{lo:.2g}, 0.1]")
-    if pick["method"] in TOLERANCE_METHODS:
-        return pick["method"], scene.dt, pick["tolerance"]
-    if not vs:                                   # nothing moves: any step will do
-        return pick["method"], scene.dt, None
-    return pick["method"], fixed_step(scene, pick["steps_per_contact"]), None
-
-
-def apply_auto(scene: Scene, setting: tuple[str, float, float | None]) -> Scene:
-    """The scene of method auto with ``setting`` ((method, dt, tolerance) of
-    :func:`auto_setting`) in its spec, hence in its hash, and the requested tolerance as
-    ``auto_tolerance``, checked like any scene with that setting (the step guard,
-    sample_dt >= dt). A dt the scene file gave is refused when auto chooses a fixed step
-    of its own."""
-    m, dt, rtol = setting
-    if "integrator.dt" in scene.given and m not in TOLERANCE_METHODS:
-        raise SceneError("integrator.dt", f"has no effect: method auto chose {m} with its "
-                         f"own step ({dt:.3g} s) for tolerance {scene.tolerance:g}",
-                         "drop dt, or choose method rk4 or verlet to set the step")
-    resolved = scene.derive({"integrator": {"method": m, "dt": dt, "tolerance": rtol}})
-    return dataclasses.replace(resolved, auto_tolerance=scene.tolerance, given=scene.given)
-
-
-def resolve_auto(scene: Scene, model: CostModel | None = None) -> Scene:
-    """The scene that runs: ``scene`` itself unless its method is auto; else
-    :func:`apply_auto` of :func:`auto_setting`. (A run plans it once, with the rest of its
-    plan: :func:`granchain.runplan.plan_run`.)"""
-    if scene.method != "auto":
-        return scene
-    return apply_auto(scene, auto_setting(scene, model))
-
-
-def describe_auto(scene: Scene) -> str:
-    """'auto (tolerance 0.0001) -> rk4, dt 1.23e-09 s' for a resolved auto scene."""
-    if scene.auto_tolerance is None:
-        return scene.method
-    how = (f"tolerance {scene.tolerance:g}" if scene.method in TOLERANCE_METHODS
-           else f"dt {scene.dt:.6g} s")
-    return f"auto (tolerance {scene.auto_tolerance:g}) -> {scene.method}, {how}"
-
-
 # ---------------------------------------------------------------------------------------
 # what a whole run costs: every member (striker speed x realisation) of a scene
 # ---------------------------------------------------------------------------------------
@@ -487,10 +381,11 @@ def describe_auto(scene: Scene) -> str:
 MEMBER_BYTES = 3000.0
 MEMBER_BYTES_PER_PARTICLE = 110.0
 DEFAULT_MAX_TOTAL_STEPS = 1e11      # whole run, raised with --max-total-steps
-# The reference engine's chunks (engines.reference: CHUNK_BYTES, CHUNK_CHAINS, and the
-# samples per kernel call WINDOW, BLOCK_WINDOW): while a chunk's records are joined their
-# pieces are held as well, and each chain of a chunk has its window of samples and, under
-# the event method, its peak-tracking buffers (tracemalloc: ~3.7 kB per particle).
+# The reference engine's chunks (engines.chunks: CHUNK_BYTES, CHUNK_CHAINS; the samples
+# per kernel call, engines.reference: WINDOW, BLOCK_WINDOW): while a chunk's records are
+# joined their pieces are held as well, and each chain of a chunk has its window of
+# samples and, under the event method, its peak-tracking buffers (tracemalloc: ~3.7 kB per
+# particle).
 RECORD_CHUNK_BYTES = 256 * 2**20
 CHUNK_CHAINS = 512
 WINDOW_SAMPLES = {"rk4": 256, "verlet": 256, "adaptive": 2048, "event": 2048}
@@ -498,7 +393,7 @@ EVENT_BYTES_PER_PARTICLE = 3700.0
 # The fixed-step methods measuring on the fly (no trace): per particle a ring of
 # RING_SAMPLES record samples (an index and two floats each), and the chain's state, rows
 # and running observables (~640 bytes a particle, tracemalloc), for every lane of the
-# chunk's blocks of BLOCK_LANES chains.
+# chunk's blocks of BLOCK_LANES chains (engines.chunks.LANES).
 RING_SAMPLES = 512
 OBSERVE_BYTES_PER_PARTICLE = 24.0 * RING_SAMPLES + 640.0
 BLOCK_LANES = 32

@@ -38,10 +38,10 @@ HARD_OVERLAP_RATIO = 0.1
 
 def require_resolved(scene, who: str) -> None:
     """Raise ValueError if the scene's method is still auto (a program error: the step
-    comes from ``granchain.costmodel.resolve_auto``, which every run applies first)."""
+    comes from the run plan, ``granchain.runplan.plan_run``, which every run makes first)."""
     if scene.method == "auto":
         raise ValueError(f"{who}: scene '{scene.name}' has integrator method auto; resolve "
-                         "it first with granchain.costmodel.resolve_auto")
+                         "it first: run granchain.runplan.plan_run(scene).scene")
 
 
 def max_sample_dt(scene) -> float | None:

@@ -450,6 +450,8 @@ def summarize(traj: Trajectory, probes=(2, 13)) -> ChainResult:
 # statuses of a run that ended as planned; what any other means, for the human output
 OK_STATUSES = ("passed", "done")
 STATUS_TEXT = {
+    "passed": "the run ended once the wave had left the chain",
+    "done": "the run reached its end time",
     "timeout": "the run hit its time cap before the wave left the chain",
     "nonfinite": "the integration reached a non-finite state",
     "stepfail": "the adaptive step control failed",
@@ -460,6 +462,22 @@ STATUS_TEXT = {
 def status_text(status: str) -> str:
     """'status timeout: the run hit its time cap ...': a status for the human output."""
     return f"status {status}" + (f": {STATUS_TEXT[status]}" if status in STATUS_TEXT else "")
+
+
+def status_summary(statuses) -> str:
+    """For a progress or log line over many runs: '' when every run ended as planned
+    (``OK_STATUSES``), else e.g. '2 of 8 runs ended timeout (1), unphysical (1)'."""
+    statuses = list(statuses)
+    bad: dict[str, int] = {}
+    for s in statuses:
+        if s not in OK_STATUSES:
+            bad[s] = bad.get(s, 0) + 1
+    if not bad:
+        return ""
+    return (f"{sum(bad.values())} of {len(statuses)} runs ended "
+            + ", ".join(f"{s} ({k})" for s, k in sorted(bad.items())))
+
+
 # (delay, group velocity) pairs: a delay that is not positive, or a group velocity above
 # the sound speed, makes both impossible (v_g = span / delay)
 _TIMING_PAIRS = (("dt_peak", "v_g"), ("dt_front", "v_g_front"),

@@ -7,7 +7,7 @@ fills defaults, validates, and returns a frozen :class:`Scene`. Every problem is
 
 This layer parses and validates only. A scene with ``integrator.method: auto`` keeps
 ``method == "auto"`` and its tolerance; the step it runs with comes from the cost model
-(``granchain.costmodel.resolve_auto``), applied where a run starts.
+through the run plan (``granchain.runplan.plan_run``), made where a run starts.
 
 Every key's default is in ``DEFAULTS`` below (an effect's section: in its module), and
 every key is declared once beside it (``KEYS``; an effect's: its module's ``KEYS``) with its
@@ -257,7 +257,8 @@ KEYS: tuple[Key, ...] = (
     Key("precompression.force", "N", "A dead load F0 on particle 2 pushing the chain onto the "
         "end wall (needs `walls.end`, no gaps). The chain starts at rest in its static state, "
         "every contact from particle 2 to the wall overlapping by (F0/K)^(2/3); the ledger's "
-        "`work_load` is the load's work. null: no load.", nonneg=True,
+        "`work_load` is the load's work. null: no load (0 is refused: a key with no "
+        "effect).", positive=True,
         allowed=f"static overlaps within {HARD_OVERLAP_RATIO:g} R* of each contact (warned "
         f"above {MAX_OVERLAP_RATIO:g} R*)"),
 )
@@ -879,8 +880,19 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
     if spec["walls"]["end"] is not None:
         wall = _material(spec["walls"]["end"], "walls.end", wall=True)
     spread = _radius_spread(spec["chain"].get("radius_spread"), radii)
+    pre = spec["precompression"]["force"]
+    if (not isinstance(pre, bool) and isinstance(pre, (int, float)) and pre == 0
+            and "precompression.force" in given):
+        raise SceneError("precompression.force", "0 N has no effect (no load on the chain)",
+                         "drop precompression; a chain resting on the end wall needs only "
+                         "walls.end")
     load = _num(spec, "precompression.force", allow_none=True,
-                fix="give the dead load on particle 2 in newtons (>= 0)") or 0.0
+                fix="give the dead load on particle 2 in newtons (> 0)") or 0.0
+    for block, fix in (("walls", "give walls: {end: ss440c} (or rigid), or drop walls"),
+                       ("precompression", "give precompression: {force: 0.01} (N, with an end "
+                                          "wall), or drop precompression")):
+        if block in given and raw.get(block) == {}:
+            raise SceneError(block, "an empty block has no effect", fix)
 
     vel = spec["striker"]["velocity"]
     vlist = vel if isinstance(vel, list) else [vel]

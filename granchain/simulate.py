@@ -46,7 +46,7 @@ def trajectories(scene: Scene | RunPlan, mem: list[Member], engine: str = "refer
         done: dict[int, object] = {}
         nxt = 0
         for sc, idx in runs.values():
-            for i, traj in zip(idx, _reference(sc, plan.sampling, [mem[i] for i in idx], kw)):
+            for i, traj in zip(idx, _reference(sc, plan, [mem[i] for i in idx], kw)):
                 done[i] = traj
                 while nxt in done:
                     yield mem[nxt], done.pop(nxt)
@@ -58,14 +58,15 @@ def trajectories(scene: Scene | RunPlan, mem: list[Member], engine: str = "refer
         except ImportError as exc:
             raise GranchainError(f"the LAMMPS engine is not available: {exc}") from None
         it = lmp_engine.run(scene, member_gaps(scene, mem), [m.v_striker for m in mem],
-                            radii=member_radii(scene, mem), **kw)
+                            radii=member_radii(scene, mem), plan=plan, **kw)
     else:
         raise GranchainError(f"unknown engine '{engine}'; use one of {', '.join(ENGINES)}")
     yield from zip(mem, it)
 
 
-def _reference(scene: Scene, sampling: dict, mem: list[Member], kw: dict):
-    """The reference engine's trajectories of ``mem``, in order."""
+def _reference(scene: Scene, plan: RunPlan, mem: list[Member], kw: dict):
+    """The reference engine's trajectories of ``mem``, in order (``plan``: the run plan
+    ``scene`` belongs to)."""
     from .engines import reference
     if needs_trace(scene):
         kw = {**kw, "trace": True}
@@ -73,7 +74,7 @@ def _reference(scene: Scene, sampling: dict, mem: list[Member], kw: dict):
     if radii is not None:
         kw = {**kw, "radii": radii}
     return reference.run(scene, member_gaps(scene, mem), np.array([m.v_striker for m in mem]),
-                         sampling=sampling, **kw)
+                         plan=plan, **kw)
 
 
 def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=None, *,

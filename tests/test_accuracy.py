@@ -1,5 +1,5 @@
 """What accuracy costs in time (granchain.accuracy) and
-integrator.method auto (granchain.costmodel).
+integrator.method auto (granchain.costmodel, granchain.runplan).
 
 No timing assertions: wall times only rank settings; every check here is on errors,
 steps and settings."""
@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from granchain import accuracy, costmodel
-from granchain.costmodel import resolve_auto
+from granchain.runplan import AUTO_OBSERVABLE, resolve_auto
 from granchain.errors import GranchainError, SceneError
 from granchain.scene import TOLERANCE_METHODS, load_scene, scene_from_dict
 from granchain.simulate import run_scene
@@ -349,7 +349,7 @@ def test_auto_meets_its_tolerance_on_another_scene(gap_nm):
     30 nm gaps: about one Hertz overlap, plateau peaks at the probes) against a converged
     run (adaptive, 1e-13)."""
     ref = run_scene(_scene316(gap_nm, 1e-13, "adaptive"))
-    obs = costmodel.AUTO_OBSERVABLE["gapped" if gap_nm else "packed"]
+    obs = AUTO_OBSERVABLE["gapped" if gap_nm else "packed"]
     seen = set()
     for tol in (1e-3, 1e-5, 1e-7):
         sc = _scene316(gap_nm, tol)
@@ -372,7 +372,7 @@ def test_auto_takes_the_event_method_where_flight_dominates():
     tol = 1e-5
     sc = _scene316(190.0, tol, **slow)
     assert sc.method == "event" and sc.tolerance is not None
-    assert costmodel.AUTO_OBSERVABLE["gapped"] == "v_g_front"
+    assert AUTO_OBSERVABLE["gapped"] == "v_g_front"
     ref = run_scene(_scene316(190.0, 1e-12, "adaptive", **slow))
     runs = run_scene(sc)
     assert accuracy.rel_err(runs, ref, "v_g_front") <= tol

@@ -120,27 +120,21 @@ def _module_name_in(*pythonpath: Path) -> str:
 
 
 @pytest.mark.parametrize("what", list(EDITS))
-def test_module_name_changes_with_every_compiled_source(what, tmp_path):
-    # a module built from other sources has another name: it is simply not found
-    rel, old, new = EDITS[what]
-    pkg = _copy_package(tmp_path)
-    before = _module_name_in(tmp_path)
-    _edit(pkg / rel, old, new)
-    assert _module_name_in(tmp_path) != before
-
-
-@pytest.mark.parametrize("what", list(EDITS))
-def test_jit_cache_folder_changes_with_every_compiled_source(what, tmp_path):
+def test_module_name_and_jit_cache_folder_change_with_every_compiled_source(what, tmp_path):
+    # a module built from other sources has another name: it is simply not found. And
     # numba keys its cache by the stamp of the kernel's own file only: the kernels inline
     # the effects' laws and freeze codes/obsrules constants, so an edit in any of them
     # must move the JIT cache to another folder, or old machine code would run
     rel, old, new = EDITS[what]
     pkg = _copy_package(tmp_path)
-    code = "from granchain.engines import backend\nprint(backend.jit_cache_dir().name)"
-    before, = _in_copy(code, tmp_path)
+    code = ("import granchain\nfrom granchain.engines import backend\n"
+            "print(granchain.__file__, backend.module_name(), backend.jit_cache_dir().name)")
+    where, name, folder = _in_copy(code, tmp_path)
+    assert Path(where).parent == pkg, where
     _edit(pkg / rel, old, new)
-    after, = _in_copy(code, tmp_path)
-    assert after != before and after.startswith("granchain-jit-")
+    _, name2, folder2 = _in_copy(code, tmp_path)
+    assert name2 != name
+    assert folder2 != folder and folder2.startswith("granchain-jit-")
 
 
 def test_the_jit_kernels_cache_into_the_hashed_folder():

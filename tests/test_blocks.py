@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from granchain.engines import kernels
-from granchain.engines import reference
+from granchain.engines import chunks, reference
 from granchain.scene import load_scene
 
 from conftest import SCENES
@@ -48,7 +48,7 @@ def _same(a, b):
 def test_member_alone_and_in_any_lane_is_bit_identical(method, monkeypatch):
     sc = _scene(method)
     gaps, vs = _members(11, sc.n)
-    monkeypatch.setattr(reference, "LANES", 4)       # 11 chains: 3 blocks, one padded
+    monkeypatch.setattr(chunks, "LANES", 4)       # 11 chains: 3 blocks, one padded
     batch = list(reference.run(sc, gaps, vs, progress=False, trace=True))
     statuses = {t.status for t in batch}
     assert "passed" in statuses and "done" in statuses   # stopped and at-rest chains
@@ -56,14 +56,17 @@ def test_member_alone_and_in_any_lane_is_bit_identical(method, monkeypatch):
     # reversed order: every member in another lane and block
     rev = list(reference.run(sc, gaps[::-1], vs[::-1], progress=False, trace=True))[::-1]
     # alone: lane 0 of a block padded with chains at rest; and one chain per block
-    monkeypatch.setattr(reference, "LANES", 1)
+    monkeypatch.setattr(chunks, "LANES", 1)
     one = list(reference.run(sc, gaps, vs, progress=False, trace=True))
-    monkeypatch.setattr(reference, "LANES", 4)
+    monkeypatch.setattr(chunks, "LANES", 4)
     for i, t in enumerate(batch):
         assert _same(t, rev[i]), i
         assert _same(t, one[i]), i
+    # a run of that chain alone: one moving and gapped, one at rest, the packed one, the
+    # one that shares its block with padding
+    for i in (0, 2, 3, 10):
         alone = next(reference.run(sc, gaps[i:i + 1], vs[i:i + 1], progress=False, trace=True))
-        assert _same(t, alone), i
+        assert _same(batch[i], alone), i
     # the comparison can fail: another gap in one member changes its trajectory
     g2 = gaps.copy()
     g2[0, 5] *= 1.0 + 1e-12

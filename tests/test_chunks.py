@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from granchain.effects import physics_terms
-from granchain.engines import reference
+from granchain.engines import chunks, reference
 from granchain.observables import summarize
 from granchain.scene import load_scene
 from granchain.stoprule import sample_interval
@@ -32,7 +32,7 @@ def _chunks(sc, n_chains, observe, method="verlet"):
 
 def _shares(chunk, threads):
     """The blocks (first chain of each) that numba's static schedule gives each thread."""
-    L = reference.LANES
+    L = chunks.LANES
     firsts = [int(chunk[i]) for i in range(0, len(chunk), L)]
     nblk = len(firsts)
     out, i = [], 0
@@ -50,19 +50,19 @@ def test_chunks_hold_every_chain_once_in_whole_sorted_blocks(monkeypatch, observ
                                                              n_chains):
     monkeypatch.setattr(reference.backend, "num_threads", lambda: threads)
     sc = _scene()
-    chunks = _chunks(sc, n_chains, observe)
-    L = reference.LANES
-    flat = np.concatenate(chunks)
+    parts = _chunks(sc, n_chains, observe)
+    L = chunks.LANES
+    flat = np.concatenate(parts)
     assert sorted(flat.tolist()) == list(range(n_chains))
-    for c in chunks:
-        assert len(c) <= reference.CHUNK_CHAINS
+    for c in parts:
+        assert len(c) <= chunks.CHUNK_CHAINS
         blocks = [c[i:i + L] for i in range(0, len(c), L)]
         # each block: consecutive chains of the sorted group; only the last may be partial
         for b in blocks:
             assert np.array_equal(b, np.arange(b[0], b[0] + len(b)))
         assert all(len(b) == L for b in blocks[:-1])
         if len(c) < n_chains:
-            assert len(c) % L == 0 or c is chunks[-1]
+            assert len(c) % L == 0 or c is parts[-1]
         if threads > 1 and len(c) // L > threads:
             # dealt back and forth: every thread's blocks lie within one block per thread
             # of the same mean position
@@ -71,7 +71,7 @@ def test_chunks_hold_every_chain_once_in_whole_sorted_blocks(monkeypatch, observ
             assert max(means) - min(means) <= L * threads, (means, full)
     if observe:
         # as few chunks as CHUNK_CHAINS allows (1000: 512 + 488, not 192-chain chunks)
-        assert len(chunks) == math.ceil(n_chains / reference.CHUNK_CHAINS)
+        assert len(parts) == math.ceil(n_chains / chunks.CHUNK_CHAINS)
 
 
 def test_observed_chunks_are_sized_by_the_ring_not_the_record():
@@ -80,8 +80,8 @@ def test_observed_chunks_are_sized_by_the_ring_not_the_record():
     slow = _scene(**{"striker.velocity": 0.005, "gaps.mean": 1.9e-7})
     rec = _chunks(slow, 1000, observe=False)
     obs = _chunks(slow, 1000, observe=True)
-    assert len(rec[0]) < len(obs[0]) == reference.CHUNK_CHAINS
-    assert len(obs) == math.ceil(1000 / reference.CHUNK_CHAINS)
+    assert len(rec[0]) < len(obs[0]) == chunks.CHUNK_CHAINS
+    assert len(obs) == math.ceil(1000 / chunks.CHUNK_CHAINS)
     # the event and adaptive methods keep their sizing
     for method in ("event", "adaptive"):
         a = list(reference._chunks(np.arange(1000), slow, physics_terms(slow),
@@ -122,16 +122,16 @@ def test_a_chains_result_does_not_depend_on_its_chunk_block_or_thread(method, mo
     """On the fly, in large dealt chunks of small blocks, against each chain's trace run
     with one chain per block in chunks of one block (no dealing), summarised in Python."""
     sc = _scene(method, **{"striker.velocity": "[0.0, 0.07, 0.1]"})
-    gaps, vs = _members(27, sc.n)
-    monkeypatch.setattr(reference, "LANES", 3)            # 27 chains: 9 blocks
+    gaps, vs = _members(15, sc.n)
+    monkeypatch.setattr(chunks, "LANES", 3)            # 15 chains: 5 blocks
     monkeypatch.setattr(reference.backend, "num_threads", lambda: 4)
     dealt = list(reference.run(sc, gaps, vs, progress=False, trace=False))
     assert all(t.observed is not None for t in dealt)
     assert len({t.steps for t in dealt}) > 5 and {t.status for t in dealt} >= {"passed", "done"}
-    monkeypatch.setattr(reference, "CHUNK_CHAINS", 6)     # chunks of 2 blocks of 3
+    monkeypatch.setattr(chunks, "CHUNK_CHAINS", 6)     # chunks of 2 blocks of 3, and 1
     small = list(reference.run(sc, gaps, vs, progress=False, trace=False))
-    monkeypatch.setattr(reference, "LANES", 1)
-    monkeypatch.setattr(reference, "CHUNK_CHAINS", 1)
+    monkeypatch.setattr(chunks, "LANES", 1)
+    monkeypatch.setattr(chunks, "CHUNK_CHAINS", 1)
     monkeypatch.setattr(reference.backend, "num_threads", lambda: 1)
     alone = list(reference.run(sc, gaps, vs, progress=False, trace=True))
     assert all(t.observed is None for t in alone)

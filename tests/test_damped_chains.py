@@ -146,7 +146,8 @@ def test_limit_damping_keeps_the_force_repulsive():
 # output over the run (relative to the striker's energy). Measured per case.
 MEASURED_LEDGER = {
     "gapped_e0.9": 4.9e-12, "wall_e0.9": 6.4e-12, "visco_gapped": 5.3e-12,
-    "limit_gapped_e0.7": 1.1e-10, "preload_e0.9": 2.2e-13,
+    "limit_gapped_e0.7": 1.1e-10, "preload_e0.9": 2.2e-13, "visco_packed": 6.9e-12,
+    "limit_packed_e0.7": 5.4e-11,
 }
 
 
@@ -161,10 +162,16 @@ LEDGER_CASES = {
     "limit_gapped_e0.7": dict(gaps=_gapped(), damping="coeff_restitution", e=0.7,
                               limit_damping=True),
     "preload_e0.9": dict(wall=S440[:2], preload=0.05, damping="coeff_restitution", e=0.9),
+    "visco_packed": dict(damping="viscoelastic", eta_n0=3e10),
+    "limit_packed_e0.7": dict(damping="coeff_restitution", e=0.7, limit_damping=True),
 }
+# 2-4 s each (the gaps' many restarts): in the full suite; the fast tier checks the same
+# laws' ledgers on the packed chain, and the damped wall's in preload_e0.9
+SLOW_LEDGER = ("visco_gapped", "limit_gapped_e0.7", "wall_e0.9")
 
 
-@pytest.mark.parametrize("case", list(LEDGER_CASES))
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW_LEDGER
+                                  else c for c in LEDGER_CASES])
 def test_energy_lost_is_the_work_of_the_damping_forces(case):
     """E(t) - E(0) = integral of -(F - F_el) w summed over the contacts (the wall's
     included), and that work is < 0 and a sizeable part of the striker's energy."""
@@ -284,6 +291,8 @@ CHAINS = {
     "tsuji_gapped_e0.9": ({"model": "tsuji", "e": 0.9},
                           {"gaps": {"distribution": "list", "values": GAPS}},
                           dict(n=15, gaps=GAPS, damping="tsuji", e=0.9)),
+    "tsuji_packed_e0.9": ({"model": "tsuji", "e": 0.9}, {},
+                          dict(n=15, damping="tsuji", e=0.9)),
 }
 # Measured differences (over particles 2-15: v_max relative, t_peak and t_front in s;
 # v_g, v_g_front relative). The engine samples every SAMPLE_DT: at 1 ns the damped
@@ -308,6 +317,7 @@ MEASURED = {
     "limit_packed_e0.7": {"v_max": 8.8e-07, "t_peak": 1.7e-11, "t_front": 4.8e-13, "v_g": 3.2e-07, "v_g_front": 8.8e-08},
     "limit_gapped_e0.7": {"v_max": 2.1e-06, "t_peak": 4.3e-11, "t_front": 3.6e-11, "v_g": 7.9e-07, "v_g_front": 8.8e-07},
     "tsuji_gapped_e0.9": {"v_max": 8e-07, "t_peak": 1.5e-11, "t_front": 2.8e-12, "v_g": 2.4e-07, "v_g_front": 1e-07},
+    "tsuji_packed_e0.9": {"v_max": 2.9e-07, "t_peak": 1.7e-11, "t_front": 3e-13, "v_g": 2e-07, "v_g_front": 3.9e-08},
 }
 # Particles whose peak the engine never calls final (an inner particle's peak is final
 # once it falls below half of it): the dimers' particle 14 (100 um, as in the undamped
@@ -339,9 +349,13 @@ def chain_pair(case):
     return r, ind, radius
 
 
-# ~5 s or more on a loaded 2-core machine: the independent solution's many restarts
-# (84 segments with limit_damping; the heavy striker's repeated collisions)
-SLOW_CHAINS = ("limit_gapped_e0.7", "wc_striker_gapped_e0.8")
+# In the full suite only: ~5 s or more on a loaded 2-core machine (the independent
+# solution's many restarts: 84 segments with limit_damping; the heavy striker's repeated
+# collisions; every gapped chain), or a second e of a law the fast tier checks. The fast
+# tier keeps one chain of each law (coeff_restitution packed and gapped, tsuji,
+# viscoelastic, limit_damping) and of each kind of unlike contact (dimer, 440C/brass).
+SLOW_CHAINS = ("limit_gapped_e0.7", "wc_striker_gapped_e0.8", "packed_e0.95", "gapped_e0.95",
+               "viscoelastic_gapped", "tsuji_gapped_e0.9")
 
 
 @pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW_CHAINS
@@ -399,7 +413,8 @@ def walled_pair(case):
     return r, ind
 
 
-@pytest.mark.parametrize("wall", list(MEASURED_WALL))
+@pytest.mark.parametrize("wall", [pytest.param(w, marks=pytest.mark.slow) if w == "rigid" else w
+                                  for w in MEASURED_WALL])
 def test_damped_chain_on_a_wall_matches_the_independent_solution(wall):
     """Every particle's peaks (2-15), v_g, and the peak of the wall's force F_el + eta w
     and its time, within 3x measured (wall: at least 3x WALL_FLOOR)."""

@@ -32,7 +32,7 @@ from granchain.materials import library
 from granchain.scene import scene_from_dict
 from granchain.scenefile import parse_yaml
 
-FAST_SCENES, SLOW_SCENES = 150, 3000
+FAST_SCENES, SLOW_SCENES = 60, 3000
 FAST_CSVS, SLOW_CSVS = 150, 3000
 # seconds of each example, for the report (tests/test_fuzz_inputs.py -s prints them)
 TIMES: dict[str, list[float]] = {"scene": [], "csv": []}

@@ -440,6 +440,31 @@ def test_bad_measurements_are_one_line(tmp_path, capsys, text, needles):
                      "--cache-dir", str(tmp_path / "c")], *needles)
 
 
+def test_a_file_or_a_chain_too_long_to_fit_is_refused_before_any_work(tmp_path, capsys):
+    """Fails on a build that read them: a 2000-row chain series raised a MemoryError
+    traceback from its kernel density (24 GiB), a 200000-row file crashed the process,
+    the joint fit of 1000 rows ran 7 minutes."""
+    p = tmp_path / "m.csv"
+    head = "v_striker_m_s,dt_front_s,dt_err_s,vmax_1_m_s,vmax_2_m_s,vmax_err_m_s,chain_id\n"
+    row = "0.05,2.0e-05,2.0e-07,0.028,0.017,0.0006,"
+    p.write_text(head + (row + "A\n") * inference.MAX_CHAIN_ROWS + row + "B\n")
+    assert len(inference.read_measurements(p, peaks=True).v) == inference.MAX_CHAIN_ROWS + 1
+    p.write_text(head + (row + "A\n") * (inference.MAX_CHAIN_ROWS + 1))
+    scene = tmp_path / "s.yaml"
+    scene.write_text(SCENE)
+    refused(capsys, ["infer", str(p), "--scene", str(scene), "--no-cache"], "chain_id",
+            f"chain 'A' has {inference.MAX_CHAIN_ROWS + 1} rows")
+    p.write_text(head + (row + "\n") * inference.MAX_PEAK_ROWS)
+    assert len(inference.read_measurements(p, peaks=True).v) == inference.MAX_PEAK_ROWS
+    p.write_text(head + (row + "\n") * (inference.MAX_PEAK_ROWS + 1))
+    with pytest.raises(GranchainError, match="more than 200 for a fit of the peaks"):
+        inference.read_measurements(p, peaks=True)
+    assert len(inference.read_measurements(p).v) == inference.MAX_PEAK_ROWS + 1
+    p.write_text(head + (row + "\n") * (inference.MAX_ROWS + 1))
+    with pytest.raises(GranchainError, match=f"more than {inference.MAX_ROWS}"):
+        inference.read_measurements(p)
+
+
 def test_bad_base_scene_and_options_are_one_line(tmp_path, capsys):
     csv_path = tmp_path / "m.csv"
     csv_path.write_text("v_striker_m_s,dt_front_s\n0.05,1e-5\n")

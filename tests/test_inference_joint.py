@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from granchain import inference
+from granchain.inference import gapfit
 from granchain.cli import main
 from granchain.fileio import json_text
 from granchain.scene import load_scene, scene_from_dict
@@ -51,6 +52,15 @@ def synthetic_grid(base, gap_max, gap_points, realisations, cache_dir=None,
     timings = {"dt_peak_s": T, "dt_front_s": 0.97 * T}
     hashes = tuple(f"{k:016x}" for k in range(gaps.size))
     return inference.Grid(gaps, speeds, timings, hashes, gaps.size * speeds.size * R)
+
+
+def use_synthetic_grid(monkeypatch) -> list:
+    """The gap-only fit reads :func:`synthetic_grid` (patched where ``infer`` calls
+    ``simulate_grid``); returns the list of grids it made, to check that it was read."""
+    grids = []
+    monkeypatch.setattr(gapfit, "simulate_grid",
+                        lambda *a, **k: grids.append(synthetic_grid(*a, **k)) or grids[-1])
+    return grids
 
 
 def run_cli(argv) -> tuple[int, str]:
@@ -96,9 +106,9 @@ def test_gap_only_output_is_todays_to_the_byte(tmp_path, monkeypatch, name, extr
     for f in ("base.yaml", "m.csv"):
         shutil.copy(GOLDEN / f, tmp_path / f)
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(inference, "simulate_grid", synthetic_grid)
+    grids = use_synthetic_grid(monkeypatch)
     code, out = run_cli(["infer", "m.csv", "--scene", "base.yaml", *GOLDEN_ARGS, *extra, *fit])
-    assert code == 0
+    assert code == 0 and len(grids) == 1
     got, want = without_sources(out, name), (GOLDEN / f"{name}.out").read_text()
     if name == "text":
         assert got == want
@@ -126,9 +136,9 @@ def test_gap_only_fit_ignores_the_peak_columns(tmp_path, monkeypatch):
              "0.078,0.061,0.002", "0.092,0.072,0.002"]
     (tmp_path / "m.csv").write_text("\n".join(f"{a},{b}" for a, b in zip(rows, peaks)) + "\n")
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(inference, "simulate_grid", synthetic_grid)
+    grids = use_synthetic_grid(monkeypatch)
     code, out = run_cli(["infer", "m.csv", "--scene", "base.yaml", *GOLDEN_ARGS, "--json"])
-    assert code == 0
+    assert code == 0 and len(grids) == 1
     assert same_numbers(json.loads(without_sources(out, "json")),
                         json.loads((GOLDEN / "json.out").read_text()))
 
@@ -484,15 +494,21 @@ def calibration(calibration_grids, cal_trials):
 def test_joint_intervals_cover_both_parameters(cal_trials, calibration):
     """104 synthetic experiments (440C and 316, independent chains and one-chain series,
     mean gaps 10-200 nm, e 0.85-1, realisations the grid never saw): the 95 % intervals of
-    each parameter cover the truth in 90-99 % of them. Measured: mean gap 0.962, e 0.981
-    (both 0.942; none flagged); median widths 69 nm (independent chains 63, series 92) and
-    0.020 in e. benchmarks/inference_joint_calibration.py runs 200 at two peak-noise
-    levels."""
+    each parameter cover the truth in at least 90 % of them, the mean gap's in at most 99 %.
+    The joint fit's heavier prior on the contacts beside the probes
+    (``gapdesign.prior_weights``) makes e's intervals conservative on chains drawn from the
+    law itself: measured mean gap 0.962, e 1.000 (2 flagged, counted as misses), median
+    widths 80 nm and 0.0365 in e (0.020 with the law's weights, which covered e in 0.981
+    but only 0.85-0.875 of chains with a near-contact beside a probe). So e's interval is
+    bounded in width instead: a median above 0.05 would tell less than the data do.
+    benchmarks/inference_outside.py gives both priors side by side."""
     cov, text = cal_summary("coeff_restitution truth", cal_trials, calibration)
     print("\n" + text)
     assert len(calibration) >= 100
     assert 0.90 <= cov[:, 0].mean() <= 0.99
-    assert 0.90 <= cov[:, 1].mean() <= 0.99
+    assert cov[:, 1].mean() >= 0.90
+    widths = [r.restitution_ci95[1] - r.restitution_ci95[0] for r in calibration]
+    assert np.nanmedian(widths) <= 0.05, np.nanmedian(widths)
 
 
 @pytest.mark.slow

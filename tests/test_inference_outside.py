@@ -10,6 +10,7 @@ be covered or flagged. The slow tier runs a CI-sized version of the calibration 
 (``benchmarks/inference_outside.py``)."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import sys
 
@@ -178,6 +179,30 @@ def test_plain_draws_miss_the_rare_series_and_the_check_says_so(rare_case):
 # ---------------------------------------------------------------------------------------
 # the command and the workflow
 # ---------------------------------------------------------------------------------------
+def test_the_likelihood_takes_the_key_contacts_heavier_prior_by_default():
+    d = gapdesign.design(scene(), 32)
+    assert gapdesign.KEY_PRIOR == "robust" and gapdesign.GAP_ONLY_KEY_PRIOR == "law"
+    assert inference.JointGrid.key_prior == "robust" and inference.Grid.key_prior == "law"
+    assert np.array_equal(gapdesign.prior_weights(d.weights, 32), np.ones(32))
+    assert np.array_equal(gapdesign.prior_weights(d.weights, 32, "law"), d.weights)
+    assert np.array_equal(gapdesign.prior_weights(None, 32, "law"), np.ones(32))
+    assert not np.allclose(d.weights, 1.0)       # the law's weights are not trivial
+
+
+def test_the_robust_prior_is_wider_in_e_than_the_law_on_the_rare_series(rare_case):
+    """On a series with a near-contact beside probe 2 the law-weighted likelihood reads the
+    low peak as a lower e; the heavier prior on the key contacts keeps e's interval open
+    to the truth."""
+    base, tr, meas, grid = rare_case
+    g = grid(gapdesign.EMPHASIS)
+    robust = inference.infer_joint(base, meas, grid=g)
+    law = inference.infer_joint(base, meas, grid=dataclasses.replace(g, key_prior="law"))
+    w = [r.restitution_ci95[1] - r.restitution_ci95[0] for r in (robust, law)]
+    assert w[0] > w[1], w
+    assert robust.restitution_ci95[0] <= tr["e"] <= robust.restitution_ci95[1], robust
+    assert "heavier prior" in robust.gap_law and "heavier prior" not in law.gap_law
+
+
 def test_fit_for_a_damped_scene_with_peaks_is_joint():
     damped = scene(effects=["hertz", "contact_damping"],
                    damping={"model": "coeff_restitution", "e": 0.9})
@@ -217,9 +242,9 @@ def test_calibration_suite_ci_sized():
     (series and independent chains of 3-10 rows). The full suite's measured coverage is in
     docs/explanation/inference.md; on 16 experiments a miss or two more than nominal is
     binomial noise, so this asks: natural, the mean gap and e covered in at least 13 of 16
-    and the flag on at most one; stress, the mean gap covered in at least 0.9 of them or
-    every miss flagged (the plain draws of the gap law covered 0.70 of the suite's stress
-    set, unflagged)."""
+    and the flag on at most one; stress, the mean gap and e each covered in at least 14 of
+    16 or every miss flagged (the plain draws of the gap law covered the mean gap in 0.70
+    of the suite's stress set, and the law-weighted design e in 0.86, unflagged)."""
     speeds = [0.03, 0.1, 0.5]
     base = suite.base_scene("ss316", "joint", "reference", speeds)
     trials = suite.make_trials(base, ["natural", "stress"], 16, (3, 10), True)
@@ -234,5 +259,6 @@ def test_calibration_suite_ci_sized():
     assert sum(o["cov_g"] for o in nat) >= 13, nat
     assert sum(o["cov_e"] for o in nat) >= 13, nat
     assert sum(o["flagged"] for o in nat) <= 1, nat
-    st_cov = np.mean([o["cov_g"] for o in st])
-    assert st_cov >= 0.9 or all(o["flagged"] for o in st if not o["cov_g"]), st
+    for key in ("cov_g", "cov_e"):      # 14 of 16 is 0.875: one miss of binomial noise
+        assert (sum(o[key] for o in st) >= 14
+                or all(o["flagged"] for o in st if not o[key])), (key, st)

@@ -644,17 +644,17 @@ def test_memory_estimate_bounds_what_a_run_holds(shape):
 
 def test_estimate_mirrors_the_reference_engines_chunks():
     from granchain import costmodel
-    from granchain.engines import reference
+    from granchain.engines import chunks, reference
     from granchain.engines import codes
     from granchain.costmodel import RECORD_EXTRA_COLUMNS
-    assert costmodel.RECORD_CHUNK_BYTES == reference.CHUNK_BYTES
-    assert costmodel.CHUNK_CHAINS == reference.CHUNK_CHAINS
+    assert costmodel.RECORD_CHUNK_BYTES == chunks.CHUNK_BYTES
+    assert costmodel.CHUNK_CHAINS == chunks.CHUNK_CHAINS
     assert costmodel.WINDOW_SAMPLES == {"rk4": reference.BLOCK_WINDOW,
                                         "verlet": reference.BLOCK_WINDOW,
                                         "adaptive": reference.WINDOW, "event": reference.WINDOW}
     assert RECORD_EXTRA_COLUMNS == codes.E_LEN + 1          # the energies and the time
     assert costmodel.RING_SAMPLES == reference.RECORD_RING
-    assert costmodel.BLOCK_LANES == reference.LANES
+    assert costmodel.BLOCK_LANES == chunks.LANES
 
 
 INFER_BASE = ("name: g\ngaps: {distribution: uniform, mean: 2.0e-8}\n"
@@ -950,7 +950,7 @@ def test_validate_imports_no_numba_scipy_or_engine(tmp_path, scene):
 
 
 def test_validate_of_auto_shows_the_resolved_setting(tmp_path, capsys):
-    from granchain.costmodel import resolve_auto
+    from granchain.runplan import resolve_auto
     path = write(tmp_path, AUTO_SCENE, "auto.yaml")
     assert main(["validate", path]) == 0
     out = capsys.readouterr().out
@@ -1039,7 +1039,7 @@ def _validate_once(data: bytes) -> None:
             assert text == "" and "valid scene" in out.getvalue()
 
 
-@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(mutation, min_size=1, max_size=4), st.randoms(use_true_random=False))
 def test_fuzz_mutated_scenes(mutations, rnd):
     doc = json.loads(json.dumps(BASE))

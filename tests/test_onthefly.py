@@ -23,7 +23,7 @@ CASES = {
     "packed": ("packed-440c.yaml", ["striker.velocity=[0.0, 0.03, 0.1]",
                                     "ensemble.realisations=1"]),
     "gapped": ("gaps-20nm-440c.yaml", ["striker.velocity=[0.05, 0.1]",
-                                       "ensemble.realisations=5"]),
+                                       "ensemble.realisations=3"]),
     "wall": ("packed-440c.yaml", ["walls.end=ss440c", "precompression.force=0.01",
                                   "striker.velocity=[0.03, 0.1]"]),
     "dimer": ("packed-440c.yaml", ["chain.materials=[ss440c, brass, ss440c, brass, ss440c, "

@@ -22,8 +22,10 @@ from conftest import REPO, SCENES, refused
 
 ENTRIES = [("granchain.simulate", "run_scene"), ("granchain.simulate", "trajectories"),
            ("granchain.compare", "compare"), ("granchain.engines.reference", "run"),
-           ("granchain.engines.lammps", "run"), ("granchain.inference", "simulate_grid"),
-           ("granchain.inference", "simulate_joint_grid")]
+           ("granchain.engines.lammps", "run"),
+           # where the fits call them
+           ("granchain.inference.gapfit", "simulate_grid"),
+           ("granchain.inference.jointfit", "simulate_joint_grid")]
 
 
 @pytest.fixture
@@ -63,6 +65,15 @@ def test_infer_out_and_plot_on_one_file_is_refused_before_the_grid(files, capsys
     own file (or with --force replaced the JSON by the PNG)."""
     refused(capsys, INFER + ["--out", "x.png", "--plot", "x.png", *force], "--plot", "--out")
     assert not Path("x.png").exists() and unchanged(files)
+
+
+def test_infer_cache_dir_that_is_a_file_is_refused_before_the_grid(files, capsys, no_work):
+    """Fails on a build that simulated the first grid point, then raised FileExistsError
+    (a traceback) making the cache directory."""
+    argv = ["infer", "m.csv", "--scene", "base.yaml", "--no-progress", "--cache-dir"]
+    refused(capsys, argv + ["m.csv"], "--cache-dir", "not a directory")
+    refused(capsys, argv + ["m.csv/sub"], "--cache-dir", "cannot create")
+    assert unchanged(files)
 
 
 @pytest.mark.parametrize("target", ["m.csv", "link.csv", "hard.csv", "./sub/../m.csv",
@@ -119,6 +130,50 @@ def test_out_is_not_a_file_of_the_kept_workdir(files, capsys, no_work, cmd):
     refused(capsys, [cmd, "wd/chain.data", *extra, "--workdir", "wd", "--force"],
             "--workdir", "scene file")
     assert Path("wd/chain.data").read_bytes() == files["s.yaml"]
+
+
+@pytest.mark.parametrize("cmd", ["run", "compare"])
+def test_force_replaces_no_file_of_the_users_in_the_kept_workdir(files, capsys, no_work, cmd):
+    """Each file a run writes into its --workdir: one of the user's under that name is
+    refused with --force, before any work, and left as it was. Fails on a build that
+    checked deck.lmp and chain.data alone (the log, the dumps and the ledgers were
+    replaced)."""
+    from granchain.lammps.deck import WORKDIR_FILES
+    extra = ["--engine", "lammps"] if cmd == "run" else []
+    for name in WORKDIR_FILES:
+        wd = Path(f"wd-{name}")
+        wd.mkdir()
+        (wd / name).write_text("my notes\n")
+        refused(capsys, [cmd, "s.yaml", *extra, "--workdir", str(wd), "--force"],
+                "--workdir", name, "earlier output of the same kind")
+        assert (wd / name).read_text() == "my notes\n"
+    Path("wd-x").mkdir()
+    Path("wd-x/keep.txt").write_text("x")
+    refused(capsys, [cmd, "s.yaml", *extra, "--workdir", "wd-x"], "--workdir", "not empty")
+    # a file as the workdir: refused before the reference run of compare, not after it
+    refused(capsys, [cmd, "s.yaml", *extra, "--workdir", "m.csv", "--force"], "--workdir",
+            "not a directory")
+    assert unchanged(files)
+
+
+@pytest.mark.lammps
+def test_force_replaces_an_earlier_run_and_never_writes_through_a_link(files, capsys):
+    """A kept --workdir of an earlier run is replaced with --force; a file of the run's
+    name that is a symlink is replaced as a link, so the file it points to (here another
+    LAMMPS log) is left as it was."""
+    argv = ["run", "s.yaml", "--engine", "lammps", "--workdir", "wd", "--set", "t_end=1e-6",
+            "--no-progress"]
+    assert main(argv) == 0
+    Path("other").mkdir()
+    kept = Path("wd/log.lammps").read_bytes()
+    Path("other/log.lammps").write_bytes(kept)
+    Path("wd/log.lammps").unlink()
+    Path("wd/log.lammps").symlink_to(Path("other/log.lammps").resolve())
+    assert main(argv + ["--force"]) == 0
+    capsys.readouterr()
+    assert Path("other/log.lammps").read_bytes() == kept
+    assert not Path("wd/log.lammps").is_symlink()
+    assert Path("wd/log.lammps").read_bytes().startswith(b"LAMMPS (")
 
 
 def test_deck_force_replaces_only_a_deck_granchain_wrote(files, capsys, tmp_path):

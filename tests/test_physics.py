@@ -163,7 +163,7 @@ def test_groove_friction_slides_then_rolls_without_slip():
     v0 = 0.01
     base = {"gaps": "{distribution: fixed, mean: 1.0e-3}",
             "striker.velocity": v0, "t_end": 2e-3, "output.sample_dt": 2e-7,
-            "integrator.dt": 2e-9}
+            "integrator.dt": 1e-8}
     sc = pair(**base, effects="[hertz,groove_friction]")
     tr = next(reference.run(sc, [[1e-3]], [v0]))
     g, mu, s = 9.81, 0.293, math.sqrt(0.5)

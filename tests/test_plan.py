@@ -2,11 +2,18 @@
 auto, the cost guard and the workflow's batches read."""
 from __future__ import annotations
 
+import ast
+import dataclasses
 import math
+from pathlib import Path
 
+import numpy as np
 import pytest
 
+import granchain
+
 from granchain import costmodel, stoprule
+from granchain import runplan as plan_mod
 from granchain import workflow as gw
 from granchain.errors import GranchainError
 from granchain.runplan import plan_run
@@ -31,12 +38,36 @@ def test_plan_resolves_auto_as_resolve_auto_does():
     for tol in (1e-3, 1e-4, 1e-5):
         raw = _scene(tolerance=tol)
         p = plan_run(raw)
-        assert p.scene.hash == costmodel.resolve_auto(raw).hash
-        assert p.auto.startswith(costmodel.describe_auto(p.scene) + "; per striker speed: 0.05 m/s ")
+        assert p.scene.hash == plan_mod.resolve_auto(raw).hash
+        assert p.auto.startswith(plan_mod.describe_auto(p.scene) + "; per striker speed: 0.05 m/s ")
     rk4 = _scene("rk4", dt=1e-9)
     assert plan_run(rk4).scene is rk4 and plan_run(rk4).auto == ""
     p = plan_run(rk4)
     assert plan_run(p) is p
+
+
+def test_the_one_setting_plan_is_resolve_autos_scene():
+    """per_speed=False plans auto's one setting for every striker speed: the scene
+    resolve_auto gives, which a LAMMPS deck, the comparison of engines and the inference's
+    grid run. A sweep whose fast striker alone would get a fixed step of its own, which
+    the given dt refuses, keeps its one setting; the per-speed plan refuses it."""
+    from granchain.errors import SceneError
+    raw = scene_from_dict({"material": "ss440c", "chain": {"n": 8}, "probes": [2, 7],
+                           "striker": {"velocity": [0.01, 1.0]},
+                           "gaps": {"distribution": "uniform", "mean": 1.9e-7, "seed": 3},
+                           "effects": ["hertz", "groove_friction", "rotation",
+                                       "particle_friction"],
+                           "integrator": {"method": "auto", "tolerance": 1e-4, "dt": 1e-9}})
+    with pytest.raises(SceneError, match="integrator.dt"):
+        plan_run(raw)
+    one = plan_run(raw, per_speed=False)
+    assert not one.per_speed and one.scene.method in ("adaptive", "event")
+    assert one.scene.hash == plan_mod.resolve_auto(raw).hash
+    for tol in (1e-3, 1e-4, 1e-5):
+        sweep = _scene(tolerance=tol)
+        one = plan_run(sweep, per_speed=False)
+        assert not one.per_speed and one.scene.hash == plan_mod.resolve_auto(sweep).hash
+        assert one.auto == plan_mod.describe_auto(one.scene)
 
 
 def test_plan_estimates_match_the_planning_modules():
@@ -120,10 +151,9 @@ def test_run_scene_plans_once(monkeypatch):
     """run_scene of an auto scene asks the cost model for auto's settings once (the
     sweep's, and each speed's) and computes each striker speed's sampling and duration once (the engine aside); given a plan, not
     at all."""
-    from granchain import runplan as plan_mod
     from granchain import simulate
     calls = {"auto": 0, "dur": 0}
-    real_auto, real_dur = costmodel.auto_setting, plan_mod.expected_duration
+    real_auto, real_dur = plan_mod.auto_setting, plan_mod.expected_duration
 
     def auto(*a, **k):
         calls["auto"] += 1
@@ -133,7 +163,7 @@ def test_run_scene_plans_once(monkeypatch):
         calls["dur"] += 1
         return real_dur(*a, **k)
 
-    monkeypatch.setattr(costmodel, "auto_setting", auto)
+    monkeypatch.setattr(plan_mod, "auto_setting", auto)
     monkeypatch.setattr(plan_mod, "expected_duration", dur)
 
     def fake_trajectories(scene, mem, engine="reference", **kw):
@@ -154,7 +184,8 @@ def test_run_scene_plans_once(monkeypatch):
 
 def test_the_reference_engine_reads_the_plans_sampling(monkeypatch):
     """The engine takes each speed's sample interval and expected duration from the plan
-    (it computes neither itself), with the same results as when it computes them."""
+    (it computes neither itself), with the same results as when it plans the scene
+    itself; without a plan it asks the plan module for one."""
     from granchain import simulate
     from granchain.engines import reference
     from granchain.gaps import member_gaps, members
@@ -171,11 +202,126 @@ def test_the_reference_engine_reads_the_plans_sampling(monkeypatch):
     def refuse(*a, **k):
         raise AssertionError("the engine recomputed what the plan holds")
 
-    monkeypatch.setattr(reference, "sample_interval", refuse)
-    monkeypatch.setattr(reference, "expected_duration", refuse)
+    monkeypatch.setattr(plan_mod, "sample_interval", refuse)
+    monkeypatch.setattr(plan_mod, "expected_duration", refuse)
     assert [r.v_max for r in simulate.run_scene(p)] == alone
     with pytest.raises(AssertionError, match="recomputed"):
         next(reference.run(sc, member_gaps(sc, mem)[:1], [0.05]))
+
+
+def _names_in(paths, names) -> list[str]:
+    """'file:line name' of every use of one of ``names`` (a name, an attribute or an
+    imported name) in the Python files ``paths``."""
+    out = []
+    for path in paths:
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            used = ([a.name for a in node.names] if isinstance(node, ast.ImportFrom)
+                    else [node.id] if isinstance(node, ast.Name)
+                    else [node.attr] if isinstance(node, ast.Attribute) else [])
+            out += [f"{path.name}:{node.lineno} {u}" for u in used if u in names]
+    return out
+
+
+PACKAGE = Path(granchain.__file__).parent
+AUTO_CHOICE = {"resolve_auto", "auto_setting", "apply_auto"}
+PLANNERS = {"sample_interval", "expected_duration", "auto_t_max"}
+
+
+def test_only_the_run_plan_chooses_method_auto():
+    """Method auto's choice (resolve_auto, auto_setting, apply_auto) is named in
+    granchain/runplan.py only: every other module of the package takes the scene that runs
+    from the run plan (plan_run(scene).scene)."""
+    files = sorted(PACKAGE.rglob("*.py"))
+    assert len(files) > 50 and _names_in([PACKAGE / "runplan.py"], AUTO_CHOICE)
+    outside = _names_in([f for f in files if f != PACKAGE / "runplan.py"], AUTO_CHOICE)
+    assert not outside, outside
+
+
+def test_the_engines_plan_nothing_themselves():
+    """No module of the engines (granchain/engines, granchain/lammps) names the stop
+    rule's planners (sample interval, expected duration, time cap): they read them from
+    the run plan (SpeedPlan)."""
+    files = sorted((PACKAGE / "engines").glob("*.py")) + sorted((PACKAGE / "lammps").glob("*.py"))
+    assert len(files) > 10 and _names_in([PACKAGE / "runplan.py"], PLANNERS)
+    assert not _names_in(files, PLANNERS), _names_in(files, PLANNERS)
+
+
+def _packed(method, **integrator):
+    return scene_from_dict({"material": "ss440c", "chain": {"n": 6}, "probes": [2, 5],
+                            "striker": {"velocity": [0.05, 0.1]}, "gaps": {"distribution": "none"},
+                            "effects": EFFECTS, "integrator": {"method": method, **integrator}})
+
+
+def _scaled(p, factor):
+    """The plan ``p`` with every speed's sample interval times ``factor``."""
+    return dataclasses.replace(p, speeds=tuple(
+        dataclasses.replace(sp, sample_dt=factor * sp.sample_dt) for sp in p.speeds))
+
+
+@pytest.mark.parametrize("method,integrator", [("rk4", {"dt": 1e-9}),
+                                               ("adaptive", {"tolerance": 1e-8}),
+                                               ("event", {"tolerance": 1e-6})])
+def test_the_reference_engine_samples_as_its_speed_plans_say(monkeypatch, method, integrator):
+    """Each chain's sample interval is its SpeedPlan's sample_dt (on a fixed step, the
+    whole steps nearest it: runplan.step_grid), and its sample count SpeedPlan.sample_count's:
+    a plan with other values gives another grid and another length."""
+    from granchain.engines import reference
+    from granchain.runplan import step_grid
+    sc = _packed(method, **integrator)
+    p3 = _scaled(plan_run(sc), 3.0)
+    gaps = np.zeros((2, sc.n - 1))
+    for tr, sp in zip(reference.run(sc, gaps, [0.05, 0.1], trace=True, plan=p3), p3.speeds):
+        want = step_grid(sp.sample_dt, sc.dt)[1] if method == "rk4" else sp.sample_dt
+        assert tr.info.sample_dt == want
+        assert np.allclose(np.diff(tr.t), want, rtol=1e-9, atol=0)
+        assert tr.status == "passed"
+    # 20 samples: the wave is still in the chain, so the chain stops there (timeout)
+    monkeypatch.setattr(plan_mod.SpeedPlan, "sample_count", lambda self, gaps, sdt: 20)
+    for tr in reference.run(sc, gaps, [0.05, 0.1], trace=True, plan=p3):
+        assert len(tr.t) == 20 and tr.status == "timeout"
+
+
+def test_the_reference_engines_chunks_follow_the_plans_durations():
+    """A chain's record, which sizes the chunks (adaptive method, t_end auto), is its
+    slowest speed's SpeedPlan.duration_s over the sample interval."""
+    from granchain.effects import physics_terms
+    from granchain.engines import reference
+    sc = _packed("adaptive", tolerance=1e-8)
+    p = plan_run(sc)
+    sdt = p.speeds[0].sample_dt
+
+    def cut(plan):
+        return [len(c) for c in reference._chunks(np.arange(100), sc, physics_terms(sc), sdt,
+                                                  "adaptive", False, plan)]
+    assert cut(p) == [100]
+    longer = dataclasses.replace(p, speeds=tuple(
+        dataclasses.replace(sp, duration_s=1e6 * sp.duration_s) for sp in p.speeds))
+    assert cut(longer) == [1] * 100
+
+
+def test_the_lammps_deck_runs_as_its_speed_plans_say(monkeypatch):
+    """The deck plan takes its cadence from the finest SpeedPlan.sample_dt (runplan.step_grid
+    on the scene's step), its run length from the longest SpeedPlan.run_length, and each
+    chain's sample cap (where the LAMMPS engine cuts a chain the wave has not left) from
+    SpeedPlan.sample_count."""
+    from granchain.engines.lammps import auto_stop
+    from granchain.lammps.deck import plan as deck_plan
+    from granchain.runplan import step_grid
+    sc = _packed("rk4", dt=1e-9)
+    p = plan_run(sc)
+    for plan in (p, _scaled(p, 3.0)):
+        pl = deck_plan(sc, run_plan=plan)
+        fine = min(sp.sample_dt for sp in plan.speeds)
+        assert (pl.every, pl.sample_dt) == step_grid(fine, sc.dt)
+        assert pl.chain_samples.tolist() == [sp.sample_count(g, pl.sample_dt)
+                                             for sp, g in zip(plan.speeds, pl.gaps)]
+    monkeypatch.setattr(plan_mod.SpeedPlan, "run_length", lambda self, gaps: 1e-3 * self.v_striker)
+    monkeypatch.setattr(plan_mod.SpeedPlan, "sample_count", lambda self, gaps, sdt: 7)
+    pl = deck_plan(sc, run_plan=p)
+    assert pl.nsteps == math.ceil(1e-4 / pl.sample_dt - 1e-9) * pl.every
+    assert pl.chain_samples.tolist() == [7, 7]
+    # the engine's cut: a chain the wave has not left stops at its cap
+    assert auto_stop(7, 0.1, np.zeros(50), np.ones(50)) == (7, "timeout")
 
 
 def test_auto_chooses_per_striker_speed():
@@ -196,14 +342,14 @@ def test_auto_chooses_per_striker_speed():
     assert "per striker speed: 0.01 m/s event" in p.auto
     # each speed's setting is auto's own choice for that speed alone
     for v, own in ((0.01, slow), (1.0, fast)):
-        alone = costmodel.resolve_auto(sc.derive(**{"striker.velocity": v}))
+        alone = plan_mod.resolve_auto(sc.derive(**{"striker.velocity": v}))
         assert (own.method, own.dt, own.tolerance) == (alone.method, alone.dt, alone.tolerance)
     res = simulate.run_scene(p)
     assert [r.member for r in res] == list(range(4))
     assert sorted((r.v_striker, r.method) for r in res) == [
         (0.01, "event"), (0.01, "event"), (1.0, fast.method), (1.0, fast.method)]
     for v in (0.01, 1.0):
-        alone = simulate.run_scene(costmodel.resolve_auto(sc.derive(**{"striker.velocity": v})))
+        alone = simulate.run_scene(plan_mod.resolve_auto(sc.derive(**{"striker.velocity": v})))
         assert [r.v_max for r in res if r.v_striker == v] == [r.v_max for r in alone]
         assert [r.realisation for r in res if r.v_striker == v] == [0, 1]
     # LAMMPS runs the plan's one setting: its estimate is that setting's, per speed

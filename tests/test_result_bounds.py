@@ -159,6 +159,18 @@ def test_the_text_output_shows_a_timeout_the_json_has():
     assert "status" not in printed(scene, [r])
 
 
+def test_a_run_without_a_measured_peak_says_what_its_status_means(one_run):
+    """A run whose probes have no final peak prints the status with what it means, not a
+    bare 'status passed' or 'status done' beside values that are n/a."""
+    scene = scene_from_dict({"name": "short", "chain": {"n": 6}, "probes": [2, 6]})
+    cut = dataclasses.replace(one_run, wave_arrived=False, not_final=(5, 6))
+    for status, words in (("passed", "the wave had left the chain"),
+                          ("done", "reached its end time")):
+        line, = [ln for ln in printed(scene, [dataclasses.replace(cut, status=status)])
+                 .splitlines() if "no measured peak" in ln]
+        assert f"(status {status}: the run" in line and words in line, line
+
+
 def test_the_text_output_of_an_impossible_run_shows_no_number(monkeypatch, tmp_path):
     """``granchain run`` of the 1e3 N chain: no v_g number, the status and the key."""
     (tmp_path / "s.yaml").write_text("name: s\n")
@@ -186,3 +198,58 @@ def test_compare_says_when_a_guard_fired(monkeypatch):
     text = out.getvalue()
     assert "status unphysical" in text and "precompression.force" in text
     assert text.splitlines()[-1] != "all tolerances met"
+
+
+# ---------------------------------------------------------------------------------------
+# the progress and log lines over many runs say which did not end as planned
+# ---------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def one_run():
+    r, = run_scene(scene_from_dict({"name": "short", "chain": {"n": 6}, "probes": [2, 6]}))
+    return r
+
+
+def test_a_study_batch_line_says_which_members_timed_out_or_were_unphysical(
+        one_run, monkeypatch, capsys):
+    """Fails on a build whose batch line said only 'N members in X s' (the table's status
+    column alone said a member timed out)."""
+    import pandas as pd
+    from granchain import workflow as gw
+    from granchain.workflow import run as wr
+    from conftest import REPO
+    _, P = gw.load_config(REPO / "config" / "config.yaml", "tiny")
+    batch = gw.batches(P, "packed_sweep")[0]
+    fake = [dataclasses.replace(one_run, status=s) for s in ("passed", "timeout", "unphysical")]
+    monkeypatch.setattr(wr, "run_members", lambda *a, **k: fake)
+    monkeypatch.setattr(wr, "member_rows", lambda *a, **k: pd.DataFrame({"x": [0]}))
+    wr.run_batch(P, "packed_sweep", batch.name)
+    err = capsys.readouterr().err
+    assert "2 of 3 runs ended timeout (1), unphysical (1)" in err and "status" in err
+    monkeypatch.setattr(wr, "run_members", lambda *a, **k: fake[:1])
+    wr.run_batch(P, "packed_sweep", batch.name)
+    assert "ended" not in capsys.readouterr().err
+
+
+def test_the_accuracy_log_says_which_runs_timed_out(one_run, monkeypatch):
+    """The accuracy study's log lines (a setting's errors, the reference's uncertainty)
+    name the runs that did not end as planned, as its table's status column does."""
+    from granchain.accuracy import harness
+    monkeypatch.setattr(harness, "_run", lambda scene, setting, batch, memo=None: [
+        dataclasses.replace(one_run, status="timeout" if setting.method == "rk4" else "done")
+        for _ in range(batch)])
+    lines = []
+    harness.measure({"batch": 2, "repeats": 1, "gap_mean_nm": [], "methods": ["rk4", "adaptive"],
+                     "steps_per_contact": [20], "tolerances": [1e-6]}, log=lines.append)
+    rk4 = [ln for ln in lines if " rk4 " in f" {ln} " and "wall/chain" in ln]
+    assert rk4 and all("2 of 2 runs ended timeout (2)" in ln for ln in rk4), lines
+    assert not any("ended" in ln for ln in lines if "adaptive" in ln and "wall/chain" in ln)
+    ref = [ln for ln in lines if ln.startswith("reference ")]
+    assert ref and all("ended" not in ln for ln in ref)
+    monkeypatch.setattr(harness, "_run", lambda scene, setting, batch, memo=None: [
+        dataclasses.replace(one_run, status="stepfail" if setting.method == "adaptive"
+                            else "done") for _ in range(batch)])
+    lines.clear()
+    harness.measure({"batch": 2, "repeats": 1, "gap_mean_nm": [], "methods": ["rk4"],
+                     "steps_per_contact": [20], "tolerances": [1e-6]}, log=lines.append)
+    ref = [ln for ln in lines if ln.startswith("reference ")]
+    assert ref and all("2 of 2 runs ended stepfail (2)" in ln for ln in ref), lines

@@ -129,7 +129,7 @@ CONTEXT = {
 SAMPLE = {"chain.radius_spread.sd": 1e-7, "striker.radius": 100e-6, "t_end": 1e-4,
           "output.sample_dt": 1e-8, "integrator.tolerance": 1e-8, "groove.s": 0.5,
           "groove.kt": 1e3, "contact.kt": 1e3, "rolling.k_roll": 1e3, "damping.e": 0.9,
-          "damping.eta": 1e3}
+          "damping.eta": 1e3, "precompression.force": 0.01}
 # keys whose value is a list of such numbers: (the list of a value, the field an error names)
 LISTS = {"gaps.values": (lambda v: [v] * 14, "gaps.values[0]")}
 

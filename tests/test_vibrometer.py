@@ -270,3 +270,55 @@ def test_a_bad_vibrometer_study_setting_is_one_line():
     msg = str(exc.value)
     assert "\n" not in msg and "presets.tiny.studies.vibrometer" in msg
     assert "measurement.sampling_rate_hz" in msg and "twice the bandwidth 6e+07" in msg
+
+
+def _faster_than_sound(sc):
+    """A record of 15 spheres whose pulse peaks 20 ns apart per sphere: 15 km/s, above
+    the bar sound speed of 440C; with the limits of ``sc``."""
+    from granchain import guards
+    from granchain.trajectory import ENERGY_COLUMNS, RunInfo, Trajectory
+    t = np.arange(8000) * 5e-9
+    v = np.stack([0.05 * np.exp(-((t - 5e-6 - 2e-8 * i) / 3e-7) ** 2) for i in range(15)],
+                 axis=1)
+    return Trajectory(t=t, v=v, energy=np.ones((t.size, len(ENERGY_COLUMNS))),
+                      gaps=np.zeros(14), radius=150e-6, v_striker=0.1, status="passed",
+                      last_overlap=-1e-9, info=RunInfo(method="rk4", dt=1e-9),
+                      limits=guards.result_limits(sc))
+
+
+def test_the_study_table_sets_an_impossible_recorded_value_aside():
+    """The vibrometer study's rows go through the run's physical bounds as the run table's
+    do: a pulse between the probes faster than the bar sound speed of 440C is NaN in both
+    the true and the recorded columns, with status unphysical and a line naming the key.
+    (The recorded v_g, 1.5e4 m/s, was a number in the table with status passed before.)"""
+    from types import SimpleNamespace
+    from granchain.gaps import members
+    from granchain.workflow import vibrometer as wv
+
+    sc = packed(**{"measurement.filter": "bessel"})
+    traj = _faster_than_sound(sc)
+    ss = SimpleNamespace(scene=sc, material="ss440c", gap_mean_nm=0.0)
+    row, = wv._rows(ss, [sc.measurement], members(sc)[0], traj)
+    raw = vibrometer.measure(traj, sc.probes, sc.measurement, key=(0,))
+    assert raw.v_g > 1e4                         # what the instrument alone reads
+    for col in ("v_g_m_s", "dt_peak_s", "v_g_measured_m_s", "dt_peak_measured_s",
+                "dt_peak_bias_s"):
+        assert math.isnan(row[col]), col
+    assert row["status"] == "unphysical"
+    assert "v_g_measured" in row["warnings"] and "sound speed" in row["warnings"]
+    assert row["v_max_2_measured_m_s"] == raw.v_max_2      # a possible value is kept
+    assert list(row) == list(wv.VIB_COLUMNS)
+
+
+def test_the_study_progress_line_says_which_chains_were_unphysical(monkeypatch, capsys):
+    """The study's progress line says how many of its rows did not end as planned, as the
+    table's status column does (it said only 'N chains x M settings in X s')."""
+    from granchain import workflow as gw
+    from granchain.workflow import vibrometer as wv
+    _, P = gw.load_config(SCENES.parents[1] / "config" / "config.yaml", "tiny")
+    monkeypatch.setattr(wv, "trajectories", lambda sc, mem, engine: (
+        (m, _faster_than_sound(sc)) for m in mem))
+    df, _, _ = wv.run_vibrometer(P)
+    err = capsys.readouterr().err
+    assert (df["status"] == "unphysical").all()
+    assert "runs ended unphysical" in err and "status and warnings columns" in err

@@ -120,9 +120,10 @@ def test_every_member_is_in_exactly_one_batch(preset):
         scenes = gw.study_scenes(P, study)
         # the plan the Snakefile builds once holds the same scenes and batches
         assert plan.scene_hashes(study) == [ss.scene.hash for ss in scenes]
-        assert plan.batches[study] == gw.batches(P, study)
+        batches = gw.batches(P, study)
+        assert plan.batches[study] == batches
         seen = []
-        for b in gw.batches(P, study):
+        for b in batches:
             assert b.members == sum(len(scenes[i].scene.striker_velocities) * len(r)
                                     for i, r in b.units)
             seen += [(b.engine, i, r) for i, reals in b.units for r in reals]
@@ -130,9 +131,8 @@ def test_every_member_is_in_exactly_one_batch(preset):
                     if e in ss.engines for r in range(ss.scene.realisations)]
         assert sorted(seen) == sorted(expected), study
         members = sum(ss.members * len(ss.engines) for ss in scenes)
-        njobs = len(gw.batches(P, study))
-        assert njobs <= max(1, math.ceil(members / k)) * len(scenes[0].engines)
-        assert gw.batches(P, study) == gw.batches(P, study)      # deterministic
+        assert len(batches) <= max(1, math.ceil(members / k)) * len(scenes[0].engines)
+        assert gw.batches(P, study) == batches      # deterministic
 
 
 def test_default_preset_is_meaningful():

@@ -94,19 +94,19 @@ from .harness import (COLUMNS, DEFAULT_BASE, DEFAULT_COST, DETERMINISTIC, METHOD
                                scene_dicts, scene_for, settings, timing_settled,
                                timing_summary, to_frame)
 from .report import machine, plot, provenance_fields, write_model, write_outputs
-from ..costmodel import (AUTO_SAFETY, MODEL_COLUMNS, MODEL_FILE, MODEL_PROVENANCE,
-                        SCENE_METHODS, auto_setting, fixed_step, is_packed, load_model,
-                        resolve_auto)
+from ..costmodel import (MODEL_COLUMNS, MODEL_FILE, MODEL_PROVENANCE, SCENE_METHODS,
+                        fixed_step, is_packed, load_model)
+from ..runplan import AUTO_SAFETY
 from ..scene import MIN_STEPS_PER_CONTACT
 
 __all__ = ["AUTO_SAFETY", "COLUMNS", "DEFAULT_BASE", "DEFAULT_COST", "DETERMINISTIC",
            "METHODS", "MIN_STEPS_PER_CONTACT", "MODEL_COLUMNS", "MODEL_FILE",
            "MODEL_PROVENANCE", "OBSERVABLES", "SCENE_METHODS", "TIMING_ONLY", "Setting",
-           "achievable", "auto_setting", "cheapest", "cheapest_table", "contact_time",
+           "achievable", "cheapest", "cheapest_table", "contact_time",
            "envelope", "fixed_step", "full_config", "is_packed", "lammps_unavailable",
            "load_model", "machine", "main", "measure", "model_from_table", "plot",
            "preset_blocks", "provenance_fields", "reference_runs", "rel_err",
-           "resolve_auto", "sampling_floor", "scene_class", "scene_dicts", "scene_for",
+           "sampling_floor", "scene_class", "scene_dicts", "scene_for",
            "settings", "timing_settled", "timing_summary", "to_frame", "write_model",
            "write_outputs"]
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..costmodel import SCENE_METHODS, chain_work, fixed_step
 from ..errors import GranchainError
-from ..observables import ChainResult
+from ..observables import ChainResult, status_summary
 from ..scene import MIN_STEPS_PER_CONTACT, TOLERANCE_METHODS, scene_from_dict
 from .envelope import rel_err
 
@@ -203,7 +203,9 @@ def reference_runs(raw: dict, cost: dict, batch: int, log=_log, *,
         + ", ".join(f"{k} {v:.2g}" for k, v in unc.items())
         + f"; balance error {info['balance_error']:.2g}; {info['plateau_at_probes']} plateau "
         f"peaks at the probes; rk4 sampling off the reference's grid: v_g floor "
-        f"{info['sampling_floor_v_g']:.2g}")
+        f"{info['sampling_floor_v_g']:.2g}"
+        + (f"; {ended} (the reference is then not converged there)"
+           if (ended := status_summary(r.status for r in ref)) else ""))
     return ref, info
 
 
@@ -334,9 +336,11 @@ def measure(cost: dict | None = None, base: dict | None = None, *, log=_log):
             "batch": len(runs), "repeats": len(walls[name, s]), "scene_hash": sc.hash,
         }
         rows.append({c: row[c] for c in COLUMNS})
+        ended = status_summary(r.status for r in runs)
         log(f"{name:10s} {s.label:22s} wall/chain {row['wall_s_per_chain']:.3g} s  "
             f"err v_max_2 {row['err_v_max_2']:.2g}  v_g {row['err_v_g']:.2g}  "
-            f"v_g_front {row['err_v_g_front']:.2g}  balance {row['balance_error']:.2g}")
+            f"v_g_front {row['err_v_g_front']:.2g}  balance {row['balance_error']:.2g}"
+            + (f"  ({ended}: the status column)" if ended else ""))
     info["timing"] = timing_summary(walls, spread, phases)
     log(f"timing: {info['timing']['summary']}")
     return rows, info

@@ -62,9 +62,12 @@ KEYS = (
         "`tsuji`, Tsuji's c(e) in the same form. The work it does is the ledger's "
         "`work_contact_damping` (table column `work_damping_J`).", choices=MODELS),
     Key("damping.e", "1", "Coefficient of restitution of `coeff_restitution` and `tsuji`; "
-        "required there, refused with `viscoelastic`.", positive=True, hi=1.0),
+        "required there, refused with `viscoelastic`. e = 1 (no damping) is accepted: it "
+        "is the elastic end of a sweep of e (the dissipation study, the inference's grid).",
+        positive=True, hi=1.0),
     Key("damping.eta", "1/(m s)", "eta_n0 of `viscoelastic` (LAMMPS's second "
-        "`hertz/material` coefficient); required there, refused with the other models.",
+        "`hertz/material` coefficient); required there, refused with the other models. "
+        "eta = 0 (no damping) is accepted, the elastic end of a sweep as e = 1 is.",
         nonneg=True, allowed="a dashpot time m_eff/eta at least 1/100 of the collision time "
         "(the refusal gives the largest eta)"),
     Key("damping.limit_damping", "-", "`true`: the net normal force is held at >= 0. "

@@ -16,12 +16,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..stoprule import arrival_speed, auto_t_max, expected_duration, last_detached, sample_interval
+from ..stoprule import arrival_speed, last_detached
 from ..effects import MODULES, SPECS, Terms, chain as chain_mod, physics_terms
 from ..guards import require_resolved, result_limits
+from ..runplan import RunPlan, SpeedPlan, plan_run, step_grid
 from ..scene import Scene
 from ..trajectory import OnTheFly, RunInfo, Trajectory
 from . import backend
+from . import chunks
 from . import codes
 from . import obscodes
 
@@ -36,9 +38,6 @@ STATUS_NAMES = {codes.S_DONE: "done", codes.S_PASSED: "passed", codes.S_TIMEOUT:
                 codes.S_RUNNING: "timeout"}
 WINDOW = 2048                    # samples per kernel call (adaptive method)
 BLOCK_WINDOW = 256               # samples per kernel call (fixed-step blocks)
-CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
-CHUNK_CHAINS = 512               # at most this many chains in a chunk
-LANES = 32                       # chains per block of the fixed-step kernels
 EVENT_LANES = 16                 # chains per block of the event method (``run_events_lanes``)
 
 
@@ -124,8 +123,7 @@ def record_width(terms: Terms) -> int:
 def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | None = None,
         dt: float | None = None, tolerance: float | None = None, progress: bool | None = None,
         trace: bool | None = None, pair: str | None = None,
-        radii: np.ndarray | None = None, lanes: bool = True,
-        sampling: dict[float, tuple[float, float]] | None = None):
+        radii: np.ndarray | None = None, lanes: bool = True, plan: RunPlan | None = None):
     """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s; radii: (B, n)
     m, each chain's own (a radius spread, ``gaps.member_radii``), or None (the scene's).
     The scene's method must not be auto (``simulate`` resolves it).
@@ -137,11 +135,11 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
     too measure the observables on the fly (``Trajectory.observed``, equal to the
     summariser's on the record) and keep only the first and last samples. ``pair``: the event method's Runge-Kutta pair
     (``events.PAIRS``; default ``events.DEFAULT_PAIR``). ``lanes``: without a trace, the
-    event method runs its chains in SIMD lanes (``events.run_events_lanes``); False runs
+    event method runs its chains in SIMD lanes (``eventlanes.run_events_lanes``); False runs
     one chain per thread (``events.run_events``), with the same result bit for bit.
-    ``sampling``: striker speed -> (sample interval, expected duration) of the run plan
-    (``granchain.plan.RunPlan.sampling``), computed once there; speeds it lacks are
-    computed here (``stoprule.sample_interval``, ``stoprule.expected_duration``)."""
+    ``plan``: the run plan of ``scene`` (``granchain.runplan.plan_run``; planned here if
+    None), whose striker speeds give each chain its sample interval, sample count and
+    expected duration (``RunPlan.speed``); the engine computes none of them."""
     require_resolved(scene, "reference engine")
     terms = physics_terms(scene)
     gaps = np.ascontiguousarray(np.atleast_2d(np.asarray(gaps, dtype=float)))
@@ -151,13 +149,13 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
     rtol = tolerance if tolerance is not None else (scene.tolerance or 1e-8)
     if progress is None:
         progress = sys.stderr.isatty() and gaps.shape[0] > 1
-    # Chains with the same sampling run together; normally all of them. Inside that,
-    # ordered by striker speed and total gap (the flight time that sets the length of a
-    # t_end auto run), so that chains of similar length share a chunk and a block.
-    sampling = dict(sampling or {})
-    for v in set(vs.tolist()) - set(sampling):
-        sampling[v] = (sample_interval(scene, v), None)
-    keys = np.array([sampling[v][0] for v in vs.tolist()])
+    plan = plan_run(scene) if plan is None else plan
+    own = {v: plan.speed(v) for v in set(vs.tolist())}
+    sps = [own[v] for v in vs.tolist()]
+    # Chains with the same sample interval run together; normally all of them. Inside
+    # that, ordered by striker speed and total gap (the flight time that sets the length
+    # of a t_end auto run), so that chains of similar length share a chunk and a block.
+    keys = np.array([sp.sample_dt for sp in sps])
     order = np.lexsort((np.arange(len(vs)), gaps.sum(axis=1), vs, keys))
     done_total = 0
     out: dict[int, Trajectory] = {}
@@ -169,14 +167,15 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         while stop < len(order) and keys[order[stop]] == key:
             stop += 1
         group = order[start:stop]
-        for chunk in _chunks(group, scene, terms, key, method, trace is False, sampling):
+        for chunk in _chunks(group, scene, terms, key, method, trace is False, plan):
             rc = None if radii is None else np.atleast_2d(radii)[chunk]
+            csp = [sps[i] for i in chunk]
             if method == "event":
-                it = _run_chunk_events(scene, terms, gaps[chunk], vs[chunk], dt, rtol, key,
-                                       bool(trace), pair or codes.DEFAULT_PAIR, rc, lanes)
+                it = _run_chunk_events(scene, terms, gaps[chunk], vs[chunk], csp, dt, rtol,
+                                       key, bool(trace), pair or codes.DEFAULT_PAIR, rc, lanes)
             else:
-                it = _run_chunk(scene, terms, gaps[chunk], vs[chunk], method, dt, rtol, key, rc,
-                                trace is not False)
+                it = _run_chunk(scene, terms, gaps[chunk], vs[chunk], csp, method, dt, rtol,
+                                key, rc, trace is not False)
             for idx, traj in zip(chunk, it):
                 out[int(idx)] = traj
             done_total += len(chunk)
@@ -194,18 +193,13 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         next_to_yield += 1
 
 
-def _chunks(group, scene, terms, sample_dt, method, observe=False, sampling=None):
-    """Split chains into chunks whose memory fits in CHUNK_BYTES (and CHUNK_CHAINS): the
-    recorded samples of each chain or, for the fixed-step methods measuring on the fly
-    (``observe``), their observables' arrays (a chain keeps its first and last samples and
-    a ring of RECORD_RING record samples per particle, whatever its length; the chains
-    then go in as few chunks as those limits allow, as even as whole blocks make them).
-
-    The fixed-step methods run a chunk in blocks of LANES consecutive chains, and numba
-    hands each thread an equal contiguous share of the blocks; the chains come sorted by
-    expected length, so a chunk's full blocks are dealt to the threads' shares back and
-    forth (0, 1, .., T-1, T-1, .., 0, ..) and every thread gets long and short blocks
-    alike. A chain's result does not depend on its block or lane, nor on its chunk."""
+def _chunks(group, scene, terms, sample_dt, method, observe=False, plan=None):
+    """Split chains into chunks whose memory fits in ``chunks.CHUNK_BYTES`` (and
+    ``chunks.CHUNK_CHAINS``; ``chunks.split``): the recorded samples of each chain or, for
+    the fixed-step methods measuring on the fly (``observe``), their observables' arrays
+    (a chain keeps its first and last samples and a ring of RECORD_RING record samples
+    per particle, whatever its length). ``plan``: the run plan of ``scene`` (planned here
+    if None), whose expected durations size a chain's record."""
     blocked = method in ("rk4", "verlet")          # blocks of LANES chains in lockstep
     if blocked and observe:
         n = terms.n
@@ -218,63 +212,23 @@ def _chunks(group, scene, terms, sample_dt, method, observe=False, sampling=None
             t_est = scene.t_end
         else:
             # the slowest striker's expected run, x4: a realisation's gaps can run longer
-            # than their mean
+            # than their mean (a striker at rest: as at 1e-6 m/s)
+            plan = plan_run(scene) if plan is None else plan
             v = float(np.min(scene.striker_velocities))
-            planned = (sampling or {}).get(v, (None, None))[1] if v >= 1e-6 else None
-            t_est = 4.0 * (planned if planned is not None
-                           else expected_duration(scene, max(v, 1e-6)))
+            t_est = 4.0 * plan.speed(max(v, 1e-6)).duration_s
         window = BLOCK_WINDOW if blocked else WINDOW
         per_chain = (t_est / sample_dt + window) * (terms.n + codes.E_LEN) * 8
-    size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, CHUNK_CHAINS)))
-    threads = backend.num_threads()
-    if blocked and observe and size < len(group):
-        # whole blocks; as few chunks as the limits allow, as even as blocks make them
-        parts = -(-len(group) // max(LANES, size // LANES * LANES))
-        size = -(-len(group) // (parts * LANES)) * LANES
-    elif blocked and size < len(group):
-        # whole blocks, as many on every thread
-        unit = LANES * threads
-        size = max(LANES, size // unit * unit)
-    for i in range(0, len(group), size):
-        chunk = group[i:i + size]
-        yield _deal_blocks(chunk, threads) if blocked else chunk
+    yield from chunks.split(group, per_chain, blocked, observe)
 
 
-def _deal_blocks(chunk, threads):
-    """``chunk`` with its full blocks of LANES chains reordered so that numba's contiguous
-    split of the blocks over ``threads`` gives each thread blocks dealt back and forth
-    from the sorted order; a partial block stays last (the padding lanes follow it)."""
-    full = len(chunk) // LANES
-    if threads < 2 or full <= threads:
-        return chunk
-    # numba's static schedule of range(nblk): equal contiguous shares, one more for each
-    # of the first nblk % threads threads
-    nblk = -(-len(chunk) // LANES)
-    share = [nblk // threads + (t < nblk % threads) for t in range(threads)]
-    share[-1] -= nblk - full                      # the partial block stays last
-    shares = [[] for _ in range(threads)]
-    turn = list(range(threads)) + list(range(threads - 1, -1, -1))
-    k = 0
-    for blk in range(full):
-        while True:
-            t = turn[k % len(turn)]
-            k += 1
-            if len(shares[t]) < share[t]:
-                break
-        shares[t].append(blk)
-    order = [b for s in shares for b in s]
-    blocks = chunk[:full * LANES].reshape(full, LANES)[order].reshape(-1)
-    return np.concatenate([blocks, chunk[full * LANES:]])
-
-
-def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt, radii=None,
-               trace=True):
+def _run_chunk(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], method, dt, rtol,
+               sample_dt, radii=None, trace=True):
     """The fixed-step and adaptive methods on a chunk of chains. The fixed-step methods
     without ``trace`` measure the observables on the fly (``kernels.run_blocks`` with
     observe: ``Trajectory.observed``, t, v and energy of the first and last samples only);
     a chain whose record samples overflowed the kernel's ring is run again with its trace
     (the same chain alone gives the same samples), and its observables are then the
-    summariser's on that trace."""
+    summariser's on that trace. ``sps``: each chain's speed plan (its sample count)."""
     kern = backend.kernels(serial=gaps.shape[0] == 1)
     layout = Layout.of(terms)
     P, FL = pack(terms)
@@ -292,18 +246,9 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
     STATUS = np.zeros(B, dtype=np.int64)
     VTHR = arrival_speed(vs)
     mcode = METHOD_CODES[method]
-    if mcode == codes.M_DOP853:
-        every, sdt = 1, sample_dt
-    else:
-        every = max(1, int(round(sample_dt / dt)))
-        sdt = every * dt
+    every, sdt = (1, sample_dt) if mcode == codes.M_DOP853 else step_grid(sample_dt, dt)
     auto = scene.t_end is None
-    if not auto:
-        NT = np.full(B, int(math.ceil(scene.t_end / sdt - 1e-9)) + 1, dtype=np.int64)
-    else:
-        # a chain at rest has no wave to wait for: its initial state is its whole record
-        NT = np.array([int(math.ceil(auto_t_max(scene, gaps[b], vs[b]) / sdt)) + 1
-                       if vs[b] > 0 else 1 for b in range(B)], dtype=np.int64)
+    NT = np.array([sp.sample_count(gaps[b], sdt) for b, sp in enumerate(sps)], dtype=np.int64)
     scale_abs, rel = _error_scales(scene, terms, layout, max(float(vs.max()), 1e-9))
     observe = mcode != codes.M_DOP853 and not trace
     V_parts = [[] for _ in range(B)]
@@ -333,8 +278,9 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
     if ovf.any():
         idx = np.flatnonzero(ovf)
         rr = None if radii is None else radii[idx]
-        redo = dict(zip(idx.tolist(), _run_chunk(scene, terms, gaps[idx], vs[idx], method, dt,
-                                                 rtol, sample_dt, rr, trace=True)))
+        redo = dict(zip(idx.tolist(), _run_chunk(scene, terms, gaps[idx], vs[idx],
+                                                 [sps[i] for i in idx], method, dt, rtol,
+                                                 sample_dt, rr, trace=True)))
     for b in range(B):
         if b in redo:
             yield redo[b]
@@ -374,10 +320,11 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, method, dt, rtol, sample_dt
                          **_chain_fields(terms, rec, None if radii is None else radii[b]))
 
 
-def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt, trace, pair,
-                      radii=None, lanes=True):
+def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], dt, rtol,
+                      sample_dt, trace, pair, radii=None, lanes=True):
     kern = backend.kernels(serial=gaps.shape[0] == 1)
-    """The event method (``engines.events``) on a chunk of chains."""
+    """The event method (``engines.events``) on a chunk of chains (``sps``: each one's
+    speed plan)."""
     layout = Layout.of(terms)
     P, FL = pack(terms)
     LO = layout.LO
@@ -399,11 +346,8 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
     INIT = np.zeros(B, dtype=np.int64)
     VTHR = arrival_speed(vs)
     auto = scene.t_end is None
-    if not auto:
-        NT = np.full(B, int(math.ceil(scene.t_end / sample_dt - 1e-9)) + 1, dtype=np.int64)
-    else:
-        NT = np.array([int(math.ceil(auto_t_max(scene, gaps[b], vs[b]) / sample_dt)) + 1
-                       if vs[b] > 0 else 1 for b in range(B)], dtype=np.int64)
+    NT = np.array([sp.sample_count(gaps[b], sample_dt) for b, sp in enumerate(sps)],
+                  dtype=np.int64)
     t_stop = (NT - 1) * sample_dt
     scale_abs, rel = _error_scales(scene, terms, layout, max(float(vs.max()), 1e-9))
     band = rtol * scale_abs[LO[codes.L_DISP]]           # overlap band of the contact events
@@ -431,7 +375,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, dt, rtol, sample_dt,
     t0 = time.perf_counter()
     in_lanes = lanes and not trace
     if in_lanes:
-        # in lanes (``events.run_events_lanes``): the chunk's chains, longest run first
+        # in lanes (``eventlanes.run_events_lanes``): the chunk's chains, longest run first
         # (their time caps: a chain's run scales with them), dealt round-robin to one queue
         # per thread, so that the queues cost alike and short chains fill the lanes that
         # free up at the end
@@ -576,15 +520,15 @@ def _wall_static(terms: Terms) -> float:
 def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V_parts,
                 E_parts, observe=False, sample_dt=0.0, wall_static=0.0):
     kern = backend.kernels(serial=gaps.shape[0] == 1)
-    """Fixed-step methods: the chains in blocks of LANES (consecutive chains share a block,
-    the last block padded with lanes at rest that record nothing), stepped in lockstep by
-    ``kernels.run_blocks``. Returns each chain's final state, time, steps and status, and
-    the ``_Observed`` arrays (with ``observe``: the on-the-fly observables and NS, each
-    chain's sample count; otherwise the records go to V_parts, E_parts)."""
+    """Fixed-step methods: the chains in blocks of ``chunks.LANES`` (consecutive chains
+    share a block, the last block padded with lanes at rest that record nothing), stepped
+    in lockstep by ``kernels.run_blocks``. Returns each chain's final state, time, steps
+    and status, and the ``_Observed`` arrays (with ``observe``: the on-the-fly observables
+    and NS, each chain's sample count; otherwise the records go to V_parts, E_parts)."""
     B, ny = Y0.shape
     ng = gaps.shape[1]
     n = int(P[codes.P_N_SPHERES])
-    Lb = LANES
+    Lb = chunks.LANES
     nblk = -(-B // Lb)
     Bp = nblk * Lb
     Yp = np.zeros((Bp, ny))

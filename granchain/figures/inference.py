@@ -36,7 +36,7 @@ def outside_note(res) -> str:
 def predicted_vg(res, base, speeds, draws: int = 200):
     """(lo, median, hi) of simulated v_g (m/s) at each striker speed of ``speeds``, over
     ``draws`` posterior quantiles of the mean gap x the grid's realisations."""
-    from ..inference import _interp_gap, _interp_speed
+    from ..inference.interpolation import _interp_gap, _interp_speed
     grid = res.grid
     span = base.probes[1] - base.probes[0]
     cdf = np.concatenate([[0.0], np.cumsum(0.5 * (res.posterior_pdf[1:] + res.posterior_pdf[:-1])
@@ -56,7 +56,7 @@ def predicted_vg(res, base, speeds, draws: int = 200):
 def plot_inference(res, meas, base, path, force: bool = False) -> Path:
     """Draw the figure into ``path`` (.png, .pdf or .svg), atomically, never replacing an
     existing file without ``force``."""
-    from ..inference import _interp_speed
+    from ..inference.interpolation import _interp_speed
     grid = res.grid
     span = base.probes[1] - base.probes[0]
     two_r = 2 * base.radius

@@ -27,15 +27,16 @@ Choices (also stated in the deck's comments):
   tangential law is then ``linear_history 0.0 0.0 0.0`` (k_t = 0, mu = 0: the force
   -k_t xi is exactly zero, and the cap test 0 > 0 never fires, so no division by k_t).
   Rotation on: ``fix nve/sphere``.
-* Run length: ``scene.t_end``, else ``stoprule.auto_t_max`` of the slowest
-  member (the largest cap over all members); rounded up to whole samples as the
-  reference engine does, so the last sample falls at the same time. With t_end auto
-  the run also stops (``fix halt``) at the first sample at which the wave has left
+* Run length and cadence come from the scene's run plan (``granchain.runplan.RunPlan``), as
+  the reference engine's. Run length: ``scene.t_end``, else the stop rule's cap
+  (``SpeedPlan.run_length``, ``stoprule.auto_t_max``) of the slowest member (the largest
+  cap over all members); rounded up to whole samples as the reference engine does, so
+  the last sample falls at the same time. With t_end auto the run also stops (``fix halt``) at the first sample at which the wave has left
   every moving chain (its last particle moves and has no contact left,
   ``granchain.stoprule``): the reference engine's stop rule, applied to the whole batch. ``granchain.engines.lammps`` then cuts each chain's
   record where the reference engine would have stopped that chain.
-* Cadence: every = round(sample_interval / dt) (as the reference engine), from the
-  member with the finest sampling.
+* Cadence: every = round(sample_interval / dt) (``runplan.step_grid``, as the reference
+  engine), from the member with the finest sampling (``SpeedPlan.sample_dt``).
 * Per-sample output, by the deck option ``output`` (:data:`OUTPUTS`, default ``"dump"``):
   ``"dump"`` the text trajectory dump (``traj.dump``, every sample, sorted by id,
   ``%.17g``: ``id x y z vx`` only, :data:`DUMP_COLUMNS`; the engine's ``output="dump"``
@@ -64,6 +65,7 @@ Choices (also stated in the deck's comments):
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from string import Template
 
@@ -72,6 +74,7 @@ import numpy as np
 from granchain.effects import SPECS, physics_terms
 from granchain.errors import GranchainError
 from granchain.fileio import OutputKind, file_head, atomic_write_text, check_output_path
+from granchain.runplan import RunPlan
 from granchain.scene import NAME_RE, NAME_RULE, Scene
 from granchain.lammps.deckplan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, DECK_NAME,
                                    DUMP_COLUMNS, DUMP_NAME, ENERGY_NAME, LEDGER_BINARY_NAME,
@@ -89,7 +92,7 @@ __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "wr
            "LEDGER_NAME", "DUMP_COLUMNS", "WORK_COLUMNS", "LEDGER_INPUTS", "OUTPUTS",
            "BINARY_NAME", "LEDGER_BINARY_NAME", "BINARY_COLUMNS", "max_travel",
            "ledger_binary_columns", "WALL_FORCE_COLUMN", "field", "LOG_NAME", "SCREEN_NAME",
-           "WORKDIR_FILES"]
+           "WORKDIR_FILES", "WORKDIR_KINDS", "check_workdir"]
 
 def template_path() -> Path:
     return Path(__file__).resolve().parents[2] / "lammps_inputs" / "templates" / "chain.lmp.in"
@@ -309,8 +312,9 @@ def needs_plugin(scene: Scene) -> bool:
 
 
 def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str | None = None,
-           output: str = "dump") -> tuple[str, str]:
-    """The texts of deck.lmp and chain.data (no files written).
+           output: str = "dump", run_plan: RunPlan | None = None) -> tuple[str, str]:
+    """The texts of deck.lmp and chain.data (no files written). ``run_plan``: the scene's
+    run plan (``granchain.runplan.plan_run``; planned here if None), see :func:`plan`.
 
     ``radii`` (B, n) m: each chain's own radii (a radius spread; default for a scene's
     own members: ``gaps.member_radii``, see :func:`granchain.lammps.deckplan.batch_members`).
@@ -323,7 +327,8 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
     ``&`` or quote can reach LAMMPS' input parser."""
     if not NAME_RE.fullmatch(scene.name):
         raise GranchainError(f"deck: scene name {scene.name!r} is not a valid name; {NAME_RULE}")
-    pl = plan(scene, gaps=gaps, v_striker=v_striker, radii=radii, output=output)
+    pl = plan(scene, gaps=gaps, v_striker=v_striker, radii=radii, output=output,
+              run_plan=run_plan)
     gaps, vs = pl.gaps, pl.v_striker
     B, n = gaps.shape[0], scene.n
     # each chain's terms under a radius spread (None: every chain has the scene's)
@@ -467,9 +472,51 @@ DECK_FILES = OutputKind("a deck.lmp or chain.data granchain wrote",
                                                            b"granchain chain.data")))
 
 
+def _starts(*heads: bytes, empty: bool = False):
+    def looks_like(p) -> bool:
+        head = file_head(p, 64)
+        return head.startswith(heads) or (empty and head == b"")
+    return looks_like
+
+
+_AVE_TIME = OutputKind("a LAMMPS fix ave/time file", _starts(b"# Time-averaged data for fix"))
+_BINARY = OutputKind("a LAMMPS binary dump",
+                     lambda p: file_head(p, 18)[8:18] == b"DUMPCUSTOM")
+# an empty log: LAMMPS did not start (nothing to lose)
+_LOG = OutputKind("a LAMMPS log", _starts(b"LAMMPS (", empty=True))
+# what force may replace in a kept working directory: each file the engine writes there,
+# an earlier run's (recognised by its first bytes), never a file of the user's that
+# happens to bear the name
+WORKDIR_KINDS = {DECK_NAME: DECK_FILES, DATA_NAME: DECK_FILES,
+                 DUMP_NAME: OutputKind("a LAMMPS text dump", _starts(b"ITEM: TIMESTEP")),
+                 ENERGY_NAME: _AVE_TIME, LEDGER_NAME: _AVE_TIME, BINARY_NAME: _BINARY,
+                 LEDGER_BINARY_NAME: _BINARY, LOG_NAME: _LOG, SCREEN_NAME: _LOG}
+
+
+def check_workdir(workdir, force: bool, field: str = "--workdir") -> None:
+    """Refuse (one line naming ``field``) a kept working directory whose files a run
+    would replace: a non-empty one without ``force``; with it, any of ``WORKDIR_FILES``
+    there that is not an earlier output of its kind (``WORKDIR_KINDS``), a directory or
+    a special file; a path that is not a directory. A missing directory is fine (the run
+    creates it)."""
+    wd = Path(workdir)
+    if os.path.lexists(wd) and not wd.is_dir():
+        raise GranchainError(f"{field}: '{wd}' is not a directory; give a directory for the "
+                             "LAMMPS files (it is created if missing)")
+    if not wd.is_dir():
+        return
+    if not force:
+        if any(wd.iterdir()):
+            raise GranchainError(f"{field}: '{wd}' is not empty; choose an empty directory or "
+                                 "allow replacing its files (--force)")
+        return
+    for name in WORKDIR_FILES:
+        check_output_path(wd / name, True, field, probe=False, kind=WORKDIR_KINDS[name])
+
+
 def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=None,
                force: bool = False, plugin: str | None = None, output: str = "dump",
-               durable: bool = True) -> Path:
+               durable: bool = True, run_plan: RunPlan | None = None) -> Path:
     """Write ``deck.lmp`` and ``chain.data`` into ``outdir``; return the path of deck.lmp.
 
     output: what the deck writes at every sample (:data:`OUTPUTS`): ``"dump"`` (default)
@@ -485,7 +532,7 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=N
     built/cached). ``durable``: each file written atomically and synced to disk
     (``fileio.atomic_write_text``); False writes them plainly, for a private directory
     that only this process reads and that is removed after the run (the engine's
-    temporary directory).
+    temporary directory). ``run_plan``: the scene's run plan (planned here if None).
     """
     outdir = Path(outdir)
     targets = [outdir / DECK_NAME, outdir / DATA_NAME]
@@ -499,7 +546,7 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=N
         from granchain.lammps.plugin import build_plugin
         plugin = str(build_plugin())
     deck_text, data_text = render(scene, gaps=gaps, v_striker=v_striker, radii=radii,
-                                  plugin=plugin, output=output)
+                                  plugin=plugin, output=output, run_plan=run_plan)
     try:
         outdir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

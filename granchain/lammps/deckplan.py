@@ -1,7 +1,9 @@
 """What a LAMMPS deck runs: its members (chains), run length and sample cadence.
 
-The plan is the reference engine's run plan (``granchain.stoprule``: sample grid, time
-cap) applied to a batch of chains; the engine needs it again to read the output back.
+The deck plan is built from the scene's run plan (``granchain.runplan.RunPlan``: each
+striker speed's sample interval, each chain's run length and sample count, as the
+reference engine takes them) for a batch of chains; the engine needs it again to read
+the output back.
 """
 from __future__ import annotations
 
@@ -15,8 +17,8 @@ from granchain.errors import GranchainError
 from granchain.guards import require_resolved
 from granchain.gaps import member_gaps, member_radii, members, realise
 from granchain.lammps.parts import Parts
+from granchain.runplan import RunPlan, plan_run, step_grid
 from granchain.scene import Scene
-from granchain.stoprule import auto_t_max, sample_interval
 
 # The files a deck writes, and what the engine reads back from them.
 DECK_NAME = "deck.lmp"
@@ -139,6 +141,10 @@ class DeckPlan:
     # (B, n) m: each chain's own radii (a radius spread, ``gaps.member_radii``), or None:
     # every chain has the scene's
     radii: np.ndarray | None = None
+    # (B,) each chain's sample count on this cadence, t = 0 included
+    # (``SpeedPlan.sample_count``): with t_end auto, where a chain that the wave has not
+    # left stops (its cap)
+    chain_samples: np.ndarray | None = None
 
     @property
     def nsamples(self) -> int:
@@ -154,13 +160,16 @@ def ledger_binary_columns(pl: DeckPlan) -> tuple[str, ...]:
 
 
 def plan(scene: Scene, *, gaps=None, v_striker=None, radii=None,
-         output: str = "dump") -> DeckPlan:
+         output: str = "dump", run_plan: RunPlan | None = None) -> DeckPlan:
     """Run length and cadence of the deck for these members (as the reference engine);
     the scene's method must not be auto (resolve it first). ``output``: what the deck
     writes at every sample, one of :data:`OUTPUTS`. ``radii`` (B, n) m: each chain's own
     (:func:`batch_members` says which radii a deck gets when they are not given).
-    Run length and cadence come from the scene (its nominal radii under a spread), as
-    the reference engine's."""
+    Run length and cadence come from ``run_plan``, the scene's run plan
+    (``granchain.runplan.plan_run``; planned here if None): the finest member's sample
+    interval on the scene's step (``runplan.step_grid``), and each member's run length
+    (``SpeedPlan.run_length``: the scene's, its nominal radii under a spread), as the
+    reference engine's."""
     require_resolved(scene, "LAMMPS deck")
     if output not in OUTPUTS:
         raise GranchainError(f"LAMMPS deck: output must be one of {', '.join(OUTPUTS)} "
@@ -168,15 +177,16 @@ def plan(scene: Scene, *, gaps=None, v_striker=None, radii=None,
 
     gaps, vs, radii = batch_members(scene, gaps, v_striker, radii)
     B = gaps.shape[0]
-    sdts = [sample_interval(scene, float(v)) for v in vs]
-    sample_si = min(sdts) if sdts else sample_interval(scene, 0.0)
-    every = max(1, int(round(sample_si / scene.dt)))
-    sdt = every * scene.dt
+    run_plan = plan_run(scene) if run_plan is None else run_plan
+    own = {v: run_plan.speed(v) for v in set(vs.tolist())}
+    sps = [own[v] for v in vs.tolist()]
+    sample_si = (min(sp.sample_dt for sp in sps) if sps else run_plan.speed(0.0).sample_dt)
+    every, sdt = step_grid(sample_si, scene.dt)
     auto = scene.t_end is None
     if not auto:
         t_si, t_note = scene.t_end, "scene t_end"
     else:
-        caps = [auto_t_max(scene, gaps[b], float(vs[b])) for b in range(B) if vs[b] > 0]
+        caps = [sp.run_length(gaps[b]) for b, sp in enumerate(sps) if vs[b] > 0]
         t_si = max(caps) if caps else 0.0
         t_note = ("t_end auto: the auto_t_max cap (granchain.stoprule) of the slowest member; "
                   "fix halt stops earlier once the wave has left every chain"
@@ -191,4 +201,6 @@ def plan(scene: Scene, *, gaps=None, v_striker=None, radii=None,
                     t_note=t_note, output=output,
                     dump_columns={"dump": DUMP_COLUMNS, "binary": BINARY_COLUMNS,
                                   "none": ()}[output], ledger_columns=ledger,
-                    gaps=gaps, v_striker=vs, radii=radii)
+                    gaps=gaps, v_striker=vs, radii=radii,
+                    chain_samples=np.array([sp.sample_count(gaps[b], sdt)
+                                            for b, sp in enumerate(sps)], dtype=np.int64))

@@ -17,7 +17,7 @@ import pandas as pd
 
 from .. import tables
 from ..gaps import members as scene_members
-from ..observables import ChainResult
+from ..observables import ChainResult, status_summary
 from ..simulate import run_scene, trajectories
 from .batches import find_batch
 from .studies import StudyScene, packed_scene, study_scenes, trace_scene
@@ -155,8 +155,11 @@ def run_batch(preset: dict, study: str, name: str, threads: int | None = None
         timing.append(_timing_row(study, batch.engine, batch.name, ss, runs, wall))
         how = (f"LAMMPS on {engine_options(batch.engine, threads)['nprocs']} rank(s)"
                if batch.engine == "lammps" else "reference engine")
+        ended = status_summary(r.status for r in runs)
         print(f"[granchain] {study} {batch.name}: {ss.scene.name} {len(runs)} members "
-              f"in {wall:.2f} s ({how})", file=sys.stderr, flush=True)
+              f"in {wall:.2f} s ({how})" + (f"; {ended} (the table's status and warnings "
+                                             "columns say which)" if ended else ""),
+              file=sys.stderr, flush=True)
     return pd.concat(rows, ignore_index=True), tables.timing_table(timing)
 
 

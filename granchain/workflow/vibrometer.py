@@ -10,7 +10,9 @@ Outputs:
 - ``tables/vibrometer.csv``: one row per (chain, filter, bandwidth) with the true and the
   recorded v_max,1, v_max,2, dt (peak to peak) and dt_front (half-peak fronts), their
   ratios measured/true and the delay biases measured - true (NaN with the probe in
-  ``measured_not_final`` when a recorded peak is not final); ``VIB_COLUMNS``;
+  ``measured_not_final`` when a recorded peak is not final; NaN, status ``unphysical`` and
+  a line in ``warnings`` when a true or recorded value leaves its physical bounds,
+  ``observables.bounded``); ``VIB_COLUMNS``;
 - ``tables/vibrometer.provenance.json``;
 - ``timing/vibrometer.csv``;
 - ``traces/vibrometer_<material>.npz``: the packed chain at the speed nearest 0.1 m/s,
@@ -19,6 +21,7 @@ Outputs:
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
@@ -30,7 +33,7 @@ from .. import columns, tables
 from ..errors import GranchainError
 from ..gaps import members as scene_members
 from ..vibrometer import extract, measure, needs_trace, record
-from ..observables import probe_span, summarize
+from ..observables import bounded, probe_span, status_summary, summarize
 from ..scene import MEASUREMENT_DEFAULTS
 from ..simulate import trajectories
 from .studies import VIBROMETER, StudyScene, vibrometer_scenes, vibrometer_settings
@@ -57,27 +60,32 @@ def _rows(ss: StudyScene, settings, m, traj) -> list[dict]:
     final = [s.final[p - 1] for p in sc.probes]
     out = []
     for st in settings:
-        r = measure(traj, sc.probes, st, key=(m.index,), true_final=final)
+        # the recorded values go through the run's physical bounds, as the run table's do
+        # (simulate.run_scene): an impossible one is NaN, named in the warnings, status
+        # unphysical
+        rec = measure(traj, sc.probes, st, key=(m.index,), true_final=final)
+        r = bounded(dataclasses.replace(s, **rec.result_fields(sc.probes)), traj.limits)
         out.append({
             "study": VIBROMETER, "material": ss.material,
             "gap_distribution": sc.gap_distribution, "gap_mean_nm": ss.gap_mean_nm,
             "v_striker_m_s": float(m.v_striker), "realisation": int(m.realisation),
             "seed": int(sc.gap_seed), "scene_hash": sc.hash,
             "method": traj.info.method, "dt_s": float(traj.info.dt),
-            "status": s.status, "wave_arrived": bool(s.wave_arrived),
+            "status": r.status, "wave_arrived": bool(s.wave_arrived),
             "filter": st.filter, "order": int(st.order), "bandwidth_hz": st.bandwidth_hz,
             "sampling_rate_hz": st.sampling_rate_hz,
             "v_max_1_m_s": s.v_max_1, "v_max_2_m_s": s.v_max_2, "dt_peak_s": s.dt_peak,
             "dt_front_s": s.dt_front, "v_g_m_s": s.v_g,
-            "v_max_1_measured_m_s": r.v_max_1, "v_max_2_measured_m_s": r.v_max_2,
-            "dt_peak_measured_s": r.dt_peak, "dt_front_measured_s": r.dt_front,
-            "v_g_measured_m_s": r.v_g,
-            "measured_not_final": ";".join(str(p) for p, f in zip(sc.probes, r.final)
-                                           if not f),
-            "v_max_1_measured_over_true": _ratio(r.v_max_1, s.v_max_1),
-            "v_max_2_measured_over_true": _ratio(r.v_max_2, s.v_max_2),
-            "dt_peak_bias_s": r.dt_peak - s.dt_peak,
-            "dt_front_bias_s": r.dt_front - s.dt_front,
+            "v_max_1_measured_m_s": r.v_max_1_measured,
+            "v_max_2_measured_m_s": r.v_max_2_measured,
+            "dt_peak_measured_s": r.dt_peak_measured,
+            "dt_front_measured_s": r.dt_front_measured, "v_g_measured_m_s": r.v_g_measured,
+            "measured_not_final": ";".join(str(p) for p in r.measured_not_final),
+            "v_max_1_measured_over_true": _ratio(r.v_max_1_measured, s.v_max_1),
+            "v_max_2_measured_over_true": _ratio(r.v_max_2_measured, s.v_max_2),
+            "dt_peak_bias_s": r.dt_peak_measured - s.dt_peak,
+            "dt_front_bias_s": r.dt_front_measured - s.dt_front,
+            "warnings": ";".join(r.warnings),
         })
     return out
 
@@ -124,11 +132,13 @@ def run_vibrometer(preset: dict) -> tuple[pd.DataFrame, dict[str, dict], pd.Data
         t0 = time.perf_counter()
         trace_speed = min(sc.striker_velocities, key=lambda v: abs(math.log(v / TRACE_SPEED)))
         steps = 0
+        statuses = []
         for m, traj in trajectories(sc, mem, "reference"):
             if not trace:
                 raise GranchainError(f"{sc.name}: the vibrometer study needs traces")
             steps += int(traj.steps)
             rows += _rows(ss, settings, m, traj)
+            statuses += [r["status"] for r in rows[-len(settings):]]
             if (ss.gap_mean_nm == 0 and m.v_striker == trace_speed
                     and ss.material not in traces):
                 traces[ss.material] = _trace(ss, settings, m, traj)
@@ -136,8 +146,11 @@ def run_vibrometer(preset: dict) -> tuple[pd.DataFrame, dict[str, dict], pd.Data
         timing.append({"study": VIBROMETER, "engine": "reference", "batch": sc.name,
                        "scene_hash": sc.hash, "members": len(mem), "steps": steps,
                        "wall_s": wall, "wall_per_member_s": wall / max(1, len(mem))})
+        ended = status_summary(statuses)
         print(f"[granchain] {VIBROMETER}: {sc.name} {len(mem)} chains x {len(settings)} "
-              f"instrument settings in {wall:.2f} s", file=sys.stderr, flush=True)
+              f"instrument settings in {wall:.2f} s" + (
+                  f"; {ended} (the table's status and warnings columns say which)"
+                  if ended else ""), file=sys.stderr, flush=True)
     df = pd.DataFrame(rows) if rows else pd.DataFrame(columns=list(VIB_COLUMNS))
     for c in ("realisation", "seed", "order"):
         df[c] = df[c].astype("int64")

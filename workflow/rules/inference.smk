@@ -1,4 +1,4 @@
-# The mean gap inferred from measured wave timing (granchain infer, granchain/inference.py;
+# The mean gap inferred from measured wave timing (granchain infer, granchain/inference/;
 # with the coefficient of restitution, --fit gap_mean,restitution, when the base scene has
 # contact_damping coeff_restitution and the CSV both peaks: inference.fit_for) for every
 # measurements/<name>.csv at the top of the repository, with its base scene
@@ -8,9 +8,10 @@
 # simulated grids are cached under results/inference_cache, keyed by scene hash, for all
 # presets.
 # MEASUREMENTS and inference_targets() are in common.smk (all_targets lists the real ones).
-INFER_CODE = [str(Path(workflow.basedir) / "granchain" / f)
-              for f in ("inference.py", "gapdesign.py", "modelcheck.py",
-                        "figures/inference.py")]
+INFER_CODE = sorted(
+    str(p) for p in (Path(workflow.basedir) / "granchain" / "inference").glob("*.py")) + [
+    str(Path(workflow.basedir) / "granchain" / f)
+    for f in ("gapdesign.py", "modelcheck.py", "figures/inference.py")]
 
 
 wildcard_constraints:

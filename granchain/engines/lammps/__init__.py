@@ -69,7 +69,6 @@ dumped positions and velocities.
 """
 from __future__ import annotations
 
-import math
 import shutil
 import sys
 import tempfile
@@ -83,7 +82,8 @@ from ...errors import GranchainError
 from ...guards import require_resolved, result_limits
 from ...lammps import deck as deckmod
 from ...scene import Scene
-from ...stoprule import auto_t_max, last_detached, wall_left
+from ...runplan import RunPlan, plan_run
+from ...stoprule import last_detached, wall_left
 from ...trajectory import RunInfo, Trajectory
 from .dump import read_binary, read_dump
 from .ledger import chain_terms
@@ -99,7 +99,7 @@ READERS = {"binary": ("traj.bin", "read_binary"), "dump": ("traj.dump", "read_du
 def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: bool = False,
         force: bool = False, dt: float | None = None, progress: bool | None = None,
         timeout: float | None = None, velocities: str = "float64", readers: int = 1,
-        output: str = "binary", trace: bool = True, radii=None):
+        output: str = "binary", trace: bool = True, radii=None, plan: RunPlan | None = None):
     """Yield one Trajectory per chain. gaps: (B, n-1) m; v_striker: (B,) m/s; radii:
     (B, n) m, each chain's own (a radius spread, ``gaps.member_radii``: its own diameters
     and masses, contact constants, groove springs, static overlaps and wall overlap), or
@@ -120,7 +120,9 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
     one LAMMPS run. ``velocities``, ``readers``: see
     :func:`~granchain.engines.lammps.dump.read_dump` (output "dump"
     only). The scene's
-    method must not be auto (``simulate`` and ``compare`` resolve it).
+    method must not be auto (``simulate`` and ``compare`` resolve it). ``plan``: the
+    scene's run plan (``granchain.runplan.plan_run``; planned here if None), from which the
+    deck takes its cadence and run length (``lammps.deckplan.plan``).
     """
     require_resolved(scene, "LAMMPS engine")
     gaps = np.atleast_2d(np.asarray(gaps, dtype=float))
@@ -150,6 +152,7 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         if wd.is_dir() and any(wd.iterdir()) and not force:
             raise GranchainError(f"LAMMPS workdir '{wd}' is not empty; choose an empty "
                                  "directory or allow replacing its files (force / --force)")
+        deckmod.check_workdir(wd, force, "LAMMPS workdir")
         try:
             wd.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -158,11 +161,16 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
     try:
         from ...lammps.runner import lammps_version, run_lammps
         t0 = time.perf_counter()
-        pl = deckmod.plan(scene, gaps=gaps, v_striker=vs, radii=radii, output=output)
+        plan = plan_run(scene) if plan is None else plan
+        pl = deckmod.plan(scene, gaps=gaps, v_striker=vs, radii=radii, output=output,
+                          run_plan=plan)
         deck = deckmod.write_deck(scene, wd, gaps=gaps, v_striker=vs, radii=pl.radii, force=True,
-                                  output=output, durable=not tmp)
+                                  output=output, durable=not tmp, run_plan=plan)
+        # every earlier output goes (checked above): LAMMPS then writes new files, never
+        # through a symlink left under one of their names
         for stale in (deckmod.DUMP_NAME, deckmod.ENERGY_NAME, deckmod.LEDGER_NAME,
-                      deckmod.BINARY_NAME, deckmod.LEDGER_BINARY_NAME):
+                      deckmod.BINARY_NAME, deckmod.LEDGER_BINARY_NAME, deckmod.LOG_NAME,
+                      deckmod.SCREEN_NAME):
             (wd / stale).unlink(missing_ok=True)
         if progress:
             print(f"[granchain] {scene.name}: LAMMPS, {B} chain(s) x {scene.n} spheres, "
@@ -217,7 +225,7 @@ def _trajectories(scene, pl, data, wall_each, info):
         v = V[:, b, :]
         keep, status = step.size, "done"
         if scene.t_end is None:
-            keep, status = auto_stop(scene, pl.gaps[b], vsb, v[:, -1], OL[:, b], pl.sample_dt,
+            keep, status = auto_stop(int(pl.chain_samples[b]), vsb, v[:, -1], OL[:, b],
                                      last_disp=None if XL is None else XL[:, b])
         bad = np.flatnonzero(~np.all(np.isfinite(v[:keep]), axis=1))
         if bad.size:
@@ -244,10 +252,11 @@ def _trajectories(scene, pl, data, wall_each, info):
             force_evaluations=int(step[keep - 1]) + 1, **extra)
 
 
-def auto_stop(scene: Scene, gaps, v_striker: float, vlast, overlap_last,
-              sample_dt: float, last_disp=None) -> tuple[int, str]:
+def auto_stop(cap: int, v_striker: float, vlast, overlap_last,
+              last_disp=None) -> tuple[int, str]:
     """(samples kept, status) of a t_end auto chain, by the stop rule of
-    ``granchain.stoprule`` as ``engines.kernels.run_window`` applies it.
+    ``granchain.stoprule`` as ``engines.kernels.run_window`` applies it; ``cap``: its
+    sample count at most (its run plan's, ``DeckPlan.chain_samples``).
 
     vlast, overlap_last: the last particle's velocity (m/s) and its contact's overlap (m)
     at every sample; last_disp: with an end wall, the last particle's displacement (m)
@@ -256,13 +265,13 @@ def auto_stop(scene: Scene, gaps, v_striker: float, vlast, overlap_last,
     last particle has left (free end), or moves back from the end wall faster than the
     arrival speed and is back at or behind its initial position (the wave has reflected
     and the wall force is back at or below its static value; ``kernels._left``). A chain
-    that never does stops at its own cap, auto_t_max, with status timeout. A chain at
-    rest keeps its initial sample only.
+    that never does stops at its cap (``stoprule.auto_t_max``), with status timeout. A
+    chain at rest keeps its initial sample only.
     """
     S = len(vlast)
     if v_striker <= 0:
         return 1, "done"
-    nt = min(S, int(math.ceil(auto_t_max(scene, np.asarray(gaps), v_striker) / sample_dt)) + 1)
+    nt = min(S, cap)
     if last_disp is not None:
         hit = np.flatnonzero(wall_left(vlast[1:nt], last_disp[1:nt], v_striker))
     else:

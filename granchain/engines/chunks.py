@@ -1,0 +1,69 @@
+"""How the reference engine cuts a group of chains into chunks and deals their blocks to
+the threads.
+
+A chunk is what one kernel call holds: as many chains as a memory budget
+(``CHUNK_BYTES``, and at most ``CHUNK_CHAINS``) allows. The fixed-step methods run a
+chunk in blocks of ``LANES`` consecutive chains, and numba hands each thread an equal
+contiguous share of the blocks; the chains come sorted by expected length, so a chunk's
+full blocks are dealt to the threads' shares back and forth (0, 1, .., T-1, T-1, .., 0,
+..) and every thread gets long and short blocks alike. A chain's result does not depend
+on its block or lane, nor on its chunk.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import backend
+
+CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
+CHUNK_CHAINS = 512               # at most this many chains in a chunk
+LANES = 32                       # chains per block of the fixed-step kernels
+
+
+def split(group, per_chain: float, blocked: bool, observe: bool):
+    """Yield the chunks of ``group`` (chain indices, sorted by expected length) whose
+    chains hold ``per_chain`` bytes each. ``blocked``: the fixed-step methods' blocks of
+    LANES chains, whole blocks per chunk, dealt to the threads (:func:`deal_blocks`);
+    with ``observe`` (their on-the-fly observables, the same size whatever a chain's
+    length) as few chunks as the limits allow, as even as whole blocks make them, else
+    as many blocks on every thread."""
+    size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, CHUNK_CHAINS)))
+    threads = backend.num_threads()
+    if blocked and observe and size < len(group):
+        # whole blocks; as few chunks as the limits allow, as even as blocks make them
+        parts = -(-len(group) // max(LANES, size // LANES * LANES))
+        size = -(-len(group) // (parts * LANES)) * LANES
+    elif blocked and size < len(group):
+        # whole blocks, as many on every thread
+        unit = LANES * threads
+        size = max(LANES, size // unit * unit)
+    for i in range(0, len(group), size):
+        chunk = group[i:i + size]
+        yield deal_blocks(chunk, threads) if blocked else chunk
+
+
+def deal_blocks(chunk, threads):
+    """``chunk`` with its full blocks of LANES chains reordered so that numba's contiguous
+    split of the blocks over ``threads`` gives each thread blocks dealt back and forth
+    from the sorted order; a partial block stays last (the padding lanes follow it)."""
+    full = len(chunk) // LANES
+    if threads < 2 or full <= threads:
+        return chunk
+    # numba's static schedule of range(nblk): equal contiguous shares, one more for each
+    # of the first nblk % threads threads
+    nblk = -(-len(chunk) // LANES)
+    share = [nblk // threads + (t < nblk % threads) for t in range(threads)]
+    share[-1] -= nblk - full                      # the partial block stays last
+    shares = [[] for _ in range(threads)]
+    turn = list(range(threads)) + list(range(threads - 1, -1, -1))
+    k = 0
+    for blk in range(full):
+        while True:
+            t = turn[k % len(turn)]
+            k += 1
+            if len(shares[t]) < share[t]:
+                break
+        shares[t].append(blk)
+    order = [b for s in shares for b in s]
+    blocks = chunk[:full * LANES].reshape(full, LANES)[order].reshape(-1)
+    return np.concatenate([blocks, chunk[full * LANES:]])

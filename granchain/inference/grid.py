@@ -1,0 +1,352 @@
+"""The simulated grids both fits read.
+
+- The base scene each grid is derived from: completed by :func:`complete_base` (the
+  chapter's gap law, the data's striker speeds), checked by :func:`check_base` and, for the
+  joint fit, :func:`check_restitution_base`.
+- What a simulated chain gives a measured column: :func:`timing` and :func:`peak`, the
+  one place each.
+- The gap-only :class:`Grid` (mean gaps x striker speeds x realisations,
+  :func:`simulate_grid`) and the joint :class:`JointGrid` (x restitutions,
+  :func:`simulate_joint_grid`): each node one scene derived from the base scene, run
+  through ``simulate.run_scene`` with designed gap realisations (``granchain.gapdesign``)
+  and cached per node, keyed by the node's scene, the design and the package's source.
+
+The method is in the module doc of :mod:`granchain.inference`."""
+from __future__ import annotations
+
+import dataclasses
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import GranchainError
+from ..fileio import atomic_write_bytes
+from ..gapdesign import EMPHASIS, GAP_ONLY_KEY_PRIOR, KEY_PRIOR, design, prior_weights
+from ..scene import Scene
+from .measurements import TIMING_COLUMNS, Measurements
+
+GAP_LAWS = ("uniform", "exponential")     # laws whose realisations scale with their mean
+DEFAULT_GAP_LAW = "uniform"               # the chapter's: uniform on [0, 2 mean], i.i.d.
+CACHE_FORMAT = 1                          # bump when the cached arrays change meaning
+GAP_MAX, GAP_POINTS, REALISATIONS = 500e-9, 21, 64   # the grid of both fits (and the CLI)
+E_MIN, E_POINTS = 0.7, 7          # restitution nodes linspace(E_MIN, 1, E_POINTS): spacing 0.05
+JOINT_OBS = ("dt_peak_s", "dt_front_s", "v_max_1", "v_max_2")
+JOINT_CACHE_FORMAT = 1
+
+
+def timing(result, column: str) -> float:
+    """The simulated timing that a measurement's ``column`` is compared with: the chain's
+    true peak-to-peak (``dt_peak_s``) or half-peak arrival (``dt_front_s``) delay between
+    the probes. This is the one place that chooses between true and instrument timing."""
+    return {"dt_peak_s": result.dt_peak, "dt_front_s": result.dt_front}[column]
+
+
+def complete_base(base: Scene, meas: Measurements) -> tuple[Scene, dict]:
+    """The scene the inference simulates, and where its gap law and striker speeds come
+    from (``{"gap_law": "scene" | "default", "speeds": "scene" | "data"}``).
+
+    A base scene that does not give ``gaps.distribution`` gets DEFAULT_GAP_LAW, the
+    chapter's (its mean is a placeholder: the inference sets it); one that does not give
+    ``striker.velocity`` is simulated at the data's own striker speeds. What the scene
+    gives is kept as it is, and checked by :func:`check_base` and
+    :func:`~granchain.inference.measurements.check_speeds`. The returned scene keeps the
+    base scene's ``given``, so completing it again changes nothing and reports the same
+    sources. A base scene that cannot take a gap law is refused first
+    (:func:`check_gappable`)."""
+    check_gappable(base)
+    change = {}
+    src = {"gap_law": "scene", "speeds": "scene"}
+    if "gaps.distribution" not in base.given:
+        src["gap_law"] = "default"
+        if base.gap_distribution != DEFAULT_GAP_LAW:
+            change["gaps"] = {"distribution": DEFAULT_GAP_LAW, "mean": 0.0}
+    if "striker.velocity" not in base.given:
+        src["speeds"] = "data"
+        speeds = sorted({float(v) for v in meas.v})
+        if list(base.striker_velocities) != speeds:
+            change["striker"] = {"velocity": speeds}
+    if change:
+        base = dataclasses.replace(base.derive(change), given=base.given)
+    return base, src
+
+
+def check_gappable(base: Scene) -> None:
+    """Refuse (SceneError naming the key) a base scene whose chain cannot have gaps: a
+    preloaded chain (``precompression.force``) is pressed together, so it has no mean gap
+    to infer."""
+    from ..errors import SceneError
+    if base.precompression > 0.0 or "precompression.force" in base.given:
+        raise SceneError("precompression.force", "a preloaded chain is pressed together and "
+                         "has no gaps, so the inference cannot give it a gap law",
+                         "drop precompression (and walls.end if only the preload needs it) "
+                         "from the base scene")
+
+
+def check_base(base: Scene) -> None:
+    """A base scene the inference can use: a chain that can have gaps
+    (:func:`check_gappable`), a gap law with a mean that scales its realisations, and a
+    fixed set of striker speeds."""
+    from ..errors import SceneError
+    check_gappable(base)
+    if base.gap_distribution not in GAP_LAWS:
+        raise SceneError("gaps.distribution", f"'{base.gap_distribution}' has no mean gap to "
+                         "infer", f"use one of {', '.join(GAP_LAWS)} (mean: any value; the "
+                         "inference sets it), or leave gaps.distribution out for the "
+                         f"chapter's {DEFAULT_GAP_LAW} law")
+
+
+def grid_scene(base: Scene, gap_mean: float, realisations: int) -> Scene:
+    """The scene of one grid point: the base scene at mean gap ``gap_mean`` (m) with
+    ``realisations`` gap realisations at every striker speed of the base scene."""
+    return base.derive({"gaps": {"mean": float(gap_mean)},
+                        "ensemble": {"realisations": int(realisations)}})
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Simulated timings: ``timings[column]`` of shape (G, S, R) in s (NaN where the wave
+    did not arrive), at mean gaps ``gaps`` (G, m), striker speeds ``speeds`` (S, m/s,
+    ascending) and R realisations; ``hashes`` the grid scenes' hashes; ``simulated`` how
+    many chains this call ran (the rest came from the cache)."""
+    gaps: np.ndarray
+    speeds: np.ndarray
+    timings: dict
+    hashes: tuple[str, ...]
+    simulated: int
+    weights: np.ndarray | None = None
+    key_prior: str = GAP_ONLY_KEY_PRIOR
+
+    @property
+    def realisations(self) -> int:
+        return int(next(iter(self.timings.values())).shape[2])
+
+    @property
+    def realisation_weights(self) -> np.ndarray:
+        """(R,) the realisations' weights in the likelihood: ``weights`` are the design's
+        prior / proposal (None for plain draws), ``key_prior`` says whether they are used
+        (``gapdesign.prior_weights``)."""
+        return prior_weights(self.weights, self.realisations, self.key_prior)
+
+    @property
+    def n_chains(self) -> int:
+        return int(self.gaps.size * self.speeds.size * self.realisations)
+
+
+def _cache_file(cache_dir: Path, scene: Scene, tag: str) -> Path:
+    """One grid point's timings, keyed by its scene, its realisations' design ``tag``
+    (``gapdesign.Design.tag``) and the package's source (a grid simulated by other code is
+    never reused)."""
+    from ..fileio import source_hash
+    return Path(cache_dir) / (f"grid-{scene.hash}-{tag}-{source_hash()[:12]}-"
+                              f"v{CACHE_FORMAT}.npz")
+
+
+def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: int,
+                  cache_dir=None, engine: str = "reference",
+                  progress: bool | None = None, emphasis: float = EMPHASIS) -> Grid:
+    """Simulate (or read from ``cache_dir``) the grid of mean gaps
+    ``linspace(0, gap_max, gap_points)`` x the base scene's speeds x ``realisations``
+    designed realisations (``gapdesign.design`` with ``emphasis``; 0: the gap law's own
+    draws, weight 1 each). ``progress``: a bar of the chains still to simulate on stderr
+    (``granchain.progress``; None: when stderr is a terminal)."""
+    from ..runplan import plan_run
+    from ..progress import bar
+    from ..simulate import run_scene
+    check_base(base)
+    if gap_points < 3:
+        raise GranchainError(f"--gap-points: {gap_points} is too few; give >= 3")
+    if not gap_max > 0:
+        raise GranchainError(f"--gap-max-nm: {gap_max * 1e9:g} must be > 0")
+    if realisations < 2:
+        raise GranchainError(f"--realisations: {realisations} is too few; give >= 2")
+    speeds = np.array(sorted(set(float(v) for v in base.striker_velocities)))
+    if speeds[0] <= 0:
+        raise GranchainError("scene field 'striker.velocity': a speed of 0 has no wave; give "
+                             "speeds > 0")
+    base = base.derive(striker={"velocity": [float(v) for v in speeds]})
+    designed = design(base, realisations, emphasis)
+    gaps = np.linspace(0.0, gap_max, gap_points)
+    out = {c: np.full((gaps.size, speeds.size, realisations), np.nan) for c in TIMING_COLUMNS}
+    hashes, simulated, todo = [], 0, []
+    for k, g in enumerate(gaps):
+        scene = plan_run(grid_scene(base, g, realisations), per_speed=False).scene
+        hashes.append(scene.hash)
+        path = _cache_file(cache_dir, scene, designed.tag) if cache_dir is not None else None
+        if path is not None and path.exists():
+            with np.load(path) as z:
+                for c in TIMING_COLUMNS:
+                    out[c][k] = z[c]
+        else:
+            todo.append((k, scene, path))
+    with bar(len(todo) * speeds.size * realisations, f"{base.name}: inference grid",
+             enabled=progress) as shown:
+        for k, scene, path in todo:
+            res = run_scene(scene, engine=engine, progress=shown.update,
+                            gaps=designed.gaps(gaps[k]))
+            simulated += len(res)
+            for r in res:
+                j = int(np.searchsorted(speeds, r.v_striker))
+                for c in TIMING_COLUMNS:
+                    out[c][k, j, r.realisation] = timing(r, c)
+            if path is not None:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                buf = io.BytesIO()
+                np.savez(buf, **{c: out[c][k] for c in TIMING_COLUMNS})
+                atomic_write_bytes(path, buf.getvalue(), force=True, field="--cache-dir")
+    return Grid(gaps, speeds, out, tuple(hashes), simulated, designed.weights)
+
+
+def peak(result, probe: int) -> float:
+    """The simulated peak (m/s) that a measured ``vmax_1_m_s`` (probe 0) or ``vmax_2_m_s``
+    (probe 1) is compared with: the chain's true peak, as :func:`timing` takes the true
+    timing."""
+    return result.v_max_1 if probe == 0 else result.v_max_2
+
+
+def check_restitution_base(base: Scene) -> None:
+    """A base scene whose coefficient of restitution the inference can set: the
+    contact_damping effect with model coeff_restitution."""
+    from ..errors import SceneError
+    fix = ("add contact_damping to effects with damping: {model: coeff_restitution, "
+           "e: 0.95} (any e; the inference sets it)")
+    if "contact_damping" not in base.effects:
+        raise SceneError("effects", "has no contact_damping, so the model has no "
+                         "restitution to fit", fix)
+    model = base.setting("contact_damping").model
+    if model != "coeff_restitution":
+        raise SceneError("damping.model", f"is {model}; the inference fits the coefficient "
+                         "of restitution e of model coeff_restitution",
+                         "write damping: {model: coeff_restitution, e: 0.95} (any e; the "
+                         "inference sets it)")
+
+
+def gap_nodes(gap_max: float, points: int) -> np.ndarray:
+    """Mean gaps of the joint grid: gap_max (k/(points-1))^2, dense where the peaks change
+    fastest (the packed-to-gapped change at gaps of the order of the contact overlap,
+    ~10-30 nm; module doc)."""
+    return gap_max * np.linspace(0.0, 1.0, points) ** 2
+
+
+def restitution_nodes(e_min: float, points: int) -> np.ndarray:
+    return np.linspace(e_min, 1.0, points)
+
+
+def joint_scene(base: Scene, gap_mean: float, e: float, realisations: int) -> Scene:
+    """The scene of one node of the joint grid: the base scene at mean gap ``gap_mean``
+    (m) and coefficient of restitution ``e``, ``realisations`` gap realisations."""
+    return base.derive({"gaps": {"mean": float(gap_mean)}, "damping": {"e": float(e)},
+                        "ensemble": {"realisations": int(realisations)}})
+
+
+@dataclass(frozen=True)
+class JointGrid:
+    """Simulated observables ``values[name]`` (``JOINT_OBS``: the two timings in s, the
+    probes' peaks in m/s) of shape (G, E, S, R), NaN where not measured, at mean gaps
+    ``gaps`` (G), restitutions ``restitutions`` (E, ascending, the last 1), striker speeds
+    ``speeds`` (S) and R realisations (the same gap patterns at every node)."""
+    gaps: np.ndarray
+    restitutions: np.ndarray
+    speeds: np.ndarray
+    values: dict
+    hashes: tuple[str, ...]
+    simulated: int
+    wall_s: float = 0.0
+    weights: np.ndarray | None = None
+    key_prior: str = KEY_PRIOR
+
+    @property
+    def realisations(self) -> int:
+        return int(next(iter(self.values.values())).shape[3])
+
+    @property
+    def realisation_weights(self) -> np.ndarray:
+        """(R,) the realisations' weights, as :attr:`Grid.realisation_weights`."""
+        return prior_weights(self.weights, self.realisations, self.key_prior)
+
+    @property
+    def n_chains(self) -> int:
+        return int(self.gaps.size * self.restitutions.size * self.speeds.size
+                   * self.realisations)
+
+
+def _joint_cache_file(cache_dir: Path, scene: Scene, tag: str) -> Path:
+    from ..fileio import source_hash
+    return Path(cache_dir) / (f"joint-{scene.hash}-{tag}-{source_hash()[:12]}-"
+                              f"v{JOINT_CACHE_FORMAT}.npz")
+
+
+def check_joint_options(gap_max: float, gap_points: int, e_min: float, e_points: int,
+                        realisations: int) -> None:
+    if gap_points < 3:
+        raise GranchainError(f"--gap-points: {gap_points} is too few; give >= 3")
+    if not gap_max > 0:
+        raise GranchainError(f"--gap-max-nm: {gap_max * 1e9:g} must be > 0")
+    if realisations < 2:
+        raise GranchainError(f"--realisations: {realisations} is too few; give >= 2")
+    if not (0.0 < e_min < 1.0):
+        raise GranchainError(f"--e-min: {e_min:g} is not between 0 and 1; give the smallest "
+                             "coefficient of restitution to simulate, e.g. 0.8")
+    if e_points < 2:
+        raise GranchainError(f"--e-points: {e_points} is too few; give >= 2")
+
+
+def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: float,
+                        e_points: int, realisations: int, cache_dir=None,
+                        engine: str = "reference", progress: bool | None = None,
+                        emphasis: float = EMPHASIS) -> JointGrid:
+    """Simulate (or read from ``cache_dir``) the joint grid: mean gaps
+    ``gap_nodes(gap_max, gap_points)`` x restitutions ``restitution_nodes(e_min,
+    e_points)`` x the base scene's speeds x ``realisations`` designed realisations (module
+    doc). ``progress`` and ``emphasis`` as :func:`simulate_grid`."""
+    import time
+    from ..runplan import plan_run
+    from ..progress import bar
+    from ..simulate import run_scene
+    check_base(base)
+    check_restitution_base(base)
+    check_joint_options(gap_max, gap_points, e_min, e_points, realisations)
+    speeds = np.array(sorted(set(float(v) for v in base.striker_velocities)))
+    if speeds[0] <= 0:
+        raise GranchainError("scene field 'striker.velocity': a speed of 0 has no wave; give "
+                             "speeds > 0")
+    base = base.derive(striker={"velocity": [float(v) for v in speeds]})
+    designed = design(base, realisations, emphasis)
+    gaps, es = gap_nodes(gap_max, gap_points), restitution_nodes(e_min, e_points)
+    shape = (gaps.size, es.size, speeds.size, realisations)
+    out = {c: np.full(shape, np.nan) for c in JOINT_OBS}
+    hashes, simulated, todo = [], 0, []
+    t0 = time.perf_counter()
+    for k, g in enumerate(gaps):
+        for j, e in enumerate(es):
+            scene = plan_run(joint_scene(base, g, e, realisations), per_speed=False).scene
+            hashes.append(scene.hash)
+            path = (_joint_cache_file(cache_dir, scene, designed.tag) if cache_dir is not None
+                    else None)
+            if path is not None and path.exists():
+                with np.load(path) as z:
+                    for c in JOINT_OBS:
+                        out[c][k, j] = z[c]
+            else:
+                todo.append((k, j, scene, path))
+    with bar(len(todo) * speeds.size * realisations, f"{base.name}: inference grid",
+             enabled=progress) as shown:
+        for k, j, scene, path in todo:
+            res = run_scene(scene, engine=engine, progress=shown.update,
+                            gaps=designed.gaps(gaps[k]))
+            simulated += len(res)
+            for r in res:
+                s = int(np.searchsorted(speeds, r.v_striker))
+                for c in TIMING_COLUMNS:
+                    out[c][k, j, s, r.realisation] = timing(r, c)
+                out["v_max_1"][k, j, s, r.realisation] = peak(r, 0)
+                out["v_max_2"][k, j, s, r.realisation] = peak(r, 1)
+            if path is not None:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                buf = io.BytesIO()
+                np.savez(buf, **{c: out[c][k, j] for c in JOINT_OBS})
+                atomic_write_bytes(path, buf.getvalue(), force=True, field="--cache-dir")
+    return JointGrid(gaps, es, speeds, out, tuple(hashes), simulated,
+                     time.perf_counter() - t0, designed.weights)
+

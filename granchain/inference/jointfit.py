@@ -1,0 +1,236 @@
+"""The joint fit (``--fit gap_mean,restitution``): the grid posterior of the mean gap and
+the coefficient of restitution from the timing and both probes' peaks (:func:`infer_joint`,
+result :class:`JointInference`): its evaluation points and their zoom on a narrow
+posterior, the marginal summaries, the posterior draws and the posterior predictive check
+(module doc of :mod:`granchain.inference`)."""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import GranchainError
+from ..scene import Scene
+from .gapfit import EDGE_WEIGHT, PRIOR, _eq54, log_prior
+from .grid import (E_MIN, E_POINTS, GAP_MAX, GAP_POINTS, REALISATIONS, JointGrid, check_base,
+                   check_restitution_base, complete_base, simulate_joint_grid)
+from .interpolation import _interp_e, joint_interp_errors, joint_values
+from .likelihood import _trapz_weights, joint_log_likelihood, joint_model_check
+from .measurements import Measurements, check_peaks, check_speeds
+from .result import FitResult, shared_fields
+
+FINE_G, FINE_E = 241, 161         # posterior evaluation points (mean gap, restitution)
+ZOOM_DROP = 20.0                  # the second pass covers log posterior >= peak - this
+PREDICTIVE_DRAWS = 400            # posterior draws of the predictive check and the figure
+PREDICTIVE_SEED = 20250
+
+
+def fine_axes(grid: JointGrid) -> tuple[np.ndarray, np.ndarray]:
+    """The posterior's evaluation points: mean gaps (quadratic spacing, as the nodes) and
+    restitutions (uniform) over the grid's range."""
+    return (float(grid.gaps[-1]) * np.linspace(0.0, 1.0, FINE_G) ** 2,
+            np.linspace(float(grid.restitutions[0]), float(grid.restitutions[-1]), FINE_E))
+
+
+def zoom_box(fine_g, fine_e, logpost, drop: float = ZOOM_DROP, shrink: float = 0.5):
+    """((g0, g1), (e0, e1)): the box of the points whose log posterior is within ``drop``
+    of its peak, one point wider on each side, when it spans less than ``shrink`` of the
+    range in either parameter (the posterior is then evaluated again on it, for the
+    resolution of a narrow posterior); None otherwise."""
+    ok = np.isfinite(logpost)
+    if not np.any(ok):
+        return None
+    keep = ok & (logpost >= np.max(logpost[ok]) - drop)
+    gi, ej = np.flatnonzero(keep.any(axis=1)), np.flatnonzero(keep.any(axis=0))
+    a, b = max(gi[0] - 1, 0), min(gi[-1] + 1, fine_g.size - 1)
+    c, d = max(ej[0] - 1, 0), min(ej[-1] + 1, fine_e.size - 1)
+    span_g = (fine_g[b] - fine_g[a]) / (fine_g[-1] - fine_g[0])
+    span_e = (fine_e[d] - fine_e[c]) / (fine_e[-1] - fine_e[0])
+    if min(span_g, span_e) >= shrink:
+        return None
+    return (float(fine_g[a]), float(fine_g[b])), (float(fine_e[c]), float(fine_e[d]))
+
+
+def _summary(x: np.ndarray, pdf: np.ndarray, low_flag: str | None, high_flag: str | None):
+    """(median, lo, hi, flags) of a 1D density on the points x; an end of the grid where
+    the density is above EDGE_WEIGHT x its peak sets the end's quantile and the median to
+    NaN with its flag."""
+    cdf = np.concatenate([[0.0], np.cumsum(0.5 * (pdf[1:] + pdf[:-1]) * np.diff(x))])
+    cdf = cdf / cdf[-1]
+    med, lo, hi = (float(np.interp(q, cdf, x)) for q in (0.5, 0.025, 0.975))
+    flags = []
+    top = float(np.max(pdf))
+    if low_flag and pdf[0] > EDGE_WEIGHT * top:
+        flags.append(low_flag)
+        med, lo = math.nan, math.nan
+    if high_flag and pdf[-1] > EDGE_WEIGHT * top:
+        flags.append(high_flag)
+        med, hi = math.nan, math.nan
+    return med, lo, hi, flags
+
+
+@dataclass(frozen=True)
+class JointInference(FitResult):
+    """Result of :func:`infer_joint` (SI units; NaN where not measured, with ``flags``)."""
+    fit: tuple[str, ...]
+    gap_mean_m: float
+    ci95_m: tuple[float, float]
+    restitution: float
+    restitution_ci95: tuple[float, float]
+    posterior_correlation: float
+    eq54_gap_m: float
+    eq54_gap_bound_m: float
+    eq54_gap_rows_m: tuple[float, ...]
+    predictive_outside: int | None    # None: no posterior draw, nothing checked
+    predictive_values: int
+    predictive_rows: tuple
+    n_simulated: int
+    n_simulated_now: int
+    gap_law: str
+    damping_model: str
+    timing_column: str
+    method: str
+    realisations: int
+    gap_grid_m: tuple[float, float, int]
+    gap_spacing: str
+    restitution_grid: tuple[float, float, int]
+    speeds_m_s: tuple[float, ...]
+    gap_law_source: str           # as Inference
+    speeds_source: str
+    interp_rel_error: dict
+    rows: int
+    chains: int
+    scene: str
+    scene_hashes: tuple[str, ...]
+    flags: tuple[str, ...]
+    data_outside_model: dict      # as Inference
+    posterior_g_m: np.ndarray = dataclasses.field(repr=False, compare=False)
+    posterior_e: np.ndarray = dataclasses.field(repr=False, compare=False)
+    posterior_pdf: np.ndarray = dataclasses.field(repr=False, compare=False)   # (F_g, F_e)
+    marginal_g: np.ndarray = dataclasses.field(repr=False, compare=False)
+    marginal_e: np.ndarray = dataclasses.field(repr=False, compare=False)
+    draws: np.ndarray = dataclasses.field(repr=False, compare=False)           # (D, 2)
+    grid: JointGrid | None = dataclasses.field(default=None, repr=False, compare=False)
+
+    HIDDEN = ("posterior_g_m", "posterior_e", "posterior_pdf", "marginal_g", "marginal_e",
+              "draws", "grid")
+
+
+def posterior_draws(fine_g, fine_e, pdf, draws: int = PREDICTIVE_DRAWS,
+                    seed: int = PREDICTIVE_SEED) -> np.ndarray:
+    """(draws, 2) (g, e) drawn from the posterior on the fine points (cell masses
+    pdf x trapezoid weights), with a fixed seed: the same result gives the same draws."""
+    mass = pdf * _trapz_weights(fine_g)[:, None] * _trapz_weights(fine_e)[None, :]
+    p = mass.ravel() / mass.sum()
+    k = np.random.default_rng(seed).choice(p.size, size=draws, p=p)
+    return np.stack([fine_g[k // fine_e.size], fine_e[k % fine_e.size]], axis=1)
+
+
+def predictive(grid: JointGrid, meas: Measurements, draws: np.ndarray,
+               seed: int = PREDICTIVE_SEED):
+    """Posterior predictive of every row: (per row [(2.5, 50, 97.5) % of timing, vmax_1,
+    vmax_2] with the stated measurement noise added, number of measured values outside
+    their 95 % range, number of values). Rows of one chain share a realisation, but each
+    value is checked on its own."""
+    rng = np.random.default_rng([seed, 1])
+    rows, outside = [], 0
+    perr = meas.peak_err
+    for i in range(len(meas)):
+        X = joint_values(grid, meas.column, float(meas.v[i]), draws[:, 0], draws[:, 1])
+        X = X.reshape(-1, 3)
+        X = X[np.all(np.isfinite(X), axis=1)]
+        sd = np.array([meas.err[i], perr[i], perr[i]])
+        X = X + sd * rng.standard_normal(X.shape)
+        q = np.percentile(X, [2.5, 50, 97.5], axis=0) if X.size else np.full((3, 3), np.nan)
+        y = (meas.t[i], meas.vmax_1[i], meas.vmax_2[i])
+        outside += int(sum(not (q[0, c] <= y[c] <= q[2, c]) for c in range(3)))
+        rows.append({"v_striker_m_s": float(meas.v[i]),
+                     meas.column: [float(x) for x in q[:, 0]],
+                     "vmax_1_m_s": [float(x) for x in q[:, 1]],
+                     "vmax_2_m_s": [float(x) for x in q[:, 2]]})
+    return tuple(rows), outside, 3 * len(meas)
+
+
+def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
+                gap_points: int = GAP_POINTS, e_min: float = E_MIN, e_points: int = E_POINTS,
+                realisations: int = REALISATIONS, cache_dir=None, grid: JointGrid | None = None,
+                source: str = "", prior: str = PRIOR,
+                progress: bool | None = None) -> JointInference:
+    """Infer the mean gap and the coefficient of restitution together (module doc) from
+    ``meas`` (timings and both probes' peaks on every row) with the base scene's model,
+    completed by :func:`~granchain.inference.grid.complete_base`; a given ``grid`` is used
+    as is (from ``simulate_joint_grid`` on the completed base scene). ``progress`` as
+    :func:`~granchain.inference.gapfit.infer`."""
+    base, src = complete_base(base, meas)
+    check_base(base)
+    check_restitution_base(base)
+    if not meas.has_peaks:
+        raise GranchainError(f"{source}columns 'vmax_1_m_s', 'vmax_2_m_s': fitting the "
+                             "restitution needs the measured peaks on every row; give them")
+    check_peaks(meas, base, source)
+    check_speeds(meas, base.striker_velocities if grid is None else grid.speeds, source)
+    if grid is None:
+        grid = simulate_joint_grid(base, gap_max, gap_points, e_min, e_points, realisations,
+                                   cache_dir, progress=progress)
+    fg, fe = fine_axes(grid)
+    errs = joint_interp_errors(grid, meas.column)
+    logpost = joint_log_likelihood(grid, meas, fg, fe, errs) + log_prior(fg, prior)[:, None]
+    ends = (True, True)
+    box = zoom_box(fg, fe, logpost)
+    if box is not None:           # the posterior again, on a grid over its own mass
+        (g0, g1), (e0, e1) = box
+        ends = (g1 >= fg[-1], e0 <= fe[0])
+        fg, fe = np.linspace(g0, g1, FINE_G), np.linspace(e0, e1, FINE_E)
+        logpost = joint_log_likelihood(grid, meas, fg, fe, errs) + log_prior(fg, prior)[:, None]
+    flags = []
+    if not np.any(np.isfinite(logpost)):
+        nan = math.nan
+        pdf = np.zeros_like(logpost)
+        mg, me = np.zeros_like(fg), np.zeros_like(fe)
+        gq = eq = (nan, nan, nan)
+        corr, draws = nan, np.zeros((0, 2))
+        flags.append("no_simulated_match")
+    else:
+        p = np.exp(logpost - np.max(logpost[np.isfinite(logpost)]))
+        p[~np.isfinite(p)] = 0.0
+        wg, we = _trapz_weights(fg), _trapz_weights(fe)
+        pdf = p / float((p * wg[:, None] * we[None, :]).sum())
+        mg, me = (pdf * we[None, :]).sum(axis=1), (pdf * wg[:, None]).sum(axis=0)
+        *gq, fl_g = _summary(fg, mg, None, "posterior_at_grid_end" if ends[0] else None)
+        *eq, fl_e = _summary(fe, me, "restitution_at_grid_end" if ends[1] else None, None)
+        flags += fl_g + fl_e
+        mass = pdf * wg[:, None] * we[None, :]
+        G, E = np.meshgrid(fg, fe, indexing="ij")
+        mu_g, mu_e = (mass * G).sum(), (mass * E).sum()
+        cov = (mass * (G - mu_g) * (E - mu_e)).sum()
+        sd = math.sqrt((mass * (G - mu_g) ** 2).sum() * (mass * (E - mu_e) ** 2).sum())
+        corr = float(cov / sd) if sd > 0 else math.nan
+        draws = posterior_draws(fg, fe, pdf)
+    if draws.size:
+        pred_rows, outside, checked = predictive(grid, meas, draws)
+    else:
+        pred_rows, outside, checked = (), None, 3 * len(meas)   # nothing checked
+    mc = joint_model_check(grid, meas, draws, errs)
+    if mc.flag:
+        flags.append("data_outside_model")
+    e_eq = eq[0] if math.isfinite(eq[0]) else float(grid.restitutions[-1])
+    T0 = _interp_e(grid.values[meas.column][0], grid.restitutions, [e_eq], axis=0)[0]
+    fit54, bound54, rows54 = _eq54(T0, grid.speeds, meas, base.probes)
+    return JointInference(
+        fit=("gap_mean", "restitution"), gap_mean_m=gq[0], ci95_m=(gq[1], gq[2]),
+        restitution=eq[0], restitution_ci95=(eq[1], eq[2]), posterior_correlation=corr,
+        eq54_gap_m=fit54, eq54_gap_bound_m=bound54,
+        eq54_gap_rows_m=tuple(float(r) for r in rows54), predictive_outside=outside,
+        predictive_values=checked, predictive_rows=pred_rows,
+        damping_model="coeff_restitution",
+        method="2D grid posterior (mean gap x restitution), simulated-ensemble kernel "
+               "likelihood of timing and both peaks",
+        gap_spacing="quadratic",
+        restitution_grid=(float(grid.restitutions[0]), float(grid.restitutions[-1]),
+                          int(grid.restitutions.size)),
+        interp_rel_error={k: {"g_max": float(np.max(v["g"])), "e": float(v["e"]),
+                              "speed": float(v["speed"])} for k, v in errs.items()},
+        flags=tuple(flags), posterior_g_m=fg, posterior_e=fe, posterior_pdf=pdf,
+        marginal_g=mg, marginal_e=me, draws=draws, **shared_fields(base, src, meas, grid, mc))
