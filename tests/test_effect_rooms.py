@@ -50,7 +50,7 @@ def _required(module) -> list[tuple[str, ...]]:
     """The parts the registry needs of an effect module, from its declaration: each entry
     a tuple of names, one of which the module must have."""
     s = module.SPEC
-    need = [("SPEC",), ("build",)]
+    need = [("SPEC",), ("build",), ("lammps",)]
     if s.params or s.flags:
         need.append(("kernel",))
     if s.rows:
@@ -83,7 +83,7 @@ def test_a_module_without_its_law_is_caught():
     """The check above fails for an effect that declares a history and no projection."""
     import types
     fake = types.SimpleNamespace(SPEC=spec.EffectSpec("fake", state=(("L_X", "contact"),)),
-                                 build=None, forces=None, error_scale=None)
+                                 build=None, lammps=None, forces=None, error_scale=None)
     assert _missing(fake) == [("project",)]
 
 
