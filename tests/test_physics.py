@@ -186,7 +186,7 @@ def test_eq54_is_an_upper_bound_for_gapped_chains():
                      "{distribution: exponential, mean: 100.0e-9, seed: 3}"):
             from granchain.simulate import run_scene
             runs = run_scene(packed(**{"striker.velocity": vs, "gaps": spec,
-                                       "ensemble.realisations": 4}))
+                                       "ensemble.realisations": 2}))
             for r in runs:
                 bound_front = analytic.eq54_group_velocity(pk.v_g_front, r.gap_mean_probes, vs, 150e-6)
                 bound_peak = analytic.eq54_group_velocity(pk.v_g, r.gap_mean_probes, vs, 150e-6)
