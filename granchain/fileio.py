@@ -121,12 +121,15 @@ def check_distinct(outputs, inputs=()) -> None:
 
 
 def check_output_path(path, force: bool = False, field: str = "--out", *,
-                      probe: bool = True, kind: OutputKind | None = None) -> Path:
+                      probe: bool = True, kind: OutputKind | None = None,
+                      inside: bool = False) -> Path:
     """Refuse a target file that cannot or must not be written (see the module doc).
 
     ``probe``: also create and remove a temporary file in the directory, which proves it
     writable where permission bits do not tell (root, read-only file systems). ``kind``:
-    with ``force``, an existing target must be an earlier output of this kind."""
+    with ``force``, an existing target must be an earlier output of this kind. ``inside``:
+    the file's name is granchain's, in a directory the user gave as ``field`` (a working
+    directory, a deck's directory), so a fix names that directory, not the file."""
     text = os.fspath(path)
     if not text or "\0" in text:
         raise _fail(field, f"{_show(text)} is not a file path", "give the path of a new file")
@@ -138,6 +141,10 @@ def check_output_path(path, force: bool = False, field: str = "--out", *,
     if not parent.is_dir():
         raise _fail(field, f"{_show(parent)} is not a directory", "choose another path")
     if path.is_dir():
+        if inside:
+            raise _fail(field, f"{_show(path)} is a directory where this command writes its "
+                        f"file {path.name}", "move that directory away or choose another "
+                        "directory")
         raise _fail(field, f"{_show(path)} is a directory", "give the path of a file inside it")
     if os.path.lexists(path):
         if not force:

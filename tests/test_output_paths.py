@@ -150,6 +150,12 @@ def test_force_replaces_no_file_of_the_users_in_the_kept_workdir(files, capsys, 
     Path("wd-x").mkdir()
     Path("wd-x/keep.txt").write_text("x")
     refused(capsys, [cmd, "s.yaml", *extra, "--workdir", "wd-x"], "--workdir", "not empty")
+    # a directory in the place of a file the run writes: the fix names the workdir
+    Path("wd-d").mkdir()
+    Path("wd-d/traj.bin").mkdir()
+    refused(capsys, [cmd, "s.yaml", *extra, "--workdir", "wd-d", "--force"], "--workdir",
+            "'wd-d/traj.bin' is a directory where this command writes its file traj.bin",
+            "move that directory away or choose another directory")
     # a file as the workdir: refused before the reference run of compare, not after it
     refused(capsys, [cmd, "s.yaml", *extra, "--workdir", "m.csv", "--force"], "--workdir",
             "not a directory")

@@ -511,7 +511,8 @@ def check_workdir(workdir, force: bool, field: str = "--workdir") -> None:
                                  "allow replacing its files (--force)")
         return
     for name in WORKDIR_FILES:
-        check_output_path(wd / name, True, field, probe=False, kind=WORKDIR_KINDS[name])
+        check_output_path(wd / name, True, field, probe=False, kind=WORKDIR_KINDS[name],
+                          inside=True)
 
 
 def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=None,
@@ -541,7 +542,7 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=N
                              "directory for the deck (it is created if missing)")
     if outdir.is_dir():
         for t in targets:                     # refuse before rendering (plugin build, plan)
-            check_output_path(t, force, "deck", probe=False, kind=DECK_FILES)
+            check_output_path(t, force, "deck", probe=False, kind=DECK_FILES, inside=True)
     if plugin is None and needs_plugin(scene):
         from granchain.lammps.plugin import build_plugin
         plugin = str(build_plugin())
@@ -553,7 +554,7 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=N
         raise GranchainError(f"deck: cannot create the directory {str(outdir)!r} "
                              f"({exc.strerror or exc}); choose another directory") from None
     for t in targets:
-        check_output_path(t, force, "deck", kind=DECK_FILES)
+        check_output_path(t, force, "deck", kind=DECK_FILES, inside=True)
     for t, text in zip(targets[::-1], (data_text, deck_text)):
         if durable:
             atomic_write_text(t, text, force, "deck")
