@@ -63,7 +63,9 @@ KEYS = (
         "`work_contact_damping` (table column `work_damping_J`).", choices=MODELS),
     Key("damping.e", "1", "Coefficient of restitution of `coeff_restitution` and `tsuji`; "
         "required there, refused with `viscoelastic`. e = 1 (no damping) is accepted: it "
-        "is the elastic end of a sweep of e (the dissipation study, the inference's grid).",
+        "is the elastic end of a sweep of e (the dissipation study, the inference's grid). "
+        "With `tsuji` it is not quite: Tsuji's c(e) is a polynomial fit, and c(1) = 4.2e-4 "
+        "(LAMMPS's law as it computes it), a restitution of about 0.9994.",
         positive=True, hi=1.0),
     Key("damping.eta", "1/(m s)", "eta_n0 of `viscoelastic` (LAMMPS's second "
         "`hertz/material` coefficient); required there, refused with the other models. "
