@@ -1,7 +1,7 @@
 """Fixed-step reference kernels against the previous kernels and LAMMPS, side by side in one run.
 
     python benchmarks/kernels.py [--chains 1000] [--old-ref 41e9852] [--np 2] [--skip-lammps]
-                                 [--repeats 3]
+                                 [--repeats 3] [--cold-compile]
 
 The ensemble: gaps-20nm-440c (440C, v_s = 0.1 m/s, uniform gaps of mean 20 nm), t_end auto,
 ``--chains`` realisations, in three settings: Hertz-only Verlet, every effect Verlet
@@ -19,7 +19,11 @@ its log) and its process wall time. Prints particle-steps per second and the rat
 the fraction of the machine's division/sqrt peak: the divisions and square roots a
 particle-step costs when every lane computes every law (counted from the effects'
 laws, ``granchain/effects/``), times their throughput measured here by a numba probe, on all
-cores. The machines are shared: only ratios measured in the one run are worth comparing.
+cores. With ``--cold-compile``, first the one-time compile: ``granchain warm-up`` (the JIT
+kernels in two processes, then the ahead-of-time module) as a whole process, for each tree
+in turn, each time into empty caches (fresh ``$NUMBA_CACHE_DIR`` and
+``$GRANCHAIN_CACHE_DIR``). The machines are shared: only ratios measured in the one run are
+worth comparing.
 """
 from __future__ import annotations
 
@@ -82,6 +86,21 @@ def child(tree: Path, sets, out: Path):
     r = subprocess.run([sys.executable, "-c", CHILD, json.dumps(sets), str(out)], cwd=tree,
                        env=env, capture_output=True, text=True, check=True)
     return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def cold_compile(tree: Path, scratch: Path) -> dict:
+    """Whole-process seconds of ``granchain warm-up`` of ``tree`` into empty caches."""
+    if scratch.exists():
+        shutil.rmtree(scratch)
+    scratch.mkdir(parents=True)
+    env = dict(os.environ, PYTHONPATH=str(tree), NUMBA_CACHE_DIR=str(scratch / "numba"),
+               GRANCHAIN_CACHE_DIR=str(scratch / "granchain"))
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "granchain.cli", "warm-up"], cwd=tree, env=env,
+                   capture_output=True, text=True, check=True)
+    wall = time.perf_counter() - t0
+    shutil.rmtree(scratch, ignore_errors=True)
+    return {"wall": wall}
 
 
 def alternate(run_a, run_b, repeats: int):
@@ -166,6 +185,8 @@ def main(argv=None):
                          "mass and radius per run)")
     ap.add_argument("--np", type=int, default=2, help="LAMMPS MPI ranks")
     ap.add_argument("--skip-lammps", action="store_true")
+    ap.add_argument("--cold-compile", action="store_true",
+                    help="also time the one-time compile of each tree into empty caches")
     ap.add_argument("--repeats", type=int, default=3,
                     help="runs of each tree, taking turns; the fastest counts (default 3)")
     args = ap.parse_args(argv)
@@ -183,6 +204,12 @@ def main(argv=None):
         cores = os.cpu_count()
         print(f"probe: {t_div * 1e9:.3f} ns per division, {t_sqrt * 1e9:.3f} ns per sqrt "
               "(one core, vectorised)", flush=True)
+        if args.cold_compile:
+            new, prev = alternate(lambda: cold_compile(REPO, tmp / "cold-new"),
+                                  lambda: cold_compile(old, tmp / "cold-old"), args.repeats)
+            print(f"cold compile (granchain warm-up into empty caches, fastest of "
+                  f"{args.repeats}): new {new['wall']:.1f} s, previous {prev['wall']:.1f} s: "
+                  f"new / previous x{new['wall'] / prev['wall']:.2f}", flush=True)
         rows = {}
         for name, sets in SETTINGS.items():
             sets = [f"ensemble.realisations={args.chains}"] + sets
