@@ -4,7 +4,8 @@
 #
 #   bash scripts/test.sh           everything (CI): about 15 min on an idle 2-core machine
 #   bash scripts/test.sh --fast    the quick tier: -m "not slow and not workflow and not slurm"
-#                                  (quick LAMMPS tests stay in), at most 2 min with warm caches
+#                                  (quick LAMMPS tests stay in) on two pytest-xdist workers,
+#                                  at most 2 min with warm caches
 #   bash scripts/test.sh [--fast] ARGS...   ARGS go to pytest (e.g. -k name, a test file)
 #
 # The SLURM tests install and start their own one-node cluster (Debian packages) and skip,
@@ -15,7 +16,10 @@ cd "$(dirname "$0")/.."
 marks=()
 if [ "${1:-}" = "--fast" ]; then
     shift
-    marks=(-m "not slow and not workflow and not slurm")
+    # two workers (pytest-xdist), each its own session with its own cache directory
+    # (tests/conftest.py): the quick tier's tests are many and short, and a 2-core machine
+    # runs two at once
+    marks=(-m "not slow and not workflow and not slurm" -n 2)
 fi
 python -m pip install --quiet --disable-pip-version-check -e '.[test]'
 if [ "${CI:-}" = "true" ]; then export GRANCHAIN_REQUIRE_SLURM=1; fi
