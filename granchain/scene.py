@@ -34,8 +34,8 @@ from .validate import Key, number_text, short as _short
 from .scenefile import apply_overrides, read_scene_file
 from .guards import (HARD_OVERLAP_RATIO, MAX_OVERLAP_RATIO, MIN_SAMPLES_PER_PULSE,
                      check_overlaps, floor_sig, max_sample_dt, pulse_width)
-from .effects import MODULES as EFFECT_MODULES, SPECS as EFFECT_SPECS
-from .materials import FIELD_FIX, FIELDS, RIGID, Material, effective_modulus, library
+from .effects import MODULES as EFFECT_MODULES, SPECS as EFFECT_SPECS, hertz
+from .materials import FIELD_FIX, FIELDS, RIGID, Material, library
 
 EFFECTS = tuple(m.SPEC.name for m in EFFECT_MODULES)
 # the effects every scene has, and each effect's requirements (their EffectSpecs)
@@ -398,7 +398,7 @@ class Scene:
         1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j and R* = R_i R_j / (R_i + R_j)."""
         if self.uniform:
             return (self.hertz_k,) * (self.n - 1)
-        return tuple(hertz_constant(self.materials[i], self.radii[i], self.materials[i + 1],
+        return tuple(hertz.constant(self.materials[i], self.radii[i], self.materials[i + 1],
                                     self.radii[i + 1]) for i in range(self.n - 1))
 
     @property
@@ -406,7 +406,7 @@ class Scene:
         """K of the last sphere on the end wall (R* = R_n), or None without a wall."""
         if self.wall is None:
             return None
-        return hertz_constant(self.materials[-1], self.radii[-1], self.wall, math.inf)
+        return hertz.constant(self.materials[-1], self.radii[-1], self.wall, math.inf)
 
     @property
     def static_overlaps(self) -> tuple[tuple[float, ...], float]:
@@ -478,13 +478,13 @@ class Scene:
         preload, also half the period pi sqrt(mu/k2) of a preloaded contact's linear
         oscillation (k2 = (3/2) K^(2/3) F0^(1/3))."""
         if not self.heterogeneous and self.wall is None:
-            return hertz_contact_time(self.mass / 2.0, self.hertz_k, v)
+            return hertz.contact_time(self.mass / 2.0, self.hertz_k, v)
         ms, ks = self.masses, self.contact_k
         pairs = [(ms[i] * ms[i + 1] / (ms[i] + ms[i + 1]), ks[i])
                  for i in self.distinct_contacts]
         if self.wall is not None:
             pairs.append((ms[-1], self.wall_k))
-        tc = min(hertz_contact_time(mu, k, v) for mu, k in pairs)
+        tc = min(hertz.contact_time(mu, k, v) for mu, k in pairs)
         F0 = self.precompression
         if F0 > 0.0:
             tc = min([tc] + [math.pi * math.sqrt(mu / (1.5 * k ** (2.0 / 3.0) * F0 ** (1.0 / 3.0)))
@@ -510,20 +510,6 @@ class Scene:
                 c0 = 2.0 * rs[k] * math.sqrt(k2 / ms[k])
                 width = min(width, 10.0 * rs[k] / c0)
         return width
-
-
-def hertz_constant(a: Material, Ra: float, b: Material, Rb: float) -> float:
-    """K (N/m^1.5) of f = K delta^(3/2) between bodies of materials a, b and radii Ra, Rb
-    (Rb = inf: a flat wall): (4/3) E* sqrt(R*), R* = Ra Rb/(Ra + Rb)."""
-    R_star = Ra if math.isinf(Rb) else (Ra / 2.0 if Ra == Rb else Ra * Rb / (Ra + Rb))
-    return 4.0 / 3.0 * effective_modulus(a, b) * math.sqrt(R_star)
-
-
-def hertz_contact_time(mu: float, K: float, v: float) -> float:
-    """Duration (s) of a head-on Hertz collision of reduced mass mu (kg) and constant K
-    at closing speed v: 2.9432 delta_m / v, delta_m = (5 mu v^2 / (4 K))^(2/5)."""
-    delta_m = (5.0 * mu * v * v / (4.0 * K)) ** 0.4
-    return 2.9432 * delta_m / v
 
 
 def _flatten(changes: dict) -> list[tuple[str, Any]]:
