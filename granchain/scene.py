@@ -9,10 +9,11 @@ This layer parses and validates only. A scene with ``integrator.method: auto`` k
 ``method == "auto"`` and its tolerance; the step it runs with comes from the cost model
 through the run plan (``granchain.runplan.plan_run``), made where a run starts.
 
-Every key's default is in ``DEFAULTS`` below (an effect's section: in its module), and
-every key is declared once beside it (``KEYS``; an effect's: its module's ``KEYS``) with its
-unit, bounds and meaning: the checks here read the bounds from these declarations, and
-``granchain.scenekeys`` writes the reference page of the scene keys from them.
+Every key's default is in ``granchain.scenekeys.DEFAULTS`` (an effect's section: in its
+module), and every key is declared once beside it (``scenekeys.KEYS``; an effect's: its
+module's ``KEYS``) with its unit, bounds and meaning: the checks read the bounds from these
+declarations, and ``granchain.scenekeys`` writes the reference page of the scene keys from
+them.
 """
 from __future__ import annotations
 
@@ -30,239 +31,16 @@ from typing import Any
 
 
 from .errors import SceneError
-from .validate import Key, number_text, short as _short
+from .validate import short as _short
 from .scenefile import apply_overrides, read_scene_file
-from .guards import (HARD_OVERLAP_RATIO, MAX_OVERLAP_RATIO, MIN_SAMPLES_PER_PULSE,
-                     check_overlaps, floor_sig, max_sample_dt, pulse_width)
+from .scenekeys import (ALWAYS, DEFAULT_TOLERANCE, DEFAULTS, FIXED_STEP_METHODS, KEY_BY_PATH,
+                        MAX_FILTER_ORDER, MAX_SPHERES, MEASUREMENT_DEFAULTS,
+                        MIN_STEPS_PER_CONTACT, NAME_RE, NAME_RULE, NORMAL_TRUNCATION,
+                        OPTIONAL_KEYS, RADIUS_SPREAD_DEFAULTS, RANDOM_GAPS, REQUIRES, SECTIONED)
+from .guards import (MIN_SAMPLES_PER_PULSE, check_overlaps, floor_sig, max_sample_dt,
+                     pulse_width)
 from .effects import MODULES as EFFECT_MODULES, SPECS as EFFECT_SPECS, hertz
 from .materials import FIELD_FIX, FIELDS, RIGID, Material, library
-
-EFFECTS = tuple(m.SPEC.name for m in EFFECT_MODULES)
-# the effects every scene has, and each effect's requirements (their EffectSpecs)
-_ALWAYS = tuple(m.SPEC.name for m in EFFECT_MODULES if m.SPEC.always)
-_REQUIRES = {m.SPEC.name: m.SPEC.requires for m in EFFECT_MODULES if m.SPEC.requires}
-# effect -> its scene section, for the effects that have one (granchain.effects: each
-# declares SECTION, its DEFAULTS and validates it with ``settings``)
-_SECTIONED = tuple(m for m in EFFECT_MODULES if hasattr(m, "SECTION"))
-GAP_DISTRIBUTIONS = ("none", "fixed", "uniform", "exponential", "list", "from_length")
-METHODS = ("rk4", "verlet", "adaptive", "event", "auto")
-FIXED_STEP_METHODS = ("rk4", "verlet")        # dt is the step
-TOLERANCE_METHODS = ("adaptive", "event")     # the step follows integrator.tolerance
-
-# Default scene: the chapter's packed 440C chain (15 spheres, R = 150 um, v_s = 0.1 m/s,
-# RK4 with a 1 ns step). Constants of Eq. 5.1 are the chapter's Chapter-4 values;
-# s = sin(90deg/2) for a 90-degree groove (the thesis's chapter 4, which fixes s, is not available).
-DEFAULTS: dict[str, Any] = {
-    "name": None,                       # defaults to the file stem
-    "material": "ss440c",
-    # chain.radius: one radius, or a list of n (particle 1 is the striker);
-    # chain.materials: a list of n materials (default: every sphere is `material`);
-    # chain.radius_spread: each member's radii drawn about the nominal ones
-    "chain": {"n": 15, "radius": 150e-6, "materials": None, "radius_spread": None},
-    # striker.radius / striker.material: particle 1's own (default: as the chain gives)
-    "striker": {"velocity": 0.1, "radius": None, "material": None},
-    "gaps": {"distribution": "none", "mean": None, "seed": 0, "values": None,
-             "extra_length": None},
-    "effects": list(_ALWAYS),
-    # each effect's own section (groove, drag, contact, rolling), from its module
-    **{m.SECTION: m.DEFAULTS for m in _SECTIONED},
-    "probes": [2, 13],
-    "integrator": {"method": "rk4", "dt": 1e-9, "tolerance": None},
-    "t_end": "auto",
-    "output": {"sample_dt": "auto"},
-    "ensemble": {"realisations": 1},
-    # the virtual laser vibrometer (granchain.vibrometer); None: the scene is not
-    # measured. A given block is filled from MEASUREMENT_DEFAULTS.
-    "measurement": None,
-    # a flat wall touching the last sphere: a material (name or {E, nu}) or 'rigid';
-    # None: the far end is free (the chapter's chain)
-    "walls": {"end": None},
-    # a dead load (N) on particle 2 pushing the chain onto the end wall; the chain starts
-    # at its static overlaps
-    "precompression": {"force": None},
-}
-
-# Keys that are left out of a scene's normalised spec when not given, so that a scene
-# using none of them keeps the hash it had before they existed.
-OPTIONAL_KEYS = ("chain.materials", "chain.radius_spread", "striker.radius", "striker.material", "walls.end",
-                 "precompression.force")
-
-# Defaults of the measurement block. The chapter's vibrometers have a 2.5 MHz bandwidth;
-# their decoders' filter response is not given, so butterworth and bessel are offered
-# (order 4 by default). 20 MS/s is a typical digitiser rate for a 2.5 MHz signal (8x the
-# bandwidth). noise_rms_m_s: additive white noise on the recorded samples (none by
-# default); seed: its random stream.
-MEASUREMENT_DEFAULTS: dict[str, Any] = {
-    "bandwidth_hz": 2.5e6,
-    "filter": "butterworth",
-    "order": 4,
-    "sampling_rate_hz": 20e6,
-    "noise_rms_m_s": 0.0,
-    "seed": 0,
-}
-FILTERS = ("butterworth", "bessel")
-MAX_FILTER_ORDER = 10
-
-# Fewest integration steps that must fit in the shortest Hertz collision of a scene (the
-# step guard; the accuracy study's coarsest setting).
-MIN_STEPS_PER_CONTACT = 20
-# The longest chain a scene may describe (each sphere has its own radius and material)
-MAX_SPHERES = 1_000_000
-# Fewest samples per solitary-wave width that output.sample_dt must give:
-# MIN_SAMPLES_PER_PULSE (granchain/guards.py).
-
-# Names (scene name, file stem, custom material name) reach deck comments, data-file
-# titles, JSON and logs: only these characters, 1 to 64 of them.
-# Names reach decks, data files, paths and shells: a safe set, no leading '.' or '-'
-NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9._-]{0,63}")
-NAME_RULE = "use 1-64 characters from A-Z a-z 0-9 . _ -, starting with a letter, digit or _"
-# the distributions that draw at random (gaps.seed matters only for these)
-RANDOM_GAPS = ("uniform", "exponential", "from_length")
-# integrator.tolerance when not given, by method (the fixed-step methods have none)
-DEFAULT_TOLERANCE = {"adaptive": 1e-8, "event": 1e-6, "auto": 1e-4}
-
-RADIUS_SPREADS = ("normal", "uniform")
-# a normal spread is drawn truncated at this many sd (a draw beyond it is drawn again)
-NORMAL_TRUNCATION = 4.0
-# Defaults of a chain.radius_spread block (sd has none: a given block must give it)
-RADIUS_SPREAD_DEFAULTS: dict[str, Any] = {"distribution": "normal", "sd": None, "seed": 0}
-
-# The blocks whose key defaults to null and whose given mapping is filled from defaults
-# of its own
-BLOCK_DEFAULTS = {"chain.radius_spread": RADIUS_SPREAD_DEFAULTS,
-                  "measurement": MEASUREMENT_DEFAULTS}
-
-_MATERIAL = ("a name from `granchain/data/materials.yaml`, or a mapping `{E: 200e9, nu: 0.28, "
-             "rho: 7800}` (" + ", ".join(k.range_text.strip("`") + ("" if k.unit == "1" else
-                                                                   f" {k.unit}")
-                                         for k in FIELDS.values())
-             + "; an optional `name`)")
-
-# Each key of DEFAULTS, MEASUREMENT_DEFAULTS and RADIUS_SPREAD_DEFAULTS, declared once (an
-# effect's section: its module's KEYS). The checks below take the bounds and choices from
-# here; granchain.scenekeys writes the reference page from here.
-KEYS: tuple[Key, ...] = (
-    Key("name", "-", "The scene's name, written into deck comments, data-file titles and file "
-        "names. null: the scene file's stem (`scene` for a scene given as a mapping).",
-        allowed=NAME_RULE.removeprefix("use ")),
-    Key("material", "-", "The material of the spheres. The library has 316 and 440C stainless, "
-        "brass, aluminium 6061, 52100 chrome steel, tungsten carbide, PTFE and soda-lime "
-        "glass, each with its source; E, nu, rho of 316 and 440C are handbook values (the "
-        "thesis's Table 2.1 is not available). null: the default. Refused beside a "
-        "`chain.materials` list.", allowed=_MATERIAL),
-    Key("chain.n", "1", "Number of spheres, particle 1 (the striker) included: at least the "
-        "striker and two probes.", integer=True, lo=3, hi=MAX_SPHERES),
-    Key("chain.radius", "m", "Sphere radius (the chapter's). A list gives each sphere its "
-        "own, particle 1 (the striker) first: dimer, tapered and impurity chains. Every "
-        "contact is Hertzian with 1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j and R* = R_i R_j/(R_i "
-        "+ R_j); the other effects use each sphere's own mass, radius and "
-        "inertia.", positive=True, allowed="or a list of n radii"),
-    Key("chain.materials", "-", "Each sphere's material, particle 1 first (one material for "
-        "every sphere: `material`, which is refused beside the list, as is "
-        "`striker.material`). null: every sphere is `material`.",
-        allowed="a list of n materials, each as `material`"),
-    Key("chain.radius_spread", "-", "Each member's radii drawn about the nominal ones "
-        "(`chain.radius_spread.*` below), from a stream of its own, so a member re-runs alone "
-        "bit for bit; both engines take it. null: every member has the nominal radii.",
-        allowed="a mapping, or null"),
-    Key("chain.radius_spread.distribution", "-", f"`normal`: truncated at "
-        f"{NORMAL_TRUNCATION:g} sd (a draw beyond is drawn again); `uniform`: on +-sqrt(3) sd. "
-        "Member r draws from rng([seed, r, RADIUS_STREAM]).", choices=RADIUS_SPREADS),
-    Key("chain.radius_spread.sd", "m", "Standard deviation of the radii; required in a "
-        "given block.", positive=True, allowed="a draw must not reach a non-positive radius: "
-        f"{NORMAL_TRUNCATION:g} sd (normal) or sqrt(3) sd (uniform) below the smallest radius"),
-    Key("chain.radius_spread.seed", "1", "Seed of the radius draws.", integer=True,
-        nonneg=True),
-    Key("striker.velocity", "m/s", "The striker's speed towards the chain (the chapter's); a "
-        "list is a sweep, one run per speed.", nonneg=True, allowed="or a list of speeds; "
-        f"every contact's peak overlap bound within {HARD_OVERLAP_RATIO:g} R* (warned above "
-        f"{MAX_OVERLAP_RATIO:g} R*)"),
-    Key("striker.radius", "m", "Particle 1's own radius: a heavy or light striker, beside one "
-        "`chain.radius` (refused beside a list, whose first entry is the striker's). null: as "
-        "`chain.radius` gives.", positive=True),
-    Key("striker.material", "-", "Particle 1's own material, beside `material` (refused beside "
-        "a `chain.materials` list, whose first entry is the striker's). null: as `material` "
-        "gives.", allowed="as `material`"),
-    Key("gaps.distribution", "-", "The gaps between neighbours (n-1 of them): `none`, a "
-        "packed chain; `fixed`, every gap `mean`; `uniform`, i.i.d. U(0, 2 mean) (the chapter "
-        "says \"random\"); `exponential`, i.i.d. with mean `mean`; `list`, the n-1 `values`; "
-        "`from_length`, the chain longer than packed by `extra_length`, split at random "
-        "over the contacts (flat Dirichlet; the chapter's Fig. 5.4).",
-        choices=GAP_DISTRIBUTIONS),
-    Key("gaps.mean", "m", "The mean gap of `fixed`, `uniform` and `exponential` (required "
-        "there, refused with the others).", nonneg=True),
-    Key("gaps.seed", "1", "Seed of the random gaps (`uniform`, `exponential`, `from_length`; "
-        "refused with the others): realisation r draws from rng([seed, r]), so any member "
-        "re-runs alone bit for bit.", integer=True, nonneg=True),
-    Key("gaps.values", "m", "The n-1 gaps of `list` (required there, refused with the "
-        "others), the same for every realisation.", nonneg=True,
-        allowed="a list of n-1 gaps, each so"),
-    Key("gaps.extra_length", "m", "The length by which the chain exceeds the packed length, "
-        "for `from_length` (required there, refused with the others): every realisation has "
-        "total gap `extra_length`.", nonneg=True),
-    Key("effects", "-", "The physical effects of the chapter's Eq. 5.1 that act; "
-        + "; ".join([f"`{e}` is always on" for e in _ALWAYS]
-                    + [f"`{e}` {why}, so it needs `{r}`" for e, reqs in _REQUIRES.items()
-                       for r, why in reqs]) + ".",
-        choices=EFFECTS, allowed="a list of these, each once"),
-    Key("probes", "1", "The two particles whose velocities are recorded and compared (the "
-        "chapter's), in the direction the wave travels; particle 1 is the striker.",
-        allowed="two particles p1, p2 with 2 <= p1 < p2 <= n"),
-    Key("integrator.method", "-", "`rk4` and `verlet`: a fixed step `dt` (the chapter's RK4); "
-        "`adaptive` (DOP853) and `event` (event-driven; no end wall): the step follows "
-        "`tolerance`; `auto`: the cheapest setting the cost model expects to reach "
-        "`tolerance`, the relative error on v_g.", choices=METHODS),
-    Key("integrator.dt", "s", "The step of `rk4` and `verlet` (the chapter's). It must give "
-        f"at least {MIN_STEPS_PER_CONTACT} steps per shortest collision at the fastest "
-        "striker (and per dashpot time m_eff/eta with contact damping); the error shows the "
-        "limit.", positive=True),
-    Key("integrator.tolerance", "1", "The relative tolerance of `adaptive` and `event`, or of "
-        "`auto` the requested relative error on v_g; refused with `rk4` and `verlet`. null: "
-        + ", ".join(f"{number_text(t)} for {m}" for m, t in DEFAULT_TOLERANCE.items()) + ".",
-        positive=True, hi=0.1),
-    Key("t_end", "s", "How long a run lasts. `auto`: until the wave has left the whole chain "
-        "(with an end wall, until the last sphere moves back from the wall faster than it "
-        "arrived and is behind its starting position).", positive=True, allowed="or `auto`"),
-    Key("output.sample_dt", "s", "The interval of the recorded samples. It must give at least "
-        f"{MIN_SAMPLES_PER_PULSE} samples per solitary-wave width at the fastest striker, and "
-        "be no shorter than the step. `auto`: `granchain.stoprule.SAMPLES_PER_PULSE` samples "
-        "per width.", positive=True, allowed="or `auto`"),
-    Key("ensemble.realisations", "1", "The number of gap realisations; realisation r draws "
-        "from rng([gaps.seed, r]).", integer=True, lo=1),
-    Key("measurement", "-", "The virtual laser vibrometer (`measurement.*` below): each probe's "
-        "velocity is resampled onto the digitiser's grid, low-pass filtered (causal, from "
-        "rest) and given noise, and the peaks, delays and v_g are read from that record as "
-        "the experiment reads them (`*_measured` fields and columns). null: the probes are "
-        "not measured. A given block is filled from the defaults below.",
-        allowed="a mapping, or null"),
-    Key("measurement.bandwidth_hz", "Hz", "The vibrometer's -3 dB bandwidth (the chapter's "
-        "vibrometers').", positive=True),
-    Key("measurement.filter", "-", "The decoder's low-pass: the analog prototype of this "
-        "kind, made digital by the bilinear transform with the bandwidth pre-warped; the "
-        "chapter does not give the response, so both are offered. A causal filter delays "
-        "each pulse, which cancels in the probe-to-probe delay.", choices=FILTERS),
-    Key("measurement.order", "1", "The filter's order.", integer=True, lo=1,
-        hi=MAX_FILTER_ORDER),
-    Key("measurement.sampling_rate_hz", "Hz", "The digitiser's rate (by default 8 x the "
-        "bandwidth, a typical rate for it).", positive=True,
-        allowed="above 2 x `bandwidth_hz`"),
-    Key("measurement.noise_rms_m_s", "m/s", "RMS of the white noise added to the recorded "
-        "samples.", nonneg=True),
-    Key("measurement.seed", "1", "Seed of the noise: member i draws from rng([seed, i]); "
-        "refused without noise.", integer=True, nonneg=True),
-    Key("walls.end", "-", "A flat wall touching the last sphere (R* = R_n; `rigid`: 1/E_w = 0); "
-        "its force is recorded (`wall_force_max`, `t_wall_peak`, `wall_force_static`). The "
-        "event method takes no wall. null: the far end is free (the chapter's chain).",
-        allowed="a material name, a mapping `{E, nu}`, or `rigid`"),
-    Key("precompression.force", "N", "A dead load F0 on particle 2 pushing the chain onto the "
-        "end wall (needs `walls.end`, no gaps). The chain starts at rest in its static state, "
-        "every contact from particle 2 to the wall overlapping by (F0/K)^(2/3); the ledger's "
-        "`work_load` is the load's work. null: no load (0 is refused: a key with no "
-        "effect).", positive=True,
-        allowed=f"static overlaps within {HARD_OVERLAP_RATIO:g} R* of each contact (warned "
-        f"above {MAX_OVERLAP_RATIO:g} R*)"),
-)
-_KEY = {k.path: k for k in KEYS}
 
 
 @dataclass(frozen=True)
@@ -567,7 +345,7 @@ def _merge(defaults: dict, given: dict, prefix: str = "") -> dict:
 def _num(spec: dict, dotted: str, *, allow_none: bool = False, fix: str | None = None):
     """The number at a dotted key of a merged spec, checked against the key's bounds
     (its declaration in ``KEYS``)."""
-    return _KEY[dotted].number(_get(spec, dotted), allow_none=allow_none, fix=fix)
+    return KEY_BY_PATH[dotted].number(_get(spec, dotted), allow_none=allow_none, fix=fix)
 
 
 def check_name(value, field: str) -> str:
@@ -638,7 +416,7 @@ def _chain_spheres(spec: dict, n: int, material: Material, given: set[str]):
             raise SceneError("chain.radius", f"has {len(rad)} entries but the chain has n = {n} "
                              "spheres", f"give one radius, or a list of exactly n = {n} radii "
                              "(particle 1, the striker, first)")
-        radii = [_KEY["chain.radius"].number(r, field=f"chain.radius[{i}]", fix=fix)
+        radii = [KEY_BY_PATH["chain.radius"].number(r, field=f"chain.radius[{i}]", fix=fix)
                  for i, r in enumerate(rad)]
     else:
         radii = [_num(spec, "chain.radius", fix=fix)] * n
@@ -696,14 +474,14 @@ def _radius_spread(value, radii) -> RadiusSpread | None:
         raise SceneError(f"{where}.{key}", "unknown key",
                          f"did you mean '{where}.{close[0]}'?" if close else
                          "a radius spread has distribution, sd and seed")
-    dist = _KEY[f"{where}.distribution"].choice(
+    dist = KEY_BY_PATH[f"{where}.distribution"].choice(
         value.get("distribution", RADIUS_SPREAD_DEFAULTS["distribution"]), "distribution")
     if "sd" not in value:
         raise SceneError(f"{where}.sd", "missing", "give the standard deviation of the radii in "
                          "metres, e.g. 0.3e-6")
-    sd = _KEY[f"{where}.sd"].number(
+    sd = KEY_BY_PATH[f"{where}.sd"].number(
         value["sd"], fix="give the standard deviation of the radii in metres (> 0), e.g. 0.3e-6")
-    seed = _KEY[f"{where}.seed"].number(value.get("seed", RADIUS_SPREAD_DEFAULTS["seed"]),
+    seed = KEY_BY_PATH[f"{where}.seed"].number(value.get("seed", RADIUS_SPREAD_DEFAULTS["seed"]),
                                         fix="give a whole-number seed >= 0")
     spread = RadiusSpread(dist, sd, seed)
     value.clear()
@@ -749,26 +527,26 @@ def _effects(value) -> frozenset[str]:
     if isinstance(value, str):
         words = [w for w in re.split(r"[\s,\[\]]+", value) if w]
         if len(words) != 1:
-            listed = ", ".join(words or _ALWAYS)
+            listed = ", ".join(words or ALWAYS)
             raise SceneError("effects", f"{_short(value)} is one string, not a list",
                              f"write effects: [{listed}]")
         value = words
     if not isinstance(value, list):
         raise SceneError("effects", f"expected a list, got {_short(value)}",
-                         f"write effects: [{', '.join(_ALWAYS)}, ...]")
+                         f"write effects: [{', '.join(ALWAYS)}, ...]")
     seen = []
     for i, e in enumerate(value):
-        _KEY["effects"].choice(e, "effect", field=f"effects[{i}]")
+        KEY_BY_PATH["effects"].choice(e, "effect", field=f"effects[{i}]")
         if e in seen:
             raise SceneError(f"effects[{i}]", f"'{e}' is listed twice (also effects[{seen.index(e)}])",
                              "list each effect once")
         seen.append(e)
     eff = frozenset(seen)
-    for e in _ALWAYS:
+    for e in ALWAYS:
         if e not in eff:
             raise SceneError("effects", f"'{e}' is missing",
                              f"{EFFECT_SPECS[e].always}: add {e}")
-    for e, reqs in _REQUIRES.items():
+    for e, reqs in REQUIRES.items():
         for r, why in reqs:
             if e in eff and r not in eff:
                 raise SceneError("effects", f"'{e}' {why} but '{r}' is off",
@@ -801,7 +579,7 @@ def _probes(value, n: int) -> tuple[int, int]:
 
 
 # keys that have no effect unless ... (checked only for keys the user wrote)
-_SECTION_EFFECT = {m.SECTION: m.SPEC.name for m in _SECTIONED}
+_SECTION_EFFECT = {m.SECTION: m.SPEC.name for m in SECTIONED}
 
 
 def _check_unused(given: set[str], dist: str, eff: frozenset[str], method: str) -> None:
@@ -886,14 +664,14 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
         raise SceneError("striker.velocity", "empty list", "give one velocity or a list of them (m/s)")
     velocities = []
     for i, v in enumerate(vlist):
-        velocities.append(_KEY["striker.velocity"].number(
+        velocities.append(KEY_BY_PATH["striker.velocity"].number(
             v, field=f"striker.velocity[{i}]" if isinstance(vel, list) else "striker.velocity",
             fix="the striker moves towards the chain: give a speed >= 0 in m/s"))
 
     eff = _effects(spec["effects"])
 
     # gaps
-    dist = _KEY["gaps.distribution"].choice(spec["gaps"]["distribution"], "distribution")
+    dist = KEY_BY_PATH["gaps.distribution"].choice(spec["gaps"]["distribution"], "distribution")
     gap_mean = gap_values = extra = None
     if dist in ("fixed", "uniform", "exponential"):
         if spec["gaps"]["mean"] is None:
@@ -908,7 +686,7 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
         if len(vals) != n - 1:
             raise SceneError("gaps.values", f"has {len(vals)} entries but the chain has {n - 1} contacts",
                              f"give exactly n-1 = {n - 1} gaps")
-        gap_values = tuple(_KEY["gaps.values"].number(g, field=f"gaps.values[{i}]",
+        gap_values = tuple(KEY_BY_PATH["gaps.values"].number(g, field=f"gaps.values[{i}]",
                                                       fix="give a finite gap >= 0 in metres")
                            for i, g in enumerate(vals))
     if dist == "from_length":
@@ -920,12 +698,12 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
 
     # each effect's own section, validated by its module
     settings = tuple((m.SPEC.name, m.settings(spec[m.SECTION], frozenset(given), m.SPEC.name in eff))
-                     for m in _SECTIONED)
+                     for m in SECTIONED)
 
     pr = _probes(spec["probes"], n)
 
     # integrator
-    method = _KEY["integrator.method"].choice(spec["integrator"]["method"], "method")
+    method = KEY_BY_PATH["integrator.method"].choice(spec["integrator"]["method"], "method")
     dt = _num(spec, "integrator.dt", fix="give the time step in seconds, e.g. 1e-9")
     tol = _num(spec, "integrator.tolerance", allow_none=True,
                fix="give a relative tolerance such as 1e-6")
@@ -954,7 +732,7 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
                         fix="give a whole number of gap realisations >= 1")
     measurement = _measurement(spec, given)
     _drop_unset(spec)
-    for m in _SECTIONED:
+    for m in SECTIONED:
         if getattr(m, "SECTION_OPTIONAL", False) and m.SPEC.name not in eff and not any(
                 k.startswith(m.SECTION + ".") for k in given):
             spec.pop(m.SECTION, None)
@@ -994,7 +772,7 @@ def _measurement(spec: dict, given: set[str]) -> Measurement | None:
     spec["measurement"] = m
     bw = _num(spec, "measurement.bandwidth_hz",
               fix="give the vibrometer's -3 dB bandwidth in Hz, e.g. 2.5e6")
-    kind = _KEY["measurement.filter"].choice(m["filter"], "filter")
+    kind = KEY_BY_PATH["measurement.filter"].choice(m["filter"], "filter")
     order = _num(spec, "measurement.order",
                  fix=f"give the filter order as a whole number from 1 to {MAX_FILTER_ORDER}")
     fs = _num(spec, "measurement.sampling_rate_hz",

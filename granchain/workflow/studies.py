@@ -49,7 +49,8 @@ from .. import analytic
 from ..errors import GranchainError
 from ..costmodel import fixed_step
 from ..runplan import RunPlan, plan_run
-from ..scene import RANDOM_GAPS, TOLERANCE_METHODS, Scene, apply_overrides, scene_from_dict
+from ..scene import Scene, apply_overrides, scene_from_dict
+from ..scenekeys import RANDOM_GAPS, TOLERANCE_METHODS
 from .config import FIELD_STUDIES, OPTIONAL_STUDIES, QUESTION_STUDIES, ConfigError, \
     study_engine
 
