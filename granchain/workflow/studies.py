@@ -499,7 +499,7 @@ def vibrometer_blocks(spec: dict) -> list[dict]:
 
 
 def vibrometer_settings(preset: dict, ss: StudyScene) -> list:
-    """The instrument settings (:class:`granchain.scene.Measurement`) the vibrometer study
+    """The instrument settings (:class:`granchain.scenecheck.Measurement`) the vibrometer study
     applies to the trajectories of a scene, each validated as the scene's measurement
     block (a bandwidth not below half the sampling rate is refused in one line)."""
     spec = preset["studies"][VIBROMETER]
