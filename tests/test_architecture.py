@@ -116,7 +116,7 @@ LAYERS = (
     ("application", ("granchain.simulate",
                      "granchain.compare", "granchain.accuracy", "granchain.figures",
                      "granchain.thesis", "granchain.inference", "granchain.workflow",
-                     "granchain.cli")),
+                     "granchain.commands", "granchain.cli")),
 )
 
 
