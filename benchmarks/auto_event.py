@@ -15,7 +15,8 @@ from __future__ import annotations
 import time
 
 from granchain import costmodel, runplan
-from granchain.scene import TOLERANCE_METHODS, scene_from_dict
+from granchain.scene import scene_from_dict
+from granchain.scenekeys import TOLERANCE_METHODS
 from granchain.simulate import run_scene
 
 ALL = ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction"]

@@ -100,16 +100,17 @@ def timed(owner, name, key):
 
 import granchain.cli as cli
 from granchain import runplan, simulate
+from granchain.commands import run as run_command
 from granchain.engines import backend
 T1 = time.perf_counter()
 acc["imports"] = T1 - T0
 for name in ("load", "check_cost", "run_estimate", "check_whole_run"):
-    timed(cli, name, "planning")
+    timed(run_command, name, "planning")
 timed(simulate, "plan_run", "planning")
 timed(runplan.RunPlan, "check", "planning")
 timed(simulate, "run_scene", "engine around the kernel")
 timed(simulate, "summarize", "summarise")
-timed(cli, "cmd_run", "output")
+timed(run_command, "cmd_run", "output")
 timed(backend, "jit_entry", "kernel load")
 _entry = backend.Kernels.__getattr__
 

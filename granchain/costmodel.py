@@ -30,7 +30,7 @@ from importlib import resources
 import numpy as np
 
 from .errors import GranchainError
-from .scene import TOLERANCE_METHODS
+from .scenekeys import TOLERANCE_METHODS
 from .guards import require_resolved
 from .effects import ENERGY_COLUMNS
 from .stoprule import expected_duration, sample_interval

@@ -63,7 +63,7 @@ def member_radii(scene: Scene, mem: list[Member]) -> np.ndarray | None:
     spread = scene.radius_spread
     if spread is None:
         return None
-    from .scene import NORMAL_TRUNCATION
+    from .scenekeys import NORMAL_TRUNCATION
     nominal = np.asarray(scene.radii, dtype=float)
     out = np.empty((len(mem), scene.n))
     for j, m in enumerate(mem):

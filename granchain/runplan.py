@@ -37,7 +37,8 @@ from dataclasses import dataclass
 from . import costmodel
 from .errors import SceneError
 from .guards import physics_warnings
-from .scene import TOLERANCE_METHODS, Scene
+from .scene import Scene
+from .scenekeys import TOLERANCE_METHODS
 from .stoprule import auto_t_max, expected_duration, sample_interval
 from .costmodel import (DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, SCENE_METHODS, CostModel,
                         check_cost, cost_estimate, fixed_step, load_model, scene_class,

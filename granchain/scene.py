@@ -9,289 +9,38 @@ This layer parses and validates only. A scene with ``integrator.method: auto`` k
 ``method == "auto"`` and its tolerance; the step it runs with comes from the cost model
 through the run plan (``granchain.runplan.plan_run``), made where a run starts.
 
-Every key's default is in ``DEFAULTS`` below (an effect's section: in its module), and
-every key is declared once beside it (``KEYS``; an effect's: its module's ``KEYS``) with its
-unit, bounds and meaning: the checks here read the bounds from these declarations, and
-``granchain.scenekeys`` writes the reference page of the scene keys from them.
+Every key's default is in ``granchain.scenekeys.DEFAULTS`` (an effect's section: in its
+module), and every key is declared once beside it (``scenekeys.KEYS``; an effect's: its
+module's ``KEYS``) with its unit, bounds and meaning: the checks read the bounds from these
+declarations, and ``granchain.scenekeys`` writes the reference page of the scene keys from
+them. The checks of each value, of the keys that have no effect and of what the values make
+of the chain are ``granchain.scenecheck``'s; this module assembles the :class:`Scene` from
+them.
 """
 from __future__ import annotations
 
 import copy
 import dataclasses
-import difflib
 import hashlib
 import json
 import math
-import re
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-
 from .errors import SceneError
-from .validate import Key, number_text, short as _short
+from .validate import short as _short
 from .scenefile import apply_overrides, read_scene_file
-from .guards import (HARD_OVERLAP_RATIO, MAX_OVERLAP_RATIO, MIN_SAMPLES_PER_PULSE,
-                     check_overlaps, floor_sig, max_sample_dt, pulse_width)
-from .effects import MODULES as EFFECT_MODULES, SPECS as EFFECT_SPECS
-from .materials import FIELD_FIX, FIELDS, RIGID, Material, effective_modulus, library
-
-EFFECTS = tuple(m.SPEC.name for m in EFFECT_MODULES)
-# the effects every scene has, and each effect's requirements (their EffectSpecs)
-_ALWAYS = tuple(m.SPEC.name for m in EFFECT_MODULES if m.SPEC.always)
-_REQUIRES = {m.SPEC.name: m.SPEC.requires for m in EFFECT_MODULES if m.SPEC.requires}
-# effect -> its scene section, for the effects that have one (granchain.effects: each
-# declares SECTION, its DEFAULTS and validates it with ``settings``)
-_SECTIONED = tuple(m for m in EFFECT_MODULES if hasattr(m, "SECTION"))
-GAP_DISTRIBUTIONS = ("none", "fixed", "uniform", "exponential", "list", "from_length")
-METHODS = ("rk4", "verlet", "adaptive", "event", "auto")
-FIXED_STEP_METHODS = ("rk4", "verlet")        # dt is the step
-TOLERANCE_METHODS = ("adaptive", "event")     # the step follows integrator.tolerance
-
-# Default scene: the chapter's packed 440C chain (15 spheres, R = 150 um, v_s = 0.1 m/s,
-# RK4 with a 1 ns step). Constants of Eq. 5.1 are the chapter's Chapter-4 values;
-# s = sin(90deg/2) for a 90-degree groove (the thesis's chapter 4, which fixes s, is not available).
-DEFAULTS: dict[str, Any] = {
-    "name": None,                       # defaults to the file stem
-    "material": "ss440c",
-    # chain.radius: one radius, or a list of n (particle 1 is the striker);
-    # chain.materials: a list of n materials (default: every sphere is `material`);
-    # chain.radius_spread: each member's radii drawn about the nominal ones
-    "chain": {"n": 15, "radius": 150e-6, "materials": None, "radius_spread": None},
-    # striker.radius / striker.material: particle 1's own (default: as the chain gives)
-    "striker": {"velocity": 0.1, "radius": None, "material": None},
-    "gaps": {"distribution": "none", "mean": None, "seed": 0, "values": None,
-             "extra_length": None},
-    "effects": list(_ALWAYS),
-    # each effect's own section (groove, drag, contact, rolling), from its module
-    **{m.SECTION: m.DEFAULTS for m in _SECTIONED},
-    "probes": [2, 13],
-    "integrator": {"method": "rk4", "dt": 1e-9, "tolerance": None},
-    "t_end": "auto",
-    "output": {"sample_dt": "auto"},
-    "ensemble": {"realisations": 1},
-    # the virtual laser vibrometer (granchain.vibrometer); None: the scene is not
-    # measured. A given block is filled from MEASUREMENT_DEFAULTS.
-    "measurement": None,
-    # a flat wall touching the last sphere: a material (name or {E, nu}) or 'rigid';
-    # None: the far end is free (the chapter's chain)
-    "walls": {"end": None},
-    # a dead load (N) on particle 2 pushing the chain onto the end wall; the chain starts
-    # at its static overlaps
-    "precompression": {"force": None},
-}
-
-# Keys that are left out of a scene's normalised spec when not given, so that a scene
-# using none of them keeps the hash it had before they existed.
-OPTIONAL_KEYS = ("chain.materials", "chain.radius_spread", "striker.radius", "striker.material", "walls.end",
-                 "precompression.force")
-
-# Defaults of the measurement block. The chapter's vibrometers have a 2.5 MHz bandwidth;
-# their decoders' filter response is not given, so butterworth and bessel are offered
-# (order 4 by default). 20 MS/s is a typical digitiser rate for a 2.5 MHz signal (8x the
-# bandwidth). noise_rms_m_s: additive white noise on the recorded samples (none by
-# default); seed: its random stream.
-MEASUREMENT_DEFAULTS: dict[str, Any] = {
-    "bandwidth_hz": 2.5e6,
-    "filter": "butterworth",
-    "order": 4,
-    "sampling_rate_hz": 20e6,
-    "noise_rms_m_s": 0.0,
-    "seed": 0,
-}
-FILTERS = ("butterworth", "bessel")
-MAX_FILTER_ORDER = 10
-
-# Fewest integration steps that must fit in the shortest Hertz collision of a scene (the
-# step guard; the accuracy study's coarsest setting).
-MIN_STEPS_PER_CONTACT = 20
-# The longest chain a scene may describe (each sphere has its own radius and material)
-MAX_SPHERES = 1_000_000
-# Fewest samples per solitary-wave width that output.sample_dt must give:
-# MIN_SAMPLES_PER_PULSE (granchain/guards.py).
-
-# Names (scene name, file stem, custom material name) reach deck comments, data-file
-# titles, JSON and logs: only these characters, 1 to 64 of them.
-# Names reach decks, data files, paths and shells: a safe set, no leading '.' or '-'
-NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9._-]{0,63}")
-NAME_RULE = "use 1-64 characters from A-Z a-z 0-9 . _ -, starting with a letter, digit or _"
-# the distributions that draw at random (gaps.seed matters only for these)
-RANDOM_GAPS = ("uniform", "exponential", "from_length")
-# integrator.tolerance when not given, by method (the fixed-step methods have none)
-DEFAULT_TOLERANCE = {"adaptive": 1e-8, "event": 1e-6, "auto": 1e-4}
-
-RADIUS_SPREADS = ("normal", "uniform")
-# a normal spread is drawn truncated at this many sd (a draw beyond it is drawn again)
-NORMAL_TRUNCATION = 4.0
-# Defaults of a chain.radius_spread block (sd has none: a given block must give it)
-RADIUS_SPREAD_DEFAULTS: dict[str, Any] = {"distribution": "normal", "sd": None, "seed": 0}
-
-# The blocks whose key defaults to null and whose given mapping is filled from defaults
-# of its own
-BLOCK_DEFAULTS = {"chain.radius_spread": RADIUS_SPREAD_DEFAULTS,
-                  "measurement": MEASUREMENT_DEFAULTS}
-
-_MATERIAL = ("a name from `granchain/data/materials.yaml`, or a mapping `{E: 200e9, nu: 0.28, "
-             "rho: 7800}` (" + ", ".join(k.range_text.strip("`") + ("" if k.unit == "1" else
-                                                                   f" {k.unit}")
-                                         for k in FIELDS.values())
-             + "; an optional `name`)")
-
-# Each key of DEFAULTS, MEASUREMENT_DEFAULTS and RADIUS_SPREAD_DEFAULTS, declared once (an
-# effect's section: its module's KEYS). The checks below take the bounds and choices from
-# here; granchain.scenekeys writes the reference page from here.
-KEYS: tuple[Key, ...] = (
-    Key("name", "-", "The scene's name, written into deck comments, data-file titles and file "
-        "names. null: the scene file's stem (`scene` for a scene given as a mapping).",
-        allowed=NAME_RULE.removeprefix("use ")),
-    Key("material", "-", "The material of the spheres. The library has 316 and 440C stainless, "
-        "brass, aluminium 6061, 52100 chrome steel, tungsten carbide, PTFE and soda-lime "
-        "glass, each with its source; E, nu, rho of 316 and 440C are handbook values (the "
-        "thesis's Table 2.1 is not available). null: the default. Refused beside a "
-        "`chain.materials` list.", allowed=_MATERIAL),
-    Key("chain.n", "1", "Number of spheres, particle 1 (the striker) included: at least the "
-        "striker and two probes.", integer=True, lo=3, hi=MAX_SPHERES),
-    Key("chain.radius", "m", "Sphere radius (the chapter's). A list gives each sphere its "
-        "own, particle 1 (the striker) first: dimer, tapered and impurity chains. Every "
-        "contact is Hertzian with 1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j and R* = R_i R_j/(R_i "
-        "+ R_j); the other effects use each sphere's own mass, radius and "
-        "inertia.", positive=True, allowed="or a list of n radii"),
-    Key("chain.materials", "-", "Each sphere's material, particle 1 first (one material for "
-        "every sphere: `material`, which is refused beside the list, as is "
-        "`striker.material`). null: every sphere is `material`.",
-        allowed="a list of n materials, each as `material`"),
-    Key("chain.radius_spread", "-", "Each member's radii drawn about the nominal ones "
-        "(`chain.radius_spread.*` below), from a stream of its own, so a member re-runs alone "
-        "bit for bit; both engines take it. null: every member has the nominal radii.",
-        allowed="a mapping, or null"),
-    Key("chain.radius_spread.distribution", "-", f"`normal`: truncated at "
-        f"{NORMAL_TRUNCATION:g} sd (a draw beyond is drawn again); `uniform`: on +-sqrt(3) sd. "
-        "Member r draws from rng([seed, r, RADIUS_STREAM]).", choices=RADIUS_SPREADS),
-    Key("chain.radius_spread.sd", "m", "Standard deviation of the radii; required in a "
-        "given block.", positive=True, allowed="a draw must not reach a non-positive radius: "
-        f"{NORMAL_TRUNCATION:g} sd (normal) or sqrt(3) sd (uniform) below the smallest radius"),
-    Key("chain.radius_spread.seed", "1", "Seed of the radius draws.", integer=True,
-        nonneg=True),
-    Key("striker.velocity", "m/s", "The striker's speed towards the chain (the chapter's); a "
-        "list is a sweep, one run per speed.", nonneg=True, allowed="or a list of speeds; "
-        f"every contact's peak overlap bound within {HARD_OVERLAP_RATIO:g} R* (warned above "
-        f"{MAX_OVERLAP_RATIO:g} R*)"),
-    Key("striker.radius", "m", "Particle 1's own radius: a heavy or light striker, beside one "
-        "`chain.radius` (refused beside a list, whose first entry is the striker's). null: as "
-        "`chain.radius` gives.", positive=True),
-    Key("striker.material", "-", "Particle 1's own material, beside `material` (refused beside "
-        "a `chain.materials` list, whose first entry is the striker's). null: as `material` "
-        "gives.", allowed="as `material`"),
-    Key("gaps.distribution", "-", "The gaps between neighbours (n-1 of them): `none`, a "
-        "packed chain; `fixed`, every gap `mean`; `uniform`, i.i.d. U(0, 2 mean) (the chapter "
-        "says \"random\"); `exponential`, i.i.d. with mean `mean`; `list`, the n-1 `values`; "
-        "`from_length`, the chain longer than packed by `extra_length`, split at random "
-        "over the contacts (flat Dirichlet; the chapter's Fig. 5.4).",
-        choices=GAP_DISTRIBUTIONS),
-    Key("gaps.mean", "m", "The mean gap of `fixed`, `uniform` and `exponential` (required "
-        "there, refused with the others).", nonneg=True),
-    Key("gaps.seed", "1", "Seed of the random gaps (`uniform`, `exponential`, `from_length`; "
-        "refused with the others): realisation r draws from rng([seed, r]), so any member "
-        "re-runs alone bit for bit.", integer=True, nonneg=True),
-    Key("gaps.values", "m", "The n-1 gaps of `list` (required there, refused with the "
-        "others), the same for every realisation.", nonneg=True,
-        allowed="a list of n-1 gaps, each so"),
-    Key("gaps.extra_length", "m", "The length by which the chain exceeds the packed length, "
-        "for `from_length` (required there, refused with the others): every realisation has "
-        "total gap `extra_length`.", nonneg=True),
-    Key("effects", "-", "The physical effects of the chapter's Eq. 5.1 that act; "
-        + "; ".join([f"`{e}` is always on" for e in _ALWAYS]
-                    + [f"`{e}` {why}, so it needs `{r}`" for e, reqs in _REQUIRES.items()
-                       for r, why in reqs]) + ".",
-        choices=EFFECTS, allowed="a list of these, each once"),
-    Key("probes", "1", "The two particles whose velocities are recorded and compared (the "
-        "chapter's), in the direction the wave travels; particle 1 is the striker.",
-        allowed="two particles p1, p2 with 2 <= p1 < p2 <= n"),
-    Key("integrator.method", "-", "`rk4` and `verlet`: a fixed step `dt` (the chapter's RK4); "
-        "`adaptive` (DOP853) and `event` (event-driven; no end wall): the step follows "
-        "`tolerance`; `auto`: the cheapest setting the cost model expects to reach "
-        "`tolerance`, the relative error on v_g.", choices=METHODS),
-    Key("integrator.dt", "s", "The step of `rk4` and `verlet` (the chapter's). It must give "
-        f"at least {MIN_STEPS_PER_CONTACT} steps per shortest collision at the fastest "
-        "striker (and per dashpot time m_eff/eta with contact damping); the error shows the "
-        "limit.", positive=True),
-    Key("integrator.tolerance", "1", "The relative tolerance of `adaptive` and `event`, or of "
-        "`auto` the requested relative error on v_g; refused with `rk4` and `verlet`. null: "
-        + ", ".join(f"{number_text(t)} for {m}" for m, t in DEFAULT_TOLERANCE.items()) + ".",
-        positive=True, hi=0.1),
-    Key("t_end", "s", "How long a run lasts. `auto`: until the wave has left the whole chain "
-        "(with an end wall, until the last sphere moves back from the wall faster than it "
-        "arrived and is behind its starting position).", positive=True, allowed="or `auto`"),
-    Key("output.sample_dt", "s", "The interval of the recorded samples. It must give at least "
-        f"{MIN_SAMPLES_PER_PULSE} samples per solitary-wave width at the fastest striker, and "
-        "be no shorter than the step. `auto`: `granchain.stoprule.SAMPLES_PER_PULSE` samples "
-        "per width.", positive=True, allowed="or `auto`"),
-    Key("ensemble.realisations", "1", "The number of gap realisations; realisation r draws "
-        "from rng([gaps.seed, r]).", integer=True, lo=1),
-    Key("measurement", "-", "The virtual laser vibrometer (`measurement.*` below): each probe's "
-        "velocity is resampled onto the digitiser's grid, low-pass filtered (causal, from "
-        "rest) and given noise, and the peaks, delays and v_g are read from that record as "
-        "the experiment reads them (`*_measured` fields and columns). null: the probes are "
-        "not measured. A given block is filled from the defaults below.",
-        allowed="a mapping, or null"),
-    Key("measurement.bandwidth_hz", "Hz", "The vibrometer's -3 dB bandwidth (the chapter's "
-        "vibrometers').", positive=True),
-    Key("measurement.filter", "-", "The decoder's low-pass: the analog prototype of this "
-        "kind, made digital by the bilinear transform with the bandwidth pre-warped; the "
-        "chapter does not give the response, so both are offered. A causal filter delays "
-        "each pulse, which cancels in the probe-to-probe delay.", choices=FILTERS),
-    Key("measurement.order", "1", "The filter's order.", integer=True, lo=1,
-        hi=MAX_FILTER_ORDER),
-    Key("measurement.sampling_rate_hz", "Hz", "The digitiser's rate (by default 8 x the "
-        "bandwidth, a typical rate for it).", positive=True,
-        allowed="above 2 x `bandwidth_hz`"),
-    Key("measurement.noise_rms_m_s", "m/s", "RMS of the white noise added to the recorded "
-        "samples.", nonneg=True),
-    Key("measurement.seed", "1", "Seed of the noise: member i draws from rng([seed, i]); "
-        "refused without noise.", integer=True, nonneg=True),
-    Key("walls.end", "-", "A flat wall touching the last sphere (R* = R_n; `rigid`: 1/E_w = 0); "
-        "its force is recorded (`wall_force_max`, `t_wall_peak`, `wall_force_static`). The "
-        "event method takes no wall. null: the far end is free (the chapter's chain).",
-        allowed="a material name, a mapping `{E, nu}`, or `rigid`"),
-    Key("precompression.force", "N", "A dead load F0 on particle 2 pushing the chain onto the "
-        "end wall (needs `walls.end`, no gaps). The chain starts at rest in its static state, "
-        "every contact from particle 2 to the wall overlapping by (F0/K)^(2/3); the ledger's "
-        "`work_load` is the load's work. null: no load (0 is refused: a key with no "
-        "effect).", positive=True,
-        allowed=f"static overlaps within {HARD_OVERLAP_RATIO:g} R* of each contact (warned "
-        f"above {MAX_OVERLAP_RATIO:g} R*)"),
-)
-_KEY = {k.path: k for k in KEYS}
-
-
-@dataclass(frozen=True)
-class Measurement:
-    """The vibrometer of a scene (``measurement:`` block): -3 dB bandwidth (Hz) of a
-    causal low-pass ``filter`` (butterworth or bessel) of ``order``, digitised at
-    ``sampling_rate_hz``, with additive white noise of RMS ``noise_rms_m_s`` (m/s) drawn
-    from ``seed``."""
-    bandwidth_hz: float
-    filter: str
-    order: int
-    sampling_rate_hz: float
-    noise_rms_m_s: float
-    seed: int
-
-
-@dataclass(frozen=True)
-class RadiusSpread:
-    """Each member's radii R_i + e_i, e_i i.i.d. with standard deviation ``sd`` (m):
-    ``normal`` truncated at NORMAL_TRUNCATION sd, or ``uniform`` on +-sqrt(3) sd; drawn
-    from numpy default_rng([seed, realisation, RADIUS_STREAM]) (``gaps.member_radii``)."""
-    distribution: str
-    sd: float
-    seed: int
-
-    @property
-    def half_width(self) -> float:
-        """The largest |e_i| a draw can give (m)."""
-        return (NORMAL_TRUNCATION if self.distribution == "normal" else math.sqrt(3.0)) * self.sd
+from .scenekeys import (DEFAULT_TOLERANCE, DEFAULTS, KEY_BY_PATH, MAX_SPHERES, NAME_RE,
+                        NAME_RULE, SECTIONED)
+from .scenecheck import (Measurement, RadiusSpread, chain_spheres, check_derived, check_name,
+                         check_sampling, check_step, drop_unset, effects_of, given_keys,
+                         material_of, measurement_of, merge, number, probes_of,
+                         radius_spread_of, refuse_unused)
+from .guards import pulse_width
+from .effects import hertz
+from .materials import Material
 
 
 @dataclass(frozen=True)
@@ -398,7 +147,7 @@ class Scene:
         1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j and R* = R_i R_j / (R_i + R_j)."""
         if self.uniform:
             return (self.hertz_k,) * (self.n - 1)
-        return tuple(hertz_constant(self.materials[i], self.radii[i], self.materials[i + 1],
+        return tuple(hertz.constant(self.materials[i], self.radii[i], self.materials[i + 1],
                                     self.radii[i + 1]) for i in range(self.n - 1))
 
     @property
@@ -406,7 +155,7 @@ class Scene:
         """K of the last sphere on the end wall (R* = R_n), or None without a wall."""
         if self.wall is None:
             return None
-        return hertz_constant(self.materials[-1], self.radii[-1], self.wall, math.inf)
+        return hertz.constant(self.materials[-1], self.radii[-1], self.wall, math.inf)
 
     @property
     def static_overlaps(self) -> tuple[tuple[float, ...], float]:
@@ -478,13 +227,13 @@ class Scene:
         preload, also half the period pi sqrt(mu/k2) of a preloaded contact's linear
         oscillation (k2 = (3/2) K^(2/3) F0^(1/3))."""
         if not self.heterogeneous and self.wall is None:
-            return hertz_contact_time(self.mass / 2.0, self.hertz_k, v)
+            return hertz.contact_time(self.mass / 2.0, self.hertz_k, v)
         ms, ks = self.masses, self.contact_k
         pairs = [(ms[i] * ms[i + 1] / (ms[i] + ms[i + 1]), ks[i])
                  for i in self.distinct_contacts]
         if self.wall is not None:
             pairs.append((ms[-1], self.wall_k))
-        tc = min(hertz_contact_time(mu, k, v) for mu, k in pairs)
+        tc = min(hertz.contact_time(mu, k, v) for mu, k in pairs)
         F0 = self.precompression
         if F0 > 0.0:
             tc = min([tc] + [math.pi * math.sqrt(mu / (1.5 * k ** (2.0 / 3.0) * F0 ** (1.0 / 3.0)))
@@ -510,20 +259,6 @@ class Scene:
                 c0 = 2.0 * rs[k] * math.sqrt(k2 / ms[k])
                 width = min(width, 10.0 * rs[k] / c0)
         return width
-
-
-def hertz_constant(a: Material, Ra: float, b: Material, Rb: float) -> float:
-    """K (N/m^1.5) of f = K delta^(3/2) between bodies of materials a, b and radii Ra, Rb
-    (Rb = inf: a flat wall): (4/3) E* sqrt(R*), R* = Ra Rb/(Ra + Rb)."""
-    R_star = Ra if math.isinf(Rb) else (Ra / 2.0 if Ra == Rb else Ra * Rb / (Ra + Rb))
-    return 4.0 / 3.0 * effective_modulus(a, b) * math.sqrt(R_star)
-
-
-def hertz_contact_time(mu: float, K: float, v: float) -> float:
-    """Duration (s) of a head-on Hertz collision of reduced mass mu (kg) and constant K
-    at closing speed v: 2.9432 delta_m / v, delta_m = (5 mu v^2 / (4 K))^(2/5)."""
-    delta_m = (5.0 * mu * v * v / (4.0 * K)) ** 0.4
-    return 2.9432 * delta_m / v
 
 
 def _flatten(changes: dict) -> list[tuple[str, Any]]:
@@ -557,294 +292,6 @@ def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) ->
     return scene_from_dict(raw)
 
 
-def _merge(defaults: dict, given: dict, prefix: str = "") -> dict:
-    out = copy.deepcopy(defaults)
-    for key, value in given.items():
-        where = f"{prefix}{key}"
-        if key not in defaults:
-            close = difflib.get_close_matches(str(key), list(defaults), n=1)
-            hint = f"did you mean '{prefix}{close[0]}'?" if close else \
-                f"known keys: {', '.join(defaults)}"
-            raise SceneError(where, "unknown key", hint)
-        if isinstance(defaults[key], dict) and key != "material":
-            if value is None:
-                continue
-            if not isinstance(value, dict):
-                raise SceneError(where, f"expected a mapping, got {_short(value)}",
-                                 f"write e.g. {key}: {{...}}")
-            out[key] = _merge(defaults[key], value, where + ".")
-        else:
-            out[key] = value
-    return out
-
-
-def _num(spec: dict, dotted: str, *, allow_none: bool = False, fix: str | None = None):
-    """The number at a dotted key of a merged spec, checked against the key's bounds
-    (its declaration in ``KEYS``)."""
-    return _KEY[dotted].number(_get(spec, dotted), allow_none=allow_none, fix=fix)
-
-
-def check_name(value, field: str) -> str:
-    """A name that may reach deck comments, data-file titles and file names."""
-    if isinstance(value, bool) or not isinstance(value, (str, int)):
-        raise SceneError(field, f"expected a name, got {_short(value)}", NAME_RULE)
-    text = str(value)
-    if not NAME_RE.fullmatch(text):
-        raise SceneError(field, f"{_short(text)} is not a valid name", NAME_RULE)
-    return text
-
-
-def _get(spec, dotted):
-    node = spec
-    for p in dotted.split("."):
-        node = node[p]
-    return node
-
-
-def _material(value, where: str = "material", *, wall: bool = False) -> Material:
-    """A library material by name or a mapping {E, nu, rho} (a wall: {E, nu}, or 'rigid');
-    ``where`` names the key in errors."""
-    lib = library()
-    keys = ("E", "nu") if wall else ("E", "nu", "rho")
-    example = "{E: 200e9, nu: 0.28}" if wall else "{E: 200e9, nu: 0.28, rho: 7800}"
-    if isinstance(value, str):
-        if wall and value == "rigid":
-            return RIGID
-        if value not in lib:
-            names = list(lib) + (["rigid"] if wall else [])
-            close = difflib.get_close_matches(value, names, n=1)
-            hint = f"did you mean '{close[0]}'?" if close else f"use one of {', '.join(names)}"
-            raise SceneError(where, f"unknown material {_short(value)}",
-                             f"{hint} or give {example}")
-        return lib[value]
-    if isinstance(value, dict):
-        extra = set(value) - set(keys) - {"name"}
-        if extra:
-            key = sorted(map(str, extra))[0]
-            if wall and key == "rho":
-                raise SceneError(f"{where}.rho", "has no effect: the wall does not move",
-                                 f"drop it; a wall takes E and nu, e.g. {example}")
-            raise SceneError(f"{where}.{key}", "unknown key",
-                             f"a material mapping has {', '.join(keys)} (and optional name)")
-        for k in keys:
-            if k not in value:
-                raise SceneError(f"{where}.{k}", "missing",
-                                 "give E (Pa), nu" + ("" if wall else " and rho (kg/m^3)"))
-        E, nu = (FIELDS[k].number(value[k], field=f"{where}.{k}", fix=FIELD_FIX[k])
-                 for k in ("E", "nu"))
-        rho = FIELDS["rho"].number(value["rho"], field=f"{where}.rho",
-                                   fix=FIELD_FIX["rho"]) if not wall else 0.0
-        name = check_name(value.get("name", "custom"), f"{where}.name")
-        return Material(name, E, nu, rho)
-    raise SceneError(where, f"expected a name or a mapping, got {_short(value)}",
-                     f"write {where.rpartition('.')[2].split('[')[0]}: ss440c or {example}")
-
-
-def _chain_spheres(spec: dict, n: int, material: Material, given: set[str]):
-    """(radii, materials) of the n spheres, particle 1 (the striker) first, from
-    chain.radius, chain.materials, striker.radius and striker.material. A key another one
-    overrides is refused: ``material`` (given) beside a chain.materials list, striker.radius
-    beside a chain.radius list, striker.material beside a chain.materials list."""
-    rad = spec["chain"]["radius"]
-    fix = "give the sphere radius in metres, e.g. 150e-6"
-    if isinstance(rad, list):
-        if len(rad) != n:
-            raise SceneError("chain.radius", f"has {len(rad)} entries but the chain has n = {n} "
-                             "spheres", f"give one radius, or a list of exactly n = {n} radii "
-                             "(particle 1, the striker, first)")
-        radii = [_KEY["chain.radius"].number(r, field=f"chain.radius[{i}]", fix=fix)
-                 for i, r in enumerate(rad)]
-    else:
-        radii = [_num(spec, "chain.radius", fix=fix)] * n
-    mats = spec["chain"].get("materials")
-    if mats is None:
-        materials = [material] * n
-    else:
-        if isinstance(mats, (str, dict)):          # one material: that is `material`
-            one = mats if isinstance(mats, str) and NAME_RE.fullmatch(mats) else "..."
-            raise SceneError("chain.materials", f"takes a list of n = {n} materials, got one "
-                             f"({_short(mats)})", f"for one material for every sphere write "
-                             f"material: {one} and drop chain.materials")
-        if not isinstance(mats, list):
-            raise SceneError("chain.materials", f"expected a list, got {_short(mats)}",
-                             f"give a list of n = {n} materials, or drop it")
-        if "material" in given:
-            raise SceneError("material", "has no effect beside the chain.materials list, "
-                             "which gives every sphere's material",
-                             "drop material (--set material=null), or drop chain.materials")
-        if len(mats) != n:
-            raise SceneError("chain.materials", f"has {len(mats)} entries but the chain has "
-                             f"n = {n} spheres", f"give exactly n = {n} materials "
-                             "(particle 1, the striker, first)")
-        materials = [_material(m, f"chain.materials[{i}]") for i, m in enumerate(mats)]
-    if spec["striker"].get("radius") is not None:
-        if isinstance(rad, list):
-            raise SceneError("striker.radius", "given beside the chain.radius list, whose "
-                             "first entry is already the striker's radius",
-                             "drop striker.radius, or set the striker's radius as "
-                             "chain.radius[0]")
-        radii[0] = _num(spec, "striker.radius",
-                        fix="give the striker's radius in metres, e.g. 189e-6")
-    if spec["striker"].get("material") is not None:
-        if mats is not None:
-            raise SceneError("striker.material", "given beside the chain.materials list, "
-                             "whose first entry is already the striker's material",
-                             "drop striker.material, or set the striker's material as "
-                             "chain.materials[0]")
-        materials[0] = _material(spec["striker"]["material"], "striker.material")
-    return tuple(radii), tuple(materials)
-
-
-def _radius_spread(value, radii) -> RadiusSpread | None:
-    """The validated chain.radius_spread block (None when not given)."""
-    if value is None:
-        return None
-    where = "chain.radius_spread"
-    if not isinstance(value, dict):
-        raise SceneError(where, f"expected a mapping, got {_short(value)}",
-                         "write radius_spread: {distribution: normal, sd: 0.3e-6}")
-    extra = set(value) - set(RADIUS_SPREAD_DEFAULTS)
-    if extra:
-        key = sorted(map(str, extra))[0]
-        close = difflib.get_close_matches(key, list(RADIUS_SPREAD_DEFAULTS), n=1)
-        raise SceneError(f"{where}.{key}", "unknown key",
-                         f"did you mean '{where}.{close[0]}'?" if close else
-                         "a radius spread has distribution, sd and seed")
-    dist = _KEY[f"{where}.distribution"].choice(
-        value.get("distribution", RADIUS_SPREAD_DEFAULTS["distribution"]), "distribution")
-    if "sd" not in value:
-        raise SceneError(f"{where}.sd", "missing", "give the standard deviation of the radii in "
-                         "metres, e.g. 0.3e-6")
-    sd = _KEY[f"{where}.sd"].number(
-        value["sd"], fix="give the standard deviation of the radii in metres (> 0), e.g. 0.3e-6")
-    seed = _KEY[f"{where}.seed"].number(value.get("seed", RADIUS_SPREAD_DEFAULTS["seed"]),
-                                        fix="give a whole-number seed >= 0")
-    spread = RadiusSpread(dist, sd, seed)
-    value.clear()
-    value.update(distribution=dist, sd=sd, seed=seed)      # the normalised spec
-    smallest = min(radii)
-    if spread.half_width >= smallest:
-        how = (f"{NORMAL_TRUNCATION:g} sd (normal draws are truncated there)" if dist == "normal"
-               else "sqrt(3) sd (the uniform half-width)")
-        raise SceneError(f"{where}.sd", f"{sd:g} m can make a radius non-positive: draws reach "
-                         f"{how} = {spread.half_width:g} m, the smallest radius is {smallest:g} m",
-                         f"give sd < {floor_sig(smallest / (spread.half_width / sd)):.2g} m")
-    return spread
-
-
-def _drop_unset(spec: dict) -> None:
-    """Leave the optional keys that were not given out of the normalised spec."""
-    for dotted in OPTIONAL_KEYS:
-        section, _, key = dotted.partition(".")
-        node = spec.get(section)
-        if isinstance(node, dict) and node.get(key) is None:
-            node.pop(key, None)
-            if not node:
-                spec.pop(section)
-
-
-def given_keys(raw: dict) -> set[str]:
-    """Dotted paths of the keys a mapping gives (values not null), before defaults:
-    'name', 'gaps', 'gaps.mean', ... Only these can be refused as having no effect."""
-    out = set()
-    if not isinstance(raw, dict):
-        return out
-    for key, value in raw.items():
-        if value is None:
-            continue
-        out.add(str(key))
-        if isinstance(value, dict) and (isinstance(DEFAULTS.get(key), dict)
-                                        or key == "measurement"):
-            out |= {f"{key}.{k}" for k, v in value.items() if v is not None}
-    return out
-
-
-def _effects(value) -> frozenset[str]:
-    if isinstance(value, str):
-        words = [w for w in re.split(r"[\s,\[\]]+", value) if w]
-        if len(words) != 1:
-            listed = ", ".join(words or _ALWAYS)
-            raise SceneError("effects", f"{_short(value)} is one string, not a list",
-                             f"write effects: [{listed}]")
-        value = words
-    if not isinstance(value, list):
-        raise SceneError("effects", f"expected a list, got {_short(value)}",
-                         f"write effects: [{', '.join(_ALWAYS)}, ...]")
-    seen = []
-    for i, e in enumerate(value):
-        _KEY["effects"].choice(e, "effect", field=f"effects[{i}]")
-        if e in seen:
-            raise SceneError(f"effects[{i}]", f"'{e}' is listed twice (also effects[{seen.index(e)}])",
-                             "list each effect once")
-        seen.append(e)
-    eff = frozenset(seen)
-    for e in _ALWAYS:
-        if e not in eff:
-            raise SceneError("effects", f"'{e}' is missing",
-                             f"{EFFECT_SPECS[e].always}: add {e}")
-    for e, reqs in _REQUIRES.items():
-        for r, why in reqs:
-            if e in eff and r not in eff:
-                raise SceneError("effects", f"'{e}' {why} but '{r}' is off",
-                                 f"add {r} to effects")
-    return eff
-
-
-def _probes(value, n: int) -> tuple[int, int]:
-    example = f"write probes: [2, {n}] (two particles from 2 to n = {n}; particle 1 is the striker)"
-    if not isinstance(value, list) or len(value) != 2:
-        raise SceneError("probes", f"expected a list of exactly two particles, got {_short(value)}",
-                         example)
-    for i, p in enumerate(value):
-        if isinstance(p, bool) or not isinstance(p, int):
-            raise SceneError(f"probes[{i}]", f"{_short(p)} is not a particle number",
-                             "give whole numbers (1-based)")
-        if p == 1:
-            raise SceneError(f"probes[{i}]", "particle 1 is the striker",
-                             f"give particles from 2 to n = {n}")
-        if not 2 <= p <= n:
-            raise SceneError(f"probes[{i}]", f"particle {_short(p)} is outside the chain of {n}",
-                             f"give particles from 2 to n = {n}")
-    p1, p2 = value
-    if p2 == p1:
-        raise SceneError("probes", f"both probes are particle {p1}", "give two different particles")
-    if p2 < p1:
-        raise SceneError("probes", f"the second probe ({p2}) is before the first ({p1})",
-                         f"list them in the direction the wave travels: probes: [{p2}, {p1}]")
-    return p1, p2
-
-
-# keys that have no effect unless ... (checked only for keys the user wrote)
-_SECTION_EFFECT = {m.SECTION: m.SPEC.name for m in _SECTIONED}
-
-
-def _check_unused(given: set[str], dist: str, eff: frozenset[str], method: str) -> None:
-    def refuse(key, why, fix):
-        raise SceneError(key, f"has no effect {why}", fix)
-
-    for key in sorted(given):
-        section, _, sub = key.partition(".")
-        if not sub:
-            continue
-        if section in _SECTION_EFFECT and _SECTION_EFFECT[section] not in eff:
-            refuse(key, f"while {_SECTION_EFFECT[section]} is off",
-                   f"add {_SECTION_EFFECT[section]} to effects or drop {key}")
-    if "gaps.mean" in given and dist not in ("fixed", "uniform", "exponential"):
-        refuse("gaps.mean", f"with distribution '{dist}'",
-               "drop it, or use distribution fixed, uniform or exponential")
-    if "gaps.values" in given and dist != "list":
-        refuse("gaps.values", f"with distribution '{dist}'", "drop it, or use distribution list")
-    if "gaps.extra_length" in given and dist != "from_length":
-        refuse("gaps.extra_length", f"with distribution '{dist}'",
-               "drop it, or use distribution from_length")
-    if "gaps.seed" in given and dist not in RANDOM_GAPS:
-        refuse("gaps.seed", f"with distribution '{dist}' (nothing is drawn at random)",
-               "drop it, or use distribution uniform, exponential or from_length")
-    if "integrator.tolerance" in given and method in FIXED_STEP_METHODS:
-        refuse("integrator.tolerance", f"with method {method} (a fixed step)",
-               "drop it, or use method adaptive, event or auto")
-
-
 def scene_from_dict(raw: dict, *, check_unused: bool = True) -> Scene:
     """Validate a scene mapping (SI units) and return the Scene.
 
@@ -863,31 +310,31 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
     base scene's and the changed ones), checked in combination (a preload with gaps, ...)
     and kept as ``Scene.given``."""
     whole = set(given) if whole is None else set(whole)
-    spec = _merge(DEFAULTS, raw)
+    spec = merge(DEFAULTS, raw)
     name = check_name(spec["name"], "name") if spec["name"] is not None else "scene"
     if spec["material"] is None:            # null: the default (e.g. --set material=null)
         spec["material"] = DEFAULTS["material"]
-    material = _material(spec["material"])
+    material = material_of(spec["material"])
 
-    n = _num(spec, "chain.n",
-             fix=f"a chain needs at least 3 particles (the striker and two probes) and at most "
-             f"{MAX_SPHERES}")
-    radii, materials = _chain_spheres(spec, n, material, given)
+    n = number(spec, "chain.n",
+               fix=f"a chain needs at least 3 particles (the striker and two probes) and at most "
+               f"{MAX_SPHERES}")
+    radii, materials = chain_spheres(spec, n, material, given)
     radius = radii[1]
     if spec["chain"].get("materials") is not None:
         material = materials[1]
     wall = None
     if spec["walls"]["end"] is not None:
-        wall = _material(spec["walls"]["end"], "walls.end", wall=True)
-    spread = _radius_spread(spec["chain"].get("radius_spread"), radii)
+        wall = material_of(spec["walls"]["end"], "walls.end", wall=True)
+    spread = radius_spread_of(spec["chain"].get("radius_spread"), radii)
     pre = spec["precompression"]["force"]
     if (not isinstance(pre, bool) and isinstance(pre, (int, float)) and pre == 0
             and "precompression.force" in given):
         raise SceneError("precompression.force", "0 N has no effect (no load on the chain)",
                          "drop precompression; a chain resting on the end wall needs only "
                          "walls.end")
-    load = _num(spec, "precompression.force", allow_none=True,
-                fix="give the dead load on particle 2 in newtons (> 0)") or 0.0
+    load = number(spec, "precompression.force", allow_none=True,
+                  fix="give the dead load on particle 2 in newtons (> 0)") or 0.0
     for block, fix in (("walls", "give walls: {end: ss440c} (or rigid), or drop walls"),
                        ("precompression", "give precompression: {force: 0.01} (N, with an end "
                                           "wall), or drop precompression")):
@@ -900,20 +347,20 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
         raise SceneError("striker.velocity", "empty list", "give one velocity or a list of them (m/s)")
     velocities = []
     for i, v in enumerate(vlist):
-        velocities.append(_KEY["striker.velocity"].number(
+        velocities.append(KEY_BY_PATH["striker.velocity"].number(
             v, field=f"striker.velocity[{i}]" if isinstance(vel, list) else "striker.velocity",
             fix="the striker moves towards the chain: give a speed >= 0 in m/s"))
 
-    eff = _effects(spec["effects"])
+    eff = effects_of(spec["effects"])
 
     # gaps
-    dist = _KEY["gaps.distribution"].choice(spec["gaps"]["distribution"], "distribution")
+    dist = KEY_BY_PATH["gaps.distribution"].choice(spec["gaps"]["distribution"], "distribution")
     gap_mean = gap_values = extra = None
     if dist in ("fixed", "uniform", "exponential"):
         if spec["gaps"]["mean"] is None:
             raise SceneError("gaps.mean", f"missing for distribution '{dist}'",
                              "give the mean gap in metres, e.g. mean: 20e-9")
-        gap_mean = _num(spec, "gaps.mean", fix="give the mean gap in metres (>= 0)")
+        gap_mean = number(spec, "gaps.mean", fix="give the mean gap in metres (>= 0)")
     if dist == "list":
         vals = spec["gaps"]["values"]
         if not isinstance(vals, list):
@@ -922,28 +369,29 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
         if len(vals) != n - 1:
             raise SceneError("gaps.values", f"has {len(vals)} entries but the chain has {n - 1} contacts",
                              f"give exactly n-1 = {n - 1} gaps")
-        gap_values = tuple(_KEY["gaps.values"].number(g, field=f"gaps.values[{i}]",
+        gap_values = tuple(KEY_BY_PATH["gaps.values"].number(g, field=f"gaps.values[{i}]",
                                                       fix="give a finite gap >= 0 in metres")
                            for i, g in enumerate(vals))
     if dist == "from_length":
         if spec["gaps"]["extra_length"] is None:
             raise SceneError("gaps.extra_length", "missing for distribution 'from_length'",
                              "give the chain's extra length over the packed length in metres, e.g. 6e-6")
-        extra = _num(spec, "gaps.extra_length", fix="give the extra length in metres (>= 0)")
-    seed = _num(spec, "gaps.seed", fix="give a whole-number seed >= 0")
+        extra = number(spec, "gaps.extra_length",
+                       fix="give the extra length in metres (>= 0)")
+    seed = number(spec, "gaps.seed", fix="give a whole-number seed >= 0")
 
     # each effect's own section, validated by its module
     settings = tuple((m.SPEC.name, m.settings(spec[m.SECTION], frozenset(given), m.SPEC.name in eff))
-                     for m in _SECTIONED)
+                     for m in SECTIONED)
 
-    pr = _probes(spec["probes"], n)
+    pr = probes_of(spec["probes"], n)
 
     # integrator
-    method = _KEY["integrator.method"].choice(spec["integrator"]["method"], "method")
-    dt = _num(spec, "integrator.dt", fix="give the time step in seconds, e.g. 1e-9")
-    tol = _num(spec, "integrator.tolerance", allow_none=True,
-               fix="give a relative tolerance such as 1e-6")
-    _check_unused(given, dist, eff, method)
+    method = KEY_BY_PATH["integrator.method"].choice(spec["integrator"]["method"], "method")
+    dt = number(spec, "integrator.dt", fix="give the time step in seconds, e.g. 1e-9")
+    tol = number(spec, "integrator.tolerance", allow_none=True,
+                 fix="give a relative tolerance such as 1e-6")
+    refuse_unused(given, dist, eff, method)
     if "precompression.force" in whole or load > 0.0:
         if wall is None:
             raise SceneError("precompression.force", "needs an end wall to push the chain onto",
@@ -960,15 +408,15 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
         spec["integrator"]["tolerance"] = tol
 
     t_end_raw = spec["t_end"]
-    t_end = None if t_end_raw == "auto" else _num(spec, "t_end", fix="give seconds or 'auto'")
+    t_end = None if t_end_raw == "auto" else number(spec, "t_end", fix="give seconds or 'auto'")
     sd = spec["output"]["sample_dt"]
-    sample_dt = None if sd == "auto" else _num(spec, "output.sample_dt",
-                                               fix="give seconds or 'auto'")
-    realisations = _num(spec, "ensemble.realisations",
-                        fix="give a whole number of gap realisations >= 1")
-    measurement = _measurement(spec, given)
-    _drop_unset(spec)
-    for m in _SECTIONED:
+    sample_dt = None if sd == "auto" else number(spec, "output.sample_dt",
+                                                 fix="give seconds or 'auto'")
+    realisations = number(spec, "ensemble.realisations",
+                          fix="give a whole number of gap realisations >= 1")
+    measurement = measurement_of(spec, given)
+    drop_unset(spec)
+    for m in SECTIONED:
         if getattr(m, "SECTION_OPTIONAL", False) and m.SPEC.name not in eff and not any(
                 k.startswith(m.SECTION + ".") for k in given):
             spec.pop(m.SECTION, None)
@@ -987,138 +435,8 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
         measurement=measurement, radii=radii, materials=materials, wall=wall,
         precompression=load, radius_spread=spread,
     )
-    _check_derived(scene)
+    check_derived(scene)
     check_step(scene)
-    _check_sampling(scene)
+    check_sampling(scene)
     return scene
 
-
-def _measurement(spec: dict, given: set[str]) -> Measurement | None:
-    """The validated measurement block of a merged spec (None without one; the key is
-    then dropped from the spec, so an unmeasured scene hashes as before the block
-    existed); the spec's block is replaced by its normalised form."""
-    block = spec.get("measurement")
-    if block is None:
-        spec.pop("measurement", None)
-        return None
-    if not isinstance(block, dict):
-        raise SceneError("measurement", f"expected a mapping, got {_short(block)}",
-                         "write e.g. measurement: {bandwidth_hz: 2.5e6, filter: bessel}")
-    m = _merge(MEASUREMENT_DEFAULTS, block, "measurement.")
-    spec["measurement"] = m
-    bw = _num(spec, "measurement.bandwidth_hz",
-              fix="give the vibrometer's -3 dB bandwidth in Hz, e.g. 2.5e6")
-    kind = _KEY["measurement.filter"].choice(m["filter"], "filter")
-    order = _num(spec, "measurement.order",
-                 fix=f"give the filter order as a whole number from 1 to {MAX_FILTER_ORDER}")
-    fs = _num(spec, "measurement.sampling_rate_hz",
-              fix="give the digitiser's sampling rate in Hz, e.g. 20e6")
-    if not fs > 2.0 * bw:
-        raise SceneError("measurement.sampling_rate_hz",
-                         f"{fs:g} Hz is not above twice the bandwidth {bw:g} Hz",
-                         f"give sampling_rate_hz > {2.0 * bw:g} (e.g. {8.0 * bw:g}) or a "
-                         "smaller bandwidth_hz")
-    noise = _num(spec, "measurement.noise_rms_m_s",
-                 fix="give the RMS of the additive white noise in m/s (>= 0)")
-    seed = _num(spec, "measurement.seed", fix="give a whole-number seed >= 0")
-    if "measurement.seed" in given and noise == 0:
-        raise SceneError("measurement.seed", "has no effect without noise (noise_rms_m_s "
-                         "is 0)", "drop it, or give measurement.noise_rms_m_s > 0")
-    m.update(bandwidth_hz=bw, order=order, sampling_rate_hz=fs, noise_rms_m_s=noise,
-             seed=seed)
-    return Measurement(bw, kind, order, fs, noise, seed)
-
-
-def _check_derived(scene: Scene) -> None:
-    """What the scene's values make of the chain, before it runs: every sphere's mass and
-    moment of inertia and every Hertz constant a finite positive number (an extreme radius,
-    1e300 m or 1e-200 m, overflows them; materials are bounded by ``materials.FIELDS``); no
-    contact and no wall overlapping beyond ``guards.HARD_OVERLAP_RATIO`` of its R* at rest
-    or at the fastest striker (``guards.check_overlaps``); each enabled effect's own checks
-    (its module's ``check``); and a finite collision time."""
-    listed = isinstance(scene.spec["chain"].get("radius"), list)
-
-    def refuse(i: int, problem: str):
-        field = ("striker.radius" if i == 0 and "striker.radius" in scene.given else
-                 f"chain.radius[{i}]" if listed else "chain.radius")
-        raise SceneError(field, f"with radius {scene.radii[i]:g} m {problem}",
-                         "give the radius in metres, e.g. 150e-6")
-
-    for i, r in enumerate(scene.radii[:1] if scene.uniform else scene.radii):
-        if not r ** 0.5 * r < 1e100:            # r^3 and more would overflow
-            refuse(i, f"sphere {i + 1}'s mass and inertia overflow")
-    wall = (scene.wall_k,) if scene.wall is not None else ()
-    alike = scene.uniform                       # one sphere and one contact stand for all
-    for what, values in (("mass", (scene.mass,) if alike else scene.masses),
-                         ("moment of inertia", (scene.inertia,) if alike else scene.inertias),
-                         ("Hertz constant", ((scene.hertz_k,) if alike else scene.contact_k)
-                          + wall)):
-        bad = next((i for i, x in enumerate(values) if not (math.isfinite(x) and x > 0)), None)
-        if bad is not None:
-            where = "contact" if what == "Hertz constant" else "sphere"
-            refuse(min(bad, scene.n - 1), f"the {what} of {where} {bad + 1} is "
-                   f"{values[bad]:g}, not a finite positive number")
-    check_overlaps(scene)
-    for m in EFFECT_MODULES:
-        if scene.has(m.SPEC.name) and hasattr(m, "check"):
-            m.check(scene)
-    vmax = max(scene.striker_velocities)
-    if vmax > 0:
-        try:
-            tc = scene.contact_time(vmax)
-        except (OverflowError, ZeroDivisionError, ValueError):
-            tc = math.nan
-        if not (math.isfinite(tc) and tc > 0):
-            raise SceneError("striker.velocity", f"at {vmax:g} m/s the collision time is "
-                             f"{tc:g}, not a finite positive number",
-                             "give the striker's speed in m/s, e.g. 0.1")
-
-
-def _check_sampling(scene: Scene) -> None:
-    """A given sample interval must resolve the solitary wave of the fastest striker."""
-    limit = max_sample_dt(scene) if scene.sample_dt is not None else None
-    if limit is None or scene.sample_dt <= limit:
-        return
-    vmax = max(scene.striker_velocities)
-    width = pulse_width(scene.material, scene.radius, 0.64 * vmax)
-    raise SceneError("output.sample_dt",
-                     f"{scene.sample_dt:g} s cannot resolve the pulse: at {vmax:g} m/s the "
-                     f"solitary wave lasts {width:.3g} s and needs >= {MIN_SAMPLES_PER_PULSE} "
-                     f"samples (limit {floor_sig(limit):.2g} s)",
-                     f"use sample_dt <= {floor_sig(limit):.2g} or sample_dt: auto")
-
-
-def check_step(scene: Scene) -> None:
-    """Checks that need the step (none for method auto, whose step is not known here):
-    sample no faster than once per step, and a fixed step must resolve the shortest Hertz
-    collision the scene can produce."""
-    if scene.method == "auto":
-        return
-    if scene.sample_dt is not None and scene.sample_dt < scene.dt * (1 - 1e-9):
-        raise SceneError("output.sample_dt",
-                         f"{scene.sample_dt:g} s is shorter than the step {scene.dt:g} s",
-                         "sample no faster than once per step")
-    if scene.method not in ("rk4", "verlet"):
-        return
-    vmax = max(scene.striker_velocities)
-    if vmax <= 0:
-        return
-    tc = scene.contact_time(vmax)
-    limit = tc / MIN_STEPS_PER_CONTACT
-    if scene.dt > limit:
-        raise SceneError("integrator.dt",
-                         f"{scene.dt:g} s is too large: a collision at {vmax:g} m/s lasts "
-                         f"{tc:.3g} s and needs >= {MIN_STEPS_PER_CONTACT} steps "
-                         f"(limit {floor_sig(limit):.2g} s)",
-                         f"use dt <= {floor_sig(limit):.2g}, or method adaptive")
-    # an effect with a time scale of its own (a dashpot) bounds the step too
-    for m in EFFECT_MODULES:
-        if scene.has(m.SPEC.name) and hasattr(m, "time_scale"):
-            tau, what = m.time_scale(scene, vmax)
-            limit = tau / MIN_STEPS_PER_CONTACT
-            if scene.dt > limit:
-                raise SceneError("integrator.dt",
-                                 f"{scene.dt:g} s is too large: {what} at {vmax:g} m/s is "
-                                 f"{tau:.3g} s and needs >= {MIN_STEPS_PER_CONTACT} steps "
-                                 f"(limit {floor_sig(limit):.2g} s)",
-                                 f"use dt <= {floor_sig(limit):.2g}, or method adaptive")

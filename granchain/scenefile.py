@@ -6,7 +6,7 @@ text that is not UTF-8; YAML that does not parse, gives a key twice in one mappi
 more values than a scene can (YAML aliases expanded), nests too deep or writes a number
 with too many digits (:class:`SceneLoader`). Each is found with work bounded by the file's
 size, whatever its aliases stand for.
-Validation of the mapping is ``granchain.scene``'s job.
+Validation of the mapping is ``granchain.scene``'s job (its checks: ``granchain.scenecheck``).
 """
 from __future__ import annotations
 

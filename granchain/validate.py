@@ -130,7 +130,7 @@ def number_text(x) -> str:
 
 @dataclass(frozen=True)
 class Key:
-    """The declaration of one scene key, beside its default (``granchain.scene.DEFAULTS``,
+    """The declaration of one scene key, beside its default (``granchain.scenekeys.DEFAULTS``,
     an effect module's ``DEFAULTS``).
 
     path: the dotted key, e.g. ``groove.mu``.

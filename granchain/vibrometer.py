@@ -1,6 +1,6 @@
 """The virtual laser vibrometer: what the instrument records of the probes' velocities.
 
-A scene's ``measurement:`` block (:class:`granchain.scene.Measurement`) describes the
+A scene's ``measurement:`` block (:class:`granchain.scenecheck.Measurement`) describes the
 instrument. :func:`record` turns the true velocity histories of the probes (a
 Trajectory's ``t`` and ``v`` columns) into the recorded signals:
 
@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .observables import peak, probe_span
-from .scene import Measurement
+from .scenecheck import Measurement
 from .stoprule import inner_passed
 from .trajectory import Trajectory
 

@@ -98,8 +98,8 @@ def count(*paths: str) -> dict[str, int]:
 # being an effect.
 ENGINE_SIDE = ("granchain/engines", "granchain/lammps", "granchain/columns.py",
                "granchain/reductions", "granchain/stoprule.py", "granchain/scene.py",
-               "granchain/scenekeys.py", "granchain/scenefile.py", "granchain/runplan.py",
-               "granchain/costmodel.py", "granchain/observables.py", "granchain/compare.py",
+               "granchain/scenecheck.py", "granchain/scenekeys.py", "granchain/scenefile.py",
+               "granchain/runplan.py", "granchain/costmodel.py", "granchain/observables.py", "granchain/compare.py",
                "granchain/simulate.py", "granchain/guards.py", "granchain/tables.py",
                "granchain/trajectory.py")
 

@@ -15,7 +15,8 @@ import pytest
 from granchain import accuracy, costmodel
 from granchain.runplan import AUTO_OBSERVABLE, resolve_auto
 from granchain.errors import GranchainError, SceneError
-from granchain.scene import TOLERANCE_METHODS, load_scene, scene_from_dict
+from granchain.scene import load_scene, scene_from_dict
+from granchain.scenekeys import TOLERANCE_METHODS
 from granchain.simulate import run_scene
 
 # A small study: packed and 20 nm gaps, four fixed steps a factor 4 apart, two tolerances.

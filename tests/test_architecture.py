@@ -105,8 +105,8 @@ LAYERS = (
               "granchain.analytic", "granchain.scenefile", "granchain.validate",
               "granchain.units")),
     ("physics", ("granchain.effects",)),
-    ("data", ("granchain.scene", "granchain.scenekeys", "granchain.gaps", "granchain.guards",
-              "granchain.gapdesign")),
+    ("data", ("granchain.scene", "granchain.scenekeys", "granchain.scenecheck", "granchain.gaps",
+              "granchain.guards", "granchain.gapdesign")),
     ("run plan", ("granchain.stoprule", "granchain.obsrules", "granchain.costmodel",
                   "granchain.runplan")),
     ("engines", ("granchain.trajectory", "granchain.engines", "granchain.lammps")),
@@ -116,7 +116,7 @@ LAYERS = (
     ("application", ("granchain.simulate",
                      "granchain.compare", "granchain.accuracy", "granchain.figures",
                      "granchain.thesis", "granchain.inference", "granchain.workflow",
-                     "granchain.cli")),
+                     "granchain.commands", "granchain.cli")),
 )
 
 

@@ -17,8 +17,9 @@ from tests.effect_names import ENGINE_SIDE, ROOT, count, files, naming_lines
 NO_EFFECT = ("granchain/engines", "granchain/lammps", "granchain/columns.py",
              "granchain/reductions")
 # The whole engine side (tests.effect_names.ENGINE_SIDE) keeps at most this many
-# effect-naming code lines: the Scene's Hertz constants and collision time (scene.py) and
-# the guards' messages on the range of Hertz contact theory (guards.py).
+# effect-naming code lines: the Scene's Hertz constants and collision time (scene.py, from
+# effects/hertz.py), the scene check naming a bad Hertz constant (scenecheck.py) and the
+# guards' messages on the range of Hertz contact theory (guards.py).
 ENGINE_SIDE_BUDGET = 15
 
 

@@ -10,7 +10,8 @@ import pytest
 
 from granchain.errors import SceneError
 from granchain.materials import RIGID, effective_modulus, library
-from granchain.scene import hertz_constant, scene_from_dict
+from granchain.effects import hertz
+from granchain.scene import scene_from_dict
 from granchain.simulate import run_scene
 
 ALL = ["hertz", "rotation", "groove_friction", "air_drag", "particle_friction",
@@ -148,9 +149,9 @@ def test_contact_law_of_unequal_spheres_and_walls():
     lib = library()
     s, b = lib["ss440c"], lib["brass"]
     Es = 1.0 / ((1 - s.nu**2) / s.E + (1 - b.nu**2) / b.E)
-    assert hertz_constant(s, 150e-6, b, 100e-6) == pytest.approx(
+    assert hertz.constant(s, 150e-6, b, 100e-6) == pytest.approx(
         4 / 3 * Es * math.sqrt(150e-6 * 100e-6 / 250e-6), rel=1e-15)
-    assert hertz_constant(s, 150e-6, RIGID, math.inf) == pytest.approx(
+    assert hertz.constant(s, 150e-6, RIGID, math.inf) == pytest.approx(
         4 / 3 * s.E / (1 - s.nu**2) * math.sqrt(150e-6), rel=1e-15)
     assert effective_modulus(s, s) == s.E / (2 * (1 - s.nu**2))
     sc = scene_from_dict({"name": "w", "walls": {"end": "ss440c"}})

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from granchain import cli, guards
+from granchain.commands import run as run_command
 from granchain.observables import bounded, summarize
 from granchain.scene import scene_from_dict
 from granchain.simulate import run_scene, trajectories
@@ -146,7 +147,7 @@ def test_the_check_is_idempotent_and_leaves_a_sound_result_alone():
 
 def printed(scene, runs) -> str:
     out = io.StringIO()
-    cli._print_human(scene, runs, out)
+    run_command._print_human(scene, runs, out)
     return out.getvalue()
 
 
@@ -174,7 +175,7 @@ def test_a_run_without_a_measured_peak_says_what_its_status_means(one_run):
 def test_the_text_output_of_an_impossible_run_shows_no_number(monkeypatch, tmp_path):
     """``granchain run`` of the 1e3 N chain: no v_g number, the status and the key."""
     (tmp_path / "s.yaml").write_text("name: s\n")
-    monkeypatch.setattr(cli, "load_scene", lambda *a, **k: preloaded(1e3))
+    monkeypatch.setattr(run_command, "load_scene", lambda *a, **k: preloaded(1e3))
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
         assert cli.main(["run", str(tmp_path / "s.yaml"), "--no-progress"]) == 0
@@ -194,7 +195,7 @@ def test_compare_says_when_a_guard_fired(monkeypatch):
     cmp = cmpmod.compare(preloaded(0.1))
     assert cmp.meta["status"] == {"reference": ["unphysical"], "lammps": ["unphysical"]}
     out = io.StringIO()
-    cli._print_comparison(cmp, out)
+    run_command._print_comparison(cmp, out)
     text = out.getvalue()
     assert "status unphysical" in text and "precompression.force" in text
     assert text.splitlines()[-1] != "all tolerances met"

@@ -1,4 +1,4 @@
-"""The scene-key declarations (granchain.validate.Key; granchain.scene.KEYS and each effect
+"""The scene-key declarations (granchain.validate.Key; granchain.scenekeys.KEYS and each effect
 module's KEYS) against what the scene loader fills in and accepts, and the reference page
 written from them (granchain.scenekeys)."""
 from __future__ import annotations
@@ -12,8 +12,8 @@ import pytest
 from granchain import scenekeys
 from granchain.effects import MODULES
 from granchain.errors import SceneError
-from granchain.scene import (DEFAULTS, EFFECTS, MEASUREMENT_DEFAULTS, RADIUS_SPREAD_DEFAULTS,
-                             scene_from_dict)
+from granchain.scene import scene_from_dict
+from granchain.scenekeys import DEFAULTS, EFFECTS, MEASUREMENT_DEFAULTS, RADIUS_SPREAD_DEFAULTS
 
 
 def flat_defaults() -> dict:

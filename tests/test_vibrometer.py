@@ -14,7 +14,8 @@ from granchain import tables
 from granchain.cli import main
 from granchain.errors import SceneError
 from granchain.observables import MEASURED_COLUMNS, MEASURED_FIELDS
-from granchain.scene import Measurement, load_scene
+from granchain.scene import load_scene
+from granchain.scenecheck import Measurement
 from granchain.simulate import run_scene
 
 from conftest import SCENES, packed

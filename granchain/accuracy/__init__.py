@@ -97,7 +97,7 @@ from .report import machine, plot, provenance_fields, write_model, write_outputs
 from ..costmodel import (MODEL_COLUMNS, MODEL_FILE, MODEL_PROVENANCE, SCENE_METHODS,
                         fixed_step, is_packed, load_model)
 from ..runplan import AUTO_SAFETY
-from ..scene import MIN_STEPS_PER_CONTACT
+from ..scenekeys import MIN_STEPS_PER_CONTACT
 
 __all__ = ["AUTO_SAFETY", "COLUMNS", "DEFAULT_BASE", "DEFAULT_COST", "DETERMINISTIC",
            "METHODS", "MIN_STEPS_PER_CONTACT", "MODEL_COLUMNS", "MODEL_FILE",

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from ..costmodel import MODEL_COLUMNS, SCENE_METHODS
-from ..scene import TOLERANCE_METHODS
+from ..scenekeys import TOLERANCE_METHODS
 from ..observables import ChainResult
 
 

@@ -19,7 +19,8 @@ import numpy as np
 from ..costmodel import SCENE_METHODS, chain_work, fixed_step
 from ..errors import GranchainError
 from ..observables import ChainResult, status_summary
-from ..scene import MIN_STEPS_PER_CONTACT, TOLERANCE_METHODS, scene_from_dict
+from ..scene import scene_from_dict
+from ..scenekeys import MIN_STEPS_PER_CONTACT, TOLERANCE_METHODS
 from .envelope import rel_err
 
 METHODS = ("rk4", "verlet", "adaptive", "event", "lammps")

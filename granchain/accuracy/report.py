@@ -11,7 +11,7 @@ import numpy as np
 
 from .. import costmodel
 from ..errors import GranchainError
-from ..scene import TOLERANCE_METHODS
+from ..scenekeys import TOLERANCE_METHODS
 from .envelope import cheapest, cheapest_table, model_from_table, scene_class
 from .harness import DETERMINISTIC, METHODS, full_config, to_frame
 

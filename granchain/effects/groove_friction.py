@@ -29,7 +29,7 @@ from ..errors import SceneError
 from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
-from .lanes import moving
+from .lanes import clip_to_cap, moving
 from .spec import DeckPart, EffectSpec, compiled, hermite_root
 
 SPEC = EffectSpec("groove_friction", state=(("L_GROOVE_HIST", "particle"),),
@@ -121,9 +121,7 @@ def groove_force(xi, u, kg, gam, Fc):
     rate (u in stick, 0 while sliding at the cap)."""
     F = -kg * xi - gam * u
     rate = 0.0 if (abs(F) >= Fc and F * u < 0.0) else u
-    if abs(F) >= Fc:
-        F = math.copysign(Fc, F)
-    return F, rate
+    return clip_to_cap(F, Fc), rate
 
 
 # The compiled parts the engines compose (``spec.HOOKS``): each sphere's Coulomb limit,
@@ -213,17 +211,18 @@ def locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol):
     rot = FL[S.F_ROTATION] != 0
     og = LO[S.L_GROOVE_HIST]
     ov = LO[S.L_VEL]
-    ow = LO[S.L_SPIN]
+    owr = LO[S.L_SPIN] if rot else ov
     best = 2.0
     for i in range(n):
         kg = G[S.G_GROOVE_SPRING * n + i]
         gam = G[S.G_GROOVE_DASHPOT * n + i]
         Fc = G[S.G_GROOVE_LIMIT * n + i]
         sR = s_g * G[S.G_RADIUS * n + i]
-        u0 = y[ov + i] - (sR * y[ow + i] if rot else 0.0)
-        u1 = ynew[ov + i] - (sR * ynew[ow + i] if rot else 0.0)
-        du0 = K0[ov + i] - (sR * K0[ow + i] if rot else 0.0)
-        du1 = K1[ov + i] - (sR * K1[ow + i] if rot else 0.0)
+        # the slip and its rate at both ends of the step
+        u0 = slip(y[ov + i], y[owr + i], sR, rot)
+        u1 = slip(ynew[ov + i], ynew[owr + i], sR, rot)
+        du0 = slip(K0[ov + i], K0[owr + i], sR, rot)
+        du1 = slip(K1[ov + i], K1[owr + i], sR, rot)
         q0 = kg * y[og + i] + gam * u0
         q1 = kg * ynew[og + i] + gam * u1
         w0 = kg * K0[og + i] + gam * du0

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..materials import Material, effective_modulus
 from ..units import lmp_float as _r
 from . import slots as S
 from .lanes import any_contact, overlap
@@ -36,6 +37,19 @@ def peak_overlap(m_red, K, v):
     """The largest overlap (m) of a head-on collision of reduced mass m_red (kg) at
     closing speed v (m/s): (5 m_red v^2 / (4 K))^(2/5)."""
     return (5.0 * m_red * v * v / (4.0 * K)) ** 0.4
+
+
+def contact_time(mu, K, v):
+    """Duration (s) of a head-on Hertz collision of reduced mass mu (kg) and constant K
+    at closing speed v: 2.9432 delta_m / v, delta_m its :func:`peak_overlap`."""
+    return 2.9432 * peak_overlap(mu, K, v) / v
+
+
+def constant(a: Material, Ra: float, b: Material, Rb: float) -> float:
+    """K (N/m^1.5) of f = K delta^(3/2) between bodies of materials a, b and radii Ra, Rb
+    (Rb = inf: a flat wall): (4/3) E* sqrt(R*), R* = Ra Rb/(Ra + Rb)."""
+    R_star = Ra if math.isinf(Rb) else (Ra / 2.0 if Ra == Rb else Ra * Rb / (Ra + Rb))
+    return 4.0 / 3.0 * effective_modulus(a, b) * math.sqrt(R_star)
 
 
 @compiled

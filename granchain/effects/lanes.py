@@ -16,6 +16,8 @@ wave at rest.
 """
 from __future__ import annotations
 
+import math
+
 from .spec import compiled
 
 
@@ -23,6 +25,13 @@ from .spec import compiled
 def overlap(y, ox, G, k, l):
     """Overlap (m) of inner contact k in lane l: x_k - x_{k+1} - G_GAP_k."""
     return y[ox + k, l] - y[ox + k + 1, l] - G[k, l]
+
+
+@compiled
+def clip_to_cap(x, cap):
+    """A force or moment x held to its Coulomb cap: sgn(x) cap where |x| exceeds cap >= 0,
+    else x (at |x| = cap the two are the same number)."""
+    return math.copysign(cap, x) if abs(x) > cap else x
 
 
 @compiled

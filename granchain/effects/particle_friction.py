@@ -18,7 +18,7 @@ from ..errors import SceneError
 from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
-from .lanes import any_contact, bit, overlap
+from .lanes import any_contact, bit, clip_to_cap, overlap
 from .spec import DeckPart, EffectSpec, compiled, normal_cap
 
 SPEC = EffectSpec("particle_friction", state=(("L_PARTICLE_HIST", "contact"),),
@@ -86,12 +86,8 @@ def contact_force(xi, w, kt, cap):
     """(T, xi') of a loaded contact: the capped spring force (N) and the history rate
     (w, or 0 while sliding at the cap away from the origin)."""
     T = -kt * xi
-    rate = w
-    if abs(T) >= cap:
-        T = math.copysign(cap, T)
-        if w * xi > 0.0:
-            rate = 0.0
-    return T, rate
+    rate = 0.0 if (abs(T) >= cap and w * xi > 0.0) else w
+    return clip_to_cap(T, cap), rate
 
 
 # The compiled parts the engines compose (``spec.HOOKS``): each contact's spring constant

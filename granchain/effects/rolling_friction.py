@@ -20,7 +20,7 @@ from ..errors import SceneError
 from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
-from .lanes import any_contact, bit, overlap
+from .lanes import any_contact, bit, clip_to_cap, overlap
 from .spec import DeckPart, EffectSpec, compiled, normal_cap
 
 SPEC = EffectSpec("rolling_friction", state=(("L_ROLLING_HIST", "contact"),),
@@ -88,9 +88,7 @@ def moment_lammps_order(rho, vr, kr, gr, cap, dt):
     M = -kr * rho - gr * vr
     if abs(M) > cap:
         if rho != 0.0:
-            # rolling_map, written out: the kernels compile each law on its own, so a law
-            # cannot call another
-            rho = -(math.copysign(cap, M) + gr * vr) / kr
+            rho = rolling_map(rho, vr, kr, gr, cap)
             M = math.copysign(cap, M)
         else:
             M = 0.0
@@ -103,10 +101,7 @@ def moment(rho, vr, kr, gr, cap):
     history is return-mapped after the step. Not held at the cap: the cap mu_roll f(t) and
     the dashpot part move during a slide, and a held history lags them (first order in
     dt, 1e-5 at 1 ns; this way 2e-10, tests/test_rolling.py)."""
-    M = -kr * rho - gr * vr
-    if abs(M) > cap:
-        M = math.copysign(cap, M)
-    return M
+    return clip_to_cap(-kr * rho - gr * vr, cap)
 
 
 # The compiled parts the engines compose (``spec.HOOKS``): each contact's R_eff is row

@@ -54,10 +54,11 @@ def poly_dv(c, tau):
     return c[1] + tau * (2.0 * c[2] + tau * (3.0 * c[3] + tau * 4.0 * c[4]))
 
 
-@njit(cache=True)
-def vcoef(x0, v0, a0, x1, v1, a1, h, c):
-    """Coefficients of v(tau), tau in [0, 1], the derivative of the quintic Hermite
-    interpolant of x (values, first and second derivatives at both ends)."""
+@njit(cache=True, inline="always")
+def quintic(x0, v0, a0, x1, v1, a1, h):
+    """(V0, A0, c3, c4, c5): the quintic Hermite interpolant of x over a step h (values,
+    first and second derivatives at both ends) is x0 + tau (V0 + tau (A0/2 + tau (c3 +
+    tau (c4 + tau c5)))), tau in [0, 1]."""
     V0 = h * v0
     A0 = h * h * a0
     R0 = (x1 - x0) - V0 - 0.5 * A0
@@ -66,6 +67,14 @@ def vcoef(x0, v0, a0, x1, v1, a1, h, c):
     c3 = 10.0 * R0 - 4.0 * R1 + 0.5 * R2
     c4 = -15.0 * R0 + 7.0 * R1 - R2
     c5 = 6.0 * R0 - 3.0 * R1 + 0.5 * R2
+    return V0, A0, c3, c4, c5
+
+
+@njit(cache=True)
+def vcoef(x0, v0, a0, x1, v1, a1, h, c):
+    """Coefficients of v(tau), tau in [0, 1], the derivative of the quintic Hermite
+    interpolant of x (values, first and second derivatives at both ends)."""
+    V0, A0, c3, c4, c5 = quintic(x0, v0, a0, x1, v1, a1, h)
     c[0] = v0
     c[1] = A0 / h
     c[2] = 3.0 * c3 / h
@@ -76,14 +85,7 @@ def vcoef(x0, v0, a0, x1, v1, a1, h, c):
 @njit(cache=True)
 def x_interp(x0, v0, a0, x1, v1, a1, h, tau):
     """(x, v) of the quintic Hermite interpolant at tau."""
-    V0 = h * v0
-    A0 = h * h * a0
-    R0 = (x1 - x0) - V0 - 0.5 * A0
-    R1 = h * v1 - V0 - A0
-    R2 = h * h * a1 - A0
-    c3 = 10.0 * R0 - 4.0 * R1 + 0.5 * R2
-    c4 = -15.0 * R0 + 7.0 * R1 - R2
-    c5 = 6.0 * R0 - 3.0 * R1 + 0.5 * R2
+    V0, A0, c3, c4, c5 = quintic(x0, v0, a0, x1, v1, a1, h)
     x = x0 + tau * (V0 + tau * (0.5 * A0 + tau * (c3 + tau * (c4 + tau * c5))))
     v = (V0 + tau * (A0 + tau * (3.0 * c3 + tau * (4.0 * c4 + tau * 5.0 * c5)))) / h
     return x, v

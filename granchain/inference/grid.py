@@ -104,8 +104,19 @@ def grid_scene(base: Scene, gap_mean: float, realisations: int) -> Scene:
                         "ensemble": {"realisations": int(realisations)}})
 
 
+class WeightedGrid:
+    """What a simulated grid (:class:`Grid`, :class:`JointGrid`) says of its realisations'
+    weights: ``weights`` are the design's prior / proposal (None for plain draws),
+    ``key_prior`` says whether they are used, ``realisations`` how many there are."""
+
+    @property
+    def realisation_weights(self) -> np.ndarray:
+        """(R,) the realisations' weights in the likelihood (``gapdesign.prior_weights``)."""
+        return prior_weights(self.weights, self.realisations, self.key_prior)
+
+
 @dataclass(frozen=True)
-class Grid:
+class Grid(WeightedGrid):
     """Simulated timings: ``timings[column]`` of shape (G, S, R) in s (NaN where the wave
     did not arrive), at mean gaps ``gaps`` (G, m), striker speeds ``speeds`` (S, m/s,
     ascending) and R realisations; ``hashes`` the grid scenes' hashes; ``simulated`` how
@@ -121,13 +132,6 @@ class Grid:
     @property
     def realisations(self) -> int:
         return int(next(iter(self.timings.values())).shape[2])
-
-    @property
-    def realisation_weights(self) -> np.ndarray:
-        """(R,) the realisations' weights in the likelihood: ``weights`` are the design's
-        prior / proposal (None for plain draws), ``key_prior`` says whether they are used
-        (``gapdesign.prior_weights``)."""
-        return prior_weights(self.weights, self.realisations, self.key_prior)
 
     @property
     def n_chains(self) -> int:
@@ -241,7 +245,7 @@ def joint_scene(base: Scene, gap_mean: float, e: float, realisations: int) -> Sc
 
 
 @dataclass(frozen=True)
-class JointGrid:
+class JointGrid(WeightedGrid):
     """Simulated observables ``values[name]`` (``JOINT_OBS``: the two timings in s, the
     probes' peaks in m/s) of shape (G, E, S, R), NaN where not measured, at mean gaps
     ``gaps`` (G), restitutions ``restitutions`` (E, ascending, the last 1), striker speeds
@@ -259,11 +263,6 @@ class JointGrid:
     @property
     def realisations(self) -> int:
         return int(next(iter(self.values.values())).shape[3])
-
-    @property
-    def realisation_weights(self) -> np.ndarray:
-        """(R,) the realisations' weights, as :attr:`Grid.realisation_weights`."""
-        return prior_weights(self.weights, self.realisations, self.key_prior)
 
     @property
     def n_chains(self) -> int:

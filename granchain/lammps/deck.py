@@ -75,7 +75,8 @@ from granchain.effects import SPECS, physics_terms
 from granchain.errors import GranchainError
 from granchain.fileio import OutputKind, file_head, atomic_write_text, check_output_path
 from granchain.runplan import RunPlan
-from granchain.scene import NAME_RE, NAME_RULE, Scene
+from granchain.scene import Scene
+from granchain.scenekeys import NAME_RE, NAME_RULE
 from granchain.lammps.deckplan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, DECK_NAME,
                                    DUMP_COLUMNS, DUMP_NAME, ENERGY_NAME, LEDGER_BINARY_NAME,
                                    LEDGER_INPUTS, LEDGER_NAME, LOG_NAME, OUTPUTS, SCREEN_NAME,
@@ -323,7 +324,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
     springs (the Groove section), static overlaps and wall overlap (its positions).
 
     The only text from the scene in either file is its name (in comments and the data
-    file's title line), which must match ``granchain.scene.NAME_RE``: no newline, ``$``,
+    file's title line), which must match ``granchain.scenekeys.NAME_RE``: no newline, ``$``,
     ``&`` or quote can reach LAMMPS' input parser."""
     if not NAME_RE.fullmatch(scene.name):
         raise GranchainError(f"deck: scene name {scene.name!r} is not a valid name; {NAME_RULE}")

@@ -16,7 +16,7 @@ import pandas as pd
 
 from ..errors import GranchainError
 from ..materials import library
-from ..scene import DEFAULTS
+from ..scenekeys import DEFAULTS
 
 # The chapter's probes (particles 2 and 13) and chain radius, used where a table cannot
 # say them. The tables carry every particle's v_max but not the probes.

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 
 from ..errors import GranchainError
-from ..scene import DEFAULTS
+from ..scenekeys import DEFAULTS
 from .config import FIELD_STUDIES, OPTIONAL_STUDIES, QUESTION_STUDIES
 from .presetplan import Plan
 from .studies import ENGINE_ORDER

@@ -49,7 +49,8 @@ from .. import analytic
 from ..errors import GranchainError
 from ..costmodel import fixed_step
 from ..runplan import RunPlan, plan_run
-from ..scene import RANDOM_GAPS, TOLERANCE_METHODS, Scene, apply_overrides, scene_from_dict
+from ..scene import Scene, apply_overrides, scene_from_dict
+from ..scenekeys import RANDOM_GAPS, TOLERANCE_METHODS
 from .config import FIELD_STUDIES, OPTIONAL_STUDIES, QUESTION_STUDIES, ConfigError, \
     study_engine
 
@@ -498,7 +499,7 @@ def vibrometer_blocks(spec: dict) -> list[dict]:
 
 
 def vibrometer_settings(preset: dict, ss: StudyScene) -> list:
-    """The instrument settings (:class:`granchain.scene.Measurement`) the vibrometer study
+    """The instrument settings (:class:`granchain.scenecheck.Measurement`) the vibrometer study
     applies to the trajectories of a scene, each validated as the scene's measurement
     block (a bandwidth not below half the sampling rate is refused in one line)."""
     spec = preset["studies"][VIBROMETER]

@@ -34,7 +34,7 @@ from ..errors import GranchainError
 from ..gaps import members as scene_members
 from ..vibrometer import extract, measure, needs_trace, record
 from ..observables import bounded, probe_span, status_summary, summarize
-from ..scene import MEASUREMENT_DEFAULTS
+from ..scenekeys import MEASUREMENT_DEFAULTS
 from ..simulate import trajectories
 from .studies import VIBROMETER, StudyScene, vibrometer_scenes, vibrometer_settings
 

@@ -9,7 +9,7 @@ import pandas as pd
 
 from ... import reductions
 from ...analytic import nesterenko_speed
-from ...scene import DEFAULTS
+from ...scenekeys import DEFAULTS
 from .common import SIM_MATERIAL, V_REF, PackedChain, make_row
 
 GRAVITY = float(DEFAULTS["groove"]["g"])

@@ -1,0 +1,319 @@
+"""``granchain infer``: the mean gap of a chain (and its coefficient of restitution)
+inferred from measured wave timing (and peaks): the guards on the simulated grid's size,
+the inference and what it prints."""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+from ..costmodel import run_estimate
+from ..errors import GranchainError
+from ..fileio import IMAGE, atomic_write_text, check_output_path, json_output, json_text
+from ..guards import check_run
+from ..scene import load_scene
+from .output import check_paths, fmt, print_warnings, show_progress
+
+
+INFER_JSON = json_output("a granchain infer JSON document", {"measurements", "timing_column"})
+
+
+def _print_inference(res, out=None) -> None:
+    out = out or sys.stdout
+    nm = lambda x: fmt(None if x is None else x * 1e9, " nm")    # noqa: E731
+    lo, hi = res.ci95_m
+    print(f"inferred mean gap ({res.timing_column}, {res.rows} row(s) on {res.chains} chain(s)): "
+          f"{nm(res.gap_mean_m)}, 95% interval [{nm(lo)}, {nm(hi)}]", file=out)
+    print(f"gap law: {res.gap_law}; {res.n_simulated} simulated chains ({res.n_simulated_now} "
+          f"run now, the rest cached): mean gaps {nm(res.gap_grid_m[0])}-{nm(res.gap_grid_m[1])} "
+          f"({res.gap_grid_m[2]} points) x {len(res.speeds_m_s)} striker speed(s) x "
+          f"{res.realisations} realisations", file=out)
+    _print_sources(res, out)
+    _print_model_check(res, out)
+    print(f"Eq. 5.4 reading (chapter): least-squares {nm(res.eq54_gap_m)}, "
+          f"upper-bound reading {nm(res.eq54_gap_bound_m)}", file=out)
+    print_warnings([f"{f}: " + {
+        "posterior_at_grid_end": "the posterior still has weight at the largest simulated "
+                                 "mean gap; median and upper bound not measured (n/a): "
+                                 "raise --gap-max-nm",
+        "no_simulated_match": "no simulated mean gap reproduces the timings",
+        "data_outside_model": _OUTSIDE}[f]
+        for f in res.flags], out)
+    _print_unmeasured(res, out)
+
+
+_OUTSIDE = ("the measured values lie outside what the simulated gap realisations produce "
+            "(model check below its threshold): the posterior describes the nearest simulated "
+            "chains, not this one, and its interval is not calibrated (too narrow, biased); "
+            "check the data, or give the base scene the chain's gap law, effects and "
+            "integrator, or simulate more realisations (--realisations)")
+
+
+def _print_model_check(res, out) -> None:
+    """The model check's line (``granchain.modelcheck``): where the data's kernel density
+    ranks among posterior-predictive replicates of the simulated realisations."""
+    mc = res.data_outside_model
+    p = mc.get("p_value")
+    if not mc["flag"] and (p is None or not math.isfinite(p)):
+        # no p-value: nothing was checked, which is not a pass
+        print("model check: not made (n/a): no posterior-predictive replicate to rank the "
+              "data among", file=out)
+        return
+    verdict = ("OUTSIDE the simulated realisations" if mc["flag"]
+               else "inside the simulated realisations")
+    print(f"model check: data {verdict} (p = {fmt(mc['p_value'], digits=3)}, flagged "
+          f"below {mc['alpha']:g}; density rank among {mc['replicates']} replicates)",
+          file=out)
+
+
+def _print_sources(res, out) -> None:
+    """Where an inference's gap law and striker speeds came from: the base scene, or the
+    defaults of ``inference.complete_base``."""
+    speeds = ", ".join(f"{v:g}" for v in res.speeds_m_s)
+    law = ("the base scene's gap law (gaps.distribution)" if res.gap_law_source == "scene"
+           else "the chapter's gap law (default: the base scene gives no gaps.distribution)")
+    sp = (f"the base scene's striker speeds {speeds} m/s (striker.velocity)"
+          if res.speeds_source == "scene" else
+          f"the data's striker speeds {speeds} m/s (default: the base scene gives no "
+          "striker.velocity)")
+    print(f"simulated with {law} and {sp}", file=out)
+
+
+def _speeds_origin(src) -> tuple[str, str]:
+    """(where the simulated striker speeds come from, how to simulate fewer), for the
+    grid guards' messages; ``src``: the sources of ``inference.complete_base``."""
+    if src["speeds"] == "data":
+        return ("the data's; the base scene gives no striker.velocity",
+                "give the base scene fewer striker speeds (striker.velocity) bracketing the "
+                "data")
+    return "striker.velocity of --scene", "the base scene's striker speeds"
+
+
+def check_grid(base, args, src) -> None:
+    """Refuse an inference whose simulated grid (mean gaps x striker speeds x
+    realisations) is beyond the whole-run limits, cached points included. Values the
+    inference itself refuses (too few points or realisations) are left to it. ``base``:
+    the completed base scene, ``src`` its sources (``inference.complete_base``)."""
+    from ..inference import check_base, grid_scene
+    from ..runplan import plan_run
+    check_base(base)
+    G, R = args.gap_points, args.realisations
+    if G < 3 or R < 2 or min(base.striker_velocities) <= 0:
+        return
+    speeds = sorted({float(v) for v in base.striker_velocities})
+    base = base.derive(striker={"velocity": speeds})
+    # a chain's steps and record grow linearly with its gaps' mean (flight over them):
+    # the grid's total is G times the mean of its two ends
+    ends = [run_estimate(plan_run(grid_scene(base, g, R), per_speed=False).scene)
+            for g in (0.0, args.gap_max_nm * 1e-9)]
+    est = {k: G * (ends[0][k] + ends[1][k]) / 2 for k in ("members", "steps", "seconds")}
+    est["worst_chain_steps"] = ends[1]["worst_chain_steps"]
+    # the points run one after another: at most two points' results and records are held
+    # at once, with the grid's timings (two columns of G x S x R)
+    est["result_bytes"] = 2 * ends[1]["result_bytes"] + 16.0 * G * len(speeds) * R
+    est["record_bytes"] = 2 * ends[1]["record_bytes"]
+    est["bytes"] = est["result_bytes"] + est["record_bytes"]
+    origin, fewer = _speeds_origin(src)
+    size = (f"{G * len(speeds) * R} chains: {G} mean gaps (--gap-points) x {len(speeds)} "
+            f"striker speed{'s' if len(speeds) != 1 else ''} ({origin}) x "
+            f"{R} realisations (--realisations) of {base.n} spheres (chain.n)")
+    check_run("the inference grid", est, size=size,
+              fix=f"lower --realisations, --gap-points or {fewer}",
+              max_total_steps=args.max_total_steps, max_memory_gb=args.max_memory_gb)
+
+
+def _print_joint_inference(res, out=None) -> None:
+    out = out or sys.stdout
+    nm = lambda x: fmt(None if x is None else x * 1e9, " nm")    # noqa: E731
+    lo, hi = res.ci95_m
+    elo, ehi = res.restitution_ci95
+    print(f"inferred from {res.timing_column} and the peaks at both probes ({res.rows} row(s) "
+          f"on {res.chains} chain(s)):", file=out)
+    print(f"  mean gap {nm(res.gap_mean_m)}, 95% interval [{nm(lo)}, {nm(hi)}]", file=out)
+    print(f"  coefficient of restitution e {fmt(res.restitution)}, 95% interval "
+          f"[{fmt(elo)}, {fmt(ehi)}]", file=out)
+    print(f"  posterior correlation of mean gap and e: {fmt(res.posterior_correlation, digits=2)}",
+          file=out)
+    g0, g1, G = res.gap_grid_m
+    e0, e1, E = res.restitution_grid
+    print(f"gap law: {res.gap_law}; damping {res.damping_model}; {res.n_simulated} simulated "
+          f"chains ({res.n_simulated_now} run now, the rest cached): mean gaps "
+          f"{nm(g0)}-{nm(g1)} ({G} points, {res.gap_spacing} spacing) x e {fmt(e0)}-{fmt(e1)} "
+          f"({E} points) x {len(res.speeds_m_s)} striker speed(s) x {res.realisations} "
+          "realisations", file=out)
+    _print_sources(res, out)
+    ranged = _predictive_ranged(res)
+    if ranged == 0:
+        # no posterior draw gave a range: nothing was checked, which is not a pass
+        print(f"posterior predictive check: not made (n/a): none of the "
+              f"{res.predictive_values} measured values has a simulated predictive range",
+              file=out)
+    else:
+        print(f"posterior predictive check: {res.predictive_outside} of "
+              f"{res.predictive_values} measured values outside their 95% predictive range"
+              + (f" ({res.predictive_values - ranged} without a simulated range, counted "
+                 "outside)" if ranged < res.predictive_values else ""), file=out)
+    _print_model_check(res, out)
+    print(f"Eq. 5.4 reading (chapter; packed chain at the inferred e): least-squares "
+          f"{nm(res.eq54_gap_m)}, upper-bound reading {nm(res.eq54_gap_bound_m)}", file=out)
+    print_warnings([f"{f}: " + {
+        "posterior_at_grid_end": "the posterior still has weight at the largest simulated "
+                                 "mean gap; its median and upper bound not measured (n/a): "
+                                 "raise --gap-max-nm",
+        "restitution_at_grid_end": "the posterior still has weight at the smallest "
+                                   "simulated e; its median and lower bound not measured "
+                                   "(n/a): lower --e-min",
+        "no_simulated_match": "no simulated (mean gap, e) reproduces the data",
+        "data_outside_model": _OUTSIDE}[f]
+        for f in res.flags], out)
+    _print_unmeasured(res, out)
+
+
+def _predictive_ranged(res) -> int:
+    """How many measured values of a joint inference have a finite 95% predictive range
+    (``predictive_rows``): the values its predictive check actually checked."""
+    n = 0
+    for row in res.predictive_rows:
+        for key, q in row.items():
+            if key != "v_striker_m_s":
+                n += int(all(x is not None and math.isfinite(x) for x in q))
+    return n
+
+
+def _print_unmeasured(res, out) -> None:
+    """A warning when simulated chains of an inference's grid have no timing: their wave
+    did not reach both probes within the run, the run timed out, or a guard set an
+    impossible value aside (``observables.bounded``); they match no measurement."""
+    import numpy as np
+    grid = res.grid
+    if grid is None:
+        return
+    table = grid.timings if hasattr(grid, "timings") else grid.values
+    T = np.asarray(table[res.timing_column])
+    k = int(np.count_nonzero(np.isnan(T)))
+    if k:
+        print_warnings([f"{k} of {T.size} simulated chains have no {res.timing_column}: "
+                         "their wave did not reach both probes within the run or a guard set "
+                         "an impossible value aside (granchain run on the base scene shows "
+                         "which); they match no measurement"], out)
+
+
+def check_joint_grid(base, args, src) -> None:
+    """Refuse a joint inference whose grid (mean gaps x restitutions x striker speeds x
+    realisations) is beyond the whole-run limits, as :func:`check_grid`."""
+    from ..errors import SceneError
+    from ..inference import check_joint_options, gap_nodes, joint_scene
+    from ..runplan import plan_run
+    check_joint_options(args.gap_max_nm * 1e-9, args.gap_points, args.e_min, args.e_points,
+                        args.realisations)
+    if min(base.striker_velocities) <= 0:
+        return
+    G, E, R = args.gap_points, args.e_points, args.realisations
+    speeds = sorted({float(v) for v in base.striker_velocities})
+    base = base.derive(striker={"velocity": speeds})
+    gmax = args.gap_max_nm * 1e-9
+    try:
+        ends = [run_estimate(plan_run(joint_scene(base, g, args.e_min, R),
+                                      per_speed=False).scene)
+                for g in (0.0, gmax)]
+    except SceneError as exc:
+        raise GranchainError(f"--e-min {args.e_min:g}: the base scene at this e is refused "
+                             f"({exc}); raise --e-min, or give the base scene an integrator "
+                             "that resolves the damping (method event or adaptive)") from None
+    # steps grow linearly with the mean gap: the nodes' mean gap is gmax mean((k/(G-1))^2)
+    f = float((gap_nodes(1.0, G)).mean())
+    est = {k: G * E * (ends[0][k] + f * (ends[1][k] - ends[0][k]))
+           for k in ("members", "steps", "seconds")}
+    est["worst_chain_steps"] = ends[1]["worst_chain_steps"]
+    est["result_bytes"] = 2 * ends[1]["result_bytes"] + 32.0 * G * E * len(speeds) * R
+    est["record_bytes"] = 2 * ends[1]["record_bytes"]
+    est["bytes"] = est["result_bytes"] + est["record_bytes"]
+    origin, fewer = _speeds_origin(src)
+    size = (f"{G * E * len(speeds) * R} chains: {G} mean gaps (--gap-points) x {E} "
+            f"restitutions (--e-points) x {len(speeds)} striker speed"
+            f"{'s' if len(speeds) != 1 else ''} ({origin}) x {R} "
+            f"realisations (--realisations) of {base.n} spheres (chain.n)")
+    check_run("the inference grid", est, size=size,
+              fix=f"lower --realisations, --gap-points, --e-points or {fewer}",
+              max_total_steps=args.max_total_steps, max_memory_gb=args.max_memory_gb)
+
+
+def cmd_infer(args) -> int:
+    from ..errors import SceneError
+    from ..inference import (check_restitution_base, complete_base, infer, parse_fit,
+                            read_measurements)
+    from ..runplan import plan_run
+    fit = parse_fit(args.fit)
+    check_paths(args, [("--out", args.out), ("--plot", args.plot)],
+                [("the measurement file", args.measurements)])
+    if args.plot:
+        if Path(args.plot).suffix.lower() not in (".png", ".pdf", ".svg"):
+            raise GranchainError(f"--plot: {args.plot!r} has no known image suffix; end it "
+                                 "with .png, .pdf or .svg")
+        check_output_path(args.plot, args.force, "--plot", kind=IMAGE)
+    if args.out:
+        check_output_path(args.out, args.force, "--out", kind=INFER_JSON)
+    if not args.no_cache:
+        _check_cache_dir(args.cache_dir)
+    joint = "restitution" in fit
+    meas = read_measurements(args.measurements, peaks=joint)
+    # the gap law and speeds the base scene leaves out are filled in before method auto
+    # is resolved, so that auto chooses for the scene that runs
+    base, src = complete_base(load_scene(args.scene, args.set), meas)
+    base = plan_run(base, per_speed=False).scene
+    if joint:
+        try:
+            check_restitution_base(base)
+        except SceneError as exc:
+            raise GranchainError(f"{args.scene}: {exc} (--fit names restitution)") from None
+        return _infer_joint(args, meas, base, src)
+    check_grid(base, args, src)
+    res = infer(base, meas, gap_max=args.gap_max_nm * 1e-9, gap_points=args.gap_points,
+                realisations=args.realisations, cache_dir=None if args.no_cache else args.cache_dir,
+                source=f"{args.measurements}, ", prior=args.prior, progress=show_progress(args))
+    return _report_inference(args, res, meas, base, _print_inference, "plot_inference")
+
+
+def _check_cache_dir(path) -> None:
+    """Refuse, before any work, a --cache-dir that is not (and cannot become) a directory."""
+    d = Path(path)
+    if d.exists() and not d.is_dir():
+        raise GranchainError(f"--cache-dir: {str(d)!r} is not a directory; give a directory "
+                             "for the simulated grids (it is created if missing), or pass "
+                             "--no-cache")
+    up = d
+    while not up.exists() and up != up.parent:
+        up = up.parent
+    if up != d and not up.is_dir():
+        # created when the first grid point is cached: refused now, not after that work
+        raise GranchainError(f"--cache-dir: cannot create {str(d)!r} ({str(up)!r} is a file); "
+                             "choose another directory, or pass --no-cache")
+
+
+def _infer_joint(args, meas, base, src) -> int:
+    from ..inference import infer_joint
+    check_joint_grid(base, args, src)
+    res = infer_joint(base, meas, gap_max=args.gap_max_nm * 1e-9, gap_points=args.gap_points,
+                      e_min=args.e_min, e_points=args.e_points, realisations=args.realisations,
+                      cache_dir=None if args.no_cache else args.cache_dir,
+                      source=f"{args.measurements}, ", prior=args.prior,
+                      progress=show_progress(args))
+    return _report_inference(args, res, meas, base, _print_joint_inference,
+                             "plot_joint_inference")
+
+
+def _report_inference(args, res, meas, base, print_human, plot: str) -> int:
+    """An inference's output: its JSON document (stdout with --json, the file --out) or
+    the human summary, and with --plot the figure of ``figures.inference.<plot>``
+    (matplotlib is loaded only then)."""
+    doc = dict(res.to_json(), measurements=str(args.measurements))
+    if args.json and not args.out:
+        print(json_text(doc))
+    elif not args.json:
+        print_human(res)
+    if args.out:
+        atomic_write_text(args.out, json_text(doc, indent=1) + "\n", args.force, "--out")
+    if args.plot:
+        from ..figures import inference as figs
+        getattr(figs, plot)(res, meas, base, args.plot, force=args.force)
+    return 0
