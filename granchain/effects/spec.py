@@ -165,6 +165,11 @@ HOOKS = {
                        "the same law on one contact of overlap d > 0 and closing speed w, "
                        "given the normal force F of the effects before it (the end wall's "
                        "force, the Coulomb caps)"),
+    "history_normal": ("(F, d, y, LO, G, P, FL, n, k, l) -> F",
+                       "a normal law that reads its history in the state y: the force of "
+                       "contact k in lane l at overlap d > 0 given the force F of the "
+                       "contact_normal laws, where the state is at hand (the end wall's "
+                       "recorded force)"),
     "contact_cap": ("(coef, d, G, n, k, l) -> cap",
                     "coef times its contact_normal when no other contact_normal is on, in "
                     "its own order of operations"),

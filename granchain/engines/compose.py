@@ -17,6 +17,9 @@ few functions that call them in turn:
   is on); the effects' return mappings call it in place of ``effects.spec.normal_cap``;
 - ``wall_force(d, w, G, P, FL, n, l)``: the end wall's force at overlap d and closing
   speed w, by the same ``contact_normal`` laws;
+- ``wall_force_at(y, G, P, FL, LO, n, l)``: the end wall's force in the state y: its
+  ``wall_force``, then every ``history_normal`` law (a law whose force depends on its
+  history in y) on a closed wall contact;
 - ``locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol) -> tau``: the earliest switch any
   effect's ``locate`` finds inside a trial step, -1 if none.
 
@@ -187,6 +190,16 @@ def source() -> str:
                                                  indent="        ")
     out += ["    return F", "", ""]
 
+    # the wall's force in a state: the laws above, then those reading their history in y
+    out += ["def wall_force_at(y, G, P, FL, LO, n, l):",
+            "    d = y[LO[%d] + n - 1, l] - G[n - 1, l]" % codes.L_DISP,
+            "    F = wall_force(d, y[LO[%d] + n - 1, l], G, P, FL, n, l)" % codes.L_VEL]
+    for m in by["history_normal"]:
+        out += ["    if d > 0.0:"] + _call(m, "history_normal",
+                                             "F, d, y, LO, G, P, FL, n, n - 1, l", "F = ",
+                                             indent="        ")
+    out += ["    return F", "", ""]
+
     out += ["def locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol):", "    best = -1.0"]
     for m in by["locate"]:
         out += _call(m, "locate", "y, ynew, K0, K1, G, P, FL, LO, n, h, rtol", "tau = ")
@@ -198,7 +211,7 @@ def source() -> str:
 
 
 COMPOSED = ("normal_forces", "effect_forces", "project_histories", "effect_energies",
-            "normal_cap", "wall_force", "locate")
+            "normal_cap", "wall_force", "wall_force_at", "locate")
 
 
 def _file(text: str) -> str:
@@ -232,6 +245,8 @@ def _compose() -> dict:
         fn = ns[name]
         fn.__module__ = "granchain_composed"
         out[name] = njit(cache=True, inline="always")(fn)
+    # the composed functions call each other (wall_force_at calls wall_force) compiled
+    ns.update(out)
     # the effects' compiled code calls these in place of the stubs of effects.spec
     services = ((spec.normal_cap, out["normal_cap"]), (spec.hermite_root, hermite_root))
     for ns in _NAMESPACES.values():

@@ -36,7 +36,7 @@ from .codes import (DOP_A, DOP_B, DOP_E3, DOP_E5, E_KIN_TRANS, E_LEN,  # noqa: E
                     L_DISP, L_VEL, P_DEAD_LOAD, P_N_SPHERES, WORK_SLOTS)
 # the physics: the effects' laws, composed from the registry
 from .compose import (effect_energies, effect_forces, normal_forces,  # noqa: E402
-                      project_histories, wall_force)
+                      project_histories, wall_force, wall_force_at)
 from .compose import bit as _bit  # noqa: E402
 
 
@@ -327,9 +327,9 @@ def dop853_try(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol):
 
 @njit(cache=True, inline="always")
 def _wall_force_l(y, g, n, LO, P, FL, l):
-    """Force (N) of the end wall on lane l of a block (``compose.wall_force``)."""
-    return wall_force(y[LO[L_DISP] + n - 1, l] - g[n - 1, l], y[LO[L_VEL] + n - 1, l], g, P,
-                      FL, n, l)
+    """Force (N) of the end wall on lane l of a block (``compose.wall_force_at``: the
+    laws that read their history in the state included)."""
+    return wall_force_at(y, g, P, FL, LO, n, l)
 
 
 @njit(cache=True, inline="always")
