@@ -37,6 +37,9 @@ class Material:
     nu: float   # Poisson ratio
     rho: float  # density, kg/m^3
     source: str = field(default="", compare=False, repr=False)   # where the values come from
+    # the limiting contact pressure p_y of Thornton's elastic-perfectly plastic contact
+    # (Pa, ``effects.plastic_contact``), None where the library has no sourced value
+    yield_pressure: float | None = None
 
     @property
     def G(self) -> float:
@@ -81,5 +84,6 @@ def effective_modulus(a: Material, b: Material) -> float:
 def library() -> dict[str, Material]:
     text = resources.files("granchain").joinpath("data/materials.yaml").read_text()
     raw = yaml.safe_load(text)
-    return {k: Material(k, float(v["E"]), float(v["nu"]), float(v["rho"]), str(v.get("source", "")))
+    return {k: Material(k, float(v["E"]), float(v["nu"]), float(v["rho"]), str(v.get("source", "")),
+                        float(v["yield_pressure"]) if v.get("yield_pressure") is not None else None)
             for k, v in raw.items()}

@@ -888,3 +888,86 @@ def _solve_general(radii, mats, v_s, t_end, gaps, wall, F0, rtol, damping=None):
                         damping=damping, damp=damp if damped else 0.0,
                         wall_elastic_dynamic=el_dyn, t_wall_elastic_peak=t_el,
                         forces=forces)
+
+
+# ---------------------------------------------------------------------------------------
+# Thornton's elastic-perfectly plastic contact (Thornton 1997, J. Appl. Mech. 64, 383),
+# written here from the paper's law: Hertz until the peak pressure 2 E* a / (pi R*)
+# reaches p_y (a = sqrt(R* delta)); then F = F_y + pi p_y R* (delta - delta_y); unloading
+# Hertzian with the radius R_p = R* (F_y/F_max) ((2 F_max + F_y)/(3 F_y))^(3/2) (the
+# paper's form) down to delta_p, where (4/3) E* sqrt(R_p) (delta_max - delta_p)^(3/2) =
+# F_max. A collision of two bodies is 1-D and conservative on each branch, so its outcome
+# follows from the branches' energies, by quadrature and root finding (no time stepping).
+@dataclass
+class ThorntonContact:
+    Es: float       # E* (Pa)
+    Rs: float       # R* (m)
+    py: float       # limiting contact pressure (Pa)
+
+    @property
+    def dy(self) -> float:
+        return self.Rs * (math.pi * self.py / (2.0 * self.Es)) ** 2
+
+    @property
+    def Fy(self) -> float:
+        return math.pi ** 3 * self.py ** 3 * self.Rs ** 2 / (6.0 * self.Es ** 2)
+
+    def loading(self, d: float) -> float:
+        """The force on the virgin loading curve at overlap d."""
+        if d <= self.dy:
+            return 4.0 / 3.0 * self.Es * math.sqrt(self.Rs) * d ** 1.5
+        return self.Fy + math.pi * self.py * self.Rs * (d - self.dy)
+
+    def loading_work(self, d0: float, d1: float) -> float:
+        """The work of the loading curve from d0 to d1 (quadrature)."""
+        from scipy.integrate import quad
+        pts = [p for p in (self.dy,) if d0 < p < d1]
+        return quad(self.loading, d0, d1, points=pts or None, epsabs=0.0, epsrel=1e-13,
+                    limit=200)[0]
+
+    def unloading(self, dm: float):
+        """(R_p, delta_p) of the unloading curve from the largest overlap dm."""
+        if dm <= self.dy:
+            return self.Rs, 0.0
+        Fm = self.loading(dm)
+        Rp = self.Rs * (self.Fy / Fm) * ((2.0 * Fm + self.Fy) / (3.0 * self.Fy)) ** 1.5
+        dp = dm - (3.0 * Fm / (4.0 * self.Es * math.sqrt(Rp))) ** (2.0 / 3.0)
+        return Rp, dp
+
+    def stored(self, dm: float) -> float:
+        """The energy the unloading curve from dm returns: its integral from delta_p."""
+        Rp, dp = self.unloading(dm)
+        return 8.0 / 15.0 * self.Es * math.sqrt(Rp) * (dm - dp) ** 2.5
+
+    def collide(self, m_red: float, u: float, dmax: float = 0.0):
+        """A head-on collision at closing speed u (m/s), bodies of reduced mass m_red, on
+        a contact whose largest overlap so far is dmax: (rebound speed / u, the new
+        largest overlap, the energy dissipated). Below the stored energy of the
+        contact's unloading curve the collision runs along it and back (e = 1)."""
+        K = 0.5 * m_red * u * u
+        U0 = self.stored(dmax) if dmax > 0.0 else 0.0
+        if K <= U0:
+            return 1.0, dmax, 0.0
+        rest = K - U0
+        hi = max(dmax, 1e-15) * 2.0
+        while self.loading_work(dmax, hi) < rest:
+            hi *= 2.0
+        dm = brentq(lambda d: self.loading_work(dmax, d) - rest, dmax, hi, xtol=1e-30,
+                    rtol=1e-15, maxiter=500)
+        U = self.stored(dm)
+        return math.sqrt(U / K), dm, K - U
+
+    def yield_speed(self, m_red: float) -> float:
+        """v_y: (1/2) m_red v_y^2 = the Hertz energy at delta_y."""
+        return math.sqrt(2.0 * 8.0 / 15.0 * self.Es * math.sqrt(self.Rs) * self.dy ** 2.5 / m_red)
+
+
+def thornton_restitution(r: float) -> float:
+    """Thornton's (1997) closed form of e at an impact speed r = v / v_y >= 1 times the
+    yield speed: e = (6 sqrt(3)/5)^(1/2) [1 - (1/6)(v_y/v)^2]^(1/2)
+    [(v_y/v) / ((v_y/v) + 2 sqrt(6/5 - (1/5)(v_y/v)^2))]^(1/4); 1 below."""
+    if r <= 1.0:
+        return 1.0
+    x = 1.0 / r
+    return (math.sqrt(6.0 * math.sqrt(3.0) / 5.0) * math.sqrt(1.0 - x * x / 6.0)
+            * (x / (x + 2.0 * math.sqrt(6.0 / 5.0 - x * x / 5.0))) ** 0.25)

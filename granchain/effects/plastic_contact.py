@@ -1,0 +1,390 @@
+"""plastic_contact: Thornton's elastic-perfectly plastic normal contact, in place of Hertz.
+
+Thornton, C. (1997), "Coefficient of restitution for collinear collisions of
+elastic-perfectly plastic spheres", J. Appl. Mech. 64, 383-386. At a contact of E*, R*
+(each contact's, as ``hertz``: the end wall's R* = R_n) and limiting contact pressure p_y
+(the scene's ``plasticity.yield_pressure``, else the softer body's library value), with
+overlap delta and the largest overlap it has reached, delta_max:
+
+- elastic (Thornton's Hertzian loading) while delta_max <= delta_y: F = K delta^(3/2),
+  K = (4/3) E* sqrt(R*), until the Hertzian peak pressure p0 = 2 E* a / (pi R*)
+  (a = sqrt(R* delta)) reaches p_y, at delta_y = R* (pi p_y / (2 E*))^2 and
+  F_y = K delta_y^(3/2) (= pi^3 p_y^3 R*^2 / (6 E*^2));
+- plastic loading (delta = delta_max > delta_y): F = F_y + pi p_y R* (delta - delta_y),
+  Thornton's linear law (its slope 2 E* a_y is Hertz's at delta_y: the force is smooth
+  there);
+- unloading and reloading below delta_max: Hertzian with the enlarged radius
+  R_p = 4 E* a_max^3 / (3 F_max), a_max = sqrt(R* delta_max), F_max the loading force at
+  delta_max (Thornton's R_p = R* (F_y/F_max) ((2 F_max + F_y)/(3 F_y))^(3/2), the same
+  number), down to the plastic overlap delta_p = delta_max - a_max^2 / R_p:
+  F = (4/3) E* sqrt(R_p) (delta - delta_p)^(3/2) = F_max ((delta - delta_p) / c)^(3/2),
+  c = delta_max - delta_p = 3 F_max / (4 E* a_max), and 0 for delta <= delta_p.
+
+delta_max is a per-contact block of the state (entry n-1: the end wall's), kept for the
+whole run: a contact struck again reloads elastically along its unloading curve up to its
+previous maximum, then plastically. The force is evaluated at max(delta_max, delta); the
+block is raised to the overlap in each force call (velocity Verlet, as a LAMMPS fix would)
+or after each step (the other methods), so a peak between two evaluations is missed by
+O(h^2) of the step h.
+
+The onset speed of two bodies of reduced mass m*: (1/2) m* v_y^2 = (8/15) E* sqrt(R*)
+delta_y^(5/2); above it Thornton's closed form e(v/v_y) (his Eq. for the coefficient of
+restitution, checked by tests/independent.py against the law's own energy integrals).
+
+Energy: the contacts' elastic energy is the energy the unloading curve returns,
+U = (8/15) E* sqrt(R_p) (delta - delta_p)^(5/2) (Hertz's (2/5) K delta^(5/2) while
+elastic); this effect adds U - Hertz's to the ledger's potential column. Its work column
+``work_plastic_contact`` is the work the plastic loading does on the particles,
+-(F - dU_max/d delta_max) d delta_max, U_max = 3 F_max^2 / (10 E* a_max) the elastic energy
+at delta_max (zero at yield: the law is smooth there): minus the energy the contacts
+dissipated.
+
+With ``contact_damping`` the dashpot acts as without plasticity (its prefactor from the
+Hertz force at the overlap) and adds to Thornton's force. Not composed yet, and refused:
+the contact and rolling friction (their Coulomb caps would need the history-dependent
+normal force), ``damping.limit_damping`` (it holds Hertz's net force, not Thornton's), a
+dead load beyond a contact's F_y (the static state would be plastic), the event method,
+and LAMMPS (no Thornton law there yet).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..errors import SceneError
+from ..materials import effective_modulus
+from ..validate import Key
+from . import slots as S
+from .hertz import energy as hertz_energy, force as hertz_force
+from .lanes import bit, overlap
+from .spec import DeckPart, EffectSpec, compiled
+
+SPEC = EffectSpec("plastic_contact", state=(("L_PLASTIC_DMAX", "particle"),),
+                  work="work_plastic_contact", work_slot="L_WORK_PLASTIC",
+                  table_column="work_plastic_J",
+                  work_note="the plastic loading of the contacts (Thornton's law): minus the "
+                            "energy their yielding dissipated",
+                  lammps_reports_work=False, flags=("F_PLASTIC_CONTACT",),
+                  rows=("G_PLASTIC_EMIX", "G_PLASTIC_RSTAR", "G_PLASTIC_DY", "G_PLASTIC_SLOPE"))
+
+MODELS = ("thornton",)
+SECTION = "plasticity"
+DEFAULTS = {"model": "thornton", "yield_pressure": None}
+# the section stays out of a scene's normalised spec (and hash) unless the effect is on
+# or a key of it is given
+SECTION_OPTIONAL = True
+KEYS = (
+    Key("plasticity.model", "-", "The elastic-perfectly plastic normal law at the contacts "
+        "and the end wall, in place of Hertz: `thornton`, Thornton (1997): Hertz until the "
+        "peak pressure reaches `yield_pressure`, then linear loading, Hertzian unloading "
+        "with an enlarged radius, each contact's largest overlap remembered. The work of "
+        "its plastic loading is the ledger's `work_plastic_contact` (table column "
+        "`work_plastic_J`).", choices=MODELS),
+    Key("plasticity.yield_pressure", "Pa", "Thornton's limiting contact pressure p_y of "
+        "every contact and of the end wall. Unset: each contact's is the smaller of its two "
+        "materials' `yield_pressure` (granchain/data/materials.yaml: 1.6 times a sourced "
+        "yield strength), the end wall's the sphere's (and the wall material's, if it has "
+        "one); a material without one must be given it here.", lo=1e5, hi=1e11,
+        allowed="unset: the materials' values"),
+)
+_KEY = {k.name: k for k in KEYS}
+
+
+@dataclass(frozen=True)
+class Settings:
+    model: str
+    yield_pressure: float | None      # Pa; None: the materials'
+
+
+def settings(sec: dict, given: frozenset, on: bool) -> Settings:
+    """The validated ``plasticity`` section; ``on``: whether the effect is enabled."""
+    model = _KEY["model"].choice(sec["model"], "model")
+    py = _KEY["yield_pressure"].number(sec["yield_pressure"], allow_none=True,
+                                       fix="give the limiting contact pressure in Pa, "
+                                           "e.g. 3.04e9")
+    return Settings(model, py)
+
+
+# ---------------------------------------------------------------------------------------
+# the law
+@compiled
+def loading(K, dy, Sl, dm):
+    """F_max (N): the loading force at the largest overlap dm > dy: F_y + S (dm - dy),
+    S = pi p_y R*."""
+    return K * dy * math.sqrt(dy) + Sl * (dm - dy)
+
+
+@compiled
+def force(K, Es, Rs, dy, Sl, d, dm):
+    """Thornton's force (N) at overlap d of a contact whose largest overlap is dm >= d
+    (K its Hertz constant, Es its E*, Rs its R*, dy its delta_y, Sl = pi p_y R*)."""
+    if dm <= dy:
+        return hertz_force(K, d)
+    Fm = loading(K, dy, Sl, dm)
+    c = 0.75 * Fm / (Es * math.sqrt(Rs * dm))
+    x = 1.0 - (dm - d) / c
+    return Fm * x * math.sqrt(x) if x > 0.0 else 0.0
+
+
+@compiled
+def energy(K, Es, Rs, dy, Sl, d, dm):
+    """The elastic energy (J) at overlap d, largest overlap dm >= d: (2/5) F_max c
+    ((d - delta_p)/c)^(5/2), Hertz's while dm <= dy."""
+    if dm <= dy:
+        return hertz_energy(K, d)
+    Fm = loading(K, dy, Sl, dm)
+    c = 0.75 * Fm / (Es * math.sqrt(Rs * dm))
+    x = 1.0 - (dm - d) / c
+    return 0.4 * Fm * c * x * x * math.sqrt(x) if x > 0.0 else 0.0
+
+
+@compiled
+def dissipation(K, Es, Rs, dy, Sl, dm):
+    """F_max - dU_max/d delta_max (N) on the loading curve at dm > dy: the energy the
+    contact dissipates per metre of plastic loading, U_max = 3 F_max^2 / (10 E* a)."""
+    Fm = loading(K, dy, Sl, dm)
+    a = math.sqrt(Rs * dm)
+    dU = 0.3 / Es * (2.0 * Fm * Sl / a - 0.5 * Fm * Fm * Rs / (a * a * a))
+    return Fm - dU
+
+
+# The compiled parts the engines compose (``spec.HOOKS``): each contact's E*, R*, delta_y
+# and pi p_y R* are rows G_PLASTIC_* (the end wall's last), its largest overlap the block
+# L_PLASTIC_DMAX (entry n-1: the end wall's).
+@compiled
+def normal(y, G, P, FL, LO, dy, f, shut):
+    """f of every closed contact gains Thornton's force less Hertz's at max(delta_max,
+    delta); the work rate of the plastic loading."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    ov = LO[S.L_VEL]
+    om = LO[S.L_PLASTIC_DMAX]
+    owp = LO[S.L_WORK_PLASTIC]
+    wall = FL[S.F_END_WALL] != 0
+    oK = S.G_HERTZ_K * n
+    oE = S.G_PLASTIC_EMIX * n
+    oR = S.G_PLASTIC_RSTAR * n
+    oY = S.G_PLASTIC_DY * n
+    oS = S.G_PLASTIC_SLOPE * n
+    for l in range(L):
+        dy[owp, l] = 0.0
+    for k in range(n):
+        for l in range(L):
+            dy[om + k, l] = 0.0
+    for k in range(n if wall else n - 1):
+        if bit(shut, k):
+            continue
+        for l in range(L):
+            if k < n - 1:
+                d = overlap(y, ox, G, k, l)
+                w = y[ov + k, l] - y[ov + k + 1, l]
+            else:
+                d = y[ox + n - 1, l] - G[n - 1, l]
+                w = y[ov + n - 1, l]
+            K = G[oK + k, l]
+            Es = G[oE + k, l]
+            Rs = G[oR + k, l]
+            dly = G[oY + k, l]
+            Sl = G[oS + k, l]
+            stored = y[om + k, l]
+            dm = d if d > stored else stored
+            plastic = dm > dly and d > 0.0
+            Fa = force(K, Es, Rs, dly, Sl, d, dm) - hertz_force(K, d) if plastic else 0.0
+            f[k, l] = f[k, l] + Fa
+            # the plastic loading: the overlap beyond its stored maximum and beyond yield
+            p = -dissipation(K, Es, Rs, dly, Sl, d) * w if (plastic and d >= stored) else 0.0
+            a = dy[owp, l]
+            dy[owp, l] = a + p
+    return shut
+
+
+@compiled
+def _raise(y, G, P, FL, LO):
+    """delta_max of every contact (and the end wall) raised to its overlap."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    om = LO[S.L_PLASTIC_DMAX]
+    for k in range(n if FL[S.F_END_WALL] != 0 else n - 1):
+        for l in range(L):
+            d = overlap(y, ox, G, k, l) if k < n - 1 else y[ox + n - 1, l] - G[n - 1, l]
+            m = y[om + k, l]
+            y[om + k, l] = d if d > m else m
+
+
+@compiled
+def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
+    """Velocity Verlet (hist_dt > 0): delta_max raised to this force call's overlaps (the
+    force above already used them)."""
+    if hist_dt > 0.0:
+        _raise(y, G, P, FL, LO)
+
+
+@compiled
+def project(y, G, P, FL, LO):
+    """After a step: delta_max raised to the step's end overlaps."""
+    _raise(y, G, P, FL, LO)
+
+
+@compiled
+def history_normal(F, d, y, LO, G, P, FL, n, k, l):
+    """The force of contact k in lane l at overlap d > 0 in the state y: F (Hertz's and
+    the damping's) with Thornton's force in place of Hertz's."""
+    stored = y[LO[S.L_PLASTIC_DMAX] + k, l]
+    dm = d if d > stored else stored
+    dly = G[S.G_PLASTIC_DY * n + k, l]
+    if dm <= dly:
+        return F
+    K = G[S.G_HERTZ_K * n + k, l]
+    return F + force(K, G[S.G_PLASTIC_EMIX * n + k, l], G[S.G_PLASTIC_RSTAR * n + k, l], dly,
+                     G[S.G_PLASTIC_SLOPE * n + k, l], d, dm) - hertz_force(K, d)
+
+
+@compiled
+def energies(y, G, P, FL, LO, out):
+    """out[E_POT] gains each plastically deformed contact's elastic energy less Hertz's."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    om = LO[S.L_PLASTIC_DMAX]
+    for k in range(n if FL[S.F_END_WALL] != 0 else n - 1):
+        for l in range(L):
+            d = overlap(y, ox, G, k, l) if k < n - 1 else y[ox + n - 1, l] - G[n - 1, l]
+            stored = y[om + k, l]
+            dm = d if d > stored else stored
+            dly = G[S.G_PLASTIC_DY * n + k, l]
+            if dm > dly:
+                K = G[S.G_HERTZ_K * n + k, l]
+                out[S.E_POT, l] += energy(K, G[S.G_PLASTIC_EMIX * n + k, l],
+                                          G[S.G_PLASTIC_RSTAR * n + k, l], dly,
+                                          G[S.G_PLASTIC_SLOPE * n + k, l], d, dm) \
+                    - hertz_energy(K, d)
+
+
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PlasticContact:
+    model: str
+    yield_pressure: float | None     # the scene's p_y (Pa), None: the materials'
+    pressures: tuple[float, ...]     # each contact's p_y (Pa), the end wall's last (0: none)
+
+
+def _contact_pressure(a, b, given, where):
+    """p_y (Pa) of a contact of materials a and b (b None: a rigid wall)."""
+    if given is not None:
+        return given
+    known = [m.yield_pressure for m in (a, b) if m is not None and m.yield_pressure is not None]
+    missing = [m.name for m in (a, b) if m is not None and not m.rigid and m.yield_pressure is None]
+    if missing:
+        raise SceneError("plasticity.yield_pressure", f"missing: the material library has no "
+                         f"yield pressure for {missing[0]} ({where})",
+                         "give plasticity.yield_pressure in Pa")
+    return min(known)
+
+
+def pressures(scene) -> tuple[float, ...]:
+    """Each contact's p_y (Pa), the end wall's last (0.0 without a wall)."""
+    given = scene.setting(SPEC.name).yield_pressure
+    mats = scene.materials
+    out = [_contact_pressure(mats[k], mats[k + 1], given, f"contact {k + 1}")
+           for k in range(scene.n - 1)]
+    if scene.wall is None:
+        out.append(0.0)
+    else:
+        wall = None if scene.wall.rigid else scene.wall
+        out.append(_contact_pressure(mats[-1], wall, given, "the end wall"))
+    return tuple(out)
+
+
+def build(scene) -> PlasticContact:
+    st = scene.setting(SPEC.name)
+    return PlasticContact(st.model, st.yield_pressure, pressures(scene))
+
+
+def _star(chain, k):
+    """(E*, R*) of contact k (k = n-1: the end wall)."""
+    R, mats = chain.radii, chain.materials
+    n = len(R)
+    if k == n - 1:
+        if chain.wall is None:
+            return 1.0, R[-1]
+        return effective_modulus(mats[-1], chain.wall), R[-1]
+    rs = 0.5 * R[k] if R[k] == R[k + 1] else R[k] * R[k + 1] / (R[k] + R[k + 1])
+    return effective_modulus(mats[k], mats[k + 1]), rs
+
+
+def yield_overlap(E, Rs, py):
+    """delta_y (m): R* (pi p_y / (2 E*))^2."""
+    return Rs * (math.pi * py / (2.0 * E)) ** 2
+
+
+def rows(pc: PlasticContact, chain) -> dict:
+    """Per-contact rows (the wall's last): E*, R*, delta_y and pi p_y R*."""
+    n = len(chain.radii)
+    es, rs, dys, sl = [], [], [], []
+    for k in range(n):
+        E, Rs = _star(chain, k)
+        py = pc.pressures[k]
+        es.append(E)
+        rs.append(Rs)
+        dys.append(yield_overlap(E, Rs, py) if py > 0.0 else math.inf)
+        sl.append(math.pi * py * Rs)
+    return {"G_PLASTIC_EMIX": tuple(es), "G_PLASTIC_RSTAR": tuple(rs),
+            "G_PLASTIC_DY": tuple(dys), "G_PLASTIC_SLOPE": tuple(sl)}
+
+
+def kernel(pc: PlasticContact) -> tuple[dict, dict]:
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
+    return {}, {"F_PLASTIC_CONTACT": 1}
+
+
+def error_scale(pc: PlasticContact, terms, delta: float, v: float) -> float:
+    """Absolute error scale of the largest overlaps for the adaptive method: the peak
+    overlap delta (m)."""
+    return delta
+
+
+def yield_force(E, Rs, py):
+    """F_y (N) of a contact: (4/3) E* sqrt(R*) delta_y^(3/2)."""
+    return 4.0 / 3.0 * E * math.sqrt(Rs) * yield_overlap(E, Rs, py) ** 1.5
+
+
+def check(scene) -> None:
+    """What the law does not yet act with (module docstring), each refused in one line."""
+    pressures(scene)
+    for other, what in (("particle_friction", "contact"), ("rolling_friction", "rolling")):
+        if scene.has(other):
+            raise SceneError("effects", f"plastic_contact with {other} is not implemented (the "
+                             f"{what} friction's Coulomb cap needs the history-dependent normal "
+                             "force)", f"drop {other} or plastic_contact")
+    if scene.has("contact_damping") and scene.setting("contact_damping").limit_damping:
+        raise SceneError("damping.limit_damping", "cannot act with plastic_contact (it holds "
+                         "Hertz's net force at >= 0, not Thornton's)",
+                         "write limit_damping: false, or drop plastic_contact")
+    if scene.method == "event":
+        raise SceneError("integrator.method", "event does not locate plastic_contact's "
+                         "loading and unloading switches", "use rk4, verlet or adaptive")
+    if scene.precompression > 0.0:
+        pc = build(scene)
+        R, mats, n = scene.radii, scene.materials, scene.n
+        fys = [yield_force(effective_modulus(mats[k], mats[k + 1]),
+                           R[k] * R[k + 1] / (R[k] + R[k + 1]), pc.pressures[k])
+               for k in range(1, n - 1)]
+        if scene.wall is not None:
+            fys.append(yield_force(effective_modulus(mats[-1], scene.wall), R[-1],
+                                   pc.pressures[-1]))
+        fy = min(fys)
+        if scene.precompression >= fy:
+            raise SceneError("precompression.force", f"{scene.precompression:g} N yields a "
+                             f"contact (its yield force F_y is {fy:.3g} N): the static state "
+                             "would be plastic", f"give a force below {fy:.3g} N or a larger "
+                             "plasticity.yield_pressure")
+
+
+def lammps(pc: PlasticContact | None, deck) -> DeckPart:
+    """No LAMMPS law yet: a deck with the effect on is refused."""
+    if pc is None:
+        return DeckPart()
+    raise SceneError("effects", "plastic_contact: no LAMMPS law yet",
+                     "run it on the reference engine")

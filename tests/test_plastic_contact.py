@@ -1,0 +1,190 @@
+"""plastic_contact (effects/plastic_contact.py): Thornton's (1997) elastic-perfectly
+plastic normal contact on the reference engine.
+
+The independent solution (tests/independent.py, ``ThorntonContact``: the paper's law
+written there, a collision's outcome from its branches' energies by quadrature, no time
+stepping) first checks Thornton's closed form e(v/v_y) against the law. Then the engine
+(RK4) is run on the two-sphere collision: a chain of three whose third sphere lies 1 mm
+away (a scene's smallest chain; it is not reached within the run), so the striker and
+particle 2 collide alone. Measured at dt = 1e-10 s over v/v_y = 0.5-30 (ss316 pairs,
+equal and unequal spheres, a 440C striker on 316): |e - e_Thornton| <= 3.8e-9 (3e-14
+below v_y, where e = 1), the ledger's balance <= 1.9e-9 of E0, its work column the
+independent dissipation to <= 1.2e-8 (exactly 0 below v_y); the errors of RK4 and of
+the largest overlap read at step ends (O(dt^2)). A contact struck twice: see its test.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from granchain.effects import ENERGY_COLUMNS
+from granchain.errors import SceneError
+from granchain.gaps import members
+from granchain.materials import library
+from granchain.observables import energy_ledger
+from granchain.scene import scene_from_dict
+from granchain.simulate import trajectories
+
+from independent import ThorntonContact, thornton_restitution
+
+LIB = library()
+R = 150e-6
+
+
+def _star(ma, Ra, mb, Rb):
+    """(E*, R*, m*) of two spheres, from the handbook numbers."""
+    Es = 1.0 / ((1 - ma.nu ** 2) / ma.E + (1 - mb.nu ** 2) / mb.E)
+    m1, m2 = (4.0 / 3.0 * math.pi * r ** 3 * m.rho for m, r in ((ma, Ra), (mb, Rb)))
+    return Es, Ra * Rb / (Ra + Rb), m1 * m2 / (m1 + m2)
+
+
+def _scene(v, radii=(R, R, R), mats=("ss316",) * 3, gap=1e-3, t_end=6e-6, **extra):
+    d = {"name": "plastic", "chain": {"n": 3, "radius": list(radii), "materials": list(mats)},
+         "striker": {"velocity": v}, "effects": ["hertz", "plastic_contact"],
+         "gaps": {"distribution": "list", "values": [0.0, gap]}, "probes": [2, 3],
+         "integrator": {"method": "rk4", "dt": 1e-10}, "t_end": t_end}
+    d.update(extra)
+    return scene_from_dict(d)
+
+
+def _run(sc):
+    (_, tr), = list(trajectories(sc, members(sc)))
+    assert tr.status in ("done", "passed"), tr.status
+    return tr
+
+
+# ---------------------------------------------------------------------------------------
+# the independent solution checks Thornton's closed form
+@pytest.mark.parametrize("r", [1.001, 1.5, 2.0, 10.0, 30.0, 300.0])
+def test_thornton_closed_form_is_the_law(r):
+    """The closed form e(v/v_y) is the law's own restitution (measured 2e-15)."""
+    c = ThorntonContact(106e9, 75e-6, 464e6)
+    m = 5.6e-8
+    e, dm, W = c.collide(m, r * c.yield_speed(m))
+    assert abs(e - thornton_restitution(r)) < 1e-12
+    assert dm > c.dy and W > 0.0
+    assert abs(c.collide(m, 0.999 * c.yield_speed(m))[0] - 1.0) < 1e-14
+
+
+# ---------------------------------------------------------------------------------------
+# the two-sphere collision on the engine
+PAIRS = {"equal_316": ((R, R, R), ("ss316",) * 3),
+         "189um_striker_316": ((189e-6, R, R), ("ss316",) * 3),
+         "440c_striker_on_316": ((R, R, R), ("ss440c", "ss316", "ss316"))}
+
+
+def _contact(pair):
+    radii, mats = PAIRS[pair]
+    ma, mb = LIB[mats[0]], LIB[mats[1]]
+    Es, Rs, m = _star(ma, radii[0], mb, radii[1])
+    py = min(ma.yield_pressure, mb.yield_pressure)    # the softer body's
+    return ThorntonContact(Es, Rs, py), m
+
+
+@pytest.mark.parametrize("pair", list(PAIRS))
+@pytest.mark.parametrize("r", [0.5, 2.0, 10.0, 30.0])
+def test_two_sphere_restitution_is_thorntons(pair, r):
+    """e = (v2 - v1)/v after the collision against Thornton's e(v/v_y) (1 below v_y);
+    the ledger closes and its work column is the independent dissipation (0 below v_y)."""
+    c, m = _contact(pair)
+    v = r * c.yield_speed(m)
+    radii, mats = PAIRS[pair]
+    tr = _run(_scene(v, radii, mats))
+    e = (tr.v[-1, 1] - tr.v[-1, 0]) / v
+    assert abs(e - thornton_restitution(r)) < 1e-8, (e, thornton_restitution(r))
+    led = energy_ledger(tr)
+    assert led.balance_error < 5e-9
+    _, _, W = c.collide(m, v)
+    if r < 1.0:
+        assert led.work_plastic_contact == 0.0
+    else:
+        assert led.work_plastic_contact == pytest.approx(-W, rel=3e-8, abs=0.0)
+    # the contact has opened: no elastic energy left, and the work only ever dissipates
+    assert led.hertz_potential == 0.0
+    col = tr.energy[:, ENERGY_COLUMNS.index("work_plastic_contact")]
+    assert np.all(np.diff(col) <= 1e-12 * led.initial)
+
+
+# ---------------------------------------------------------------------------------------
+# a contact struck twice: particle 2 rebounds from a heavy third sphere into the striker
+def _segments(v1):
+    """(first, last) sample indices of each stretch where particle 1's velocity changes
+    (its collisions with particle 2, its only neighbour)."""
+    ch = np.nonzero(np.abs(np.diff(v1)) > 1e-12)[0]
+    out, start, prev = [], ch[0], ch[0]
+    for c in ch[1:]:
+        if c > prev + 2:
+            out.append((start, prev))
+            start = c
+        prev = c
+    return out + [(start, prev)]
+
+
+@pytest.mark.parametrize("striker, elastic", [(130e-6, True), (150e-6, False)])
+def test_a_contact_struck_twice_reloads_along_its_unloading_curve(striker, elastic):
+    """The second collision of particles 1 and 2, at the closing speed u2 the engine
+    gives it: within the energy the first left in the contact's unloading curve it is
+    elastic (e = 1: a 130 um striker), beyond it reloads elastically to the first
+    collision's largest overlap and then plastically (a 150 um striker: e2 = 0.84, where
+    a contact without its history would give Thornton's 0.57). Measured: e2 - 1 =
+    1.9e-11 (130 um), |e2 - solution| = 2.4e-9 (150 um); the first collision's e to
+    <= 3.5e-9."""
+    v = 0.1
+    radii, mats = (striker, R, 450e-6), ("ss316",) * 3
+    tr = _run(_scene(v, radii, mats, gap=2e-7, t_end=2e-5))
+    segs = _segments(tr.v[:, 0])
+    assert len(segs) == 2, segs
+    Es, Rs, m = _star(LIB["ss316"], striker, LIB["ss316"], R)
+    c = ThorntonContact(Es, Rs, LIB["ss316"].yield_pressure)
+    e1, dm, _ = c.collide(m, v)
+    (a1, b1), (a2, b2) = segs
+    assert (tr.v[b1 + 2, 1] - tr.v[b1 + 2, 0]) / v == pytest.approx(e1, abs=5e-9)
+    before, after = tr.v[a2 - 1], tr.v[b2 + 2]
+    assert before[2] == after[2]                 # particle 3 is not touched meanwhile
+    u2 = before[0] - before[1]
+    got = (after[1] - after[0]) / u2
+    e2, _, _ = c.collide(m, u2, dm)
+    assert (e2 == 1.0) == elastic
+    assert abs(got - e2) < 5e-9, (got, e2)
+    fresh = c.collide(m, u2)[0]                  # the same speed on a virgin contact
+    assert abs(got - fresh) > 0.05
+
+
+# ---------------------------------------------------------------------------------------
+# the scene
+def test_keys_are_refused_while_the_effect_is_off():
+    with pytest.raises(SceneError, match="plasticity.yield_pressure"):
+        scene_from_dict({"plasticity": {"yield_pressure": 1e9}})
+
+
+@pytest.mark.parametrize("extra, field", [
+    ({"effects": ["hertz", "rotation", "particle_friction", "plastic_contact"]}, "effects"),
+    ({"effects": ["hertz", "contact_damping", "plastic_contact"],
+      "damping": {"e": 0.9, "limit_damping": True}}, "damping.limit_damping"),
+    ({"material": "brass"}, "plasticity.yield_pressure"),
+    ({"plasticity": {"yield_pressure": 1.0}}, "plasticity.yield_pressure"),
+    ({"walls": {"end": "rigid"}, "precompression": {"force": 1.0}}, "precompression.force"),
+])
+def test_what_it_cannot_act_with_is_refused_in_one_line(extra, field):
+    d = {"effects": ["hertz", "plastic_contact"], **extra}
+    with pytest.raises(SceneError) as err:
+        scene_from_dict(d)
+    assert err.value.field == field
+    assert "\n" not in str(err.value)
+
+
+def test_a_scene_yield_pressure_replaces_the_materials():
+    """brass has no sourced yield pressure: the scene's is taken, at every contact."""
+    sc = scene_from_dict({"effects": ["hertz", "plastic_contact"], "material": "brass",
+                          "plasticity": {"yield_pressure": 5e8}})
+    from granchain.effects import physics_terms
+    assert set(physics_terms(sc).plastic_contact.pressures[:-1]) == {5e8}
+
+
+def test_lammps_refuses_it(tmp_path):
+    from granchain.lammps.deck import write_deck
+    sc = scene_from_dict({"effects": ["hertz", "plastic_contact"], "material": "ss316"})
+    with pytest.raises(SceneError, match="no LAMMPS law yet"):
+        write_deck(sc, tmp_path)
