@@ -37,7 +37,8 @@ elastic); this effect adds U - Hertz's to the ledger's potential column. Its wor
 ``work_plastic_contact`` is the work the plastic loading does on the particles,
 -(F - dU_max/d delta_max) d delta_max, U_max = 3 F_max^2 / (10 E* a_max) the elastic energy
 at delta_max (zero at yield: the law is smooth there): minus the energy the contacts
-dissipated.
+dissipated. Velocity Verlet books each force call's rise of delta_max with the energy it
+dissipates in closed form (:func:`dissipated`), the other methods integrate the rate.
 
 With ``contact_damping`` the dashpot acts as without plasticity (its prefactor from the
 Hertz force at the overlap) and adds to Thornton's force. Not composed yet, and refused:
@@ -148,6 +149,20 @@ def dissipation(K, Es, Rs, dy, Sl, dm):
     return Fm - dU
 
 
+@compiled
+def dissipated(K, Es, Rs, dy, Sl, d0, d1):
+    """The energy (J) a contact dissipates as its largest overlap rises from d0 to
+    d1 >= d0: the loading curve's work from d0 to d1 less the rise of U_max (0 while
+    elastic)."""
+    if d1 <= dy:
+        return 0.0
+    lo = d0 if d0 > dy else dy
+    W = hertz_energy(K, dy) - hertz_energy(K, d0) if d0 < dy else 0.0
+    W += K * dy * math.sqrt(dy) * (d1 - lo) + 0.5 * Sl * ((d1 - dy) * (d1 - dy)
+                                                          - (lo - dy) * (lo - dy))
+    return W - (energy(K, Es, Rs, dy, Sl, d1, d1) - energy(K, Es, Rs, dy, Sl, d0, d0))
+
+
 # The compiled parts the engines compose (``spec.HOOKS``): each contact's E*, R*, delta_y
 # and pi p_y R* are rows G_PLASTIC_* (the end wall's last), its largest overlap the block
 # L_PLASTIC_DMAX (entry n-1: the end wall's).
@@ -215,10 +230,29 @@ def _raise(y, G, P, FL, LO):
 
 @compiled
 def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
-    """Velocity Verlet (hist_dt > 0): delta_max raised to this force call's overlaps (the
-    force above already used them)."""
-    if hist_dt > 0.0:
-        _raise(y, G, P, FL, LO)
+    """Velocity Verlet (hist_dt > 0): the work rate becomes the energy dissipated as
+    delta_max rises to this force call's overlaps (:func:`dissipated`) over hist_dt, so
+    that the step's work is exactly it, and delta_max is raised (the force above already
+    used it)."""
+    if hist_dt <= 0.0:
+        return
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    om = LO[S.L_PLASTIC_DMAX]
+    owp = LO[S.L_WORK_PLASTIC]
+    for l in range(L):
+        dy[owp, l] = 0.0
+    for k in range(n if FL[S.F_END_WALL] != 0 else n - 1):
+        for l in range(L):
+            d = overlap(y, ox, G, k, l) if k < n - 1 else y[ox + n - 1, l] - G[n - 1, l]
+            m = y[om + k, l]
+            q = dissipated(G[S.G_HERTZ_K * n + k, l], G[S.G_PLASTIC_EMIX * n + k, l],
+                           G[S.G_PLASTIC_RSTAR * n + k, l], G[S.G_PLASTIC_DY * n + k, l],
+                           G[S.G_PLASTIC_SLOPE * n + k, l], m, d) if d > m else 0.0
+            a = dy[owp, l]
+            dy[owp, l] = a - q / hist_dt
+    _raise(y, G, P, FL, LO)
 
 
 @compiled
