@@ -50,8 +50,8 @@ def bead_constants(material: Material, radius: float) -> tuple[float, float]:
 def precompressed_sound_speed(material: Material, radius: float, force):
     """Long-wave sound speed c0 = 2R sqrt(k2/m) (m/s) of a chain of identical beads under a
     static contact force F0 (N): k2 = (3/2) K^(2/3) F0^(1/3) is the contact's stiffness
-    df/ddelta at its static overlap delta0 = (F0/K)^(2/3) (docs: /work/shared/physics.md,
-    "Beyond the chapter"). 0 for F0 = 0."""
+    df/ddelta at its static overlap delta0 = (F0/K)^(2/3), and the long-wave limit of the
+    linearised chain's dispersion relation gives c0. 0 for F0 = 0."""
     K, m = bead_constants(material, radius)
     k2 = 1.5 * K ** (2.0 / 3.0) * np.asarray(force, dtype=float) ** (1.0 / 3.0)
     c0 = 2.0 * radius * np.sqrt(k2 / m)

@@ -270,6 +270,10 @@ _INFER_COMMON = {
                                              "above every row (the chapter's reading)."),
     "eq54_gap_rows_m": Column("list", "m", "Each row's mean gap from Eq. 5.4."),
     "n_simulated": Column("int", "", "Chains of the simulated grid."),
+    "n_unmeasured": Column("int", "", "Of the grid's chains, those with no value of what the "
+                                      "fit reads (the timing; in the joint fit also a "
+                                      "probe's peak): each counts as a realisation that cannot "
+                                      "give the data."),
     "n_simulated_now": Column("int", "", "Of those, the chains simulated by this call (the "
                                          "rest came from the cache)."),
     "gap_law": Column("string", "", "The base scene's gap law."),

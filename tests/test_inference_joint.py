@@ -11,6 +11,7 @@ from 0.8 to 1 x 3 speeds x 64 realisations = 20,160 chains each) for the slow ti
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import json
 import shutil
@@ -22,6 +23,7 @@ import pytest
 from granchain import inference
 from granchain.inference import gapfit
 from granchain.cli import main
+from granchain.commands.infer import _print_unmeasured
 from granchain.fileio import json_text
 from granchain.scene import load_scene, scene_from_dict
 
@@ -91,6 +93,7 @@ def without_sources(out: str, name: str) -> str:
     doc = json.loads(out)
     for key, value in SOURCES_KEYS.items():
         assert doc.pop(key) == value
+    assert doc.pop("n_unmeasured") == 0          # the synthetic grid measures every chain
     mc = doc.pop("data_outside_model")
     assert mc["flag"] is False and mc["p_value"] >= mc["alpha"], mc
     return json_text(doc) + "\n"
@@ -126,6 +129,27 @@ def same_numbers(a, b, rel: float = 1e-12) -> bool:
     if isinstance(a, float) and isinstance(b, float):
         return a == pytest.approx(b, rel=rel, abs=0.0)
     return type(a) is type(b) and a == b
+
+
+def test_the_grid_chains_without_a_value_are_counted_in_the_json(small_joint):
+    """Chains of the grid without a peak (the fit reads it as well as the timing) are
+    counted in ``n_unmeasured``, the JSON and the warning. Fails on a build that counted
+    the timing column alone (the peaks' gaps were silent) or kept the count out of the
+    JSON."""
+    base, grid = small_joint
+    meas = joint_measurements(base, 60e-9, 0.9, [0.045, 0.055], [0, 1], series=False)
+    before = inference.infer_joint(base, meas, grid=grid).n_unmeasured
+    values = {k: v.copy() for k, v in grid.values.items()}
+    values["v_max_1"][:, :, 0, -1] = np.nan                       # every node, one speed
+    values["v_max_2"][0, 0, :, 0] = np.nan                        # one node, every speed
+    lost = grid.gaps.size * grid.restitutions.size + grid.speeds.size
+    res = inference.infer_joint(base, meas, grid=dataclasses.replace(grid, values=values))
+    assert res.n_unmeasured == before + lost
+    assert res.to_json()["n_unmeasured"] == before + lost
+    out = io.StringIO()
+    _print_unmeasured(res, out)
+    assert f"{before + lost} of {res.n_simulated} simulated chains have no dt_front_s or " \
+        "probe peak" in out.getvalue()
 
 
 def test_gap_only_fit_ignores_the_peak_columns(tmp_path, monkeypatch):

@@ -181,21 +181,17 @@ def _predictive_ranged(res) -> int:
 
 
 def _print_unmeasured(res, out) -> None:
-    """A warning when simulated chains of an inference's grid have no timing: their wave
-    did not reach both probes within the run, the run timed out, or a guard set an
-    impossible value aside (``observables.bounded``); they match no measurement."""
-    import numpy as np
-    grid = res.grid
-    if grid is None:
-        return
-    table = grid.timings if hasattr(grid, "timings") else grid.values
-    T = np.asarray(table[res.timing_column])
-    k = int(np.count_nonzero(np.isnan(T)))
+    """A warning when simulated chains of an inference's grid have no value of what the
+    fit reads (``n_unmeasured``): their wave did not reach both probes within the run, the
+    run timed out, or a guard set an impossible value aside (``observables.bounded``);
+    they match no measurement."""
+    k = res.n_unmeasured
     if k:
-        print_warnings([f"{k} of {T.size} simulated chains have no {res.timing_column}: "
-                         "their wave did not reach both probes within the run or a guard set "
-                         "an impossible value aside (granchain run on the base scene shows "
-                         "which); they match no measurement"], out)
+        what = res.timing_column + (" or probe peak" if hasattr(res, "restitution_grid") else "")
+        print_warnings([f"{k} of {res.n_simulated} simulated chains have no {what}: "
+                        "their wave did not reach both probes within the run or a guard set "
+                        "an impossible value aside (granchain run on the base scene shows "
+                        "which); they match no measurement"], out)
 
 
 def check_joint_grid(base, args, src) -> None:

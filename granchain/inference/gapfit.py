@@ -34,6 +34,7 @@ class Inference(FitResult):
     eq54_gap_rows_m: tuple[float, ...]
     n_simulated: int
     n_simulated_now: int
+    n_unmeasured: int
     gap_law: str
     timing_column: str
     method: str

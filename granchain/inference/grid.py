@@ -114,6 +114,17 @@ class WeightedGrid:
         """(R,) the realisations' weights in the likelihood (``gapdesign.prior_weights``)."""
         return prior_weights(self.weights, self.realisations, self.key_prior)
 
+    def unmeasured(self, column: str) -> int:
+        """How many of the grid's simulated chains (node x speed x realisation) have no
+        value of what the fit reads of them (the timing ``column``; in a joint grid also
+        a probe's peak): each counts in the likelihood as a realisation that cannot give
+        the data (zero density), which is right for a wave that never arrived and a bias
+        when a run ended before a peak that would have come."""
+        bad = 0
+        for a in self.read_by_fit(column):
+            bad = bad | ~np.isfinite(a)
+        return int(np.sum(bad))
+
 
 @dataclass(frozen=True)
 class Grid(WeightedGrid):
@@ -136,6 +147,9 @@ class Grid(WeightedGrid):
     @property
     def n_chains(self) -> int:
         return int(self.gaps.size * self.speeds.size * self.realisations)
+
+    def read_by_fit(self, column: str) -> tuple[np.ndarray, ...]:
+        return (self.timings[column],)
 
 
 def _cache_file(cache_dir: Path, scene: Scene, tag: str) -> Path:
@@ -268,6 +282,9 @@ class JointGrid(WeightedGrid):
     def n_chains(self) -> int:
         return int(self.gaps.size * self.restitutions.size * self.speeds.size
                    * self.realisations)
+
+    def read_by_fit(self, column: str) -> tuple[np.ndarray, ...]:
+        return tuple(self.values[c] for c in (column, "v_max_1", "v_max_2"))
 
 
 def _joint_cache_file(cache_dir: Path, scene: Scene, tag: str) -> Path:

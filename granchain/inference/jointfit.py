@@ -88,6 +88,7 @@ class JointInference(FitResult):
     predictive_rows: tuple
     n_simulated: int
     n_simulated_now: int
+    n_unmeasured: int
     gap_law: str
     damping_model: str
     timing_column: str

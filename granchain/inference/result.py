@@ -36,7 +36,8 @@ def shared_fields(base: Scene, src: dict, meas, grid, check) -> dict:
     ``src`` (``grid.complete_base``), the measurements ``meas``, the grid (a ``Grid`` or a
     ``JointGrid``) and the model check ``check`` (``modelcheck.ModelCheck``)."""
     return dict(
-        n_simulated=grid.n_chains, n_simulated_now=grid.simulated, gap_law=_law(base, grid),
+        n_simulated=grid.n_chains, n_simulated_now=grid.simulated,
+        n_unmeasured=grid.unmeasured(meas.column), gap_law=_law(base, grid),
         timing_column=meas.column, realisations=grid.realisations,
         gap_grid_m=(float(grid.gaps[0]), float(grid.gaps[-1]), int(grid.gaps.size)),
         speeds_m_s=tuple(float(v) for v in grid.speeds), gap_law_source=src["gap_law"],
