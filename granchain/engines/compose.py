@@ -245,6 +245,8 @@ def _compose() -> dict:
         fn = ns[name]
         fn.__module__ = "granchain_composed"
         out[name] = njit(cache=True, inline="always")(fn)
+    # the composed functions call each other (normal_cap calls normal_crit) compiled
+    ns.update(out)
     # the effects' compiled code calls these in place of the stubs of effects.spec
     services = ((spec.normal_cap, out["normal_cap"]), (spec.normal_crit, out["normal_crit"]),
                 (spec.hermite_root, hermite_root))
