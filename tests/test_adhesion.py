@@ -50,20 +50,20 @@ def test_jkr_law_is_the_jkr_theory_with_lammps_pull_off():
     to 1000 times it; the contact opens exactly at the load-controlled pull-off point,
     where the force is least: 3 pi gamma R* (LAMMPS's F_pulloff)."""
     a_po, d_po, F_po = ind.jkr_pulloff(RS, ESTAR, GAMMA)
-    assert F_po == pytest.approx(-3.0 * math.pi * GAMMA * RS, rel=1e-13)
+    assert F_po == pytest.approx(-3.0 * math.pi * GAMMA * RS, rel=1e-13, abs=0.0)
     dist = adhesion.pulloff_distance(RS, ESTAR, GAMMA)
-    assert dist == pytest.approx(-d_po, rel=1e-12)
+    assert dist == pytest.approx(-d_po, rel=1e-12, abs=0.0)
     for f in (-1.0, -0.5, 0.0, 0.3, 1.0, 10.0, 1e3):
         d = f * dist
         a = adhesion.jkr_radius(RS, ESTAR, GAMMA, d)
-        assert a == pytest.approx(ind.jkr_radius(RS, ESTAR, GAMMA, d), rel=1e-12)
+        assert a == pytest.approx(ind.jkr_radius(RS, ESTAR, GAMMA, d), rel=1e-12, abs=0.0)
         assert adhesion.jkr_force(RS, ESTAR, GAMMA, d) == pytest.approx(
             ind.jkr_force(RS, ESTAR, GAMMA, d), rel=1e-12, abs=1e-12 * -F_po)
     # the least force on the branch the contact follows is at the pull-off distance
     ds = np.linspace(-dist, 5 * dist, 2001)
     fs = [adhesion.jkr_force(RS, ESTAR, GAMMA, d) for d in ds]
-    assert int(np.argmin(fs)) == 0 and fs[0] == pytest.approx(F_po, rel=1e-10)
-    assert adhesion.pulloff_force(RS, GAMMA, True) == pytest.approx(-F_po, rel=1e-14)
+    assert int(np.argmin(fs)) == 0 and fs[0] == pytest.approx(F_po, rel=1e-10, abs=0.0)
+    assert adhesion.pulloff_force(RS, GAMMA, True) == pytest.approx(-F_po, rel=1e-14, abs=0.0)
     # the touch test: closes at delta > 0 only; once closed, open beyond -delta_po
     eps = 1e-9 * dist
     assert not adhesion.closed(0.0, False, RS, ESTAR, GAMMA, True)
@@ -78,7 +78,8 @@ def test_dmt_law_and_its_caps():
     K = 4.0 / 3.0 * ESTAR * math.sqrt(RS)
     for d in (1e-10, 1e-8, 1e-7):
         want = ind.dmt_force(K, RS, GAMMA, d)
-        assert adhesion.law(K, RS, ESTAR, GAMMA, False, d) == pytest.approx(want, rel=1e-13)
+        got = adhesion.law(K, RS, ESTAR, GAMMA, False, d)
+        assert got == pytest.approx(want, rel=1e-13, abs=0.0)
         G = np.zeros((64, 1))
         n = 3
         from granchain.effects import slots as S
@@ -89,15 +90,15 @@ def test_dmt_law_and_its_caps():
         P[S.P_ADHESION_GAMMA] = GAMMA
         FL = np.zeros(S.F_LEN, dtype=np.int64)
         crit = adhesion.contact_crit(want, d, G, P, FL, n, 0, 0)
-        assert crit == pytest.approx(K * d ** 1.5 + 4 * math.pi * GAMMA * RS, rel=1e-13)
+        assert crit == pytest.approx(K * d ** 1.5 + 4 * math.pi * GAMMA * RS, rel=1e-13, abs=0.0)
 
 
 # ---------------------------------------------------------------------------------------
 # collisions on the reference engine
 def test_dmt_collision_peak_overlap_and_ledger():
     """An undamped DMT pair: the adhesive work at the deepest overlap is F_po delta_max,
-    delta_max from (1/2) m* v^2 + F_po delta = (2/5) K delta^(5/2) (the law's energy; to
-    1e-5, the sampling), and the collision is elastic (its work returns to 0, the pair
+    delta_max from (1/2) m* v^2 + F_po delta = (2/5) K delta^(5/2) (the law's energy;
+    measured 1e-4, within Verlet's error at the force's jump), and the collision is elastic (its work returns to 0, the pair
     leaves at v, to Verlet's error at the force's jumps)."""
     speeds = (0.005, 0.02)
     sc = pair_scene({"model": "dmt", "surface_energy": GAMMA}, speeds, dt=1e-9,
@@ -112,9 +113,11 @@ def test_dmt_collision_peak_overlap_and_ledger():
         dmax = brentq(lambda d: 0.4 * K * d ** 2.5 - F_po * d - 0.5 * M_RED * v * v, 1e-12, 1e-5,
                       xtol=1e-22)
         work = t.energy[:, iw]
-        assert work.max() == pytest.approx(F_po * dmax, rel=1e-5)
-        # Verlet switches F_po on and off within a step: an error up to F_po v dt each
+        # Verlet switches F_po on and off within a step: an energy error up to F_po v dt
+        # each time, which moves delta_max by that over the net force there
         jump = 2.0 * F_po * v * 1e-9
+        tol = jump * F_po / (K * dmax ** 1.5 - F_po)
+        assert abs(work.max() - F_po * dmax) < tol
         assert abs(work[-1]) < jump
         e = (t.v[-1, 1] - t.v[-1, 0]) / v
         assert abs(e * e - 1.0) < jump / (0.5 * M_RED * v * v)
