@@ -66,6 +66,9 @@ KEYS = (
         "effect.", positive=True, hi=100.0),
 )
 _KEY = {k.name: k for k in KEYS}
+# the section of the engines' warm-up scene (every effect on; the kernels are the same
+# for both models)
+WARM_UP = {"model": "dmt", "surface_energy": 0.1}
 # JKR's pull-off distance over (R* gamma^2 / E*^2)^(1/3): (3 pi^2 / 16)^(1/3)
 PULLOFF_PREFIX = (3.0 * math.pi ** 2 / 16.0) ** (1.0 / 3.0)
 
