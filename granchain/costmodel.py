@@ -32,7 +32,7 @@ import numpy as np
 from .errors import GranchainError
 from .scenekeys import TOLERANCE_METHODS
 from .guards import require_resolved
-from .effects import ENERGY_COLUMNS
+from .effects import ENERGY_COLUMNS, slots
 from .stoprule import expected_duration, sample_interval
 
 # default cost limits (per chain), raised with granchain run --max-steps / --max-memory-gb
@@ -380,6 +380,8 @@ def member_seconds(scene, v: float, engine: str = "reference", model: CostModel 
 # Member and its row of gaps.
 MEMBER_BYTES = 3000.0
 MEMBER_BYTES_PER_PARTICLE = 110.0
+# and, in the reference engine, its row of the kernels' per-chain array G (G_LEN * n
+# floats, every registered effect's rows included)
 DEFAULT_MAX_TOTAL_STEPS = 1e11      # whole run, raised with --max-total-steps
 # The reference engine's chunks (engines.chunks: CHUNK_BYTES, CHUNK_CHAINS; the samples
 # per kernel call, engines.reference: WINDOW, BLOCK_WINDOW): while a chunk's records are
@@ -460,7 +462,10 @@ def estimate_run(scene, per_v: list[dict], seconds: list[float], realisations=No
             chains = min(reals * max(share.values(), default=1), CHUNK_CHAINS)
             chains = -(-chains // BLOCK_LANES) * BLOCK_LANES
         records += min(records, RECORD_CHUNK_BYTES) + chains * per_chain
-    results = members * (MEMBER_BYTES + MEMBER_BYTES_PER_PARTICLE * scene.n)
+    per_member = MEMBER_BYTES + MEMBER_BYTES_PER_PARTICLE * scene.n
+    if engine == "reference":
+        per_member += 8.0 * slots.G_LEN * scene.n
+    results = members * per_member
     return {"members": members, "steps": steps,
             "worst_chain_steps": max((c["steps"] for c in per_v), default=0.0),
             "record_bytes": records, "result_bytes": results, "bytes": records + results,

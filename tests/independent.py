@@ -53,7 +53,7 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
-from scipy.integrate import OdeSolution, solve_ivp
+from scipy.integrate import OdeSolution, quad, solve_ivp
 from scipy.optimize import brentq
 
 RTOL = 1e-12
@@ -971,3 +971,67 @@ def thornton_restitution(r: float) -> float:
     x = 1.0 / r
     return (math.sqrt(6.0 * math.sqrt(3.0) / 5.0) * math.sqrt(1.0 - x * x / 6.0)
             * (x / (x + 2.0 * math.sqrt(6.0 / 5.0 - x * x / 5.0))) ** 0.25)
+
+# Adhesion: LAMMPS pair granular's dmt and jkr normal laws, from the JKR and DMT theories
+# (gamma LAMMPS's cohesion; the work of adhesion is 2 gamma), solved here with scipy.
+def dmt_force(K: float, Rs: float, gamma: float, delta: float) -> float:
+    """DMT: K delta^(3/2) - 4 pi gamma R* while delta > 0, else 0 (N)."""
+    return K * delta ** 1.5 - 4.0 * np.pi * gamma * Rs if delta > 0 else 0.0
+
+
+def jkr_delta(a: float, Rs: float, E: float, gamma: float) -> float:
+    """JKR's overlap at contact radius a: a^2/R* - sqrt(2 pi w a / E*), w = 2 gamma."""
+    return a * a / Rs - np.sqrt(2.0 * np.pi * (2.0 * gamma) * a / E)
+
+
+def jkr_force_of_radius(a: float, Rs: float, E: float, gamma: float) -> float:
+    """JKR's force at contact radius a: 4 E* a^3 / (3 R*) - sqrt(8 pi w E* a^3)."""
+    return 4.0 * E * a ** 3 / (3.0 * Rs) - np.sqrt(8.0 * np.pi * (2.0 * gamma) * E * a ** 3)
+
+
+def jkr_turning_radius(Rs: float, E: float, gamma: float) -> float:
+    """The contact radius at which the overlap is least (d delta / da = 0)."""
+    return (np.pi * gamma * Rs * Rs / (4.0 * E)) ** (1.0 / 3.0)
+
+
+def jkr_radius(Rs: float, E: float, gamma: float, delta: float) -> float:
+    """The stable (larger) root a of jkr_delta(a) = delta, by brentq."""
+    lo = jkr_turning_radius(Rs, E, gamma)
+    hi = 2.0 * lo
+    while jkr_delta(hi, Rs, E, gamma) < delta:
+        hi *= 2.0
+    return brentq(lambda a: jkr_delta(a, Rs, E, gamma) - delta, lo, hi, xtol=1e-30,
+                  rtol=1e-15, maxiter=500)
+
+
+def jkr_force(Rs: float, E: float, gamma: float, delta: float) -> float:
+    return jkr_force_of_radius(jkr_radius(Rs, E, gamma, delta), Rs, E, gamma)
+
+
+def jkr_pulloff(Rs: float, E: float, gamma: float) -> tuple[float, float, float]:
+    """(a, delta, F) where the stable branch's force is least (dF/da = 0): the
+    load-controlled pull-off point, at which LAMMPS opens a closed contact."""
+    a = (9.0 * np.pi * gamma * Rs * Rs / (4.0 * E)) ** (1.0 / 3.0)
+    return a, jkr_delta(a, Rs, E, gamma), jkr_force_of_radius(a, Rs, E, gamma)
+
+
+def jkr_hysteresis(Rs: float, E: float, gamma: float) -> float:
+    """The energy (J) one approach and separation loses: the work of the tension between
+    first touch (delta = 0, where the force jumps onto the JKR curve) and the pull-off
+    point (where it jumps to 0), -int_{delta_po}^{0} F d delta, integrated over a."""
+    a_po, _, _ = jkr_pulloff(Rs, E, gamma)
+    a0 = (4.0 * np.pi * gamma * Rs * Rs / E) ** (1.0 / 3.0)       # delta(a0) = 0
+    ddelta = lambda a: 2.0 * a / Rs - np.sqrt(np.pi * gamma / (E * a))  # noqa: E731
+    w, _ = quad(lambda a: -jkr_force_of_radius(a, Rs, E, gamma) * ddelta(a), a_po, a0,
+                epsabs=0.0, epsrel=1e-13, limit=200)
+    return w
+
+
+def jkr_capture_velocity(Rs: float, E: float, gamma: float, m_red: float) -> float:
+    """v_c = sqrt(2 W / m*): an undamped pair closing slower stays captured."""
+    return np.sqrt(2.0 * jkr_hysteresis(Rs, E, gamma) / m_red)
+
+
+def jkr_restitution(v: float, v_c: float) -> float:
+    """e = sqrt(1 - v_c^2 / v^2) of an undamped JKR pair closing at v > v_c."""
+    return np.sqrt(1.0 - (v_c / v) ** 2)

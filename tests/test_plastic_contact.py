@@ -161,6 +161,8 @@ def test_keys_are_refused_while_the_effect_is_off():
 
 @pytest.mark.parametrize("extra, field", [
     ({"effects": ["hertz", "rotation", "particle_friction", "plastic_contact"]}, "effects"),
+    ({"effects": ["hertz", "adhesion", "plastic_contact"],
+      "adhesion": {"model": "dmt", "surface_energy": 0.1}}, "effects"),
     ({"effects": ["hertz", "contact_damping", "plastic_contact"],
       "damping": {"e": 0.9, "limit_damping": True}}, "damping.limit_damping"),
     ({"material": "brass"}, "plasticity.yield_pressure"),

@@ -68,10 +68,12 @@ def test_an_effects_keys_are_its_own_section():
 
 # every effect on, with the values they require, and both blocks given: each key not given
 # here is read from this scene's normalised spec; the given ones from the plain scene {}
-# every effect but plastic_contact, which does not act with the contact and rolling
-# friction yet: its keys are read from a scene of it alone (APART)
-ALL_ON = {"effects": [e for e in EFFECTS if e != "plastic_contact"], "rolling": {"k_roll": 1e3},
-          "damping": {"e": 0.9}, "measurement": {}, "chain": {"radius_spread": {"sd": 1e-7}}}
+# every effect but adhesion, which refuses the default damping model (as LAMMPS does), and
+# plastic_contact, which does not act with the contact and rolling friction yet: its keys
+# are read from a scene of it alone (APART)
+ALL_ON = {"effects": [e for e in EFFECTS if e not in ("adhesion", "plastic_contact")],
+          "rolling": {"k_roll": 1e3}, "damping": {"e": 0.9}, "measurement": {},
+          "chain": {"radius_spread": {"sd": 1e-7}}}
 APART = {"plasticity.": {"effects": ["hertz", "plastic_contact"]}}
 
 
@@ -129,12 +131,15 @@ CONTEXT = {
     "damping.eta": {"effects": ["hertz", "contact_damping"],
                     "damping": {"model": "viscoelastic"}},
     "plasticity.": {"effects": ["hertz", "plastic_contact"]},
+    "adhesion.": {"effects": ["hertz", "adhesion"],
+                  "adhesion": {"model": "dmt", "surface_energy": 0.1}},
 }
 # a valid value of each key that has no numeric default
 SAMPLE = {"chain.radius_spread.sd": 1e-7, "striker.radius": 100e-6, "t_end": 1e-4,
           "output.sample_dt": 1e-8, "integrator.tolerance": 1e-8, "groove.s": 0.5,
           "groove.kt": 1e3, "contact.kt": 1e3, "rolling.k_roll": 1e3, "damping.e": 0.9,
-          "damping.eta": 1e3, "precompression.force": 0.01, "plasticity.yield_pressure": 1e9}
+          "damping.eta": 1e3, "precompression.force": 0.01, "plasticity.yield_pressure": 1e9,
+          "adhesion.surface_energy": 0.1}
 # keys whose value is a list of such numbers: (the list of a value, the field an error names)
 LISTS = {"gaps.values": (lambda v: [v] * 14, "gaps.values[0]")}
 

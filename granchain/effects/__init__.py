@@ -1,8 +1,8 @@
 """Physical effects of chapter Eq. 5.1: one module each, and the registry that adds them up.
 
 Each effect module (``hertz``, ``rotation``, ``groove_friction``, ``air_drag``,
-``particle_friction``, ``rolling_friction``, ``contact_damping``, ``plastic_contact``)
-declares, once:
+``particle_friction``, ``rolling_friction``, ``contact_damping``, ``adhesion``,
+``plastic_contact``) declares, once:
 - ``SPEC`` (:class:`~granchain.effects.spec.EffectSpec`): its parameter and flag slots,
   per-sphere and per-contact rows, state blocks, its work column in the energy ledger and
   results tables, and what LAMMPS reports of it;
@@ -38,8 +38,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from . import (air_drag, chain, contact_damping, groove_friction, hertz, particle_friction,
-               plastic_contact, rolling_friction, rotation, slots)
+from . import (adhesion, air_drag, chain, contact_damping, groove_friction, hertz,
+               particle_friction, plastic_contact, rolling_friction, rotation, slots)
 from .chain import Chain
 from .air_drag import AirDrag
 from .groove_friction import GrooveFriction
@@ -51,7 +51,7 @@ from .spec import EffectSpec
 
 # Registry order is the order of the state blocks and of the work columns.
 MODULES = (hertz, rotation, groove_friction, air_drag, particle_friction, rolling_friction,
-           contact_damping, plastic_contact)
+           contact_damping, adhesion, plastic_contact)
 SPECS: dict[str, EffectSpec] = {m.SPEC.name: m.SPEC for m in MODULES}
 
 # Energy ledger columns, in the order engines store them: the mechanical energies, then the

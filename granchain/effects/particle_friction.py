@@ -19,7 +19,7 @@ from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
 from .lanes import any_contact, bit, clip_to_cap, overlap
-from .spec import DeckPart, EffectSpec, compiled, normal_cap
+from .spec import DeckPart, EffectSpec, compiled, normal_cap, normal_crit
 
 SPEC = EffectSpec("particle_friction", state=(("L_PARTICLE_HIST", "contact"),),
                   work="work_particle_friction", work_slot="L_WORK_PARTICLE",
@@ -92,8 +92,8 @@ def contact_force(xi, w, kt, cap):
 
 # The compiled parts the engines compose (``spec.HOOKS``): each contact's spring constant
 # is row G_PARTICLE_SPRING (Mindlin: k_t / sqrt(delta)), its history block
-# L_PARTICLE_HIST; the Coulomb cap is mu_pp times the contact's net normal force |F|
-# (LAMMPS's Fncrit = |Fntot|; F < 0 only damped).
+# L_PARTICLE_HIST; the Coulomb cap is mu_pp times the contact's Fncrit (``normal_crit``:
+# LAMMPS's, the net normal force |F| unless a normal law says otherwise; F < 0 only damped).
 @compiled
 def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
     """The tangential force T of every loaded contact: torques (R - delta/2) T on both
@@ -131,8 +131,8 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
                 wk = y[ow + k, l]
                 wk1 = y[ow + k + 1, l]
                 w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
-                # the Coulomb cap on |F| (LAMMPS's Fncrit = |Fntot|; F < 0 only damped)
-                xi = contact_map(y[ot + k, l] + w * hist_dt, kt, mu * abs(fn))
+                # the Coulomb cap on Fncrit (LAMMPS's; |F| unless a law says otherwise)
+                xi = contact_map(y[ot + k, l] + w * hist_dt, kt, mu * normal_crit(fn, d, G, P, FL, n, k, l))
                 y[ot + k, l] = xi if d > 0.0 else 0.0
         for l in range(L):
             fn = f[k, l]
@@ -146,7 +146,7 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
             wk1 = y[ow + k + 1, l]
             # slip R_k omega_k + R_k+1 omega_k+1 (LAMMPS: radi omega_i + radj omega_j)
             w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
-            T, rate = contact_force(y[ot + k, l], w, kt, mu * abs(fn))
+            T, rate = contact_force(y[ot + k, l], w, kt, mu * normal_crit(fn, d, G, P, FL, n, k, l))
             # LAMMPS applies the tangential force at the contact point: lever arm
             # R_i - delta/2 on each sphere (the slip above uses full radii, as LAMMPS
             # does)

@@ -392,6 +392,9 @@ def check(scene) -> None:
             raise SceneError("effects", f"plastic_contact with {other} is not implemented (the "
                              f"{what} friction's Coulomb cap needs the history-dependent normal "
                              "force)", f"drop {other} or plastic_contact")
+    if scene.has("adhesion"):
+        raise SceneError("effects", "plastic_contact with adhesion is not implemented (each "
+                         "replaces Hertz's normal law)", "drop adhesion or plastic_contact")
     if scene.has("contact_damping") and scene.setting("contact_damping").limit_damping:
         raise SceneError("damping.limit_damping", "cannot act with plastic_contact (it holds "
                          "Hertz's net force at >= 0, not Thornton's)",

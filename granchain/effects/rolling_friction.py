@@ -21,7 +21,7 @@ from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
 from .lanes import any_contact, bit, clip_to_cap, overlap
-from .spec import DeckPart, EffectSpec, compiled, normal_cap
+from .spec import DeckPart, EffectSpec, compiled, normal_cap, normal_crit
 
 SPEC = EffectSpec("rolling_friction", state=(("L_ROLLING_HIST", "contact"),),
                   work="work_rolling_friction", work_slot="L_WORK_ROLLING",
@@ -140,10 +140,11 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
             for l in range(L):
                 # Verlet: LAMMPS's order with the half-step spins
                 fn = f[k, l]
-                loaded = overlap(y, ox, G, k, l) > 0.0
+                d = overlap(y, ox, G, k, l)
+                loaded = d > 0.0
                 Reff = G[oRe + k, l]
                 vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
-                rho, M = moment_lammps_order(y[op + k, l], vr, kr, gr, mur * abs(fn),
+                rho, M = moment_lammps_order(y[op + k, l], vr, kr, gr, mur * normal_crit(fn, d, G, P, FL, n, k, l),
                                                 hist_dt)
                 y[op + k, l] = rho if loaded else 0.0
                 dy[op + k, l] = vr if loaded else 0.0
@@ -160,10 +161,11 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
                 # continuous law (RK4, DOP853): rho' = v_roll, project() return-maps
                 # rho after the step
                 fn = f[k, l]
-                loaded = overlap(y, ox, G, k, l) > 0.0
+                d = overlap(y, ox, G, k, l)
+                loaded = d > 0.0
                 Reff = G[oRe + k, l]
                 vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
-                M = moment(y[op + k, l], vr, kr, gr, mur * abs(fn))
+                M = moment(y[op + k, l], vr, kr, gr, mur * normal_crit(fn, d, G, P, FL, n, k, l))
                 dy[op + k, l] = vr if loaded else 0.0
                 tq = Reff * M / G[oI + k, l]
                 tq1 = Reff * M / G[oI + k + 1, l]

@@ -170,6 +170,10 @@ HOOKS = {
                        "contact k in lane l at overlap d > 0 given the force F of the "
                        "contact_normal laws, where the state is at hand (the end wall's "
                        "recorded force)"),
+    "contact_crit": ("(F, d, G, P, FL, n, k, l) -> Fncrit",
+                     "the normal force of the Coulomb caps (LAMMPS's Fncrit) of contact k in "
+                     "lane l at overlap d, whose net normal force is F, when the law says "
+                     "other than |F| (the last effect on that has the hook gives it)"),
     "contact_cap": ("(coef, d, G, n, k, l) -> cap",
                     "coef times its contact_normal when no other contact_normal is on, in "
                     "its own order of operations"),
@@ -189,11 +193,18 @@ HOOKS = {
 # A composed contact law an effect's compiled code may call (the composer puts the
 # composed function in its place; called from Python it is not defined).
 def normal_cap(coef, y, G, P, FL, ov, n, k, l, d):
-    """coef |F|: the Coulomb cap of inner contact k of lane l at overlap d > 0, F the net
-    normal force of every effect's ``contact_normal`` (registry order); ov: the offset of
+    """coef Fncrit: the Coulomb cap of inner contact k of lane l at overlap d > 0, Fncrit
+    the :func:`normal_crit` of F, the net normal force of every effect's
+    ``contact_normal`` (registry order); ov: the offset of
     the velocities in y (``LO[L_VEL]``, read before the lane loop: a load from LO inside it
     keeps LLVM from vectorising the loop)."""
     raise NotImplementedError("normal_cap is composed by granchain.engines.compose")
+
+
+def normal_crit(F, d, G, P, FL, n, k, l):
+    """The normal force of the Coulomb caps (LAMMPS's Fncrit) of contact k of lane l at
+    overlap d, of net normal force F: |F|, unless an effect's ``contact_crit`` gives it."""
+    raise NotImplementedError("normal_crit is composed by granchain.engines.compose")
 
 
 def hermite_root(d0, w0, d1, w1, h, level, up):

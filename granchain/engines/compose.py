@@ -12,7 +12,11 @@ few functions that call them in turn:
   ``EffectSpec.order``;
 - ``project_histories(y, G, P, FL, LO)``: every ``project``;
 - ``effect_energies(y, G, P, FL, LO, out)``: every ``energies``;
-- ``normal_cap(coef, y, G, P, FL, ov, n, k, l, d)``: coef |F| of an inner contact, F the
+- ``normal_crit(F, d, G, P, FL, n, k, l)``: the normal force of the Coulomb caps
+  (LAMMPS's Fncrit) of a contact of net normal force F: |F|, or the ``contact_crit`` of
+  the last effect on that has one; the effects' friction laws call it in place of
+  ``effects.spec.normal_crit``;
+- ``normal_cap(coef, y, G, P, FL, ov, n, k, l, d)``: coef Fncrit of an inner contact, F the
   ``contact_normal`` of every effect in turn (an effect's ``contact_cap`` when it alone
   is on); the effects' return mappings call it in place of ``effects.spec.normal_cap``;
 - ``wall_force(d, w, G, P, FL, n, l)``: the end wall's force at overlap d and closing
@@ -159,10 +163,18 @@ def source() -> str:
         out += _call(m, "energies", "y, G, P, FL, LO, out")
     out += ["    return", "", ""]
 
+    # the caps' normal force: |F| unless an effect on says otherwise (the last one on)
+    crits = by["contact_crit"]
+    out += ["def normal_crit(F, d, G, P, FL, n, k, l):"]
+    for m in reversed(crits):
+        out += _call(m, "contact_crit", "F, d, G, P, FL, n, k, l", "return ")
+    out += ["    return abs(F)", "", ""]
+
     normals = by["contact_normal"]
     out += ["def normal_cap(coef, y, G, P, FL, ov, n, k, l, d):"]
     capper = next(iter(by["contact_cap"]), None)
     others = [m for m in normals if m is not capper]
+    others += [m for m in crits if m is not capper and m not in others]
     shortcut = capper is not None and all(_switch(m) for m in others)
     if shortcut:
         alone = " and ".join(f"not ({_switch(m)})" for m in others) or "True"
@@ -176,7 +188,8 @@ def source() -> str:
         unguarded = shortcut and len(others) == 1
         out += _call(m, "contact_normal", "F, d, w, G, P, FL, n, k, l", "F = ",
                      guard=not unguarded)
-    out += ["    return coef * abs(F)", "", ""]
+    out += ["    return coef * " + ("normal_crit(F, d, G, P, FL, n, k, l)" if crits else "abs(F)"),
+            "", ""]
 
     # the first normal law gives the force of any overlap (zero when open), the others
     # act on a closed contact
@@ -211,7 +224,7 @@ def source() -> str:
 
 
 COMPOSED = ("normal_forces", "effect_forces", "project_histories", "effect_energies",
-            "normal_cap", "wall_force", "wall_force_at", "locate")
+            "normal_crit", "normal_cap", "wall_force", "wall_force_at", "locate")
 
 
 def _file(text: str) -> str:
@@ -245,10 +258,12 @@ def _compose() -> dict:
         fn = ns[name]
         fn.__module__ = "granchain_composed"
         out[name] = njit(cache=True, inline="always")(fn)
-    # the composed functions call each other (wall_force_at calls wall_force) compiled
+    # the composed functions call each other (wall_force_at calls wall_force, normal_cap
+    # normal_crit) compiled
     ns.update(out)
     # the effects' compiled code calls these in place of the stubs of effects.spec
-    services = ((spec.normal_cap, out["normal_cap"]), (spec.hermite_root, hermite_root))
+    services = ((spec.normal_cap, out["normal_cap"]), (spec.normal_crit, out["normal_crit"]),
+                (spec.hermite_root, hermite_root))
     for ns in _NAMESPACES.values():
         for k, v in list(ns.items()):
             for stub, real in services:

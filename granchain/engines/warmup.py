@@ -28,11 +28,15 @@ def _warm_up_runs(runs=RUNS, done=None) -> None:
 
     from ..scene import scene_from_dict
     from . import reference
-    from ..effects import SPECS
+    from ..effects import MODULES, SPECS
+    # every effect on: the sections an effect needs given come from its WARM_UP (the
+    # damping model every other effect allows beside it)
     raw = {"name": "warm-up", "material": "ss440c", "chain": {"n": 4, "radius": 150e-6},
            "striker": {"velocity": 0.1}, "gaps": {"distribution": "fixed", "mean": 5e-9},
-           "effects": list(SPECS), "rolling": {"k_roll": 1e3}, "damping": {"e": 0.95},
-           "probes": [2, 3], "t_end": 2e-7}
+           "effects": list(SPECS), "rolling": {"k_roll": 1e3},
+           "damping": {"model": "viscoelastic", "eta": 1e3},
+           "probes": [2, 3], "t_end": 2e-7,
+           **{m.SECTION: dict(m.WARM_UP) for m in MODULES if hasattr(m, "WARM_UP")}}
     for method, trace in runs:
         integ = {"method": method, "dt": 1e-9}
         if method not in ("rk4", "verlet"):

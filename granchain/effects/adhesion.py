@@ -1,0 +1,332 @@
+"""adhesion: LAMMPS ``pair_style granular``'s cohesive normal laws ``dmt`` and ``jkr``.
+
+The laws of LAMMPS 22 Jul 2025 (``gran_sub_mod_normal.cpp``, ``granular_model.cpp``),
+with gamma the scene's ``adhesion.surface_energy`` (LAMMPS's cohesion coefficient; the work
+of adhesion is 2 gamma), E* and R* each contact's (the end wall's: R* = R_n), at overlap
+delta (m):
+
+- ``dmt``: F = K delta^(3/2) - F_po, F_po = 4 pi gamma R*, while delta > 0 (the Hertz
+  contact radius a = sqrt(R* delta)); the force jumps to -F_po at first touch and back to 0
+  when the contact opens.
+- ``jkr``: F = (4/3) E* a^3 / R* - 4 a sqrt(pi gamma E* a), a the JKR contact radius,
+  the root of delta = a^2/R* - 2 sqrt(pi gamma a / E*). A contact closes at delta > 0
+  (the force jumps to -(8/9) F_po there) and, once closed, stays closed in tension down to
+  the pull-off distance delta = -delta_po, delta_po = (3 pi^2 / 16)^(1/3) (R* gamma^2 /
+  E*^2)^(1/3), where F reaches its least value -F_po, F_po = 3 pi gamma R*; beyond it the
+  contact opens (the force jumps to 0) and closes again only at delta > 0. The contact's
+  state (closed or not) is a per-contact block of the state, 1 or 0 (entry n-1: the end
+  wall's), updated as LAMMPS does in each force call (velocity Verlet) or after each step
+  (the other methods).
+
+Both: the Coulomb caps of the tangential and rolling laws use LAMMPS's cohesive Fncrit =
+|F_ne + 2 F_po|, F_ne the law's force above (without the damping force). The damping of
+``contact_damping`` adds to F; LAMMPS allows only ``viscoelastic`` (no ``limit_damping``)
+with a cohesive law, and so does the scene. The work the adhesive part of the force (the
+law's force less Hertz's) does on the particles is the ledger's ``work_adhesion``; the
+energy JKR loses at each pull-off (its hysteresis) shows there. LAMMPS has no per-atom
+output of it (its ledger closes by construction).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..errors import SceneError
+from ..materials import effective_modulus
+from ..units import lmp_float as _r, to_micro
+from ..validate import Key
+from . import slots as S
+from .hertz import force as hertz_force
+from .lanes import bit, overlap
+from .spec import DeckPart, EffectSpec, compiled
+
+SPEC = EffectSpec("adhesion", state=(("L_ADHESION_TOUCH", "particle"),),
+                  work="work_adhesion", work_slot="L_WORK_ADHESION",
+                  table_column="work_adhesion_J",
+                  work_note="the adhesive part of the normal force (the dmt or jkr law less "
+                            "Hertz's)", lammps_reports_work=False,
+                  params=("P_ADHESION_GAMMA",), flags=("F_ADHESION", "F_ADHESION_JKR"),
+                  rows=("G_ADHESION_RSTAR", "G_ADHESION_EMIX"))
+
+MODELS = ("dmt", "jkr")
+SECTION = "adhesion"
+DEFAULTS = {"model": None, "surface_energy": None}
+# the section stays out of a scene's normalised spec (and hash) unless the effect is on
+# or a key of it is given
+SECTION_OPTIONAL = True
+KEYS = (
+    Key("adhesion.model", "-", "LAMMPS `pair granular`'s cohesive normal law at the contacts "
+        "and the end wall, in place of Hertz: `dmt`, F = K delta^(3/2) - 4 pi gamma R* while "
+        "delta > 0; `jkr`, the JKR force of the JKR contact radius, held closed in tension "
+        "down to LAMMPS's pull-off distance once touched (pull-off force 3 pi gamma R*). "
+        "Required with the effect. The work of the adhesive part is the ledger's "
+        "`work_adhesion` (table column `work_adhesion_J`).", choices=MODELS),
+    Key("adhesion.surface_energy", "J/m^2", "gamma, LAMMPS's cohesion coefficient of `dmt` "
+        "and `jkr` (the surface energy; the work of adhesion is 2 gamma). Required with the "
+        "effect.", positive=True, hi=100.0),
+)
+_KEY = {k.name: k for k in KEYS}
+# the section of the engines' warm-up scene (every effect on; the kernels are the same
+# for both models)
+WARM_UP = {"model": "dmt", "surface_energy": 0.1}
+# JKR's pull-off distance over (R* gamma^2 / E*^2)^(1/3): (3 pi^2 / 16)^(1/3)
+PULLOFF_PREFIX = (3.0 * math.pi ** 2 / 16.0) ** (1.0 / 3.0)
+
+
+@dataclass(frozen=True)
+class Settings:
+    model: str | None
+    surface_energy: float | None   # J/m^2
+
+
+def settings(sec: dict, given: frozenset, on: bool) -> Settings:
+    """The validated ``adhesion`` section; ``on``: whether the effect is enabled."""
+    model = None if sec["model"] is None else _KEY["model"].choice(sec["model"], "model")
+    gamma = _KEY["surface_energy"].number(sec["surface_energy"], allow_none=True,
+                                          fix="give the surface energy gamma in J/m^2, > 0")
+    if on and model is None:
+        raise SceneError("adhesion.model", "missing", "give model: jkr or dmt")
+    if on and gamma is None:
+        raise SceneError("adhesion.surface_energy", "missing",
+                         "give the surface energy gamma in J/m^2 (LAMMPS's cohesion)")
+    return Settings(model, gamma)
+
+
+def check(scene) -> None:
+    """What LAMMPS refuses beside a cohesive normal law, and what the reference engine does
+    not yet follow: damping other than ``viscoelastic`` or with ``limit_damping``; ``jkr``
+    with contact damping or contact friction (a contact held closed in tension carries
+    them in LAMMPS)."""
+    st = scene.setting(SPEC.name)
+    if scene.has("contact_damping"):
+        cd = scene.setting("contact_damping")
+        if cd.model != "viscoelastic":
+            raise SceneError("damping.model", f"{cd.model} cannot act with adhesion (LAMMPS "
+                             "refuses it beside a cohesive normal law)",
+                             "use damping model viscoelastic, or drop adhesion")
+        if cd.limit_damping:
+            raise SceneError("damping.limit_damping", "cannot act with adhesion (LAMMPS "
+                             "refuses it beside a cohesive normal law)",
+                             "write limit_damping: false, or drop adhesion")
+    if st.model == "jkr":
+        other = [e for e in ("contact_damping", "particle_friction", "rolling_friction")
+                 if scene.has(e)]
+        if other:
+            raise SceneError("adhesion.model", f"jkr with {', '.join(other)} is not "
+                             "implemented (a contact held closed in tension)",
+                             f"use model dmt, or drop {', '.join(other)}")
+
+
+# ---------------------------------------------------------------------------------------
+# the laws
+@compiled
+def jkr_radius(Rs, E, g, d):
+    """The JKR contact radius a (m) of a contact of R* (m), E* (Pa), gamma (J/m^2) at
+    overlap d (m): the largest root of d = a^2/R* - 2 sqrt(pi g a / E*). With s = sqrt(a),
+    s^4 - 2 c R* s - d R* = 0 (c = sqrt(pi g / E*)), solved by Ferrari's resolvent cubic
+    m^3 + 3 B m - 2 A = 0 (A = c^2 R*^2 / 4, B = d R* / 3), whose real root is written
+    2A / (u^2 + B + B^2/u^2), u^3 = A + sqrt(A^2 + B^3), free of cancellation."""
+    c = math.sqrt(math.pi * g / E)
+    A = 0.25 * c * c * Rs * Rs
+    B = d * Rs / 3.0
+    disc = A * A + B * B * B
+    u = (A + math.sqrt(disc if disc > 0.0 else 0.0)) ** (1.0 / 3.0)
+    m = 2.0 * A / (u * u + B + B * B / (u * u))
+    q = math.sqrt(2.0 * m)
+    t = 4.0 * c * Rs / q - 2.0 * m
+    s = 0.5 * (q + math.sqrt(t if t > 0.0 else 0.0))
+    return s * s
+
+
+@compiled
+def jkr_force(Rs, E, g, d):
+    """The JKR force (N, > 0 repulsive) at overlap d: (4/3) E* a^3 / R* - 4 a sqrt(pi g
+    E* a), a = :func:`jkr_radius`."""
+    a = jkr_radius(Rs, E, g, d)
+    return (4.0 / 3.0) * E * a * a * a / Rs - 4.0 * a * math.sqrt(math.pi * g * E * a)
+
+
+@compiled
+def pulloff_distance(Rs, E, g):
+    """JKR's pull-off distance delta_po (m, > 0): a closed contact opens at delta < -delta_po."""
+    return PULLOFF_PREFIX * (Rs * g * g / (E * E)) ** (1.0 / 3.0)
+
+
+@compiled
+def pulloff_force(Rs, g, jkr):
+    """F_po (N): 3 pi gamma R* (jkr), 4 pi gamma R* (dmt)."""
+    return (3.0 if jkr else 4.0) * math.pi * g * Rs
+
+
+@compiled
+def closed(d, was, Rs, E, g, jkr):
+    """Is a contact of overlap d closed, given whether it was (LAMMPS's touch test)?"""
+    if d > 0.0:
+        return True
+    return jkr and was and d > -pulloff_distance(Rs, E, g)
+
+
+@compiled
+def law(K, Rs, E, g, jkr, d):
+    """The force F_ne (N) of a closed contact: the jkr or dmt law."""
+    if jkr:
+        return jkr_force(Rs, E, g, d)
+    return hertz_force(K, d) - pulloff_force(Rs, g, False)
+
+
+# The compiled parts the engines compose (``spec.HOOKS``): each contact's R* and E* are
+# rows G_ADHESION_RSTAR and G_ADHESION_EMIX (the end wall's last), its closed state block
+# L_ADHESION_TOUCH (entry n-1: the end wall's).
+@compiled
+def normal(y, G, P, FL, LO, dy, f, shut):
+    """f of every closed contact becomes the law's force (plus the damping force before
+    it, for dmt); a jkr contact held closed in tension is no longer shut; the work rate of
+    the adhesive part."""
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    ov = LO[S.L_VEL]
+    ot = LO[S.L_ADHESION_TOUCH]
+    owa = LO[S.L_WORK_ADHESION]
+    wall = FL[S.F_END_WALL] != 0
+    jkr = FL[S.F_ADHESION_JKR] != 0
+    g = P[S.P_ADHESION_GAMMA]
+    oK = S.G_HERTZ_K * n
+    oR = S.G_ADHESION_RSTAR * n
+    oE = S.G_ADHESION_EMIX * n
+    for l in range(L):
+        dy[owa, l] = 0.0
+    for k in range(n):
+        for l in range(L):
+            dy[ot + k, l] = 0.0
+    for k in range(n if wall else n - 1):
+        if bit(shut, k) and not jkr:
+            continue
+        held = 0
+        for l in range(L):
+            if k < n - 1:
+                d = overlap(y, ox, G, k, l)
+                w = y[ov + k, l] - y[ov + k + 1, l]
+            else:
+                d = y[ox + n - 1, l] - G[n - 1, l]
+                w = y[ov + n - 1, l]
+            K = G[oK + k, l]
+            Rs = G[oR + k, l]
+            E = G[oE + k, l]
+            on = closed(d, y[ot + k, l] != 0.0, Rs, E, g, jkr)
+            held += 1 if on else 0
+            F = f[k, l]
+            Fa = (law(K, Rs, E, g, jkr, d) - hertz_force(K, d)) if on else 0.0
+            f[k, l] = F + Fa
+            a = dy[owa, l]
+            dy[owa, l] = a - Fa * w
+        if held > 0 and k < 63:
+            shut &= ~(1 << k)
+    return shut
+
+
+@compiled
+def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
+    """Velocity Verlet (hist_dt > 0): each contact's closed state of this force call, for
+    the next (LAMMPS keeps it per contact in each force call)."""
+    if hist_dt > 0.0 and FL[S.F_ADHESION_JKR] != 0:
+        _touch(y, G, P, FL, LO)
+
+
+@compiled
+def project(y, G, P, FL, LO):
+    """After a step: each contact's closed state at the step's end."""
+    if FL[S.F_ADHESION_JKR] != 0:
+        _touch(y, G, P, FL, LO)
+
+
+@compiled
+def _touch(y, G, P, FL, LO):
+    n = int(P[S.P_N_SPHERES])
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    ot = LO[S.L_ADHESION_TOUCH]
+    g = P[S.P_ADHESION_GAMMA]
+    oR = S.G_ADHESION_RSTAR * n
+    oE = S.G_ADHESION_EMIX * n
+    for k in range(n):
+        for l in range(L):
+            d = overlap(y, ox, G, k, l) if k < n - 1 else y[ox + n - 1, l] - G[n - 1, l]
+            on = closed(d, y[ot + k, l] != 0.0, G[oR + k, l], G[oE + k, l], g, True)
+            y[ot + k, l] = 1.0 if on else 0.0
+
+
+@compiled
+def contact_normal(F, d, w, G, P, FL, n, k, l):
+    """The force of contact k in lane l at overlap d > 0 (the end wall's, the caps): the
+    law's force added to F (which holds Hertz's and the damping's). A contact held closed
+    in tension is not seen here: the end wall's recorded force is 0 there."""
+    if d <= 0.0:
+        return F
+    K = G[S.G_HERTZ_K * n + k, l]
+    return F + law(K, G[S.G_ADHESION_RSTAR * n + k, l], G[S.G_ADHESION_EMIX * n + k, l],
+                   P[S.P_ADHESION_GAMMA], FL[S.F_ADHESION_JKR] != 0, d) - hertz_force(K, d)
+
+
+@compiled
+def contact_crit(F, d, G, P, FL, n, k, l):
+    """LAMMPS's cohesive Fncrit = |F_ne + 2 F_po| of contact k at overlap d (F_ne the law's
+    force, without the damping force)."""
+    Rs = G[S.G_ADHESION_RSTAR * n + k, l]
+    g = P[S.P_ADHESION_GAMMA]
+    jkr = FL[S.F_ADHESION_JKR] != 0
+    Fne = law(G[S.G_HERTZ_K * n + k, l], Rs, G[S.G_ADHESION_EMIX * n + k, l], g, jkr, d)
+    return abs(Fne + 2.0 * pulloff_force(Rs, g, jkr))
+
+
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Adhesion:
+    model: str            # "dmt" | "jkr"
+    gamma: float          # J/m^2, LAMMPS's cohesion
+
+
+def build(scene) -> Adhesion:
+    st = scene.setting(SPEC.name)
+    return Adhesion(st.model, st.surface_energy)
+
+
+def kernel(ad: Adhesion) -> tuple[dict, dict]:
+    """(parameters, flags) of the reference kernels, by slot name (``slots``)."""
+    return {"P_ADHESION_GAMMA": ad.gamma}, {"F_ADHESION": 1,
+                                            "F_ADHESION_JKR": int(ad.model == "jkr")}
+
+
+def rows(ad: Adhesion, chain) -> dict:
+    """Per-contact rows (the wall's last): R* and E* (the wall: R_n and the sphere's E* on
+    the wall's material)."""
+    R, mats = chain.radii, chain.materials
+    n = len(R)
+    rs = tuple(0.5 * R[k] if R[k] == R[k + 1] else R[k] * R[k + 1] / (R[k] + R[k + 1])
+               for k in range(n - 1)) + (R[-1],)
+    es = tuple(effective_modulus(mats[k], mats[k + 1]) for k in range(n - 1)) + (
+        effective_modulus(mats[-1], chain.wall) if chain.wall is not None else 1.0,)
+    return {"G_ADHESION_RSTAR": rs, "G_ADHESION_EMIX": es}
+
+
+def error_scale(ad: Adhesion, terms, delta: float, v: float) -> float:
+    """The closed-state block is 0 or 1, and its rate 0."""
+    return 1.0
+
+
+def lammps(ad: Adhesion | None, deck) -> DeckPart:
+    """The deck's normal law: ``dmt|jkr E <damp> nu gamma`` on every pair_coeff and on the
+    end wall (gamma in 1e-3 N/m, LAMMPS 'units micro'), in place of hertz/material."""
+    if ad is None:
+        return DeckPart()
+    gamma = _r(to_micro(ad.gamma, "stiffness"))
+    law = (f"F = K delta^1.5 - 4 pi gamma R* while delta > 0" if ad.model == "dmt" else
+           "F = 4/3 E* a^3/R* - 4 a sqrt(pi gamma E* a), a the JKR\n# contact radius; held "
+           "closed in tension to the pull-off distance once touched")
+    return DeckPart(
+        pair={"normal": f"{ad.model} {{E}} {{damp}} {{nu}} {gamma}"},
+        notes={"normal": f"# adhesion (effects/adhesion.py): {ad.model}, gamma = {_r(ad.gamma)} "
+                         f"J/m^2 = {gamma} (1e-3 N/m):\n# {law}. Caps: Fncrit = |F + 2 F_po|."
+                         f"\n# pair_coeff: {ad.model} E <damp> nu gamma"},
+        contact=f"{ad.model.upper()} adhesion",
+        wall_notes=(f"# adhesion at the wall: {ad.model} with the pairs' gamma, R* = R_n.",))

@@ -1,0 +1,194 @@
+"""The adhesion effect (effects/adhesion.py): LAMMPS pair granular's dmt and jkr normal
+laws, against independent solutions (tests/independent.py) and against LAMMPS."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from granchain.effects import adhesion
+from granchain.engines import reference
+from granchain.errors import SceneError
+from granchain.gaps import member_gaps, members
+from granchain.materials import effective_modulus, library
+from granchain.scene import scene_from_dict
+from tests import independent as ind
+
+MAT = library()
+STEEL = MAT["ss440c"]
+R = 150e-6
+RS = R / 2.0
+ESTAR = effective_modulus(STEEL, STEEL)
+RHO = STEEL.rho
+M_RED = 0.5 * 4.0 / 3.0 * math.pi * R ** 3 * RHO
+GAMMA = 1.0
+
+
+def pair_scene(adh, speeds, dt=2e-10, t_end=6e-5, effects=("hertz", "adhesion"), **extra):
+    """The striker hits particle 2 of a 3-sphere chain whose third sphere is 1 mm away,
+    one chain per speed."""
+    spec = {"name": "pair", "chain": {"n": 3}, "probes": [2, 3], "effects": list(effects),
+            "adhesion": adh, "striker": {"velocity": list(speeds)}, "t_end": t_end,
+            "integrator": {"method": "verlet", "dt": dt},
+            "gaps": {"distribution": "list", "values": [0.0, 1e-3]}}
+    spec.update(extra)
+    return scene_from_dict(spec)
+
+
+def runs(scene):
+    mem = members(scene)
+    g, vs = member_gaps(scene, mem), np.array([m.v_striker for m in mem])
+    return list(reference.run(scene, g, vs, method="verlet")), vs
+
+
+# ---------------------------------------------------------------------------------------
+# the laws
+def test_jkr_law_is_the_jkr_theory_with_lammps_pull_off():
+    """The kernels' JKR contact radius and force (plain Python here) equal the JKR theory
+    solved by root finding (work of adhesion 2 gamma) to 1e-12, from the pull-off distance
+    to 1000 times it; the contact opens exactly at the load-controlled pull-off point,
+    where the force is least: 3 pi gamma R* (LAMMPS's F_pulloff)."""
+    a_po, d_po, F_po = ind.jkr_pulloff(RS, ESTAR, GAMMA)
+    assert F_po == pytest.approx(-3.0 * math.pi * GAMMA * RS, rel=1e-13, abs=0.0)
+    dist = adhesion.pulloff_distance(RS, ESTAR, GAMMA)
+    assert dist == pytest.approx(-d_po, rel=1e-12, abs=0.0)
+    for f in (-1.0, -0.5, 0.0, 0.3, 1.0, 10.0, 1e3):
+        d = f * dist
+        a = adhesion.jkr_radius(RS, ESTAR, GAMMA, d)
+        assert a == pytest.approx(ind.jkr_radius(RS, ESTAR, GAMMA, d), rel=1e-12, abs=0.0)
+        assert adhesion.jkr_force(RS, ESTAR, GAMMA, d) == pytest.approx(
+            ind.jkr_force(RS, ESTAR, GAMMA, d), rel=1e-12, abs=1e-12 * -F_po)
+    # the least force on the branch the contact follows is at the pull-off distance
+    ds = np.linspace(-dist, 5 * dist, 2001)
+    fs = [adhesion.jkr_force(RS, ESTAR, GAMMA, d) for d in ds]
+    assert int(np.argmin(fs)) == 0 and fs[0] == pytest.approx(F_po, rel=1e-10, abs=0.0)
+    assert adhesion.pulloff_force(RS, GAMMA, True) == pytest.approx(-F_po, rel=1e-14, abs=0.0)
+    # the touch test: closes at delta > 0 only; once closed, open beyond -delta_po
+    eps = 1e-9 * dist
+    assert not adhesion.closed(0.0, False, RS, ESTAR, GAMMA, True)
+    assert adhesion.closed(-dist + eps, True, RS, ESTAR, GAMMA, True)
+    assert not adhesion.closed(-dist - eps, True, RS, ESTAR, GAMMA, True)
+    assert not adhesion.closed(-eps, True, RS, ESTAR, GAMMA, False)      # dmt: no hold
+
+
+def test_dmt_law_and_its_caps():
+    """DMT: K delta^1.5 - 4 pi gamma R* while delta > 0, and the Coulomb caps' Fncrit
+    |F + 2 F_po| = K delta^1.5 + 4 pi gamma R* (LAMMPS's cohesive Fncrit)."""
+    K = 4.0 / 3.0 * ESTAR * math.sqrt(RS)
+    for d in (1e-10, 1e-8, 1e-7):
+        want = ind.dmt_force(K, RS, GAMMA, d)
+        got = adhesion.law(K, RS, ESTAR, GAMMA, False, d)
+        assert got == pytest.approx(want, rel=1e-13, abs=0.0)
+        G = np.zeros((64, 1))
+        n = 3
+        from granchain.effects import slots as S
+        G[S.G_HERTZ_K * n, 0] = K
+        G[S.G_ADHESION_RSTAR * n, 0] = RS
+        G[S.G_ADHESION_EMIX * n, 0] = ESTAR
+        P = np.zeros(S.P_LEN)
+        P[S.P_ADHESION_GAMMA] = GAMMA
+        FL = np.zeros(S.F_LEN, dtype=np.int64)
+        crit = adhesion.contact_crit(want, d, G, P, FL, n, 0, 0)
+        assert crit == pytest.approx(K * d ** 1.5 + 4 * math.pi * GAMMA * RS, rel=1e-13, abs=0.0)
+
+
+# ---------------------------------------------------------------------------------------
+# collisions on the reference engine
+def test_dmt_collision_peak_overlap_and_ledger():
+    """An undamped DMT pair: the adhesive work at the deepest overlap is F_po delta_max,
+    delta_max from (1/2) m* v^2 + F_po delta = (2/5) K delta^(5/2) (the law's energy;
+    measured 1e-4, within Verlet's error at the force's jump), and the collision is elastic (its work returns to 0, the pair
+    leaves at v, to Verlet's error at the force's jumps)."""
+    speeds = (0.005, 0.02)
+    sc = pair_scene({"model": "dmt", "surface_energy": GAMMA}, speeds, dt=1e-9,
+                    t_end=4e-5, output={"sample_dt": 1e-9})
+    from granchain.effects import ENERGY_COLUMNS
+    iw = ENERGY_COLUMNS.index("work_adhesion")
+    K = 4.0 / 3.0 * ESTAR * math.sqrt(RS)
+    F_po = 4.0 * math.pi * GAMMA * RS
+    trajs, vs = runs(sc)
+    from scipy.optimize import brentq
+    for t, v in zip(trajs, vs):
+        dmax = brentq(lambda d: 0.4 * K * d ** 2.5 - F_po * d - 0.5 * M_RED * v * v, 1e-12, 1e-5,
+                      xtol=1e-22)
+        work = t.energy[:, iw]
+        # Verlet switches F_po on and off within a step: an energy error up to F_po v dt
+        # each time, which moves delta_max by that over the net force there
+        jump = 2.0 * F_po * v * 1e-9
+        tol = jump * F_po / (K * dmax ** 1.5 - F_po)
+        assert abs(work.max() - F_po * dmax) < tol
+        assert abs(work[-1]) < jump
+        e = (t.v[-1, 1] - t.v[-1, 0]) / v
+        assert abs(e * e - 1.0) < jump / (0.5 * M_RED * v * v)
+
+
+def test_jkr_capture_velocity_and_restitution():
+    """An undamped JKR pair loses the hysteresis energy W of the JKR curve between first
+    touch and pull-off: captured below v_c = sqrt(2 W / m*), e = sqrt(1 - v_c^2/v^2)
+    above it (Verlet at 0.2 ns: the force's jumps at touch and pull-off cost ~1e-4)."""
+    vc = ind.jkr_capture_velocity(RS, ESTAR, GAMMA, M_RED)
+    speeds = (0.7 * vc, 1.5 * vc, 3.0 * vc)
+    sc = pair_scene({"model": "jkr", "surface_energy": GAMMA}, speeds, t_end=1.5e-4,
+                    output={"sample_dt": 1e-7})
+    trajs, vs = runs(sc)
+    for t, v in zip(trajs, vs):
+        rel = (t.v[:, 1] - t.v[:, 0]) / v
+        tail = rel[len(rel) // 2:]
+        if v < vc:
+            # captured: the pair still oscillates about its bond at the end
+            assert tail.max() - tail.min() > 0.1
+        else:
+            assert tail.max() - tail.min() < 1e-12
+            assert tail[-1] == pytest.approx(ind.jkr_restitution(v, vc), abs=3e-4)
+
+
+def test_scene_keys():
+    """The section is refused while the effect is off, and the keys are checked."""
+    base = {"name": "x", "chain": {"n": 5}, "probes": [2, 5]}
+    with pytest.raises(SceneError, match="adhesion"):
+        scene_from_dict({**base, "adhesion": {"model": "jkr", "surface_energy": 0.1}})
+    with pytest.raises(SceneError, match="adhesion.surface_energy"):
+        scene_from_dict({**base, "effects": ["hertz", "adhesion"],
+                         "adhesion": {"model": "jkr", "surface_energy": -1}})
+    with pytest.raises(SceneError, match="adhesion.model"):
+        scene_from_dict({**base, "effects": ["hertz", "adhesion"],
+                         "adhesion": {"model": "hertz", "surface_energy": 0.1}})
+    with pytest.raises(SceneError, match="damping.model"):
+        scene_from_dict({**base, "effects": ["hertz", "adhesion", "contact_damping"],
+                         "adhesion": {"model": "dmt", "surface_energy": 0.1},
+                         "damping": {"e": 0.9}})
+
+
+# ---------------------------------------------------------------------------------------
+# against LAMMPS
+CHAINS = {
+    # dmt with every effect LAMMPS allows beside it: the caps' Fncrit, viscoelastic damping
+    "dmt-all": {"effects": ["hertz", "rotation", "groove_friction", "air_drag",
+                            "particle_friction", "rolling_friction", "contact_damping",
+                            "adhesion"],
+                "adhesion": {"model": "dmt", "surface_energy": 0.5},
+                "damping": {"model": "viscoelastic", "eta": 1.0e8},
+                "rolling": {"k_roll": 1.0e3}, "striker": {"velocity": 0.05}},
+    # jkr on a steel wall: the pull-off hysteresis at the contacts and the wall
+    "jkr-wall": {"effects": ["hertz", "adhesion"],
+                 "adhesion": {"model": "jkr", "surface_energy": 1.0},
+                 "walls": {"end": "ss316"}, "striker": {"velocity": 0.02}},
+}
+
+
+@pytest.mark.lammps
+@pytest.mark.parametrize("name", list(CHAINS))
+def test_chains_agree_with_lammps(name, tmp_path):
+    """granchain compare, Verlet at 1 ns: LAMMPS's dmt and jkr laws (with the caps'
+    Fncrit, the damping and the wall) and the reference engine's agree on v_max and v_g
+    to rounding (measured <= 2.7e-10 and 5.7e-11 without the wall); the adhesive work is
+    LAMMPS's balance residual."""
+    from granchain.compare import compare
+    spec = {"name": name, "chain": {"n": 8}, "probes": [2, 7], "t_end": 6e-5,
+            "integrator": {"method": "verlet", "dt": 1e-9}, **CHAINS[name]}
+    cmp = compare(scene_from_dict(spec), workdir=tmp_path / "lmp")
+    assert cmp.ok, cmp.failures().to_string()
+    rows = cmp.rows
+    v = rows[rows.quantity.str.startswith("v_max") | rows.quantity.str.startswith("v_g")]
+    assert len(v) > 0 and v["diff"].max() < 2e-9
