@@ -201,6 +201,18 @@ for f in loaded:
     assert [f for f, c in changed.items() if c != "True"] == []
 
 
+@pytest.mark.parametrize("method", sorted({m for m, _ in warmup.RUNS}))
+def test_every_warm_up_scene_is_valid_with_every_effect_it_can_hold(method):
+    """Each warm-up run's scene validates, with every registered effect on but those set
+    apart (the kernels compile their laws all the same). Fails on a build whose warm-up
+    turned on every registered effect, which a law that refuses another made impossible."""
+    from granchain.effects import MODULES
+    scene = warmup.warm_up_scene(method)
+    apart = {m.SPEC.name for m in MODULES if hasattr(m, "WARM_UP_APART")}
+    assert set(scene.effects) == {m.SPEC.name for m in MODULES} - apart
+    assert scene.method == method and len(apart) < len(MODULES) // 2
+
+
 @pytest.mark.slow
 def test_warm_up_again_with_the_module_built(aot_cache):
     # a second warm-up (another workflow run, a new process) finds the module built: its

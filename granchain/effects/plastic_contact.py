@@ -68,6 +68,10 @@ SPEC = EffectSpec("plastic_contact", state=(("L_PLASTIC_DMAX", "particle"),),
                   lammps_reports_work=False, flags=("F_PLASTIC_CONTACT",),
                   rows=("G_PLASTIC_EMIX", "G_PLASTIC_RSTAR", "G_PLASTIC_DY", "G_PLASTIC_SLOPE"))
 
+# left out of the warm-up's every-effect scene (engines.warmup): it refuses the contact
+# friction, adhesion and the event method
+WARM_UP_APART = "refuses the contact friction, adhesion and the event method"
+
 MODELS = ("thornton",)
 SECTION = "plasticity"
 DEFAULTS = {"model": "thornton", "yield_pressure": None}

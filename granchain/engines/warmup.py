@@ -21,27 +21,35 @@ RUNS = (("rk4", False), ("verlet", False), ("adaptive", False), ("event", True),
 GROUPS = (RUNS[:4], RUNS[4:])
 
 
-def _warm_up_runs(runs=RUNS, done=None) -> None:
-    """Small chains through the reference engine's methods (every registered effect on,
-    gaps); ``done(1)`` after each run, if given."""
-    import numpy as np
-
+def warm_up_scene(method: str):
+    """The scene of a warm-up run of ``method``: a small gapped chain with every registered
+    effect on but those whose module sets ``WARM_UP_APART`` (the reason it cannot act with
+    the others); the sections an effect needs given come from its ``WARM_UP`` (beside the
+    damping model every other effect allows). The composed kernels hold every effect's law
+    whichever effects a scene turns on (their flags switch them at run time), so the
+    effects left apart are compiled all the same."""
+    from ..effects import MODULES
     from ..scene import scene_from_dict
-    from . import reference
-    from ..effects import MODULES, SPECS
-    # every effect on: the sections an effect needs given come from its WARM_UP (the
-    # damping model every other effect allows beside it)
     raw = {"name": "warm-up", "material": "ss440c", "chain": {"n": 4, "radius": 150e-6},
            "striker": {"velocity": 0.1}, "gaps": {"distribution": "fixed", "mean": 5e-9},
-           "effects": list(SPECS), "rolling": {"k_roll": 1e3},
-           "damping": {"model": "viscoelastic", "eta": 1e3},
+           "effects": [m.SPEC.name for m in MODULES if not hasattr(m, "WARM_UP_APART")],
+           "rolling": {"k_roll": 1e3}, "damping": {"model": "viscoelastic", "eta": 1e3},
            "probes": [2, 3], "t_end": 2e-7,
            **{m.SECTION: dict(m.WARM_UP) for m in MODULES if hasattr(m, "WARM_UP")}}
+    integ = {"method": method, "dt": 1e-9}
+    if method not in ("rk4", "verlet"):
+        integ["tolerance"] = 1e-6
+    return scene_from_dict({**raw, "integrator": integ})
+
+
+def _warm_up_runs(runs=RUNS, done=None) -> None:
+    """Small chains through the reference engine's methods (:func:`warm_up_scene`);
+    ``done(1)`` after each run, if given."""
+    import numpy as np
+
+    from . import reference
     for method, trace in runs:
-        integ = {"method": method, "dt": 1e-9}
-        if method not in ("rk4", "verlet"):
-            integ["tolerance"] = 1e-6
-        scene = scene_from_dict({**raw, "integrator": integ})
+        scene = warm_up_scene(method)
         # two chains: a chunk of one would run the ahead-of-time module if it is built,
         # and the JIT kernels would stay uncompiled
         gaps = np.full((2, scene.n - 1), 5e-9)
