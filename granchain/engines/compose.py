@@ -29,9 +29,12 @@ few functions that call them in turn:
 
 An effect is called only while its switch flag is on (``EffectSpec.switch``). The
 per-lane laws are inlined where they are called (numba ``inline="always"``) and the block
-hooks compiled once each (:data:`BLOCK_HOOKS`), so the kernels that call these functions
-(``engines.kernels``, ``engines.events``) compile to what one hand-written routine
-holding every law would (the same vectorised loops, measured on the machine code).
+hooks compiled once each (:data:`BLOCK_HOOKS`), which the kernels that call these
+functions (``engines.kernels``, ``engines.events``) call: their lane loops vectorise as
+one hand-written routine's would (the same vector instructions in the machine code), but
+each inlined composed function binds its array arguments again, and the reference counts
+of those bindings (atomic increments and decrements that numba's pruning leaves between
+the calls) cost the every-effect kernels a few per cent against the hand-written routine.
 
 The generated source (:func:`source`) is a file in the JIT cache folder
 (``backend.jit_cache_dir``, named by the hash of every source the kernels are made of, the
@@ -67,9 +70,11 @@ def _namespace(module) -> dict:
 
 # The hooks that run over a whole block (their lane loops inside): each compiled once, on
 # its own, with the block kernels' options (numpy's error model: no test for a division by
-# zero, which would keep the lane loops from vectorising; no bounds checks); LLVM inlines
-# them into the kernels. Inlining them into each caller already in numba (as the per-lane
-# laws are) compiles the same code at a half again the time.
+# zero, which would keep the lane loops from vectorising; no bounds checks), and called
+# by the kernels (LLVM does not inline them: they are large and linked in once each;
+# forcing it, numba's forceinline, measured no faster). Inlining them into each caller
+# already in numba (as the per-lane laws are) compiles the same code at a half again the
+# time.
 BLOCK_HOOKS = ("normal", "forces", "project", "energies")
 
 
