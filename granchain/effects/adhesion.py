@@ -37,7 +37,7 @@ from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
 from .hertz import force as hertz_force
-from .lanes import bit, overlap
+from .lanes import bit, closing_speed, contact_overlap
 from .spec import DeckPart, EffectSpec, compiled
 
 SPEC = EffectSpec("adhesion", state=(("L_ADHESION_TOUCH", "particle"),),
@@ -204,12 +204,8 @@ def normal(y, G, P, FL, LO, dy, f, shut):
             continue
         held = 0
         for l in range(L):
-            if k < n - 1:
-                d = overlap(y, ox, G, k, l)
-                w = y[ov + k, l] - y[ov + k + 1, l]
-            else:
-                d = y[ox + n - 1, l] - G[n - 1, l]
-                w = y[ov + n - 1, l]
+            d = contact_overlap(y, ox, G, n, k, l)
+            w = closing_speed(y, ov, n, k, l)
             K = G[oK + k, l]
             Rs = G[oR + k, l]
             E = G[oE + k, l]
@@ -251,7 +247,7 @@ def _touch(y, G, P, FL, LO):
     oE = S.G_ADHESION_EMIX * n
     for k in range(n):
         for l in range(L):
-            d = overlap(y, ox, G, k, l) if k < n - 1 else y[ox + n - 1, l] - G[n - 1, l]
+            d = contact_overlap(y, ox, G, n, k, l)
             on = closed(d, y[ot + k, l] != 0.0, G[oR + k, l], G[oE + k, l], g, True)
             y[ot + k, l] = 1.0 if on else 0.0
 

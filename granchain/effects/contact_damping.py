@@ -35,7 +35,7 @@ from ..errors import SceneError
 from ..units import lmp_float as _r, to_micro
 from ..validate import Key, number_text, short
 from . import slots as S
-from .lanes import bit, overlap
+from .lanes import bit, closing_speed, contact_overlap
 from .spec import DeckPart, EffectSpec, compiled, pair_words
 
 SPEC = EffectSpec("contact_damping", work="work_contact_damping", work_slot="L_WORK_DAMPING",
@@ -174,12 +174,8 @@ def normal(y, G, P, FL, LO, dy, f, shut):
         if bit(shut, k):
             continue
         for l in range(L):
-            if k < n - 1:
-                d = overlap(y, ox, G, k, l)
-                w = y[ov + k, l] - y[ov + k + 1, l]
-            else:
-                d = y[ox + n - 1, l] - G[n - 1, l]
-                w = y[ov + n - 1, l]
+            d = contact_overlap(y, ox, G, n, k, l)
+            w = closing_speed(y, ov, n, k, l)
             fel = f[k, l]
             F = net(fel, d, w, G[oME + k, l], G[oRS + k, l], model, dmp, lim)
             F = F if d > 0.0 else 0.0

@@ -15,7 +15,7 @@ import numpy as np
 from ..materials import Material, effective_modulus
 from ..units import lmp_float as _r
 from . import slots as S
-from .lanes import any_contact, overlap
+from .lanes import any_contact, overlap, wall_overlap
 from .spec import DeckPart, EffectSpec, compiled
 
 SPEC = EffectSpec("hertz", params=("P_HERTZ_K",), always="every chain needs hertz contacts")
@@ -83,7 +83,7 @@ def normal(y, G, P, FL, LO, dy, f, shut):
         # the end wall: contact n-1, overlap x_n - G_{n-1}
         c = 0
         for l in range(L):
-            d = y[ox + n - 1, l] - G[n - 1, l]
+            d = wall_overlap(y, ox, G, n, l)
             c += 1 if d > 0.0 else 0
             f[n - 1, l] = force(G[oK + n - 1, l], d)
         if c == 0 and n - 1 < 63:
@@ -118,7 +118,7 @@ def energies(y, G, P, FL, LO, out):
             out[S.E_POT, l] += energy(G[oK + k, l], overlap(y, ox, G, k, l))
     if FL[S.F_END_WALL] != 0:
         for l in range(L):
-            out[S.E_POT, l] += energy(G[oK + n - 1, l], y[ox + n - 1, l] - G[n - 1, l])
+            out[S.E_POT, l] += energy(G[oK + n - 1, l], wall_overlap(y, ox, G, n, l))
 
 
 @dataclass(frozen=True)

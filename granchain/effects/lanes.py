@@ -28,6 +28,25 @@ def overlap(y, ox, G, k, l):
 
 
 @compiled
+def wall_overlap(y, ox, G, n, l):
+    """Overlap (m) of the end wall's contact (contact n-1) in lane l: x_n - G_{n-1}."""
+    return y[ox + n - 1, l] - G[n - 1, l]
+
+
+@compiled
+def contact_overlap(y, ox, G, n, k, l):
+    """Overlap (m) of contact k in lane l: an inner contact's (k < n-1) or the end wall's."""
+    return overlap(y, ox, G, k, l) if k < n - 1 else wall_overlap(y, ox, G, n, l)
+
+
+@compiled
+def closing_speed(y, ov, n, k, l):
+    """Closing speed (m/s) of contact k in lane l: v_k - v_{k+1}, or at the end wall
+    (k = n-1) the last sphere's velocity."""
+    return y[ov + k, l] - y[ov + k + 1, l] if k < n - 1 else y[ov + n - 1, l]
+
+
+@compiled
 def clip_to_cap(x, cap):
     """A force or moment x held to its Coulomb cap: sgn(x) cap where |x| exceeds cap >= 0,
     else x (at |x| = cap the two are the same number)."""

@@ -57,7 +57,7 @@ from ..materials import effective_modulus
 from ..validate import Key
 from . import slots as S
 from .hertz import energy as hertz_energy, force as hertz_force
-from .lanes import bit, overlap
+from .lanes import bit, closing_speed, contact_overlap
 from .spec import DeckPart, EffectSpec, compiled
 
 SPEC = EffectSpec("plastic_contact", state=(("L_PLASTIC_DMAX", "particle"),),
@@ -195,12 +195,8 @@ def normal(y, G, P, FL, LO, dy, f, shut):
         if bit(shut, k):
             continue
         for l in range(L):
-            if k < n - 1:
-                d = overlap(y, ox, G, k, l)
-                w = y[ov + k, l] - y[ov + k + 1, l]
-            else:
-                d = y[ox + n - 1, l] - G[n - 1, l]
-                w = y[ov + n - 1, l]
+            d = contact_overlap(y, ox, G, n, k, l)
+            w = closing_speed(y, ov, n, k, l)
             K = G[oK + k, l]
             Es = G[oE + k, l]
             Rs = G[oR + k, l]
@@ -227,7 +223,7 @@ def _raise(y, G, P, FL, LO):
     om = LO[S.L_PLASTIC_DMAX]
     for k in range(n if FL[S.F_END_WALL] != 0 else n - 1):
         for l in range(L):
-            d = overlap(y, ox, G, k, l) if k < n - 1 else y[ox + n - 1, l] - G[n - 1, l]
+            d = contact_overlap(y, ox, G, n, k, l)
             m = y[om + k, l]
             y[om + k, l] = d if d > m else m
 
@@ -249,7 +245,7 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
         dy[owp, l] = 0.0
     for k in range(n if FL[S.F_END_WALL] != 0 else n - 1):
         for l in range(L):
-            d = overlap(y, ox, G, k, l) if k < n - 1 else y[ox + n - 1, l] - G[n - 1, l]
+            d = contact_overlap(y, ox, G, n, k, l)
             m = y[om + k, l]
             q = dissipated(G[S.G_HERTZ_K * n + k, l], G[S.G_PLASTIC_EMIX * n + k, l],
                            G[S.G_PLASTIC_RSTAR * n + k, l], G[S.G_PLASTIC_DY * n + k, l],
@@ -288,7 +284,7 @@ def energies(y, G, P, FL, LO, out):
     om = LO[S.L_PLASTIC_DMAX]
     for k in range(n if FL[S.F_END_WALL] != 0 else n - 1):
         for l in range(L):
-            d = overlap(y, ox, G, k, l) if k < n - 1 else y[ox + n - 1, l] - G[n - 1, l]
+            d = contact_overlap(y, ox, G, n, k, l)
             stored = y[om + k, l]
             dm = d if d > stored else stored
             dly = G[S.G_PLASTIC_DY * n + k, l]
