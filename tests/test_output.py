@@ -13,7 +13,7 @@ import pytest
 
 from conftest import SCENES
 from granchain import cli, fileio
-from granchain.commands import run as run_command
+from granchain.commands import output as command_output
 
 
 def _oracle_jsonable(obj):
@@ -60,7 +60,7 @@ def spy(monkeypatch):
         out = fileio.json_text(doc, indent)
         calls.append((doc, indent, out))
         return out
-    monkeypatch.setattr(run_command, "json_text", text)
+    monkeypatch.setattr(command_output, "json_text", text)
     return calls
 
 

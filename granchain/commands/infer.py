@@ -9,10 +9,10 @@ from pathlib import Path
 
 from ..costmodel import run_estimate
 from ..errors import GranchainError
-from ..fileio import IMAGE, atomic_write_text, check_output_path, json_output, json_text
+from ..fileio import IMAGE, check_output_path, json_output
 from ..guards import check_run
 from ..scene import load_scene
-from .output import check_paths, fmt, print_warnings, show_progress
+from .output import check_paths, emit, fmt, print_warnings, show_progress
 
 
 INFER_JSON = json_output("a granchain infer JSON document", {"measurements", "timing_column"})
@@ -303,12 +303,7 @@ def _report_inference(args, res, meas, base, print_human, plot: str) -> int:
     the human summary, and with --plot the figure of ``figures.inference.<plot>``
     (matplotlib is loaded only then)."""
     doc = dict(res.to_json(), measurements=str(args.measurements))
-    if args.json and not args.out:
-        print(json_text(doc))
-    elif not args.json:
-        print_human(res)
-    if args.out:
-        atomic_write_text(args.out, json_text(doc, indent=1) + "\n", args.force, "--out")
+    emit(args, doc, lambda: print_human(res))
     if args.plot:
         from ..figures import inference as figs
         getattr(figs, plot)(res, meas, base, args.plot, force=args.force)

@@ -6,7 +6,7 @@ import math
 import re
 from pathlib import Path
 
-from ..fileio import check_distinct
+from ..fileio import atomic_write_text, check_distinct, json_text
 
 
 def one_line(text: str) -> str:
@@ -33,6 +33,18 @@ def check_paths(args, outputs, inputs=()) -> None:
     if getattr(args, "workdir", None):
         from ..lammps.deck import check_workdir
         check_workdir(args.workdir, args.force)
+
+
+def emit(args, doc: dict, print_human) -> None:
+    """A command's result: the human summary (``print_human()``) unless --json, the JSON
+    document ``doc`` on stdout with --json and no --out, and the document in the file
+    --out (written atomically; --force replaces an earlier one)."""
+    if not args.json:
+        print_human()
+    elif not args.out:
+        print(json_text(doc))
+    if args.out:
+        atomic_write_text(args.out, json_text(doc, indent=1) + "\n", args.force, "--out")
 
 
 def fmt(x, unit="", digits=4):

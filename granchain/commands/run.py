@@ -12,12 +12,12 @@ from pathlib import Path
 
 from ..costmodel import add_estimates, check_cost, run_estimate
 from ..errors import GranchainError
-from ..fileio import atomic_write_text, check_output_path, json_output, json_text
+from ..fileio import check_output_path, json_output
 from ..guards import check_run, run_size, scene_warnings
 from ..observables import OK_STATUSES, status_text
 from ..progress import bar
 from ..scene import load_scene
-from .output import check_paths, fmt, print_warnings, show_progress
+from .output import check_paths, emit, fmt, print_warnings, show_progress
 
 
 # what --force may replace: an earlier output of the same command
@@ -146,12 +146,7 @@ def cmd_run(args) -> int:
     else:
         doc = {"scene": scene.name, "scene_hash": scene.hash,
                "runs": [r.to_json() for r in runs]}
-    if not args.json:
-        _print_human(scene, runs)
-    elif not args.out:
-        print(json_text(doc))
-    if args.out:
-        atomic_write_text(args.out, json_text(doc, indent=1) + "\n", args.force, "--out")
+    emit(args, doc, lambda: _print_human(scene, runs))
     return 0
 
 
@@ -240,12 +235,7 @@ def cmd_compare(args) -> int:
                   trajectory=args.trajectory, traces=args.traces)
     doc = {"scene": scene.name, "scene_hash": scene.hash, "ok": cmp.ok, "meta": cmp.meta,
            "rows": cmp.rows.astype(object).where(cmp.rows.notna(), None).to_dict("records")}
-    if args.json and not args.out:
-        print(json_text(doc))
-    elif not args.json:
-        _print_comparison(cmp)
-    if args.out:
-        atomic_write_text(args.out, json_text(doc, indent=1) + "\n", args.force, "--out")
+    emit(args, doc, lambda: _print_comparison(cmp))
     return 0 if cmp.ok else 1
 
 
