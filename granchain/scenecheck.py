@@ -454,22 +454,20 @@ def check_step(scene) -> None:
     vmax = max(scene.striker_velocities)
     if vmax <= 0:
         return
-    tc = scene.contact_time(vmax)
-    limit = tc / MIN_STEPS_PER_CONTACT
-    if scene.dt > limit:
-        raise SceneError("integrator.dt",
-                         f"{scene.dt:g} s is too large: a collision at {vmax:g} m/s lasts "
-                         f"{tc:.3g} s and needs >= {MIN_STEPS_PER_CONTACT} steps "
-                         f"(limit {floor_sig(limit):.2g} s)",
-                         f"use dt <= {floor_sig(limit):.2g}, or method adaptive")
+    _check_step(scene.dt, scene.contact_time(vmax), f"a collision at {vmax:g} m/s lasts")
     # an effect with a time scale of its own (a dashpot) bounds the step too
     for m in EFFECT_MODULES:
         if scene.has(m.SPEC.name) and hasattr(m, "time_scale"):
             tau, what = m.time_scale(scene, vmax)
-            limit = tau / MIN_STEPS_PER_CONTACT
-            if scene.dt > limit:
-                raise SceneError("integrator.dt",
-                                 f"{scene.dt:g} s is too large: {what} at {vmax:g} m/s is "
-                                 f"{tau:.3g} s and needs >= {MIN_STEPS_PER_CONTACT} steps "
-                                 f"(limit {floor_sig(limit):.2g} s)",
-                                 f"use dt <= {floor_sig(limit):.2g}, or method adaptive")
+            _check_step(scene.dt, tau, f"{what} at {vmax:g} m/s is")
+
+
+def _check_step(dt: float, tau: float, what: str) -> None:
+    """Refuse a fixed step dt that resolves the time scale tau (s) in fewer than
+    MIN_STEPS_PER_CONTACT steps; ``what`` says what tau is ("... lasts", "... is")."""
+    limit = tau / MIN_STEPS_PER_CONTACT
+    if dt > limit:
+        raise SceneError("integrator.dt",
+                         f"{dt:g} s is too large: {what} {tau:.3g} s and needs >= "
+                         f"{MIN_STEPS_PER_CONTACT} steps (limit {floor_sig(limit):.2g} s)",
+                         f"use dt <= {floor_sig(limit):.2g}, or method adaptive")
