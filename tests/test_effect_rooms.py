@@ -10,13 +10,13 @@ from pathlib import Path
 import pytest
 
 from granchain.effects import MODULES, spec
-from tests.effect_names import ENGINE_SIDE, ROOT, count, files, naming_lines
+from effect_names import ENGINE_SIDE, ROOT, count, files, naming_lines
 
 # The engines and everything of the LAMMPS support, the columns and the reductions name
 # no effect at all: reading them you cannot tell which effects exist.
 NO_EFFECT = ("granchain/engines", "granchain/lammps", "granchain/columns.py",
              "granchain/reductions")
-# The whole engine side (tests.effect_names.ENGINE_SIDE) keeps at most this many
+# The whole engine side (effect_names.ENGINE_SIDE) keeps at most this many
 # effect-naming code lines: the Scene's Hertz constants and collision time (scene.py, from
 # effects/hertz.py), the scene check naming a bad Hertz constant (scenecheck.py) and the
 # guards' messages on the range of Hertz contact theory (guards.py).
