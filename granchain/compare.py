@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .collision import terms_of
 from .effects import residual_work
 from .errors import GranchainError
 from .observables import OK_STATUSES, status_text, summarize
@@ -163,7 +164,8 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
     t2 = time.perf_counter()
     rows, status, notes = [], {"reference": [], "lammps": []}, []
     for i, (m, r, lt) in enumerate(zip(mem, ref, lmp)):
-        results = summarize(r, cs.probes), summarize(lt, cs.probes)
+        results = (summarize(r, cs.probes, terms_of(cs, r)),
+                   summarize(lt, cs.probes, terms_of(cs, lt)))
         for row in member_rows(cs, r, lt, trace=traced[i] if i < k else None,
                                results=results):
             rows.append(dict(member=m.index, realisation=m.realisation, v_striker=m.v_striker,
@@ -228,7 +230,8 @@ def member_rows(scene: Scene, ref, lmp, *, trace=None, results=None) -> list[dic
     sample record of this member (``ref`` itself if it has one), adding the row of the
     trajectories themselves, max |v_lammps - v_reference| / v_s over every particle and
     sample. ``results``: both runs' ``summarize``, if the caller has them."""
-    sr, sl = results or (summarize(ref, scene.probes), summarize(lmp, scene.probes))
+    sr, sl = results or (summarize(ref, scene.probes, terms_of(scene, ref)),
+                         summarize(lmp, scene.probes, terms_of(scene, lmp)))
     vfloor = arrival_speed(max(ref.v_striker, 1e-300))
     out = [_row("samples", sr.samples, sl.samples, float(abs(sr.samples - sl.samples)),
                 "exact", 0.0, WHY_SAMPLES)]
