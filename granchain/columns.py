@@ -414,7 +414,9 @@ COMPARISON = {
     "realisation": _i("The member's gap realisation."),
     "v_striker_m_s": _f("m/s", "The member's striker speed."),
     "quantity": _s("What the row compares: an observable (v_max[i], v_max_1, v_max_2, "
-                   "dt_peak, dt_front, v_g, v_g_front), the sample count, a ledger entry, the "
+                   "dt_peak, dt_front, v_g, v_g_front; the final velocities of every "
+                   "particle, 'v_final, every particle'; a two-sphere scene's "
+                   "restitution), the sample count, a ledger entry, the "
                    "balance, the end wall's force, or 'v(t), every particle' (the whole "
                    "trajectories, for the traced members)."),
     "reference": _f("of the quantity", "The reference engine's value (NaN for the "

@@ -54,6 +54,8 @@ WHY_V = ("not the 1e-3 of a loose cross-check: same law and Verlet, rounding onl
          "1e-3 would miss a dropped groove/drag term (~1e-4)")
 WHY_TRAJECTORY = ("the whole record (LAMMPS text dump read with MDAnalysis): same law, Verlet "
                   "and sample grid, rounding only (measured <= 5.0e-8 v_s)")
+WHY_FINAL = ("the last sample of the record: it carries the rounding of the whole run, as "
+             "the trajectory row does")
 WHY_T = "same integrator and sample grid: peak times differ by rounding only (measured <= 1.2e-9)"
 WHY_E = ("same steps: rounding only (measured <= 7.3e-9 E0); 5e-8 E0 still resolves "
          "the groove (~1e-3 E0) and drag (~1e-4 E0) works")
@@ -243,6 +245,12 @@ def member_rows(scene: Scene, ref, lmp, *, trace=None, results=None) -> list[dic
                         TRAJ_TOL, WHY_TRAJECTORY))
     for i, (a, b) in enumerate(zip(sr.v_max, sl.v_max)):
         out.append(_row(f"v_max[{i + 1}]", a, b, _rel(a, b, vfloor), "rel", V_TOL, WHY_V))
+    dvf = float(np.max(np.abs(np.subtract(sl.v_final, sr.v_final))))
+    out.append(_row("v_final, every particle", math.nan, math.nan,
+                    dvf / max(ref.v_striker, 1e-300), "max/v_s", TRAJ_TOL, WHY_FINAL))
+    if sr.pair or sl.pair:
+        a, b = sr.restitution, sl.restitution
+        out.append(_row("restitution", a, b, _rel(a, b, 0.0), "rel", V_TOL, WHY_V))
     for q, a, b in (("v_max_1", sr.v_max_1, sl.v_max_1), ("v_max_2", sr.v_max_2, sl.v_max_2)):
         out.append(_row(q, a, b, _rel(a, b, vfloor), "rel", V_TOL, WHY_V))
     for q, a, b in (("dt_peak", sr.dt_peak, sl.dt_peak), ("dt_front", sr.dt_front, sl.dt_front)):

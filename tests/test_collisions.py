@@ -239,3 +239,10 @@ def test_dmt_pairs_on_lammps(tmp_path):
         assert [r.collision for r in res] == ["captured", "separated"]
         assert math.isnan(res[0].restitution) and res[0].captured
     assert abs(lmp[1].restitution - ref[1].restitution) < 1e-8
+
+
+def test_the_inference_refuses_a_two_sphere_scene():
+    from granchain.inference.grid import check_gappable
+    with pytest.raises(SceneError) as err:
+        check_gappable(_pair([0.01]))
+    assert err.value.field == "chain.n"
