@@ -126,6 +126,10 @@ MEMBER = {
     "damping_model": _s("The contact damping model (none for the study's elastic chains)."),
     "restitution_e": _f("1", "The contact damping's coefficient of restitution e (1 for "
                              "elastic contacts)."),
+    "plasticity_model": _s("The yielding contacts' law (none for the study's elastic "
+                           "chains)."),
+    "yield_pressure_Pa": _f("Pa", "The limiting contact pressure p_y of the yielding "
+                                  "contacts (inf for the study's elastic chains)."),
 }
 MEMBER_PATTERNS = {
     "vmax_p<i>_m_s": (re.compile(r"vmax_p\d+_m_s"),
@@ -142,7 +146,7 @@ SUMMARY = {
     "scene_hash": _s("The scene (a table of walled scenes only: its scenes may differ in "
                      "their dead load alone)."),
     **{c: MEMBER[c] for c in ("radius_spread_distribution", "radius_sd_m", "damping_model",
-                              "restitution_e")},
+                              "restitution_e", "plasticity_model", "yield_pressure_Pa")},
     "n": _i("Members in the group."),
     "arrived_fraction": _f("1", "Fraction of the group's members whose wave arrived "
                                 "(wave_arrived)."),

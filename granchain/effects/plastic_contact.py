@@ -384,6 +384,11 @@ def yield_force(E, Rs, py):
     return 4.0 / 3.0 * E * math.sqrt(Rs) * yield_overlap(E, Rs, py) ** 1.5
 
 
+# the effects the law does not act with yet (module docstring); the plasticity study leaves
+# them out of its scenes
+NOT_WITH = ("particle_friction", "rolling_friction", "adhesion")
+
+
 def check(scene) -> None:
     """What the law does not yet act with (module docstring), each refused in one line."""
     pressures(scene)
