@@ -130,6 +130,11 @@ MEMBER = {
                            "chains)."),
     "yield_pressure_Pa": _f("Pa", "The limiting contact pressure p_y of the yielding "
                                   "contacts (inf for the study's elastic chains)."),
+    "adhesion_model": _s("The adhesive contacts' law, jkr or dmt (none for the study's chains "
+                         "without adhesion)."),
+    "surface_energy_J_m2": _f("J/m^2", "The adhesive contacts' surface energy gamma, "
+                                       "LAMMPS's cohesion (0 without adhesion)."),
+    "adhesion_groove": _b("Do the groove's flats adhere too (adhesion.groove)?"),
 }
 MEMBER_PATTERNS = {
     "vmax_p<i>_m_s": (re.compile(r"vmax_p\d+_m_s"),
@@ -146,7 +151,8 @@ SUMMARY = {
     "scene_hash": _s("The scene (a table of walled scenes only: its scenes may differ in "
                      "their dead load alone)."),
     **{c: MEMBER[c] for c in ("radius_spread_distribution", "radius_sd_m", "damping_model",
-                              "restitution_e", "plasticity_model", "yield_pressure_Pa")},
+                              "restitution_e", "plasticity_model", "yield_pressure_Pa",
+                              "adhesion_model", "surface_energy_J_m2", "adhesion_groove")},
     "n": _i("Members in the group."),
     "arrived_fraction": _f("1", "Fraction of the group's members whose wave arrived "
                                 "(wave_arrived)."),

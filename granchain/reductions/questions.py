@@ -1,6 +1,6 @@
 """Reductions of the chapter's questions, beyond Eq. 5.1: a sphere-size tolerance, contact
-dissipation and yielding contacts (tables/radius_spread.csv, tables/dissipation.csv,
-tables/plasticity.csv)."""
+dissipation, yielding and adhesive contacts (tables/radius_spread.csv,
+tables/dissipation.csv, tables/plasticity.csv, tables/adhesion.csv)."""
 from __future__ import annotations
 
 import math
@@ -62,8 +62,8 @@ def first_reaching(x, y, target: float) -> float:
     return math.nan
 
 
-def _curves(df: pd.DataFrame, study: str, setting: str) -> pd.DataFrame:
-    """Per (material, gap_mean_nm, v_striker_m_s, ``setting``) of a question study
+def _curves(df: pd.DataFrame, study: str, *settings: str) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, v_striker_m_s, ``settings``) of a question study
     (reference engine when mixed), ascending in each key after the material: ``n``, and
     the median, 5th and 95th percentiles over its chains of v_max,1 / v_s (``v1``),
     v_max,2 / v_s (``v2``) and v_max,2 / v_max,1 (``ratio``, the rows' v_max_ratio), and
@@ -74,11 +74,12 @@ def _curves(df: pd.DataFrame, study: str, setting: str) -> pd.DataFrame:
     vs = d["v_striker_m_s"].to_numpy(dtype=float)
     d = d.assign(_v1=d["v_max_1_m_s"].to_numpy(dtype=float) / vs,
                  _v2=d["v_max_2_m_s"].to_numpy(dtype=float) / vs)
-    keys = ["material", "gap_mean_nm", "v_striker_m_s", setting]
+    keys = ["material", "gap_mean_nm", "v_striker_m_s", *settings]
     rows = []
     for mat in materials_in(d):
         for key, g in d[d["material"] == mat].groupby(keys[1:], sort=True):
-            row = {"material": mat, **dict(zip(keys[1:], (float(k) for k in key))),
+            row = {"material": mat, **dict(zip(keys[1:], (
+                bool(k) if isinstance(k, (bool, np.bool_)) else float(k) for k in key))),
                    "n": int(len(g))}
             ok = arrived(g)
             row["n_arrived"] = int(len(ok))
@@ -103,6 +104,15 @@ def plasticity_curves(df: pd.DataFrame) -> pd.DataFrame:
     study, ascending p_y within each (material, gap, v_s), the elastic chain (p_y inf)
     last: the bands of :func:`_curves`."""
     return _curves(df, "plasticity", "yield_pressure_Pa")
+
+
+def adhesion_curves(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, v_striker_m_s, adhesion_groove, surface_energy_J_m2) of
+    the adhesion study, ascending gamma within each (material, gap, v_s, groove), the chain
+    without adhesion (gamma 0, groove False) first: the bands of :func:`_curves`."""
+    require(df, NEEDS["adhesion"], "adhesion")
+    d = df.assign(adhesion_groove=df["adhesion_groove"].astype(bool))
+    return _curves(d, "adhesion", "adhesion_groove", "surface_energy_J_m2")
 
 
 def last_crossing(x, y, target: float) -> float:
@@ -212,4 +222,34 @@ def plasticity_exponents(df: pd.DataFrame) -> pd.DataFrame:
         rows.append({"material": key[0], "gap_mean_nm": float(key[1]),
                      "yield_pressure_Pa": float(key[2]), "n_v": int(vs.size), "b": b, "a": a,
                      "b2": b2})
+    return pd.DataFrame(rows)
+
+
+def adhesion_match(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, v_striker_m_s, adhesion_groove) of the adhesion study,
+    on the median curves of :func:`adhesion_curves` against log gamma (its gamma > 0; the
+    chain without adhesion is gamma -> 0): ``gamma_v1`` the largest gamma at which the
+    median v_max,1 / v_s equals the chapter's measured 0.57 (:func:`last_crossing` in log
+    gamma; NaN where it never does in the study's range), the chain without adhesion's
+    ``v1_none``, and the largest gamma's ``gamma_max``, ``v1_at_gamma_max``, ``ratio_at_gamma_max``
+    and ``vg_at_gamma_max``; ``n_gamma`` the number of gamma > 0."""
+    c = adhesion_curves(df)
+    m1 = MEASURED_PEAKS["v1"][0]
+    none = c[c["surface_energy_J_m2"] == 0]
+    rows = []
+    for key, g in c[c["surface_energy_J_m2"] > 0].groupby(
+            ["material", "gap_mean_nm", "v_striker_m_s", "adhesion_groove"], sort=False):
+        lg = np.log10(g["surface_energy_J_m2"].to_numpy(dtype=float))
+        v1 = g["v1_median"].to_numpy(dtype=float)
+        at = last_crossing(lg, v1, m1)
+        base = none[(none["material"] == key[0]) & (none["gap_mean_nm"] == key[1])
+                    & (none["v_striker_m_s"] == key[2])]
+        rows.append({"material": key[0], "gap_mean_nm": float(key[1]),
+                     "v_striker_m_s": float(key[2]), "adhesion_groove": bool(key[3]),
+                     "n_gamma": int(lg.size),
+                     "gamma_v1": 10.0 ** at if math.isfinite(at) else math.nan,
+                     "v1_none": float(base["v1_median"].iloc[0]) if len(base) else math.nan,
+                     "gamma_max": float(10.0 ** lg[-1]), "v1_at_gamma_max": float(v1[-1]),
+                     "ratio_at_gamma_max": float(g["ratio_median"].iloc[-1]),
+                     "vg_at_gamma_max": float(g["vg_median"].iloc[-1])})
     return pd.DataFrame(rows)

@@ -34,6 +34,10 @@ The chapter's questions (optional studies, ``QUESTION_STUDIES``; beyond Eq. 5.1)
                   chain and one scene per limiting pressure p_y (factors of the material's
                   library value), every striker speed, packed and with the mean gaps each
                   material is given
+- adhesion        adhesive contacts (effect ``adhesion``, LAMMPS's jkr or dmt): the chain
+                  without adhesion and one scene per surface energy gamma, with and
+                  without the groove's flats adhering (``adhesion.groove``), at the lowest
+                  striker speeds
 
 ``lammps_check`` may also name field chains (``chains``: a dimer, a chain on a wall, a
 preloaded chain...), which the LAMMPS-vs-reference comparison runs beside its own scenes
@@ -331,7 +335,7 @@ def question_scenes(preset: dict, study: str) -> list[StudyScene]:
     dissipation: per mean gap of the material (0: packed, one chain; else
     ``realisations``), one scene per coefficient of restitution in ``e``: the base effects
     plus ``contact_damping`` with ``damping: {model, e}``. plasticity:
-    :func:`_plasticity_scenes`."""
+    :func:`_plasticity_scenes`; adhesion: :func:`_adhesion_scenes`."""
     spec = (preset.get("studies") or {}).get(study)
     if not spec:
         return []
@@ -371,6 +375,9 @@ def question_scenes(preset: dict, study: str) -> list[StudyScene]:
 
     if study == "plasticity":
         _plasticity_scenes(preset, spec, materials, add, where)
+        return out
+    if study == "adhesion":
+        _adhesion_scenes(preset, spec, materials, add, where)
         return out
 
     model = spec.get("model", "coeff_restitution")
@@ -429,6 +436,43 @@ def _plasticity_scenes(preset: dict, spec: dict, materials: list[str], add, wher
                 add(material, f"gap{_fmt_num(g)}nm-py{_fmt_num(f)}", _gaps(preset, g),
                           r, g, (("plasticity_model", model), ("yield_pressure_Pa", py)),
                           edit(py))
+
+
+def _adhesion_scenes(preset: dict, spec: dict, materials: list[str], add, where: str):
+    """adhesion: per mean gap of the material (0: packed, one chain; else
+    ``realisations``), the chain without adhesion, then one scene per surface energy gamma
+    in ``surface_energy`` (J/m^2) and groove setting in ``groove`` (the groove's flats
+    adhere too: ``adhesion.groove``): the effect ``adhesion`` with ``adhesion: {model,
+    surface_energy, groove}``. The base effects the model does not act with
+    (``adhesion.not_with``: jkr's contact damping and friction) are left out of every scene
+    of the study, the one without adhesion included."""
+    from ..effects.adhesion import not_with
+    model = spec.get("model", "jkr")
+    drop = not_with(model)
+    reals = int(spec["realisations"])
+    none = (("adhesion_model", "none"), ("surface_energy_J_m2", 0.0), ("adhesion_groove", False))
+
+    def edit(gamma, groove):
+        def apply(raw):
+            raw["effects"] = [e for e in raw["effects"] if e not in drop]
+            if gamma is not None:
+                raw["effects"].append("adhesion")
+                raw["adhesion"] = {"model": model, "surface_energy": float(gamma),
+                                   "groove": bool(groove)}
+        return apply
+
+    for material, gaps in _material_gaps(spec, materials, where).items():
+        for g in gaps:
+            r = 1 if g == 0 else reals
+            add(material, f"gap{_fmt_num(g)}nm-none", _gaps(preset, g), r, g, none,
+                edit(None, False))
+            for groove in _as_list(spec["groove"]):
+                for gamma in _as_list(spec["surface_energy"]):
+                    tag = f"gap{_fmt_num(g)}nm-{model}{_fmt_num(gamma)}" + \
+                        ("-groove" if groove else "")
+                    add(material, tag, _gaps(preset, g), r, g,
+                        (("adhesion_model", model), ("surface_energy_J_m2", float(gamma)),
+                         ("adhesion_groove", bool(groove))), edit(gamma, groove))
 
 
 def _pattern(values, n: int, where: str) -> list:
