@@ -34,7 +34,7 @@ from dataclasses import dataclass
 from ..errors import SceneError
 from ..materials import effective_modulus
 from ..units import lmp_float as _r, to_micro
-from ..validate import Key
+from ..validate import Fit, Key
 from . import slots as S
 from .hertz import force as hertz_force
 from .lanes import bit, closing_speed, contact_overlap
@@ -63,7 +63,10 @@ KEYS = (
         "`work_adhesion` (table column `work_adhesion_J`).", choices=MODELS),
     Key("adhesion.surface_energy", "J/m^2", "gamma, LAMMPS's cohesion coefficient of `dmt` "
         "and `jkr` (the surface energy; the work of adhesion is 2 gamma). Required with the "
-        "effect.", positive=True, hi=100.0),
+        "effect. Fittable: log-uniform prior "
+        "from 1e-3 to 1 J/m^2.", positive=True, hi=100.0,
+        fit=Fit(1e-3, 1.0, 10, "surface_energy", "gamma", "surface energy",
+                example="adhesion: {model: jkr, surface_energy: 0.05}")),
 )
 _KEY = {k.name: k for k in KEYS}
 # the section of the engines' warm-up scene (every effect on; the kernels are the same

@@ -199,10 +199,12 @@ from .measurements import (TIMING_COLUMNS, PEAK_COLUMNS, COLUMNS, FITS, SPEED_RT
                            PEAK_SIGMAS, MAX_ROWS, MAX_PEAK_ROWS, MAX_CHAIN_ROWS, Measurements,
                            read_measurements, parse_fit, fit_for,
                            check_speeds, peak_bounds, check_peaks)
+from .fitkeys import (DEFAULT_KEY, FitKey, fittable, fit_key, check_fit_base,
+                      check_fit_range)
 from .grid import (GAP_LAWS, DEFAULT_GAP_LAW, CACHE_FORMAT, GAP_MAX, GAP_POINTS, REALISATIONS,
                    E_MIN, E_POINTS, JOINT_OBS, JOINT_CACHE_FORMAT, timing, peak, complete_base,
-                   check_gappable, check_base, check_restitution_base, check_joint_options,
-                   grid_scene, joint_scene, gap_nodes, restitution_nodes, Grid, JointGrid,
+                   check_gappable, check_base, check_joint_options,
+                   grid_scene, joint_scene, gap_nodes, Grid, JointGrid,
                    simulate_grid, simulate_joint_grid)
 from .interpolation import interp_rel_error, joint_values, joint_interp_errors
 from .likelihood import (CHUNK_BYTES, kernel_log_density, log_likelihood, gap_model_check,
@@ -220,10 +222,11 @@ __all__ = [
     "TIMING_COLUMNS", "PEAK_COLUMNS", "COLUMNS", "FITS", "SPEED_RTOL", "PEAK_RTOL",
     "PEAK_SIGMAS", "Measurements", "read_measurements", "parse_fit", "fit_for",
     "check_speeds", "peak_bounds", "check_peaks",
+    "DEFAULT_KEY", "FitKey", "fittable", "fit_key", "check_fit_base", "check_fit_range",
     "GAP_LAWS", "DEFAULT_GAP_LAW", "CACHE_FORMAT", "GAP_MAX", "GAP_POINTS", "REALISATIONS",
     "E_MIN", "E_POINTS", "JOINT_OBS", "JOINT_CACHE_FORMAT", "timing", "peak", "complete_base",
-    "check_gappable", "check_base", "check_restitution_base", "check_joint_options",
-    "grid_scene", "joint_scene", "gap_nodes", "restitution_nodes", "Grid", "JointGrid",
+    "check_gappable", "check_base", "check_joint_options",
+    "grid_scene", "joint_scene", "gap_nodes", "Grid", "JointGrid",
     "simulate_grid", "simulate_joint_grid",
     "interp_rel_error", "joint_values", "joint_interp_errors",
     "CHUNK_BYTES", "kernel_log_density", "log_likelihood", "gap_model_check",
