@@ -54,7 +54,7 @@ from dataclasses import dataclass
 
 from ..errors import SceneError
 from ..materials import effective_modulus
-from ..validate import Key
+from ..validate import Fit, Key
 from . import slots as S
 from .hertz import energy as hertz_energy, force as hertz_force
 from .lanes import bit, closing_speed, contact_overlap
@@ -89,8 +89,12 @@ KEYS = (
         "every contact and of the end wall. Unset: each contact's is the smaller of its two "
         "materials' `yield_pressure` (granchain/data/materials.yaml: 1.6 times a sourced "
         "yield strength), the end wall's the sphere's (and the wall material's, if it has "
-        "one); a material without one must be given it here.", lo=1e5, hi=1e11,
-        allowed="unset: the materials' values"),
+        "one); a material without one must be given it here. Fittable: the prior spans "
+        "annealed 316's 4.6e8 Pa and hardened 440C's 3.0e9 Pa; at its top two 440C beads "
+        "of 150 um yield above about 7.5 m/s (Thornton's onset speed).", lo=1e5, hi=1e11,
+        allowed="unset: the materials' values",
+        fit=Fit(1e8, 1e10, 8, "yield_pressure", "p_y", "limiting contact pressure",
+                example="plasticity: {model: thornton, yield_pressure: 1.0e9}")),
 )
 _KEY = {k.name: k for k in KEYS}
 
