@@ -130,11 +130,12 @@ MEMBER = {
                            "chains)."),
     "yield_pressure_Pa": _f("Pa", "The limiting contact pressure p_y of the yielding "
                                   "contacts (inf for the study's elastic chains)."),
-    "adhesion_model": _s("The adhesive contacts' law, jkr or dmt (none for the study's chains "
-                         "without adhesion)."),
+    "cohesion_model": _s("The cohesive contact law, jkr or dmt (none for the study's chains "
+                         "whose contacts do not cohere)."),
     "surface_energy_J_m2": _f("J/m^2", "The adhesive contacts' surface energy gamma, "
-                                       "LAMMPS's cohesion (0 without adhesion)."),
-    "adhesion_groove": _b("Do the groove's flats adhere too (adhesion.groove)?"),
+                                       "LAMMPS's cohesion (0 where the contacts do not cohere)."),
+    "groove_cohesion": _b("Do the groove's flats cohere too, their pull-off loading the "
+                          "groove's friction (the cohesive law's groove key)?"),
 }
 MEMBER_PATTERNS = {
     "vmax_p<i>_m_s": (re.compile(r"vmax_p\d+_m_s"),
@@ -152,7 +153,7 @@ SUMMARY = {
                      "their dead load alone)."),
     **{c: MEMBER[c] for c in ("radius_spread_distribution", "radius_sd_m", "damping_model",
                               "restitution_e", "plasticity_model", "yield_pressure_Pa",
-                              "adhesion_model", "surface_energy_J_m2", "adhesion_groove")},
+                              "cohesion_model", "surface_energy_J_m2", "groove_cohesion")},
     "n": _i("Members in the group."),
     "arrived_fraction": _f("1", "Fraction of the group's members whose wave arrived "
                                 "(wave_arrived)."),

@@ -82,8 +82,8 @@ SUMMARY_WALLED = ("wall_force_max_N", "wall_force_static_N")
 SPREAD_COLUMNS = ("radius_spread_distribution", "radius_sd_m")
 DAMPING_COLUMNS = ("damping_model", "restitution_e")
 YIELD_COLUMNS = ("plasticity_model", "yield_pressure_Pa")
-ADHESION_COLUMNS = ("adhesion_model", "surface_energy_J_m2", "adhesion_groove")
-SETTING_COLUMNS = SPREAD_COLUMNS + DAMPING_COLUMNS + YIELD_COLUMNS + ADHESION_COLUMNS
+COHESION_COLUMNS = ("cohesion_model", "surface_energy_J_m2", "groove_cohesion")
+SETTING_COLUMNS = SPREAD_COLUMNS + DAMPING_COLUMNS + YIELD_COLUMNS + COHESION_COLUMNS
 PERCENTILES = (5, 50, 95)
 TIMING_COLUMNS = ("study", "engine", "batch", "scene_hash", "members", "steps", "wall_s",
                   "wall_per_member_s")

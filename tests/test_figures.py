@@ -592,7 +592,7 @@ def _check_adhesion(fig, tdir, rdir):
     for mat, d in ad.groupby("material"):
         d = d[d["gap_mean_nm"] == d["gap_mean_nm"].min()]
         for (vs, groove), g in d[d["surface_energy_J_m2"] > 0].groupby(
-                ["v_striker_m_s", "adhesion_groove"]):
+                ["v_striker_m_s", "groove_cohesion"]):
             med = g.groupby("surface_energy_J_m2")[["v1", "v2", "ratio"]].median()
             for q in ("v1", "v2", "ratio"):
                 drawn(panels[q], med.index, med[q], f"{mat} {vs} {groove}: {q}")

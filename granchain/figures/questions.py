@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.ticker import FuncFormatter
 
-from ..reductions import (MEASURED_PEAKS, PROBES, adhesion_curves, adhesion_match,
+from ..reductions import (MEASURED_PEAKS, PROBES, cohesion_curves, cohesion_match,
                         dissipation_curves, dissipation_match,
                         first_reaching, label, n_particles, peak_profile, plasticity_curves,
                         plasticity_match, reference_engine, spread_oscillation)
@@ -270,9 +270,9 @@ def adhesion(df: pd.DataFrame, out) -> list[Path]:
     groove's flats too), the chain without adhesion as a hollow marker at the panel's left
     edge, with the chapter's measured bands (grey: value and its 95% interval). The title
     gives, per material and groove setting, the gamma at which the median v_max,1 is the
-    measured 0.57 v_s at the study's lowest speed (:func:`~granchain.reductions.adhesion_match`)."""
-    c = adhesion_curves(df)
-    m = adhesion_match(df)
+    measured 0.57 v_s at the study's lowest speed (:func:`~granchain.reductions.cohesion_match`)."""
+    c = cohesion_curves(df)
+    m = cohesion_match(df)
     fig, axes = figure(ncols=2, nrows=2, size=(10.0, 7.6), sharex=True)
     axes = axes.ravel()
     mats = list(dict.fromkeys(c["material"]))
@@ -290,7 +290,7 @@ def adhesion(df: pd.DataFrame, out) -> list[Path]:
             cm = cm[cm["gap_mean_nm"] == cm["gap_mean_nm"].min()]
             marker = "os^v"[k % 4]
             for (vs, groove), g in cm[cm["surface_energy_J_m2"] > 0].groupby(
-                    ["v_striker_m_s", "adhesion_groove"]):
+                    ["v_striker_m_s", "groove_cohesion"]):
                 ax.plot(g["surface_energy_J_m2"], g[f"{q}_median"], marker,
                         ls="--" if groove else "-", color=shade[vs], ms=3.5, lw=1.0,
                         label=f"{label(mat)}, v_s = {vs:g} m/s"
@@ -306,7 +306,7 @@ def adhesion(df: pd.DataFrame, out) -> list[Path]:
         ax.set_xlabel("surface energy gamma (J/m^2; hollow: no adhesion)")
     axes[3].legend(loc="best", fontsize=5.5, ncol=2)
     lines = []
-    for (mat, groove), mm in m.groupby(["material", "adhesion_groove"], sort=False):
+    for (mat, groove), mm in m.groupby(["material", "groove_cohesion"], sort=False):
         mm = mm[mm["gap_mean_nm"] == mm["gap_mean_nm"].min()].sort_values("v_striker_m_s")
         r = mm.iloc[0]
         lines.append(f"{label(mat)}{' + groove' if groove else ''}: 0.57 v_s at "

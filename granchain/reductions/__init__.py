@@ -36,7 +36,7 @@ from .field import (SOLITARY_WALL_EXPONENT, precompression_rows, power_law_fit, 
 from .questions import (MEASURED_PEAKS, SPREAD_KINDS, spread_oscillation, first_reaching,
                         dissipation_curves, last_crossing, interpolate_at,
                         dissipation_match, plasticity_curves, plasticity_match,
-                        plasticity_exponents, adhesion_curves, adhesion_match)
+                        plasticity_exponents, cohesion_curves, cohesion_match)
 
 __all__ = [
     "PROBES", "MATERIAL_LABEL", "VMAX_RE", "NEEDS", "read_table", "read_trace", "require",
@@ -49,6 +49,6 @@ __all__ = [
     "nearest_bandwidth", "SOLITARY_WALL_EXPONENT", "precompression_rows", "power_law_fit",
     "wall_fits", "MEASURED_PEAKS", "SPREAD_KINDS", "spread_oscillation", "first_reaching",
     "dissipation_curves", "last_crossing", "interpolate_at", "dissipation_match",
-    "plasticity_curves", "plasticity_match", "plasticity_exponents", "adhesion_curves",
-    "adhesion_match",
+    "plasticity_curves", "plasticity_match", "plasticity_exponents", "cohesion_curves",
+    "cohesion_match",
 ]

@@ -106,13 +106,13 @@ def plasticity_curves(df: pd.DataFrame) -> pd.DataFrame:
     return _curves(df, "plasticity", "yield_pressure_Pa")
 
 
-def adhesion_curves(df: pd.DataFrame) -> pd.DataFrame:
-    """Per (material, gap_mean_nm, v_striker_m_s, adhesion_groove, surface_energy_J_m2) of
+def cohesion_curves(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, v_striker_m_s, groove_cohesion, surface_energy_J_m2) of
     the adhesion study, ascending gamma within each (material, gap, v_s, groove), the chain
     without adhesion (gamma 0, groove False) first: the bands of :func:`_curves`."""
-    require(df, NEEDS["adhesion"], "adhesion")
-    d = df.assign(adhesion_groove=df["adhesion_groove"].astype(bool))
-    return _curves(d, "adhesion", "adhesion_groove", "surface_energy_J_m2")
+    require(df, NEEDS["cohesion"], "cohesion")
+    d = df.assign(groove_cohesion=df["groove_cohesion"].astype(bool))
+    return _curves(d, "cohesion", "groove_cohesion", "surface_energy_J_m2")
 
 
 def last_crossing(x, y, target: float) -> float:
@@ -225,30 +225,35 @@ def plasticity_exponents(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def adhesion_match(df: pd.DataFrame) -> pd.DataFrame:
-    """Per (material, gap_mean_nm, v_striker_m_s, adhesion_groove) of the adhesion study,
-    on the median curves of :func:`adhesion_curves` against log gamma (its gamma > 0; the
-    chain without adhesion is gamma -> 0): ``gamma_v1`` the largest gamma at which the
-    median v_max,1 / v_s equals the chapter's measured 0.57 (:func:`last_crossing` in log
-    gamma; NaN where it never does in the study's range), the chain without adhesion's
-    ``v1_none``, and the largest gamma's ``gamma_max``, ``v1_at_gamma_max``, ``ratio_at_gamma_max``
-    and ``vg_at_gamma_max``; ``n_gamma`` the number of gamma > 0."""
-    c = adhesion_curves(df)
+def cohesion_match(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, v_striker_m_s, groove_cohesion) of the adhesion study,
+    on the median curves of :func:`cohesion_curves` against log gamma (its gamma > 0; the
+    chain without adhesion is gamma -> 0): ``gamma_v1`` the least gamma at which the median
+    v_max,1 / v_s falls to the chapter's measured 0.57 (:func:`first_reaching` in log gamma:
+    the weakest adhesion that gives the measured peak; the curve need not be monotone, the
+    contacts' pull raises the peak at large gamma); NaN where it never does in the study's
+    range, or where the least gamma's is 0.57 or below already (the crossing lies below the
+    study's range), the chain without adhesion's ``v1_none``, the least gamma's
+    ``gamma_min``, ``v1_at_gamma_min``, and the largest gamma's ``gamma_max``,
+    ``v1_at_gamma_max``, ``ratio_at_gamma_max`` and ``vg_at_gamma_max``; ``n_gamma`` the
+    number of gamma > 0."""
+    c = cohesion_curves(df)
     m1 = MEASURED_PEAKS["v1"][0]
     none = c[c["surface_energy_J_m2"] == 0]
     rows = []
     for key, g in c[c["surface_energy_J_m2"] > 0].groupby(
-            ["material", "gap_mean_nm", "v_striker_m_s", "adhesion_groove"], sort=False):
+            ["material", "gap_mean_nm", "v_striker_m_s", "groove_cohesion"], sort=False):
         lg = np.log10(g["surface_energy_J_m2"].to_numpy(dtype=float))
         v1 = g["v1_median"].to_numpy(dtype=float)
-        at = last_crossing(lg, v1, m1)
+        at = first_reaching(lg, -v1, -m1) if v1[0] > m1 else math.nan
         base = none[(none["material"] == key[0]) & (none["gap_mean_nm"] == key[1])
                     & (none["v_striker_m_s"] == key[2])]
         rows.append({"material": key[0], "gap_mean_nm": float(key[1]),
-                     "v_striker_m_s": float(key[2]), "adhesion_groove": bool(key[3]),
+                     "v_striker_m_s": float(key[2]), "groove_cohesion": bool(key[3]),
                      "n_gamma": int(lg.size),
                      "gamma_v1": 10.0 ** at if math.isfinite(at) else math.nan,
                      "v1_none": float(base["v1_median"].iloc[0]) if len(base) else math.nan,
+                     "gamma_min": float(10.0 ** lg[0]), "v1_at_gamma_min": float(v1[0]),
                      "gamma_max": float(10.0 ** lg[-1]), "v1_at_gamma_max": float(v1[-1]),
                      "ratio_at_gamma_max": float(g["ratio_median"].iloc[-1]),
                      "vg_at_gamma_max": float(g["vg_median"].iloc[-1])})

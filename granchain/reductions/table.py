@@ -59,9 +59,9 @@ NEEDS = {
     "plasticity": ["material", "v_striker_m_s", "gap_mean_nm", "realisation",
                    "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio", "v_g_m_s", "wave_arrived",
                    "plasticity_model", "yield_pressure_Pa"],
-    "adhesion": ["material", "v_striker_m_s", "gap_mean_nm", "realisation",
+    "cohesion": ["material", "v_striker_m_s", "gap_mean_nm", "realisation",
                  "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio", "v_g_m_s", "wave_arrived",
-                 "adhesion_model", "surface_energy_J_m2", "adhesion_groove"],
+                 "cohesion_model", "surface_energy_J_m2", "groove_cohesion"],
 }
 
 

@@ -78,8 +78,8 @@ def _question_text(scenes, dist: str) -> str:
         elif "surface_energy_J_m2" in st[0]:
             gs = ", ".join(f"{g:g}" for g in dict.fromkeys(
                 x["surface_energy_J_m2"] for x in st if x["surface_energy_J_m2"] > 0))
-            grooved = any(x["adhesion_groove"] for x in st)
-            model = next(x["adhesion_model"] for x in st if x["adhesion_model"] != "none")
+            grooved = any(x["groove_cohesion"] for x in st)
+            model = next(x["cohesion_model"] for x in st if x["cohesion_model"] != "none")
             parts.append(f"{mat}: {gtxt}, each without adhesion and with {model} contacts at "
                          f"gamma = {gs} J/m^2" + (", with and without the groove's flats "
                                                  "adhering" if grooved else ""))

@@ -450,7 +450,7 @@ def _adhesion_scenes(preset: dict, spec: dict, materials: list[str], add, where:
     model = spec.get("model", "jkr")
     drop = not_with(model)
     reals = int(spec["realisations"])
-    none = (("adhesion_model", "none"), ("surface_energy_J_m2", 0.0), ("adhesion_groove", False))
+    none = (("cohesion_model", "none"), ("surface_energy_J_m2", 0.0), ("groove_cohesion", False))
 
     def edit(gamma, groove):
         def apply(raw):
@@ -471,8 +471,8 @@ def _adhesion_scenes(preset: dict, spec: dict, materials: list[str], add, where:
                     tag = f"gap{_fmt_num(g)}nm-{model}{_fmt_num(gamma)}" + \
                         ("-groove" if groove else "")
                     add(material, tag, _gaps(preset, g), r, g,
-                        (("adhesion_model", model), ("surface_energy_J_m2", float(gamma)),
-                         ("adhesion_groove", bool(groove))), edit(gamma, groove))
+                        (("cohesion_model", model), ("surface_energy_J_m2", float(gamma)),
+                         ("groove_cohesion", bool(groove))), edit(gamma, groove))
 
 
 def _pattern(values, n: int, where: str) -> list:
