@@ -68,7 +68,7 @@ WALL_EXTRA_COLUMN = "wall_force_extra"
 
 def ledger_inputs(scene: Scene) -> tuple[tuple[str, str], ...]:
     """(column, the per-atom LAMMPS quantity summed per chain) of the per-chain ledger, in
-    its order: the works and the rotational energy (:data:`LEDGER_INPUTS`), the effects'
+    its order: the works and the rotational energy (``LEDGER_INPUTS``), the effects'
     elastic energies beyond Hertz's, then with an end wall its force (fix wall/gran's)
     and the effects' parts of it."""
     on = [s for name, s in SPECS.items() if scene.has(name)]
