@@ -321,12 +321,18 @@ INFER_JSON = {
 # granchain infer --fit gap_mean,restitution (JointInference.to_json plus measurements)
 INFER_JOINT_JSON = {
     **_INFER_COMMON,
-    "fit": Column("list", "", "The fitted quantities: gap_mean and restitution."),
-    "restitution": Column("float", "1", "Posterior median of the coefficient of "
-                                        "restitution."),
-    "restitution_ci95": Column("list", "1", "Its central 95 % interval [lo, hi]."),
-    "posterior_correlation": Column("float", "1", "Correlation of mean gap and restitution "
-                                                  "in the posterior."),
+    "fit": Column("list", "", "The fitted quantities: gap_mean and the fitted key's results' "
+                              "name (restitution for damping.e)."),
+    "key": Column("string", "", "The fitted scene key's path (e.g. damping.e)."),
+    "restitution": Column("float", "key's unit", "Posterior median of the fitted key, named "
+                                                 "by its results' name (restitution for "
+                                                 "damping.e; yield_pressure, "
+                                                 "surface_energy)."),
+    "restitution_ci95": Column("list", "key's unit", "Its central 95 % interval [lo, hi] "
+                                                     "(<name>_ci95)."),
+    "posterior_correlation": Column("float", "1", "Correlation of mean gap and the fitted key "
+                                                  "(its log for a log-uniform prior) in the "
+                                                  "posterior."),
     "predictive_outside": Column("int", "", "Measured values outside their posterior "
                                             "predictive 95 % range (null: no posterior "
                                             "draw, nothing checked)."),
@@ -334,13 +340,15 @@ INFER_JOINT_JSON = {
     "predictive_rows": Column("list", "", "Per row: v_striker_m_s and the 2.5, 50 and "
                                           "97.5 % predictive values of the timing, "
                                           "vmax_1_m_s and vmax_2_m_s."),
-    "damping_model": Column("string", "", "The contact damping model fitted."),
+    "law": Column("string", "", "The fitted key's effect and its model."),
     "gap_spacing": Column("string", "", "Spacing of the mean-gap grid."),
-    "restitution_grid": Column("list", "1", "The grid of restitutions: [first, last, "
-                                            "points]."),
+    "restitution_grid": Column("list", "key's unit", "The grid of the fitted key: [first, "
+                                                     "last, points] (<name>_grid)."),
+    "param_spacing": Column("string", "", "Spacing of the fitted key's grid and prior: "
+                                          "uniform, or log (log-uniform prior)."),
     "interp_rel_error": Column("object", "1", "Per observable: the grid's largest relative "
-                                              "interpolation error and where (g_max, e, "
-                                              "speed)."),
+                                              "interpolation error and where (g_max, param: "
+                                              "along the fitted key, speed)."),
 }
 # <study>.provenance.json of a gathered study (tables.environment and
 # workflow.gather.study_provenance)

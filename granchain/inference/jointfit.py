@@ -137,17 +137,18 @@ class JointInference(FitResult):
               "draws", "grid")
 
     def _named(self, field: str) -> str:
-        return self.fit[1] + field[len("param"):]
+        # a result without a fitted name (a stand-in) is the default key's fit
+        name = self.fit[1] if len(self.fit) > 1 else fit_key(DEFAULT_KEY).name
+        return name + field[len("param"):]
 
     def to_json(self) -> dict:
-        """As :meth:`FitResult.to_json`, the key's fields named by its results' name."""
+        """As :meth:`~granchain.inference.result.FitResult.to_json`, the key's fields named by its results' name."""
         return {(self._named(k) if k in _PARAM_FIELDS else k): v
                 for k, v in super().to_json().items()}
 
     def __getattr__(self, attr):
         # res.restitution, res.yield_pressure_ci95, ...: the key's fields by its name
-        fit = self.__dict__.get("fit")
-        if fit is not None:
+        if "fit" in self.__dict__:
             for f in _PARAM_FIELDS:
                 if attr == self._named(f):
                     return getattr(self, f)
