@@ -93,7 +93,7 @@ def base_scene(material: str):
 def published_alone(grid, g: float) -> dict:
     """Per published number: (e within 1 sd at every speed, within 2 sd, the model's range
     of the number over e on the grid at the chapter's gap)."""
-    es = np.linspace(grid.restitutions[0], 1.0, 301)
+    es = np.linspace(grid.params[0], 1.0, 301)
     med = {k: np.empty((es.size, len(grid.speeds))) for k in PUBLISHED}
     for s, v in enumerate(grid.speeds):
         X = inference.joint_values(grid, COLUMN, float(v), np.full(es.size, g), es)   # (E, R, 3)
@@ -167,7 +167,7 @@ def main() -> None:
             m, sd = PUBLISHED[name]
             fmt = lambda r: "none" if r is None else f"{r[0]:.3f}-{r[1]:.3f}"   # noqa: E731
             print(f"  published {name} = {m} +- {sd}: the model gives {rng[0]:.3f}-{rng[1]:.3f}"
-                  f" over e = {grid.restitutions[0]:g}-1 and 0.01-1 m/s; e within 1 sd at "
+                  f" over e = {grid.params[0]:g}-1 and 0.01-1 m/s; e within 1 sd at "
                   f"every speed: {fmt(within[1])}, within 2 sd: {fmt(within[2])}")
         v, reals, t, v1, v2 = chapter_rows(base, g, a.timing_e, seed=100 + k)
         err = np.full(v.size, NOISE)

@@ -63,7 +63,7 @@ def _cost_args(sp) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .inference import E_MIN, E_POINTS, GAP_MAX, GAP_POINTS, REALISATIONS
+    from .inference import E_MIN, E_POINTS, GAP_MAX, GAP_POINTS, REALISATIONS, fittable
     p = _Parser(prog="granchain", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
@@ -139,9 +139,11 @@ def build_parser() -> argparse.ArgumentParser:
                                          "optional dt_err_s, chain_id, vmax_1_m_s, vmax_2_m_s, "
                                          "vmax_err_m_s (SI units)")
     sp.add_argument("--fit", default="gap_mean", metavar="NAMES",
-                    help="what to infer: gap_mean (default; from the timing) or "
-                         "gap_mean,restitution (the mean gap and contact_damping's e, from "
-                         "the timing and both probes' peaks)")
+                    help="what to infer: gap_mean (default; from the timing) or gap_mean,KEY "
+                         "(the mean gap and a fittable scene key, from the timing and both "
+                         "probes' peaks): KEY one of " + ", ".join(
+                             f"{p} ({k.name})" for p, k in fittable().items())
+                         + "; gap_mean,restitution is gap_mean,damping.e")
     sp.add_argument("--scene", required=True, help="base scene YAML: material, chain, effects, "
                     "integrator, gap law (gaps.distribution; default the chapter's uniform "
                     "law), simulated speeds (striker.velocity; default the data's)")
@@ -161,10 +163,17 @@ def build_parser() -> argparse.ArgumentParser:
                     help=f"simulated mean gaps from 0 to --gap-max-nm (default {GAP_POINTS})")
     sp.add_argument("--realisations", type=int, default=REALISATIONS, metavar="R",
                     help=f"gap realisations per mean gap and speed (default {REALISATIONS})")
-    sp.add_argument("--e-min", type=float, default=E_MIN, metavar="E",
+    sp.add_argument("--fit-range", metavar="LO,HI",
+                    help="--fit gap_mean,KEY: the simulated values of KEY, from LO to HI (the "
+                         "prior's range; default the range declared with the key)")
+    sp.add_argument("--fit-points", type=int, metavar="N",
+                    help="--fit gap_mean,KEY: simulated values of KEY over its range, evenly "
+                         "spaced (in log KEY where the range spans a decade or more; default "
+                         "the number declared with the key)")
+    sp.add_argument("--e-min", type=float, metavar="E",
                     help=f"--fit ...,restitution: smallest simulated e (default {E_MIN:g}; "
                          "the largest is 1)")
-    sp.add_argument("--e-points", type=int, default=E_POINTS, metavar="N",
+    sp.add_argument("--e-points", type=int, metavar="N",
                     help=f"--fit ...,restitution: simulated e from --e-min to 1 (default "
                          f"{E_POINTS})")
     sp.add_argument("--prior", choices=["scale", "uniform"], default="scale",

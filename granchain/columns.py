@@ -139,6 +139,16 @@ MEMBER = {
     "damping_model": _s("The contact damping model (none for the study's elastic chains)."),
     "restitution_e": _f("1", "The contact damping's coefficient of restitution e (1 for "
                              "elastic contacts)."),
+    "plasticity_model": _s("The yielding contacts' law (none for the study's elastic "
+                           "chains)."),
+    "yield_pressure_Pa": _f("Pa", "The limiting contact pressure p_y of the yielding "
+                                  "contacts (inf for the study's elastic chains)."),
+    "cohesion_model": _s("The cohesive contact law, jkr or dmt (none for the study's chains "
+                         "whose contacts do not cohere)."),
+    "surface_energy_J_m2": _f("J/m^2", "The adhesive contacts' surface energy gamma, "
+                                       "LAMMPS's cohesion (0 where the contacts do not cohere)."),
+    "groove_cohesion": _b("Do the groove's flats cohere too, their pull-off loading the "
+                          "groove's friction (the cohesive law's groove key)?"),
 }
 MEMBER_PATTERNS = {
     "vmax_p<i>_m_s": (re.compile(r"vmax_p\d+_m_s"),
@@ -158,7 +168,8 @@ SUMMARY = {
     "scene_hash": _s("The scene (a table of walled scenes only: its scenes may differ in "
                      "their dead load alone)."),
     **{c: MEMBER[c] for c in ("radius_spread_distribution", "radius_sd_m", "damping_model",
-                              "restitution_e")},
+                              "restitution_e", "plasticity_model", "yield_pressure_Pa",
+                              "cohesion_model", "surface_energy_J_m2", "groove_cohesion")},
     "n": _i("Members in the group."),
     "arrived_fraction": _f("1", "Fraction of the group's members whose wave arrived "
                                 "(wave_arrived)."),
@@ -342,12 +353,18 @@ INFER_JSON = {
 # granchain infer --fit gap_mean,restitution (JointInference.to_json plus measurements)
 INFER_JOINT_JSON = {
     **_INFER_COMMON,
-    "fit": Column("list", "", "The fitted quantities: gap_mean and restitution."),
-    "restitution": Column("float", "1", "Posterior median of the coefficient of "
-                                        "restitution."),
-    "restitution_ci95": Column("list", "1", "Its central 95 % interval [lo, hi]."),
-    "posterior_correlation": Column("float", "1", "Correlation of mean gap and restitution "
-                                                  "in the posterior."),
+    "fit": Column("list", "", "The fitted quantities: gap_mean and the fitted key's results' "
+                              "name (restitution for damping.e)."),
+    "key": Column("string", "", "The fitted scene key's path (e.g. damping.e)."),
+    "restitution": Column("float", "key's unit", "Posterior median of the fitted key, named "
+                                                 "by its results' name (restitution for "
+                                                 "damping.e; yield_pressure, "
+                                                 "surface_energy)."),
+    "restitution_ci95": Column("list", "key's unit", "Its central 95 % interval [lo, hi] "
+                                                     "(<name>_ci95)."),
+    "posterior_correlation": Column("float", "1", "Correlation of mean gap and the fitted key "
+                                                  "(its log for a log-uniform prior) in the "
+                                                  "posterior."),
     "predictive_outside": Column("int", "", "Measured values outside their posterior "
                                             "predictive 95 % range (null: no posterior "
                                             "draw, nothing checked)."),
@@ -355,13 +372,15 @@ INFER_JOINT_JSON = {
     "predictive_rows": Column("list", "", "Per row: v_striker_m_s and the 2.5, 50 and "
                                           "97.5 % predictive values of the timing, "
                                           "vmax_1_m_s and vmax_2_m_s."),
-    "damping_model": Column("string", "", "The contact damping model fitted."),
+    "law": Column("string", "", "The fitted key's effect and its model."),
     "gap_spacing": Column("string", "", "Spacing of the mean-gap grid."),
-    "restitution_grid": Column("list", "1", "The grid of restitutions: [first, last, "
-                                            "points]."),
+    "restitution_grid": Column("list", "key's unit", "The grid of the fitted key: [first, "
+                                                     "last, points] (<name>_grid)."),
+    "param_spacing": Column("string", "", "Spacing of the fitted key's grid and prior: "
+                                          "uniform, or log (log-uniform prior)."),
     "interp_rel_error": Column("object", "1", "Per observable: the grid's largest relative "
-                                              "interpolation error and where (g_max, e, "
-                                              "speed)."),
+                                              "interpolation error and where (g_max, param: "
+                                              "along the fitted key, speed)."),
 }
 # <study>.provenance.json of a gathered study (tables.environment and
 # workflow.gather.study_provenance)

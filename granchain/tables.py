@@ -76,11 +76,15 @@ SUMMARY_WALLED = ("wall_force_max_N", "wall_force_static_N")
 # ... and for the tables of the chapter's questions (granchain.workflow QUESTION_STUDIES): the
 # scene setting the study varies, from the study (not the run), after the wall's columns:
 # the radius spread's distribution and sd in m ("none" and 0 for the study's chains without
-# one), and the contact damping's model and coefficient of restitution e. A summary groups
-# by them too.
+# one), the contact damping's model and coefficient of restitution e, and the yielding
+# contacts' model and limiting pressure p_y ("none" and inf for the elastic chains), and
+# the adhesive contacts' model, surface energy gamma and whether the groove's flats adhere
+# too ("none", 0 and False for the chains without adhesion). A summary groups by them too.
 SPREAD_COLUMNS = ("radius_spread_distribution", "radius_sd_m")
 DAMPING_COLUMNS = ("damping_model", "restitution_e")
-SETTING_COLUMNS = SPREAD_COLUMNS + DAMPING_COLUMNS
+YIELD_COLUMNS = ("plasticity_model", "yield_pressure_Pa")
+COHESION_COLUMNS = ("cohesion_model", "surface_energy_J_m2", "groove_cohesion")
+SETTING_COLUMNS = SPREAD_COLUMNS + DAMPING_COLUMNS + YIELD_COLUMNS + COHESION_COLUMNS
 PERCENTILES = (5, 50, 95)
 TIMING_COLUMNS = ("study", "engine", "batch", "scene_hash", "members", "steps", "wall_s",
                   "wall_per_member_s")

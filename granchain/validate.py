@@ -129,6 +129,38 @@ def number_text(x) -> str:
 
 
 @dataclass(frozen=True)
+class Fit:
+    """What makes a scalar scene key fittable by ``granchain infer --fit gap_mean,KEY``,
+    declared on its :class:`Key`: the prior range [lo, hi] of the joint fit's grid and
+    posterior, the grid's number of nodes over it, and how results and messages name the
+    parameter.
+
+    lo, hi: the prior range (the key's unit). Uniform on it, or log-uniform (``log``) when
+        it spans a decade or more: a parameter known to within decades is a scale.
+    points: grid nodes over the range (``linspace``, or ``geomspace`` when ``log``).
+    name: the results' name of the parameter (the JSON keys ``name``, ``name_ci95``,
+        ``name_grid``; ``--fit gap_mean,name`` is an alias of the key).
+    symbol, label: the parameter in a formula and in words, for the summary.
+    models: the section's ``model`` values with which the key can be fitted (empty: any).
+    example: the section a base scene gives to fit the key (any value of it: the
+        inference sets it), for the refusal of a base scene without it.
+    """
+    lo: float
+    hi: float
+    points: int
+    name: str
+    symbol: str
+    label: str
+    models: tuple[str, ...] = ()
+    example: str = ""
+
+    @property
+    def log(self) -> bool:
+        """Is the prior log-uniform (the range spans a decade or more)?"""
+        return self.lo > 0 and self.hi / self.lo >= 10.0
+
+
+@dataclass(frozen=True)
 class Key:
     """The declaration of one scene key, beside its default (``granchain.scenekeys.DEFAULTS``,
     an effect module's ``DEFAULTS``).
@@ -141,6 +173,7 @@ class Key:
     choices: the values :meth:`choice` accepts.
     allowed: what else the key takes, or a rule the bounds cannot state (it may depend
         on other keys), e.g. "or `auto`".
+    fit: the prior range of a key the inference can fit (:class:`Fit`), None if it cannot.
     """
     path: str
     unit: str
@@ -152,6 +185,7 @@ class Key:
     hi: float | None = None
     choices: tuple[str, ...] = ()
     allowed: str = ""
+    fit: Fit | None = None
 
     @property
     def name(self) -> str:
@@ -195,4 +229,17 @@ class Key:
                                                   f"`{cond}`" if cond else ""))))
         if self.allowed:
             parts.append(self.allowed)
+        if self.fit is not None:
+            f = self.fit
+            parts.append(f"fittable (`granchain infer --fit gap_mean,{self.path}`): prior "
+                         f"{'log-uniform' if f.log else 'uniform'} on "
+                         f"[{number_text(f.lo)}, {number_text(f.hi)}]")
         return "; ".join(parts)
+
+    def physical_ends(self) -> tuple[bool, bool]:
+        """Is each end of the fit's prior range a bound of the key itself (e = 1), not a
+        grid end? Posterior weight at a physical end is no sign of a range too short."""
+        f = self.fit
+        low = (self.lo is not None and f.lo <= self.lo) or (
+            f.lo <= 0 and (self.positive or self.nonneg))
+        return bool(low), bool(self.hi is not None and f.hi >= self.hi)

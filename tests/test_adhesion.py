@@ -192,3 +192,133 @@ def test_chains_agree_with_lammps(name, tmp_path):
     rows = cmp.rows
     v = rows[rows.quantity.str.startswith("v_max") | rows.quantity.str.startswith("v_g")]
     assert len(v) > 0 and v["diff"].max() < 2e-9
+
+
+# ---------------------------------------------------------------------------------------
+# Tabor's parameter in granchain validate
+def tabor_of(Rs, E, gamma, z0=0.3e-9):
+    """Tabor's parameter with the work of adhesion w = 2 gamma (written out here)."""
+    return (Rs * (2.0 * gamma) ** 2 / (E ** 2 * z0 ** 3)) ** (1.0 / 3.0)
+
+
+@pytest.mark.parametrize("model, gamma, warned", [
+    ("jkr", 3.0, None),                 # mu ~ 14: JKR's regime
+    ("jkr", 0.05, "neither JKR nor DMT"),
+    ("jkr", 1e-4, "use model dmt"),
+    ("dmt", 1e-4, None),                # mu ~ 0.02: DMT's regime
+    ("dmt", 3.0, "use model jkr"),
+])
+def test_validate_prints_tabor_and_warns_outside_the_regime(tmp_path, capsys, model, gamma,
+                                                            warned):
+    """granchain validate prints each adhesive contact's Tabor parameter (the contacts, the
+    end wall on its own E*, the groove's flats with adhesion.groove) and warns where the
+    model is outside Johnson & Greenwood's map (JKR above 5, DMT below 0.1)."""
+    from granchain.cli import main
+    scene = tmp_path / "s.yaml"
+    scene.write_text("material: ss440c\nwalls: {end: rigid}\n"
+                     "effects: [hertz, groove_friction, adhesion]\n"
+                     f"adhesion: {{model: {model}, surface_energy: {gamma}, groove: true}}\n")
+    assert main(["validate", str(scene)]) == 0
+    out = capsys.readouterr().out
+    E_wall = STEEL.E / (1.0 - STEEL.nu ** 2)          # a sphere on a rigid flat
+    want = {"contacts 1-14": tabor_of(RS, ESTAR, gamma), "end wall": tabor_of(R, E_wall, gamma),
+            "groove flats of spheres 1-15": tabor_of(R, ESTAR, gamma)}
+    line = next(ln for ln in out.splitlines() if "Tabor's parameter" in ln
+                and not ln.startswith("warning"))
+    assert "z0 = 0.3 nm" in line
+    for name, mu in want.items():
+        assert f"{name} {mu:.3g}" in line, (name, line)
+    warnings = [ln for ln in out.splitlines() if ln.startswith("warning: adhesion.model")]
+    if warned is None:
+        assert not warnings, out
+    else:
+        assert warnings and all(warned in w and "Johnson & Greenwood (1997)" in w
+                                for w in warnings), out
+
+
+def test_tabor_regime_edges():
+    assert adhesion.regime("jkr", 5.0) is None and adhesion.regime("jkr", 4.99)
+    assert adhesion.regime("dmt", 0.1) is None and adhesion.regime("dmt", 0.101)
+
+
+# ---------------------------------------------------------------------------------------
+# the groove's flats: adhesion.groove
+def groove_chain(model, groove=True, **extra):
+    spec = {"name": "g", "chain": {"n": 8}, "probes": [2, 7],
+            "effects": ["hertz", "rotation", "groove_friction", "adhesion"],
+            "adhesion": {"model": model, "surface_energy": 0.05, "groove": groove},
+            "striker": {"velocity": 0.05}, "t_end": 4e-5,
+            "integrator": {"method": "verlet", "dt": 1e-9}}
+    spec.update(extra)
+    return scene_from_dict(spec)
+
+
+@pytest.mark.parametrize("model, per_flat", [("jkr", 3.0), ("dmt", 4.0)])
+def test_groove_adhesion_adds_the_flats_pull_off_to_the_coulomb_limit(model, per_flat):
+    """Fc = mu (m g / s + 2 F_po), F_po = 3 pi gamma R (jkr) or 4 pi gamma R (dmt) per
+    flat (a sphere on a flat: (3/2) pi w R and 2 pi w R with w = 2 gamma), each sphere its
+    own R; the kernels' per-sphere limit is that; without groove: true it is m g mu / s."""
+    from granchain.effects import physics_terms
+    from granchain.effects.groove_friction import rows as groove_rows
+    radii = [150e-6, 150e-6, 120e-6, 150e-6, 180e-6, 150e-6, 150e-6, 150e-6]
+    for sc in (groove_chain(model), groove_chain(model, chain={"n": 8, "radius": radii})):
+        t = physics_terms(sc)
+        gf = t.groove_friction
+        s, mu = math.sin(math.radians(45.0)), 0.293
+        for R_i, m_i, Fc in zip(t.chain.radii, t.chain.masses, gf.Fc_each):
+            want = mu * (m_i * 9.81 / s + 2.0 * per_flat * math.pi * 0.05 * R_i)
+            assert Fc == pytest.approx(want, rel=1e-14)
+        assert groove_rows(gf, t.chain)["G_GROOVE_LIMIT"] == gf.Fc_each
+    off = physics_terms(groove_chain(model, groove=False)).groove_friction
+    assert off.Fc == pytest.approx(0.293 * off.Fc_each[0] / 0.293, rel=0) and off.load == 0.0
+    assert off.Fc == pytest.approx(0.293 * SPHERE_MASS * 9.81 / math.sin(math.radians(45.0)),
+                                   rel=1e-14)
+
+
+SPHERE_MASS = 4.0 / 3.0 * math.pi * R ** 3 * RHO
+
+
+def test_groove_adhesion_needs_the_groove_friction():
+    with pytest.raises(SceneError, match="adhesion.groove.*groove_friction"):
+        groove_chain("jkr", effects=["hertz", "adhesion"])
+    with pytest.raises(SceneError, match="adhesion.groove.*true or false"):
+        groove_chain("jkr", groove="yes")
+
+
+def test_groove_adhesion_in_the_deck_is_the_fixs_load():
+    """The deck passes the load (1e-9 N, 'units micro') as fix groove/drag's load, per atom
+    (a third column of the Groove section) when the spheres differ; without groove: true
+    the fix line has no load."""
+    from granchain.lammps.deck import render
+    load = 2.0 * 3.0 * math.pi * 0.05 * R * 1e9
+    deck, _ = render(groove_chain("jkr"), plugin="groove_drag.so")
+    fix = deck[deck.index("fix             gd all groove/drag"):].split("\n\n")[0]
+    got = float(fix.split(" load ")[1].split()[0])
+    assert got == pytest.approx(load, rel=1e-12), fix
+    deck, _ = render(groove_chain("jkr", groove=False), plugin="groove_drag.so")
+    assert " load " not in deck.replace("plugin          load ", "")
+    radii = [150e-6] * 7 + [180e-6]
+    deck, data = render(groove_chain("jkr", chain={"n": 8, "radius": radii}),
+                        plugin="groove_drag.so")
+    assert "load d_groove_load" in deck
+    assert "property/atom d_groove_kt d_groove_gamma d_groove_load" in deck
+    rows = data[data.index("Groove"):].split("\n\n", 1)[1].strip().splitlines()
+    loads = [float(r.split()[3]) for r in rows]
+    np.testing.assert_allclose(loads, [2.0 * 3.0 * math.pi * 0.05 * r * 1e9 for r in radii],
+                               rtol=1e-12)
+
+
+@pytest.mark.lammps
+@pytest.mark.parametrize("model, extra", [("dmt", {}),
+                                          ("jkr", {"chain": {"n": 8, "radius": [150e-6] * 7
+                                                                        + [180e-6]}})])
+def test_groove_adhesion_agrees_with_lammps(model, extra, tmp_path):
+    """granchain compare, Verlet at 1 ns, with adhesion.groove (the fix's load; per atom
+    for the chain of unequal spheres): v_max and v_g agree to rounding, and the groove's
+    work closes as on the reference engine."""
+    from granchain.compare import compare
+    cmp = compare(groove_chain(model, **extra), workdir=tmp_path / "lmp")
+    assert cmp.ok, cmp.failures().to_string()
+    rows = cmp.rows
+    v = rows[rows.quantity.str.startswith("v_max") | rows.quantity.str.startswith("v_g")]
+    assert len(v) > 0 and v["diff"].max() < 2e-9

@@ -83,10 +83,10 @@ def test_infer_refuses_a_preloaded_base_before_simulating(tmp_path, monkeypatch,
 
 
 def nan_joint_grid(base, gap_max, gap_points, e_min, e_points, realisations, cache_dir=None,
-                   engine="reference", progress=None):
+                   engine="reference", progress=None, key=inference.DEFAULT_KEY, hi=None):
     """A joint grid in which no simulated chain measured anything (every value NaN)."""
     gaps = inference.gap_nodes(gap_max, gap_points)
-    es = inference.restitution_nodes(e_min, e_points)
+    es = inference.fit_key(key).nodes(e_min, 1.0 if hi is None else hi, e_points)
     speeds = np.array(sorted({float(v) for v in base.striker_velocities}))
     shape = (gaps.size, es.size, speeds.size, realisations)
     values = {k: np.full(shape, np.nan) for k in inference.JOINT_OBS}

@@ -136,7 +136,8 @@ def _paths(tdir, rdir):
     p["trace"] = rdir / "packed_trace_ss440c.npz"
     p["vibrometer"] = tdir / "vibrometer.csv"
     p["vibrometer_trace"] = rdir / "vibrometer_ss440c.npz"
-    for study in ("precompression", "wall", "radius_spread", "dissipation"):
+    for study in ("precompression", "wall", "radius_spread", "dissipation", "plasticity",
+                  "adhesion"):
         p[study] = tdir / f"{study}.csv"
     return p
 
@@ -534,12 +535,80 @@ def _check_dissipation(fig, tdir, rdir):
                       rtol=1e-9)
 
 
+def _check_plasticity(fig, tdir, rdir):
+    """Each material's curves of its smallest mean gap: per p_y (inf: elastic) the median
+    of v_max,1/v_s, v_max,2/v_s, v_max,2/v_max,1 (recomputed from the peaks) and of the
+    arrived v_g against v_s, ascending; the measured lines on the first three panels."""
+    pl = pd.read_csv(tdir / "plasticity.csv")
+    pl["v1"] = pl["v_max_1_m_s"] / pl["v_striker_m_s"]
+    pl["v2"] = pl["v_max_2_m_s"] / pl["v_striker_m_s"]
+    pl["ratio"] = pl["v_max_2_m_s"] / pl["v_max_1_m_s"]
+    panels = {"v1": _panel(fig, "v_max,1 / v_s"), "v2": _panel(fig, "v_max,2 / v_s"),
+              "ratio": _panel(fig, "v_max,2 / v_max,1"), "vg": _panel(fig, "v_g")}
+    for q, val in (("v1", 0.57), ("v2", 0.46), ("ratio", 0.80)):
+        _assert_drawn(panels[q], [0, 1], [val, val], f"measured {q}")
+    assert set(pl["yield_pressure_Pa"]) >= {math.inf}
+
+    def drawn(ax, x, y, what):
+        """Some line of ax has the points (x, y), NaN where y is (a peak not final)."""
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        assert any(xy.shape == (x.size, 2) and np.array_equal(xy[:, 0], x)
+                   and np.allclose(xy[:, 1], y, rtol=1e-12, atol=0, equal_nan=True)
+                   for xy in (ln.get_xydata() for ln in ax.get_lines())), (what, x, y)
+    curves = 0
+    for mat, d in pl.groupby("material"):
+        d = d[d["gap_mean_nm"] == d["gap_mean_nm"].min()]
+        for py, g in d.groupby("yield_pressure_Pa"):
+            med = g.groupby("v_striker_m_s")[["v1", "v2", "ratio"]].median()
+            for q in ("v1", "v2", "ratio"):
+                drawn(panels[q], med.index, med[q], f"{mat} p_y {py}: median {q}")
+            vg = _arrived(g).groupby("v_striker_m_s")["v_g_m_s"].median()
+            drawn(panels["vg"], med.index, vg.reindex(med.index), f"{mat} p_y {py}: v_g")
+            curves += 1
+    assert curves >= 4
+
+
+def _check_adhesion(fig, tdir, rdir):
+    """Each material's curves of its smallest mean gap: per (v_s, groove) the median of
+    v_max,1/v_s, v_max,2/v_s, v_max,2/v_max,1 (recomputed from the peaks) against gamma
+    > 0, ascending; the chain without adhesion as one point per speed at half the least
+    gamma; the measured lines on the first three panels."""
+    ad = pd.read_csv(tdir / "adhesion.csv")
+    ad["v1"] = ad["v_max_1_m_s"] / ad["v_striker_m_s"]
+    ad["v2"] = ad["v_max_2_m_s"] / ad["v_striker_m_s"]
+    ad["ratio"] = ad["v_max_2_m_s"] / ad["v_max_1_m_s"]
+    panels = {"v1": _panel(fig, "v_max,1 / v_s"), "v2": _panel(fig, "v_max,2 / v_s"),
+              "ratio": _panel(fig, "v_max,2 / v_max,1")}
+    for q, val in (("v1", 0.57), ("v2", 0.46), ("ratio", 0.80)):
+        _assert_drawn(panels[q], [0, 1], [val, val], f"measured {q}")
+
+    def drawn(ax, x, y, what):
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        assert any(xy.shape == (x.size, 2) and np.array_equal(xy[:, 0], x)
+                   and np.allclose(xy[:, 1], y, rtol=1e-12, atol=0, equal_nan=True)
+                   for xy in (ln.get_xydata() for ln in ax.get_lines())), (what, x, y)
+    g_min = ad.loc[ad["surface_energy_J_m2"] > 0, "surface_energy_J_m2"].min()
+    curves = 0
+    for mat, d in ad.groupby("material"):
+        d = d[d["gap_mean_nm"] == d["gap_mean_nm"].min()]
+        for (vs, groove), g in d[d["surface_energy_J_m2"] > 0].groupby(
+                ["v_striker_m_s", "groove_cohesion"]):
+            med = g.groupby("surface_energy_J_m2")[["v1", "v2", "ratio"]].median()
+            for q in ("v1", "v2", "ratio"):
+                drawn(panels[q], med.index, med[q], f"{mat} {vs} {groove}: {q}")
+            curves += 1
+        for vs, g in d[d["surface_energy_J_m2"] == 0].groupby("v_striker_m_s"):
+            drawn(panels["v1"], [g_min / 2], [g["v1"].median()], f"{mat} {vs}: none")
+    assert curves >= 2
+
+
 FIGURE_DATA = {"fig5_1a": _check_fig5_1a, "fig5_1b": _check_fig5_1b,
                "fig5_1c": _check_fig5_1c, "fig5_3b": _check_fig5_3b,
                "fig5_3c": _check_fig5_3c, "fig5_4b": _check_fig5_4b,
                "fig5_2a": _check_fig5_2a, "vibrometer": _check_vibrometer,
                "precompression": _check_precompression, "wall": _check_wall,
-               "radius_spread": _check_radius_spread, "dissipation": _check_dissipation}
+               "radius_spread": _check_radius_spread, "dissipation": _check_dissipation,
+               "plasticity": _check_plasticity, "adhesion": _check_adhesion}
 
 
 def test_every_figure_has_its_data_check():
@@ -869,7 +938,10 @@ TABLE_IDS = (["vmax_slope", "vmax1_over_vs", "vmax2_over_vs", "vmax_ratio", "vg_
                 "wall_force_exponent"]
              + ["spread_oscillation", "spread_sd_for_gap_oscillation"]
              + ["diss_e_ratio_packed", "diss_e_ratio_gapped", "diss_vmax1_at_e",
-                "diss_vmax2_at_e", "diss_striker_factor"])
+                "diss_vmax2_at_e", "diss_striker_factor"]
+             + [f"plast_{w}_{m}" for m in ("ss316", "ss440c")
+                for w in ("vmax1_library", "py_match", "exponent")]
+             + [f"adh_gamma_{w}_{m}" for m in ("ss440c",) for w in ("contacts", "groove")])
 # the chapter's questions: row id -> (chapter value, its uncertainty, kind)
 QUESTION_ROWS = {
     "spread_oscillation": (0.20, math.nan, "simulation (beyond the chapter)"),
@@ -969,7 +1041,9 @@ def test_row_builders_without_their_tables(tables):
     assert [r["reason"] for r in bounds] == ["gap_sweep table not given",
                                              "extra_length table not given"]
     for rows, table in ((thesis_rows.tolerance_rows(pk), "radius_spread"),
-                        (thesis_rows.dissipation_rows(pk), "dissipation")):
+                        (thesis_rows.dissipation_rows(pk), "dissipation"),
+                        (thesis_rows.plasticity_rows(pk), "plasticity"),
+                        (thesis_rows.adhesion_rows(pk), "adhesion")):
         assert all(math.isnan(r["project_value"]) for r in rows)
         assert all(r["reason"].startswith(f"{table} table not given") for r in rows)
     energy = thesis_rows.energy_rows(pk)      # no trace: no pulse width; sweep's 0.1 m/s row

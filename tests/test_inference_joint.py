@@ -142,7 +142,7 @@ def test_the_grid_chains_without_a_value_are_counted_in_the_json(small_joint):
     values = {k: v.copy() for k, v in grid.values.items()}
     values["v_max_1"][:, :, 0, -1] = np.nan                       # every node, one speed
     values["v_max_2"][0, 0, :, 0] = np.nan                        # one node, every speed
-    lost = grid.gaps.size * grid.restitutions.size + grid.speeds.size
+    lost = grid.gaps.size * grid.params.size + grid.speeds.size
     res = inference.infer_joint(base, meas, grid=dataclasses.replace(grid, values=values))
     assert res.n_unmeasured == before + lost
     assert res.to_json()["n_unmeasured"] == before + lost
@@ -290,13 +290,13 @@ def test_restitution_below_the_grid_is_flagged_not_reported(small_joint):
 
 def test_joint_interpolation_errors_are_measured_on_the_grid(small_joint):
     """Each observable's interpolation error is measured per mean-gap node and along e
-    and the speed (here 2 speeds: none measured); the peaks change fastest near g = 0."""
+    (``param``) and the speed (here 2 speeds: none measured); the peaks change fastest near g = 0."""
     _, grid = small_joint
     errs = inference.joint_interp_errors(grid, "dt_front_s")
     assert set(errs) == {"dt_front_s", "v_max_1", "v_max_2"}
     for d in errs.values():
         assert d["g"].shape == grid.gaps.shape and np.all(d["g"] >= 0)
-        assert d["e"] > 0 and d["speed"] == 0.0
+        assert d["param"] > 0 and d["speed"] == 0.0
     v1 = errs["v_max_1"]["g"]
     assert v1[1] > v1[-2]
 
@@ -569,7 +569,7 @@ def test_shipped_restitution_example_is_labelled_synthetic():
     meas = inference.read_measurements(EXAMPLE_CSV, peaks=True)
     assert len(meas) == 8 and len(meas.groups) == 5 and meas.has_peaks
     base = load_scene(EXAMPLE_SCENE)
-    inference.check_restitution_base(base)
+    inference.check_fit_base(base, inference.fit_key("restitution"))
     inference.check_peaks(meas, base)
 
 

@@ -1,5 +1,6 @@
 """plastic_contact (effects/plastic_contact.py): Thornton's (1997) elastic-perfectly
-plastic normal contact on the reference engine.
+plastic normal contact on the reference engine, and against LAMMPS (the plugin's fix
+thornton/chain).
 
 The independent solution (tests/independent.py, ``ThorntonContact``: the paper's law
 written there, a collision's outcome from its branches' energies by quadrature, no time
@@ -185,11 +186,59 @@ def test_a_scene_yield_pressure_replaces_the_materials():
     assert set(physics_terms(sc).plastic_contact.pressures[:-1]) == {5e8}
 
 
-def test_lammps_refuses_it(tmp_path):
-    from granchain.lammps.deck import write_deck
-    sc = scene_from_dict({"effects": ["hertz", "plastic_contact"], "material": "ss316"})
-    with pytest.raises(SceneError, match="no LAMMPS law yet"):
-        write_deck(sc, tmp_path)
+# ---------------------------------------------------------------------------------------
+# against LAMMPS (the plugin's fix thornton/chain): granchain compare, velocity Verlet at
+# 1 ns. The plastic work is LAMMPS's own output (not its balance residual), the potential
+# column and the wall force carry the fix's parts.
+LAMMPS_CHAINS = {
+    # 440C above its yield onset (v_y = 0.44 m/s at these contacts), beside the groove/drag
+    # fix (rotation, groove friction, air drag)
+    "440c-fast": {"material": "ss440c", "striker": {"velocity": [0.5, 1.0]}, "t_end": 1.2e-5,
+                  "effects": ["hertz", "rotation", "groove_friction", "air_drag",
+                              "plastic_contact"]},
+    # annealed 316 at 14 v_y on a rigid wall
+    "316-wall": {"material": "ss316", "striker": {"velocity": 0.05}, "walls": {"end": "rigid"},
+                 "t_end": 3e-5},
+    # a dead load below F_y on a 316 wall, with contact damping (its dashpot as without
+    # plasticity, LAMMPS's balance residual)
+    "316-preload-damped": {"material": "ss316", "striker": {"velocity": 0.05},
+                           "walls": {"end": "ss316"}, "precompression": {"force": 1e-4},
+                           "effects": ["hertz", "contact_damping", "plastic_contact"],
+                           "damping": {"e": 0.9}, "t_end": 3e-5},
+    # unequal spheres and materials (each contact's E*, R*, p_y), on a 440C wall
+    "unequal": {"chain": {"n": 6, "radius": [150e-6, 120e-6, 150e-6, 100e-6, 150e-6, 130e-6],
+                          "materials": ["ss440c", "ss316", "ss440c", "ss316", "ss316",
+                                        "ss440c"]},
+                "probes": [2, 5], "walls": {"end": "ss440c"}, "striker": {"velocity": 0.2},
+                "t_end": 2e-5},
+}
+
+
+@pytest.mark.lammps
+@pytest.mark.parametrize("name, nprocs", [(k, 1) for k in LAMMPS_CHAINS] + [("316-wall", 2)])
+def test_chains_agree_with_lammps(name, nprocs, tmp_path):
+    """Both engines yield the contacts alike: v_max, v_g, the ledger (the plastic work,
+    the balance), and with a wall its force, to rounding (measured <= 6.1e-10 on v_max and
+    v_g; the tolerances of granchain.compare elsewhere). On two ranks the chain is cut
+    along x, so contacts join atoms of different ranks (the fix's ghost history)."""
+    from granchain.compare import compare
+    spec = {"name": name, "chain": {"n": 8}, "probes": [2, 7],
+            "integrator": {"method": "verlet", "dt": 1e-9},
+            "effects": ["hertz", "plastic_contact"], **LAMMPS_CHAINS[name]}
+    cmp = compare(scene_from_dict(spec), workdir=tmp_path / "lmp", nprocs=nprocs)
+    assert cmp.ok, cmp.failures().to_string()
+    rows = cmp.rows
+    v = rows[rows.quantity.str.startswith("v_max") | rows.quantity.str.startswith("v_g")]
+    assert len(v) > 0 and v["diff"].max() < 2e-9
+    # the law yielded and LAMMPS reported its work itself (an independent row)
+    work = rows[rows.quantity == "work_plastic_contact"]
+    initial = rows[rows.quantity == "initial"]
+    assert len(work) == len(initial) > 0
+    assert np.all(work.lammps.to_numpy() < -1e-4 * initial.lammps.to_numpy())
+    assert np.all(work.tolerance.to_numpy() > 0)
+    if "walls" in LAMMPS_CHAINS[name]:
+        wall = rows[rows.quantity == "wall_force_max"]
+        assert len(wall) > 0 and np.all(wall.lammps.to_numpy() > 0)
 
 
 # ---------------------------------------------------------------------------------------

@@ -70,11 +70,14 @@ def test_an_effects_keys_are_its_own_section():
 # here is read from this scene's normalised spec; the given ones from the plain scene {}
 # every effect but adhesion, which refuses the default damping model (as LAMMPS does), and
 # plastic_contact, which does not act with the contact and rolling friction yet: its keys
-# are read from a scene of it alone (APART)
+# are read from a scene of it alone (APART), as is adhesion.groove, the one adhesion key
+# with a default other than null
 ALL_ON = {"effects": [e for e in EFFECTS if e not in ("adhesion", "plastic_contact")],
           "rolling": {"k_roll": 1e3}, "damping": {"e": 0.9}, "measurement": {},
           "chain": {"radius_spread": {"sd": 1e-7}}}
-APART = {"plasticity.": {"effects": ["hertz", "plastic_contact"]}}
+APART = {"plasticity.": {"effects": ["hertz", "plastic_contact"]},
+         "adhesion.groove": {"effects": ["hertz", "groove_friction", "adhesion"],
+                             "adhesion": {"model": "dmt", "surface_energy": 0.1}}}
 
 
 def given_paths(raw, prefix=""):

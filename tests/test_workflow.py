@@ -166,6 +166,12 @@ def test_default_preset_is_meaningful():
     assert min(di["e"]) <= 0.8 and max(di["e"]) == 1.0 and len(di["e"]) >= 8
     assert di["gap_mean_nm"] == {"ss316": [0, 190], "ss440c": [0, 47]}
     assert di["realisations"] >= 10 and di["v_striker"] == 0.1
+    # yielding contacts: the library p_y and down to a few per cent of it (440C meets the
+    # measured peaks only far below its library value), over the packed sweep's range
+    pl = s["plasticity"]
+    assert 1.0 in pl["yield_pressure_factor"] and min(pl["yield_pressure_factor"]) <= 0.03
+    assert min(pl["v_striker"]) <= 0.01 and max(pl["v_striker"]) >= 1.0
+    assert pl["method"] != "event"
 
 
 @pytest.mark.parametrize("preset", ["tiny", "default"])

@@ -126,7 +126,15 @@ def cmd_validate(args) -> int:
           f"{len(scene.striker_velocities)} striker speed(s) x {scene.realisations} realisation(s), "
           f"effects: {', '.join(sorted(scene.effects))}, integrator "
           f"{plan.auto or describe_auto(scene)}")
-    print_warnings(scene_warnings(scene), sys.stdout)
+    # what an effect says of its own regime (``validate_notes``, ``validate_warnings``)
+    from ..effects import MODULES
+    on = [m for m in MODULES if scene.has(m.SPEC.name)]
+    for m in on:
+        for line in getattr(m, "validate_notes", lambda s: [])(scene):
+            print(line)
+    print_warnings(scene_warnings(scene) + [w for m in on for w in
+                                            getattr(m, "validate_warnings", lambda s: [])(scene)],
+                   sys.stdout)
     return 0
 
 

@@ -18,6 +18,24 @@ delta (m):
   wall's), updated as LAMMPS does in each force call (velocity Verlet) or after each step
   (the other methods).
 
+Tabor's parameter of a contact, mu = (R* w^2 / (E*^2 z0^3))^(1/3) with w = 2 gamma the work
+of adhesion and z0 = Z0 = 0.3 nm (the equilibrium separation of the surfaces'
+Lennard-Jones potential; Johnson & Greenwood 1997 take z0 of 0.3-0.4 nm), tells which law
+holds: on Johnson & Greenwood's adhesion map (J. Colloid Interface Sci. 192, 326-333) JKR
+for mu above about 5, DMT below about 0.1, neither between (Maugis-Dugdale's transition).
+``granchain validate`` prints each contact's mu and warns where the chosen model is outside
+its regime (:func:`validate_notes`, :func:`validate_warnings`).
+
+With ``groove: true`` the sphere also adheres to the two flats of the V-groove, which adds
+their pull-off to the groove's normal load (:func:`groove_load`): each flat pulls the sphere
+along its own normal with the pull-off force of a sphere on a flat (R* = R, E* of the
+sphere on a flat of its own material, as the groove's Mindlin spring assumes), F_po =
+3 pi gamma R (jkr; (3/2) pi w R) or 4 pi gamma R (dmt; 2 pi w R). Whatever the groove
+angle, that pull is balanced by the flat's own contact force, so each flat's normal load
+is m g / (2 s) + F_po and the two flats' m g / s + 2 F_po (s = sin(angle/2): only the
+weight's share depends on the angle). ``groove_friction`` takes it into its Coulomb limit,
+Fc = mu (m g / s + 2 F_po), on both engines (``fix groove/drag``'s ``load``).
+
 Both: the Coulomb caps of the tangential and rolling laws use LAMMPS's cohesive Fncrit =
 |F_ne + 2 F_po|, F_ne the law's force above (without the damping force). The damping of
 ``contact_damping`` adds to F; LAMMPS allows only ``viscoelastic`` (no ``limit_damping``)
@@ -34,7 +52,7 @@ from dataclasses import dataclass
 from ..errors import SceneError
 from ..materials import effective_modulus
 from ..units import lmp_float as _r, to_micro
-from ..validate import Key
+from ..validate import Fit, Key, short
 from . import slots as S
 from .hertz import energy as hertz_energy, force as hertz_force
 from .lanes import bit, closing_speed, contact_overlap
@@ -50,7 +68,7 @@ SPEC = EffectSpec("adhesion", state=(("L_ADHESION_TOUCH", "particle"),),
 
 MODELS = ("dmt", "jkr")
 SECTION = "adhesion"
-DEFAULTS = {"model": None, "surface_energy": None}
+DEFAULTS = {"model": None, "surface_energy": None, "groove": False}
 # the section stays out of a scene's normalised spec (and hash) unless the effect is on
 # or a key of it is given
 SECTION_OPTIONAL = True
@@ -63,7 +81,15 @@ KEYS = (
         "`work_adhesion` (table column `work_adhesion_J`).", choices=MODELS),
     Key("adhesion.surface_energy", "J/m^2", "gamma, LAMMPS's cohesion coefficient of `dmt` "
         "and `jkr` (the surface energy; the work of adhesion is 2 gamma). Required with the "
-        "effect.", positive=True, hi=100.0),
+        "effect. Fittable: log-uniform prior "
+        "from 1e-3 to 1 J/m^2.", positive=True, hi=100.0,
+        fit=Fit(1e-3, 1.0, 10, "surface_energy", "gamma", "surface energy",
+                example="adhesion: {model: jkr, surface_energy: 0.05}")),
+    Key("adhesion.groove", "-", "`true`: each sphere also adheres to the two flats of the "
+        "groove, and their pull-off (per flat 3 pi gamma R for `jkr`, 4 pi gamma R for "
+        "`dmt`: a sphere on a flat) adds to the groove's normal load, Fc = mu (m g / s + "
+        "2 F_po); needs `groove_friction`. The stick spring stays the Mindlin stiffness "
+        "under the weight alone.", allowed="`true` or `false`"),
 )
 _KEY = {k.name: k for k in KEYS}
 # the section of the engines' warm-up scene (every effect on; the kernels are the same
@@ -73,10 +99,18 @@ WARM_UP = {"model": "dmt", "surface_energy": 0.1}
 PULLOFF_PREFIX = (3.0 * math.pi ** 2 / 16.0) ** (1.0 / 3.0)
 
 
+# the equilibrium separation of the surfaces' Lennard-Jones potential in Tabor's parameter
+# (Johnson & Greenwood 1997: 0.3-0.4 nm), and the regimes of their adhesion map: JKR holds
+# above JKR_TABOR, DMT below DMT_TABOR
+Z0 = 0.3e-9
+JKR_TABOR, DMT_TABOR = 5.0, 0.1
+
+
 @dataclass(frozen=True)
 class Settings:
     model: str | None
     surface_energy: float | None   # J/m^2
+    groove: bool = False           # the groove's flats adhere too (groove_load)
 
 
 def settings(sec: dict, given: frozenset, on: bool) -> Settings:
@@ -89,7 +123,22 @@ def settings(sec: dict, given: frozenset, on: bool) -> Settings:
     if on and gamma is None:
         raise SceneError("adhesion.surface_energy", "missing",
                          "give the surface energy gamma in J/m^2 (LAMMPS's cohesion)")
-    return Settings(model, gamma)
+    groove = sec["groove"]
+    if not isinstance(groove, bool):
+        raise SceneError("adhesion.groove", f"expected true or false, got {short(groove)}",
+                         "write groove: true or false")
+    return Settings(model, gamma, groove)
+
+
+# the effects jkr does not act with yet (a contact held closed in tension carries their
+# forces in LAMMPS; the reference engine does not follow that yet)
+JKR_NOT_WITH = ("contact_damping", "particle_friction", "rolling_friction")
+
+
+def not_with(model: str) -> tuple[str, ...]:
+    """The effects the law ``model`` does not act with (the adhesion study leaves them out
+    of its scenes): jkr's ``JKR_NOT_WITH``, none for dmt."""
+    return JKR_NOT_WITH if model == "jkr" else ()
 
 
 def check(scene) -> None:
@@ -98,6 +147,9 @@ def check(scene) -> None:
     with contact damping or contact friction (a contact held closed in tension carries
     them in LAMMPS)."""
     st = scene.setting(SPEC.name)
+    if st.groove and not scene.has("groove_friction"):
+        raise SceneError("adhesion.groove", "has no groove friction to load (groove_friction "
+                         "is off)", "add groove_friction to effects, or drop adhesion.groove")
     if scene.has("contact_damping"):
         cd = scene.setting("contact_damping")
         if cd.model != "viscoelastic":
@@ -109,8 +161,7 @@ def check(scene) -> None:
                              "refuses it beside a cohesive normal law)",
                              "write limit_damping: false, or drop adhesion")
     if st.model == "jkr":
-        other = [e for e in ("contact_damping", "particle_friction", "rolling_friction")
-                 if scene.has(e)]
+        other = [e for e in JKR_NOT_WITH if scene.has(e)]
         if other:
             raise SceneError("adhesion.model", f"jkr with {', '.join(other)} is not "
                              "implemented (a contact held closed in tension)",
@@ -303,15 +354,108 @@ def separation(ad, chain, k: int, d: float) -> tuple[float, float]:
 
 
 # ---------------------------------------------------------------------------------------
+# Tabor's parameter and the groove's pull-off
+def tabor(Rs: float, E: float, gamma: float, z0: float = Z0) -> float:
+    """Tabor's parameter mu = (R* w^2 / (E*^2 z0^3))^(1/3) of a contact of R* (m), E* (Pa)
+    and surface energy gamma (J/m^2; w = 2 gamma the work of adhesion), z0 (m)."""
+    w = 2.0 * gamma
+    return (Rs * w * w / (E * E * z0 ** 3)) ** (1.0 / 3.0)
+
+
+def regime(model: str, mu: float) -> str | None:
+    """Why ``model`` is outside its regime at Tabor's parameter mu, and what to do; None
+    inside it (Johnson & Greenwood 1997's map: JKR above JKR_TABOR, DMT below
+    DMT_TABOR, Maugis-Dugdale's transition between)."""
+    if (model == "jkr" and mu >= JKR_TABOR) or (model == "dmt" and mu <= DMT_TABOR):
+        return None
+    if mu < DMT_TABOR:
+        return f"below {DMT_TABOR:g} DMT holds: use model dmt"
+    if mu > JKR_TABOR:
+        return f"above {JKR_TABOR:g} JKR holds: use model jkr"
+    return (f"between {DMT_TABOR:g} and {JKR_TABOR:g} neither JKR nor DMT holds "
+            "(Maugis-Dugdale's transition): read the results as the model's limit")
+
+
+def contacts(scene) -> list[tuple[str, float]]:
+    """(name, Tabor's mu) of a scene's adhesive contacts, alike ones merged: the
+    sphere-sphere contacts (``contacts 1-14``), the end wall, and with ``groove: true``
+    the groove's flats (each sphere on a flat of its own material)."""
+    from .chain import build as chain_build
+    st = scene.setting(SPEC.name)
+    chain = chain_build(scene)
+    r = rows(Adhesion(st.model, st.surface_energy, st.groove), chain)
+    n = scene.n
+    out: list[tuple[str, float]] = []
+    mus = [tabor(r["G_ADHESION_RSTAR"][k], r["G_ADHESION_EMIX"][k], st.surface_energy)
+           for k in range(n - 1)]
+    out += _runs("contact", mus)
+    if chain.wall is not None:
+        out.append(("end wall", tabor(r["G_ADHESION_RSTAR"][-1], r["G_ADHESION_EMIX"][-1],
+                                      st.surface_energy)))
+    if st.groove:
+        flats = [tabor(R, effective_modulus(m, m), st.surface_energy)
+                 for R, m in zip(chain.radii, chain.materials)]
+        out += [(f"groove flats of {name.replace('contact', 'sphere')}", mu)
+                for name, mu in _runs("contact", flats)]
+    return out
+
+
+def _runs(what: str, values) -> list[tuple[str, float]]:
+    """Consecutive equal values merged: ('contacts 1-14', mu), ('contact 15', mu)."""
+    out, start = [], 0
+    for k in range(1, len(values) + 1):
+        if k == len(values) or values[k] != values[start]:
+            span = f"{what} {start + 1}" if k - start == 1 else f"{what}s {start + 1}-{k}"
+            out.append((span, values[start]))
+            start = k
+    return out
+
+
+def validate_notes(scene) -> list[str]:
+    """``granchain validate``'s lines: each adhesive contact's Tabor parameter."""
+    st = scene.setting(SPEC.name)
+    parts = "; ".join(f"{name} {mu:.3g}" for name, mu in contacts(scene))
+    return [f"adhesion ({st.model}, gamma = {st.surface_energy:g} J/m^2): Tabor's parameter "
+            f"mu = (R* (2 gamma)^2 / (E*^2 z0^3))^(1/3), z0 = {Z0 * 1e9:g} nm: {parts}"]
+
+
+def validate_warnings(scene) -> list[str]:
+    """``granchain validate``'s warnings: contacts where the chosen model is outside its
+    regime on Johnson & Greenwood (1997)'s adhesion map."""
+    st = scene.setting(SPEC.name)
+    out = []
+    for name, mu in contacts(scene):
+        why = regime(st.model, mu)
+        if why:
+            out.append(f"adhesion.model {st.model} at {name}: Tabor's parameter mu = {mu:.3g} "
+                       f"is outside the model's regime on Johnson & Greenwood (1997)'s "
+                       f"adhesion map; {why}")
+    return out
+
+
+def groove_load(scene, radius: float) -> float:
+    """The groove's extra normal load (N) on a sphere of ``radius`` (m): the pull-off of
+    its two sphere-flat contacts with the groove, 2 x (3 pi gamma R (jkr) or 4 pi gamma R
+    (dmt)) with ``adhesion.groove``, 0 without it or with the effect off (module doc)."""
+    if not scene.has(SPEC.name):
+        return 0.0
+    st = scene.setting(SPEC.name)
+    if not st.groove:
+        return 0.0
+    return 2.0 * pulloff_force(radius, st.surface_energy, st.model == "jkr")
+
+
+# ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Adhesion:
     model: str            # "dmt" | "jkr"
     gamma: float          # J/m^2, LAMMPS's cohesion
+    groove: bool = False  # the groove's flats adhere (groove_load)
 
 
 def build(scene) -> Adhesion:
     st = scene.setting(SPEC.name)
-    return Adhesion(st.model, st.surface_energy)
+    return Adhesion(st.model, st.surface_energy, st.groove)
 
 
 def kernel(ad: Adhesion) -> tuple[dict, dict]:

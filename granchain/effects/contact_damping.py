@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 from ..errors import SceneError
 from ..units import lmp_float as _r, to_micro
-from ..validate import Key, number_text, short
+from ..validate import Fit, Key, number_text, short
 from . import slots as S
 from .lanes import bit, closing_speed, contact_overlap
 from .spec import DeckPart, EffectSpec, compiled, pair_words
@@ -66,7 +66,10 @@ KEYS = (
         "is the elastic end of a sweep of e (the dissipation study, the inference's grid). "
         "With `tsuji` it is not quite: Tsuji's c(e) is a polynomial fit, and c(1) = 4.2e-4 "
         "(LAMMPS's law as it computes it), a restitution of about 0.9994.",
-        positive=True, hi=1.0),
+        positive=True, hi=1.0,
+        fit=Fit(0.7, 1.0, 7, "restitution", "e", "coefficient of restitution",
+                models=("coeff_restitution",),
+                example="damping: {model: coeff_restitution, e: 0.95}")),
     Key("damping.eta", "1/(m s)", "eta_n0 of `viscoelastic` (LAMMPS's second "
         "`hertz/material` coefficient); required there, refused with the other models. "
         "eta = 0 (no damping) is accepted, the elastic end of a sweep as e = 1 is.",

@@ -1,6 +1,9 @@
 """groove_friction: Coulomb friction of the groove walls on every sphere.
 
-Limit Fc = mu_pg m g / s, on the slip u = v - s R omega (u = v if rotation is off: the
+Limit Fc = mu_pg N, N the normal load of the two walls: m g / s (each wall m g / (2 s),
+s = sin(angle/2)), plus, with ``adhesion.groove``, the pull-off of the sphere's two
+sphere-flat contacts (``adhesion.groove_load``: each flat's own pull adds to that flat's
+load whatever the angle), on the slip u = v - s R omega (u = v if rotation is off: the
 sphere slides without rolling). Stick is an elastic-plastic (Cundall-Strack)
 spring-dashpot: F = -k_g xi - gamma_g u with xi' = u, and when |F| would exceed Fc the
 force is Fc sgn(F) and the history is return-mapped to xi = -F/k_g: the spring alone
@@ -29,6 +32,7 @@ from ..errors import SceneError
 from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
+from .adhesion import groove_load
 from .lanes import clip_to_cap, moving
 from .spec import DeckPart, EffectSpec, compiled, hermite_root
 
@@ -253,6 +257,10 @@ class GrooveFriction:
     Fc_each: tuple[float, ...] = ()
     kt_each: tuple[float, ...] = ()
     gamma_each: tuple[float, ...] = ()
+    # the walls' normal load beyond the weight's m g / s (N; the adhesive pull-off of the
+    # flats, adhesion.groove_load), a bead's and each sphere's
+    load: float = 0.0
+    load_each: tuple[float, ...] = ()
 
 
 def mindlin_stiffness(scene, material=None, radius=None, mass=None) -> float:
@@ -275,27 +283,31 @@ def mindlin_stiffness(scene, material=None, radius=None, mass=None) -> float:
 
 
 def _sphere(scene, material, R, m, I):
-    """(Fc, kt, gamma) of one sphere."""
+    """(Fc, kt, gamma, load) of one sphere: load the walls' normal load beyond its weight's
+    (the flats' pull-off, ``adhesion.groove_load``)."""
     st = scene.setting(SPEC.name)
-    Fc = st.mu * m * st.g / st.s
+    load = groove_load(scene, R)
+    Fc = st.mu * (m * st.g / st.s + load)
     if st.kt is None:
         kt = mindlin_stiffness(scene, material, R, m) if st.g > 0 else 1.0
     else:
         kt = st.kt
     m_u = m / (1.0 + st.s**2 * m * R * R / I) if scene.has("rotation") else m
-    return Fc, kt, 2.0 * st.damping * math.sqrt(kt * m_u)
+    return Fc, kt, 2.0 * st.damping * math.sqrt(kt * m_u), load
 
 
 def build(scene) -> GrooveFriction:
-    Fc, kt, gamma = _sphere(scene, scene.material, scene.radius, scene.mass, scene.inertia)
+    Fc, kt, gamma, load = _sphere(scene, scene.material, scene.radius, scene.mass,
+                                  scene.inertia)
     if scene.heterogeneous:
         each = [_sphere(scene, *a) for a in zip(scene.materials, scene.radii, scene.masses,
                                                  scene.inertias)]
     else:
-        each = [(Fc, kt, gamma)] * scene.n
+        each = [(Fc, kt, gamma, load)] * scene.n
     st = scene.setting(SPEC.name)
+    Fcs, kts, gammas, loads = (tuple(c) for c in zip(*each))
     return GrooveFriction(st.s, st.mu, st.g, Fc, kt, "mindlin" if st.kt is None else "scene",
-                          gamma, st.damping, *(tuple(c) for c in zip(*each)))
+                          gamma, st.damping, Fcs, kts, gammas, load, loads)
 
 
 def kernel(gf: GrooveFriction) -> tuple[dict, dict]:
@@ -323,38 +335,57 @@ GROOVE_SECTION = "Groove"            # chain.data section: atom-ID kt gamma
 
 
 def _springs(t) -> list[str]:
-    """'kt gamma' (1e-3 N/m, 1e-9 kg/s) of every sphere of a chain with terms t."""
+    """'kt gamma' (1e-3 N/m, 1e-9 kg/s), and 'load' (1e-9 N) when the flats adhere, of
+    every sphere of a chain with terms t."""
     gf = getattr(t, SPEC.name)
+    loads = gf.load_each if _loaded(gf) else (None,) * len(gf.kt_each)
     return [f"{_r(to_micro(k, 'stiffness'))} {_r(to_micro(g, 'damping'))}"
-            for k, g in zip(gf.kt_each, gf.gamma_each)]
+            + ("" if f is None else f" {_r(to_micro(f, 'force'))}")
+            for k, g, f in zip(gf.kt_each, gf.gamma_each, loads)]
+
+
+def _loaded(gf: GrooveFriction) -> bool:
+    """Does the groove carry a normal load beyond the weight (``adhesion.groove``)?"""
+    return any(f > 0.0 for f in gf.load_each)
 
 
 def _per_sphere(deck) -> bool:
-    """Do the spheres' stick springs differ (each sphere's mass, radius and material), within
-    a chain or, under a radius spread (``deck.members``), between chains? Then fix
-    groove/drag reads kt and gamma per atom; else it gets the one value of every sphere."""
+    """Do the spheres' stick springs (or extra loads) differ (each sphere's mass, radius
+    and material), within a chain or, under a radius spread (``deck.members``), between
+    chains? Then fix groove/drag reads kt, gamma (and load) per atom; else it gets the one
+    value of every sphere."""
     chains = deck.members if deck.members is not None else [deck.terms]
-    kts = {k for t in chains for k in getattr(t, SPEC.name).kt_each}
-    gammas = {g for t in chains for g in getattr(t, SPEC.name).gamma_each}
-    return len(kts) > 1 or len(gammas) > 1
+    each = [getattr(t, SPEC.name) for t in chains]
+    return any(len({x for gf in each for x in getattr(gf, f)}) > 1
+               for f in ("kt_each", "gamma_each", "load_each"))
 
 
 def lammps(gf: GrooveFriction | None, deck) -> DeckPart:
     """Its part of fix groove/drag (the granchain plugin, the same law in C++:
     lammps_inputs/plugin/fix_groove_drag.md), its global and per-chain work, and when the
     spheres' springs differ, each sphere's kt and gamma (a section of chain.data, read into
-    fix property/atom vectors)."""
+    fix property/atom vectors). With ``adhesion.groove`` the fix's ``load`` is the walls'
+    normal load beyond the weight (``GrooveFriction.load``, the one place both engines take
+    it from): Fc = mu (m g / s + load)."""
     energy = ("f_gd[1]", "groove friction")
     if gf is None:
         return DeckPart(fix_energy=energy)
+    loaded = _loaded(gf)
     comment = (f"# groove: Coulomb limit mu m g / s, stick spring kt ({gf.kt_source}) + "
                f"dashpot gamma ({_r(gf.damping)} x critical)")
+    if loaded:
+        comment = comment.replace("mu m g / s", "mu (m g / s + load), load the adhesive "
+                                  "pull-off of the groove's flats")
     args = (f"groove s {_r(gf.s)} mu {_r(gf.mu)} g {_r(to_micro(gf.g, 'acceleration'))} "
             f"kt {_r(to_micro(gf.kt, 'stiffness'))} gamma {_r(to_micro(gf.gamma, 'damping'))}")
+    if loaded:
+        args += f" load {_r(to_micro(gf.load, 'force'))}"
     note = f"cumulative work of the groove friction ({SPEC.lammps_ledger})"
     if not _per_sphere(deck):
         return DeckPart(fix=(comment, args), fix_energy=energy, ledger_note=note)
-    args = args[:args.index(" kt ")] + " kt d_groove_kt gamma d_groove_gamma"
+    args = args[:args.index(" kt ")] + " kt d_groove_kt gamma d_groove_gamma" + (
+        " load d_groove_load" if loaded else "")
+    props = "d_groove_kt d_groove_gamma" + (" d_groove_load" if loaded else "")
     n = deck.terms.n
     data = ["", GROOVE_SECTION, ""]
     for b in range(deck.n_chains):
@@ -363,7 +394,8 @@ def lammps(gf: GrooveFriction | None, deck) -> DeckPart:
     return DeckPart(
         fix=(comment + "; kt and gamma each sphere's own", args), fix_energy=energy,
         ledger_note=note, data=tuple(data), read_data=f" fix {GROOVE_PROPS} NULL {GROOVE_SECTION}",
-        atoms=("\n# per-sphere groove stick spring kt (1e-3 N/m) and dashpot gamma (1e-9 kg/s), "
+        atoms=("\n# per-sphere groove stick spring kt (1e-3 N/m) and dashpot gamma (1e-9 kg/s)"
+               + (" and load (1e-9 N)" if loaded else "") + ", "
                f"read from\n# chain.data's {GROOVE_SECTION} section (fix groove/drag kt "
-               f"d_groove_kt gamma d_groove_gamma)\nfix             {GROOVE_PROPS} all "
-               "property/atom d_groove_kt d_groove_gamma"))
+               f"d_groove_kt gamma d_groove_gamma{' load d_groove_load' if loaded else ''})"
+               f"\nfix             {GROOVE_PROPS} all property/atom {props}"))

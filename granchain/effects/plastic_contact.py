@@ -44,8 +44,18 @@ With ``contact_damping`` the dashpot acts as without plasticity (its prefactor f
 Hertz force at the overlap) and adds to Thornton's force. Not composed yet, and refused:
 the contact and rolling friction (their Coulomb caps would need the history-dependent
 normal force), ``damping.limit_damping`` (it holds Hertz's net force, not Thornton's), a
-dead load beyond a contact's F_y (the static state would be plastic), the event method,
-and LAMMPS (no Thornton law there yet).
+dead load beyond a contact's F_y (the static state would be plastic) and the event method.
+
+LAMMPS has no Thornton law: the granchain plugin's ``fix thornton/chain``
+(lammps_inputs/plugin/fix_thornton_chain.md) adds Thornton's force less Hertz's at every
+contact i,i+1 (atom ids in chain order) and at the end wall to the force of ``pair
+granular`` (``hertz/material`` and the damping, as without plasticity) and of ``fix
+wall/gran``: the reference engine's composition. It keeps each contact's largest overlap
+on the contact's left atom (the wall's on the last atom), raised and booked in each force
+call as velocity Verlet does here, and reports per atom the plastic work, the elastic
+energy beyond Hertz's and its part of the wall force, which the LAMMPS engine adds to the
+ledger and to the recorded wall force. E* and p_y are each sphere's (its contact with
+the next, the last sphere's the wall's), a section of the deck's data file.
 """
 from __future__ import annotations
 
@@ -54,7 +64,8 @@ from dataclasses import dataclass
 
 from ..errors import SceneError
 from ..materials import effective_modulus
-from ..validate import Key
+from ..units import lmp_float as _r, to_micro
+from ..validate import Fit, Key
 from . import slots as S
 from .hertz import energy as hertz_energy, force as hertz_force
 from .lanes import bit, closing_speed, contact_overlap
@@ -65,7 +76,8 @@ SPEC = EffectSpec("plastic_contact", state=(("L_PLASTIC_DMAX", "particle"),),
                   table_column="work_plastic_J",
                   work_note="the plastic loading of the contacts (Thornton's law): minus the "
                             "energy their yielding dissipated",
-                  lammps_reports_work=False, flags=("F_PLASTIC_CONTACT",),
+                  lammps_ledger="f_thornton[2]", lammps_potential="f_thornton[3]",
+                  lammps_wall_force="f_thornton[4]", flags=("F_PLASTIC_CONTACT",),
                   rows=("G_PLASTIC_EMIX", "G_PLASTIC_RSTAR", "G_PLASTIC_DY", "G_PLASTIC_SLOPE"))
 
 # left out of the warm-up's every-effect scene (engines.warmup): it refuses the contact
@@ -89,8 +101,12 @@ KEYS = (
         "every contact and of the end wall. Unset: each contact's is the smaller of its two "
         "materials' `yield_pressure` (granchain/data/materials.yaml: 1.6 times a sourced "
         "yield strength), the end wall's the sphere's (and the wall material's, if it has "
-        "one); a material without one must be given it here.", lo=1e5, hi=1e11,
-        allowed="unset: the materials' values"),
+        "one); a material without one must be given it here. Fittable: the prior spans "
+        "annealed 316's 4.6e8 Pa and hardened 440C's 3.0e9 Pa; at its top two 440C beads "
+        "of 150 um yield above about 7.5 m/s (Thornton's onset speed).", lo=1e5, hi=1e11,
+        allowed="unset: the materials' values",
+        fit=Fit(1e8, 1e10, 8, "yield_pressure", "p_y", "limiting contact pressure",
+                example="plasticity: {model: thornton, yield_pressure: 1.0e9}")),
 )
 _KEY = {k.name: k for k in KEYS}
 
@@ -384,6 +400,11 @@ def yield_force(E, Rs, py):
     return 4.0 / 3.0 * E * math.sqrt(Rs) * yield_overlap(E, Rs, py) ** 1.5
 
 
+# the effects the law does not act with yet (module docstring); the plasticity study leaves
+# them out of its scenes
+NOT_WITH = ("particle_friction", "rolling_friction", "adhesion")
+
+
 def check(scene) -> None:
     """What the law does not yet act with (module docstring), each refused in one line."""
     pressures(scene)
@@ -419,9 +440,60 @@ def check(scene) -> None:
                              "plasticity.yield_pressure")
 
 
+# the deck's names: the fix, its per-atom E* and p_y vectors, their fix property/atom and
+# the data file's section holding them
+FIX_ID = "thornton"
+PROPS = "thornton_props"
+VECTORS = ("d_thornton_estar", "d_thornton_yield")
+DATA_SECTION = "Thornton"
+
+
+def _deck_values(terms) -> list[tuple[float, float]]:
+    """(E*, p_y) in Pa of each sphere's right contact (the last sphere's: the end wall's,
+    (0, 0) without one)."""
+    pc, ch = terms.plastic_contact, terms.chain
+    n = len(ch.radii)
+    out = [(_star(ch, k)[0], pc.pressures[k]) for k in range(n - 1)]
+    out.append((_star(ch, n - 1)[0], pc.pressures[-1]) if ch.wall is not None else (0.0, 0.0))
+    return out
+
+
 def lammps(pc: PlasticContact | None, deck) -> DeckPart:
-    """No LAMMPS law yet: a deck with the effect on is refused."""
+    """The granchain plugin's ``fix thornton/chain`` (Thornton's force less Hertz's at
+    every contact and at the end wall, added to the pair style's and fix wall/gran's), each
+    sphere's E* and p_y (a section of chain.data, read into fix property/atom vectors), its
+    per-atom plastic work, elastic energy beyond Hertz's and wall force for the ledger."""
     if pc is None:
         return DeckPart()
-    raise SceneError("effects", "plastic_contact: no LAMMPS law yet",
-                     "run it on the reference engine")
+    n = deck.terms.n
+    data = ["", DATA_SECTION, ""]
+    for b in range(deck.n_chains):
+        t = deck.terms if deck.members is None else deck.members[b]
+        data += [f"{b * n + i + 1} {_r(to_micro(E, 'pressure'))} {_r(to_micro(py, 'pressure'))}"
+                 for i, (E, py) in enumerate(_deck_values(t))]
+    walled = deck.terms.chain.wall is not None
+    given = sorted({p for p in pc.pressures if p > 0.0})
+    fix = (f"fix             {FIX_ID} all thornton/chain chain {n} estar {VECTORS[0]} "
+           f"yield {VECTORS[1]}" + (f" wall {_r(deck.wall_x)}" if walled else ""))
+    lines = (
+        "# plastic contact (effects/plastic_contact.py; lammps_inputs/plugin/fix_thornton_chain.md):",
+        "# Thornton (1997): Hertz until the peak pressure reaches p_y, then F = F_y + pi p_y R* "
+        "(delta - delta_y);",
+        "# unloading Hertzian with R_p = 4 E* a_max^3/(3 F_max) down to delta_p. fix "
+        "thornton/chain adds F_Thornton",
+        "# - F_Hertz at each contact i,i+1 (atom ids in chain order)"
+        + (" and at the end wall" if walled else "") + " to the pair style's",
+        "# force (the damping acts as without plasticity); each contact's largest overlap is "
+        "kept on its left",
+        "# atom. E*, p_y: chain.data's " + DATA_SECTION + " section; p_y = "
+        + ", ".join(f"{_r(p)}" for p in given) + " Pa.",
+        fix)
+    return DeckPart(
+        contact="Thornton's elastic-perfectly plastic law (the pair style's force plus fix "
+                "thornton/chain's correction)",
+        plugin_lines=lines, data=tuple(data), read_data=f" fix {PROPS} NULL {DATA_SECTION}",
+        ledger_note=f"cumulative work of the plastic loading ({SPEC.lammps_ledger})",
+        atoms=("\n# per-sphere E* and p_y (1e3 Pa) of the sphere's contact with the next (the "
+               "last sphere's: the end wall's),\n# read from chain.data's "
+               f"{DATA_SECTION} section (fix thornton/chain)\nfix             {PROPS} all "
+               f"property/atom {' '.join(VECTORS)} ghost yes"))

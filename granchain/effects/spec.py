@@ -30,6 +30,12 @@ class EffectSpec:
     lammps_reports_work: False when LAMMPS has no per-atom output for the work (contact
         friction inside ``pair granular``): the LAMMPS ledger then closes by construction
         and that column is the balance residual.
+    lammps_potential: the per-atom LAMMPS quantity (energy units) of the elastic energy
+        the effect's contact law holds beyond the Hertz energy the engine computes from
+        the positions, summed per chain into the ledger's potential column; or None.
+    lammps_wall_force: the per-atom LAMMPS quantity (force units) of the x force the
+        effect adds at the end wall beyond fix wall/gran's, summed per chain into the
+        recorded wall force; or None.
     params, flags: the slots of the kernels' parameter vector P and flag vector FL that
         the effect's ``kernel(term)`` fills (``P_*``, ``F_*``).
     rows: the per-sphere or per-contact rows of the kernels' per-chain array G that the
@@ -52,6 +58,8 @@ class EffectSpec:
     work_note: str | None = None
     lammps_ledger: str | None = None
     lammps_reports_work: bool = True
+    lammps_potential: str | None = None
+    lammps_wall_force: str | None = None
     params: tuple[str, ...] = ()
     flags: tuple[str, ...] = ()
     rows: tuple[str, ...] = ()
@@ -103,6 +111,8 @@ class DeckPart:
         which the deck then loads; fix_option: arguments that fix takes whenever it is
         loaded; fix_energy: (its global output, the work it is) for the global energy
         ledger whenever it is loaded.
+    plugin_lines: deck lines of the plugin's other styles (comments and commands, after
+        fix groove/drag; the deck then loads the plugin).
     integrator: the deck's time integrator (comment and fix lines).
     energy: (compute line, value, what it is) of the global energy ledger.
     ledger_compute: the compute line of its per-atom ledger quantity
@@ -122,6 +132,7 @@ class DeckPart:
     fix: tuple[str, str] | None = None
     fix_option: str | None = None
     fix_energy: tuple[str, str] | None = None
+    plugin_lines: tuple[str, ...] = ()
     integrator: str | None = None
     energy: tuple[str, str, str] | None = None
     ledger_compute: str | None = None

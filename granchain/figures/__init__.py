@@ -21,12 +21,17 @@ granchain.reductions.
 - :func:`radius_spread`  Fig. 5.3b's oscillation measure against the radius sd, beside 20 nm
   gaps (radius_spread; beyond the chapter);
 - :func:`dissipation`  v_max,1, v_max,2, their ratio and v_g against the coefficient of
-  restitution, with the chapter's measured bands (dissipation; beyond the chapter).
+  restitution, with the chapter's measured bands (dissipation; beyond the chapter);
+- :func:`plasticity`  v_max,1, v_max,2, their ratio and v_g against v_s at limiting pressures
+  p_y of Thornton's yielding contacts, with the measured bands (plasticity; beyond the
+  chapter);
+- :func:`adhesion`  the same against the surface energy gamma of adhesive contacts, with and
+  without the groove's flats adhering (adhesion; beyond the chapter).
 
 Modules: ``style`` (fixed rcParams, colours, deterministic saving), ``fig5_1`` (packed
 chain), ``fig5_2`` (the vibrometer), ``fig5_3`` (random gaps), ``fig5_4`` (loose chains), ``field``
 (the field's chains: precompression, wall), ``questions`` (the chapter's questions:
-radius_spread, dissipation). Output is deterministic: a
+radius_spread, dissipation, plasticity, adhesion). Output is deterministic: a
 rerun on the same tables gives byte-identical PNG and PDF files.
 
 Command line (what the workflow's figure rules call)::
@@ -50,7 +55,7 @@ from .fig5_2 import fig5_2a, vibrometer
 from .fig5_3 import fig5_3b, fig5_3c
 from .fig5_4 import fig5_4b
 from .field import precompression, wall
-from .questions import dissipation, radius_spread
+from .questions import adhesion, dissipation, plasticity, radius_spread
 
 # name -> (drawing function, the tables it reads, in argument order)
 FIGURES = {
@@ -66,6 +71,8 @@ FIGURES = {
     "wall": (wall, ["wall"]),
     "radius_spread": (radius_spread, ["radius_spread"]),
     "dissipation": (dissipation, ["dissipation"]),
+    "plasticity": (plasticity, ["plasticity"]),
+    "adhesion": (adhesion, ["adhesion"]),
 }
 # readers of the inputs that are not result tables
 READERS = {"trace": read_trace, "vibrometer_trace": read_vibrometer_trace}
@@ -97,7 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
                                              "workflow's tables (PNG and PDF).")
     ap.add_argument("name", help=", ".join(FIGURES))
     for study in ("packed_sweep", "gap_profile", "gap_sweep", "extra_length", "vibrometer",
-                  "precompression", "wall", "radius_spread", "dissipation"):
+                  "precompression", "wall", "radius_spread", "dissipation", "plasticity", "adhesion"):
         ap.add_argument("--" + study.replace("_", "-"), dest=study,
                         help=f"results/<preset>/tables/{study}.csv")
     ap.add_argument("--trace", help="results/<preset>/traces/packed_trace_<material>.npz")

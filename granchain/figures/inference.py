@@ -142,27 +142,36 @@ def plot_joint_inference(res, meas, base, path, force: bool = False) -> Path:
     (mean gap, e), its two marginals, and the timing and both probes' peaks against the
     striker speed, measured (error bars: the stated one-sigma errors) and simulated at the
     posterior (95 % band over posterior draws and gap realisations, and its median)."""
+    from ..inference import fit_key
     grid = res.grid
+    fk = fit_key(res.key)
+    sym = fk.fit.symbol
+    unit = "" if fk.key.unit == "1" else f" ({fk.key.unit})"
+    axis_label = f"{fk.fit.label} {sym}{unit}"
     fig, axes = figure(ncols=3, nrows=2, size=(11.0, 6.6))
     (a_joint, a_g, a_e), (a_t, a_v1, a_v2) = axes
     g_nm = res.posterior_g_m * 1e9
     if np.any(res.posterior_pdf > 0):
         P = res.posterior_pdf.T / np.max(res.posterior_pdf)
-        a_joint.pcolormesh(g_nm, res.posterior_e, P, shading="auto", cmap="Purples")
-        a_joint.contour(g_nm, res.posterior_e, P, levels=[np.exp(-3.0), np.exp(-0.5)],
+        a_joint.pcolormesh(g_nm, res.posterior_p, P, shading="auto", cmap="Purples")
+        a_joint.contour(g_nm, res.posterior_p, P, levels=[np.exp(-3.0), np.exp(-0.5)],
                         colors=["#6a3d9a", "#3f007d"], linewidths=0.9)
-    if math.isfinite(res.gap_mean_m) and math.isfinite(res.restitution):
-        a_joint.plot([res.gap_mean_m * 1e9], [res.restitution], "+", color="k", ms=9,
+    if math.isfinite(res.gap_mean_m) and math.isfinite(res.param):
+        a_joint.plot([res.gap_mean_m * 1e9], [res.param], "+", color="k", ms=9,
                      label="posterior medians")
         a_joint.legend(loc="best")
     g_lim = [x * 1e9 for x in _zoom(res.posterior_g_m, res.marginal_g)]
-    e_lim = _zoom(res.posterior_e, res.marginal_e)
+    # the key's marginal is a density per its coordinate (log p for a log-uniform prior)
+    e_lim = [float(fk.value(u)) for u in _zoom(fk.coord(res.posterior_p), res.marginal_p)]
+    if fk.log:
+        a_joint.set_yscale("log")
+        a_e.set_xscale("log")
     a_joint.set_xlim(*g_lim)
     a_joint.set_ylim(*e_lim)
     a_g.set_xlim(*g_lim)
     a_e.set_xlim(*e_lim)
     a_joint.set_xlabel("mean gap (nm)")
-    a_joint.set_ylabel("coefficient of restitution e")
+    a_joint.set_ylabel(axis_label)
     a_joint.set_title(f"joint posterior (correlation {res.posterior_correlation:+.2f});\n"
                       "contours at exp(-1/2) and exp(-3) of its peak")
     a_g.plot(g_nm, res.marginal_g / 1e9, color="#8c1d6b")
@@ -174,14 +183,14 @@ def plot_joint_inference(res, meas, base, path, force: bool = False) -> Path:
     med = "n/a" if not math.isfinite(res.gap_mean_m) else f"{res.gap_mean_m * 1e9:.1f} nm"
     a_g.set_title(f"mean gap {med}, 95 % {ci}" + outside_note(res))
     a_g.legend(loc="best")
-    a_e.plot(res.posterior_e, res.marginal_e, color="#1f77b4")
-    _interval(a_e, *res.restitution_ci95, res.restitution, "#1f77b4")
-    a_e.set_xlabel("coefficient of restitution e")
-    a_e.set_ylabel("posterior density")
-    eci = ("n/a" if not all(math.isfinite(x) for x in res.restitution_ci95)
-           else f"[{res.restitution_ci95[0]:.4f}, {res.restitution_ci95[1]:.4f}]")
-    emed = "n/a" if not math.isfinite(res.restitution) else f"{res.restitution:.4f}"
-    a_e.set_title(f"e {emed}, 95 % {eci}")
+    a_e.plot(res.posterior_p, res.marginal_p, color="#1f77b4")
+    _interval(a_e, *res.param_ci95, res.param, "#1f77b4")
+    a_e.set_xlabel(axis_label)
+    a_e.set_ylabel("posterior density" + (f" (per log {sym})" if fk.log else ""))
+    eci = ("n/a" if not all(math.isfinite(x) for x in res.param_ci95)
+           else f"[{res.param_ci95[0]:.4g}, {res.param_ci95[1]:.4g}]")
+    emed = "n/a" if not math.isfinite(res.param) else f"{res.param:.4g}"
+    a_e.set_title(f"{sym} {emed}, 95 % {eci}")
     a_e.legend(loc="best")
     v = (np.geomspace(grid.speeds[0], grid.speeds[-1], 25) if grid.speeds.size > 1
          else grid.speeds)

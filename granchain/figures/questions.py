@@ -1,6 +1,7 @@
 """The chapter's questions, beyond Eq. 5.1: can a sphere-size tolerance alone make Fig.
 5.3b's oscillation (radius_spread study), and which contact dissipation gives the measured
-peaks of Fig. 5.2 (dissipation study)?
+peaks of Fig. 5.2 (dissipation study), and which yielding (plasticity study) or adhesive
+(adhesion study) contacts?
 
 Draws into ``{out}.png`` and ``{out}.pdf`` from tables/radius_spread.csv and
 tables/dissipation.csv; the numbers come from granchain.reductions (``spread_oscillation``,
@@ -14,9 +15,10 @@ import numpy as np
 import pandas as pd
 from matplotlib.ticker import FuncFormatter
 
-from ..reductions import (MEASURED_PEAKS, PROBES, dissipation_curves, dissipation_match,
-                        first_reaching, label, n_particles, peak_profile, reference_engine,
-                        spread_oscillation)
+from ..reductions import (MEASURED_PEAKS, PROBES, cohesion_curves, cohesion_match,
+                        dissipation_curves, dissipation_match,
+                        first_reaching, label, n_particles, peak_profile, plasticity_curves,
+                        plasticity_match, reference_engine, spread_oscillation)
 from .style import color, colormap, drawn, figure, material_style, save
 
 CHAPTER_OSCILLATION = 0.20      # Fig. 5.3b: "peak velocity oscillates by ~20%"
@@ -202,4 +204,114 @@ def dissipation(df: pd.DataFrame, out) -> list[Path]:
     fig.suptitle("Contact dissipation against the chapter's measured peaks (beyond the "
                  "chapter)\n" + "\n".join(lines), fontsize=7.5)
     fig.tight_layout()
+    return save(fig, out)
+
+
+@drawn
+def plasticity(df: pd.DataFrame, out) -> list[Path]:
+    """v_max,1 / v_s, v_max,2 / v_s, v_max,2 / v_max,1 and v_g against the striker speed
+    (log), one panel row per quantity pair, one curve per material and limiting pressure
+    p_y (median over the chains of the material's smallest mean gap; the elastic chain
+    black, the p_y from light to dark as they fall), with the chapter's measured bands
+    (grey: value and its 95% interval, Fig. 5.2b, 5.2c). The title gives, per material,
+    the p_y at which the median v_max,1 is the measured 0.57 v_s at the study's slowest and
+    fastest speeds (:func:`~granchain.reductions.plasticity_match`)."""
+    c = plasticity_curves(df)
+    m = plasticity_match(df)
+    fig, axes = figure(ncols=2, nrows=2, size=(10.0, 7.6), sharex=True)
+    axes = axes.ravel()
+    mats = list(dict.fromkeys(c["material"]))
+    dashes = ("-", "--", "-.", ":")
+    for ax, (q, ylab, band_key) in zip(axes, DISSIPATION_PANELS):
+        if band_key is not None:
+            val, half = MEASURED_PEAKS[band_key]
+            ax.axhspan(val - half, val + half, color="0.75", alpha=0.45, lw=0)
+            ax.axhline(val, color="0.35", lw=1.0)
+        for k, mat in enumerate(mats):
+            cm = c[c["material"] == mat]
+            cm = cm[cm["gap_mean_nm"] == cm["gap_mean_nm"].min()]
+            pys = sorted(set(cm["yield_pressure_Pa"]), reverse=True)
+            finite = [p for p in pys if np.isfinite(p)]
+            cmap = colormap("viridis")
+            shades = [cmap(0.15 + 0.7 * i / max(len(finite) - 1, 1))
+                      for i in range(len(finite))]
+            for py in pys:
+                g = cm[cm["yield_pressure_Pa"] == py].sort_values("v_striker_m_s")
+                if np.isfinite(py):
+                    col, what = shades[finite.index(py)], f"p_y = {py / 1e6:.3g} MPa"
+                else:
+                    col, what = "k", "elastic"
+                ax.plot(g["v_striker_m_s"], g[f"{q}_median"], "o", ls=dashes[k % 4],
+                        color=col, ms=3.5, lw=1.0, label=f"{label(mat)}, {what}")
+        ax.set_xscale("log")
+        ax.set_ylabel(ylab)
+        ax.set_title(ylab + " against v_s", fontsize=8.5)
+    for ax in axes[2:]:
+        ax.set_xlabel("striker speed v_s (m/s)")
+    axes[3].legend(loc="best", fontsize=5.5, ncol=2)
+    lines = []
+    for mat in mats:
+        mm = m[(m["material"] == mat)]
+        mm = mm[mm["gap_mean_nm"] == mm["gap_mean_nm"].min()].sort_values("v_striker_m_s")
+        ends = [mm.iloc[0], mm.iloc[-1]]
+        lines.append(f"{label(mat)}: v_max,1 = 0.57 v_s at p_y = " + ", ".join(
+            (f"{r['py_v1'] / 1e6:.3g} MPa" if np.isfinite(r["py_v1"]) else "none")
+            + f" ({r['v_striker_m_s']:g} m/s)" for r in ends))
+    fig.suptitle("Thornton's yielding contacts against the measured peaks\n"
+                 + "; ".join(lines), fontsize=8.5)
+    return save(fig, out)
+
+
+@drawn
+def adhesion(df: pd.DataFrame, out) -> list[Path]:
+    """v_max,1 / v_s, v_max,2 / v_s, v_max,2 / v_max,1 and v_g against the surface energy
+    gamma (log), one curve per material, striker speed and groove setting (median over the
+    chains of the material's smallest mean gap; solid: the contacts adhere, dashed: the
+    groove's flats too), the chain without adhesion as a hollow marker at the panel's left
+    edge, with the chapter's measured bands (grey: value and its 95% interval). The title
+    gives, per material and groove setting, the gamma at which the median v_max,1 is the
+    measured 0.57 v_s at the study's lowest speed (:func:`~granchain.reductions.cohesion_match`)."""
+    c = cohesion_curves(df)
+    m = cohesion_match(df)
+    fig, axes = figure(ncols=2, nrows=2, size=(10.0, 7.6), sharex=True)
+    axes = axes.ravel()
+    mats = list(dict.fromkeys(c["material"]))
+    speeds = sorted(set(c["v_striker_m_s"]))
+    cmap = colormap("viridis")
+    shade = {v: cmap(0.15 + 0.7 * i / max(len(speeds) - 1, 1)) for i, v in enumerate(speeds)}
+    g_min = float(c.loc[c["surface_energy_J_m2"] > 0, "surface_energy_J_m2"].min())
+    for ax, (q, ylab, band_key) in zip(axes, DISSIPATION_PANELS):
+        if band_key is not None:
+            val, half = MEASURED_PEAKS[band_key]
+            ax.axhspan(val - half, val + half, color="0.75", alpha=0.45, lw=0)
+            ax.axhline(val, color="0.35", lw=1.0)
+        for k, mat in enumerate(mats):
+            cm = c[c["material"] == mat]
+            cm = cm[cm["gap_mean_nm"] == cm["gap_mean_nm"].min()]
+            marker = "os^v"[k % 4]
+            for (vs, groove), g in cm[cm["surface_energy_J_m2"] > 0].groupby(
+                    ["v_striker_m_s", "groove_cohesion"]):
+                ax.plot(g["surface_energy_J_m2"], g[f"{q}_median"], marker,
+                        ls="--" if groove else "-", color=shade[vs], ms=3.5, lw=1.0,
+                        label=f"{label(mat)}, v_s = {vs:g} m/s"
+                              + (", groove too" if groove else ""))
+            none = cm[cm["surface_energy_J_m2"] == 0].sort_values("v_striker_m_s")
+            for _, r in none.iterrows():
+                ax.plot([g_min / 2], [r[f"{q}_median"]], marker, mfc="none",
+                        color=shade[r["v_striker_m_s"]], ms=6)
+        ax.set_xscale("log")
+        ax.set_ylabel(ylab)
+        ax.set_title(ylab + " against gamma", fontsize=8.5)
+    for ax in axes[2:]:
+        ax.set_xlabel("surface energy gamma (J/m^2; hollow: no adhesion)")
+    axes[3].legend(loc="best", fontsize=5.5, ncol=2)
+    lines = []
+    for (mat, groove), mm in m.groupby(["material", "groove_cohesion"], sort=False):
+        mm = mm[mm["gap_mean_nm"] == mm["gap_mean_nm"].min()].sort_values("v_striker_m_s")
+        r = mm.iloc[0]
+        lines.append(f"{label(mat)}{' + groove' if groove else ''}: 0.57 v_s at "
+                     + (f"gamma = {r['gamma_v1']:.3g} J/m^2" if np.isfinite(r["gamma_v1"])
+                        else "no gamma of the study") + f" ({r['v_striker_m_s']:g} m/s)")
+    fig.suptitle("Adhesive contacts against the measured peaks\n" + "; ".join(lines),
+                 fontsize=8.5)
     return save(fig, out)

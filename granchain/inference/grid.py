@@ -2,11 +2,11 @@
 
 - The base scene each grid is derived from: completed by :func:`complete_base` (the
   chapter's gap law, the data's striker speeds), checked by :func:`check_base` and, for the
-  joint fit, :func:`check_restitution_base`.
+  joint fit, ``fitkeys.check_fit_base`` (the fitted key's effect on).
 - What a simulated chain gives a measured column: :func:`timing` and :func:`peak`, the
   one place each.
 - The gap-only :class:`Grid` (mean gaps x striker speeds x realisations,
-  :func:`simulate_grid`) and the joint :class:`JointGrid` (x restitutions,
+  :func:`simulate_grid`) and the joint :class:`JointGrid` (x the fitted key's values,
   :func:`simulate_joint_grid`): each node one scene derived from the base scene, run
   through ``simulate.run_scene`` with designed gap realisations (``granchain.gapdesign``)
   and cached per node, keyed by the node's scene, the design and the package's source.
@@ -25,13 +25,16 @@ from ..errors import GranchainError
 from ..fileio import atomic_write_bytes
 from ..gapdesign import EMPHASIS, GAP_ONLY_KEY_PRIOR, KEY_PRIOR, design, prior_weights
 from ..scene import Scene
+from .fitkeys import DEFAULT_KEY, FitKey, check_fit_base, check_fit_range, fit_key
 from .measurements import TIMING_COLUMNS, Measurements
 
 GAP_LAWS = ("uniform", "exponential")     # laws whose realisations scale with their mean
 DEFAULT_GAP_LAW = "uniform"               # the chapter's: uniform on [0, 2 mean], i.i.d.
 CACHE_FORMAT = 1                          # bump when the cached arrays change meaning
 GAP_MAX, GAP_POINTS, REALISATIONS = 500e-9, 21, 64   # the grid of both fits (and the CLI)
-E_MIN, E_POINTS = 0.7, 7          # restitution nodes linspace(E_MIN, 1, E_POINTS): spacing 0.05
+# the restitution's nodes linspace(E_MIN, 1, E_POINTS) (spacing 0.05): damping.e's prior
+# range, declared with the key (effects/contact_damping.py)
+E_MIN, E_POINTS = fit_key(DEFAULT_KEY).fit.lo, fit_key(DEFAULT_KEY).fit.points
 JOINT_OBS = ("dt_peak_s", "dt_front_s", "v_max_1", "v_max_2")
 JOINT_CACHE_FORMAT = 1
 
@@ -227,23 +230,6 @@ def peak(result, probe: int) -> float:
     return result.v_max_1 if probe == 0 else result.v_max_2
 
 
-def check_restitution_base(base: Scene) -> None:
-    """A base scene whose coefficient of restitution the inference can set: the
-    contact_damping effect with model coeff_restitution."""
-    from ..errors import SceneError
-    fix = ("add contact_damping to effects with damping: {model: coeff_restitution, "
-           "e: 0.95} (any e; the inference sets it)")
-    if "contact_damping" not in base.effects:
-        raise SceneError("effects", "has no contact_damping, so the model has no "
-                         "restitution to fit", fix)
-    model = base.setting("contact_damping").model
-    if model != "coeff_restitution":
-        raise SceneError("damping.model", f"is {model}; the inference fits the coefficient "
-                         "of restitution e of model coeff_restitution",
-                         "write damping: {model: coeff_restitution, e: 0.95} (any e; the "
-                         "inference sets it)")
-
-
 def gap_nodes(gap_max: float, points: int) -> np.ndarray:
     """Mean gaps of the joint grid: gap_max (k/(points-1))^2, dense where the peaks change
     fastest (the packed-to-gapped change at gaps of the order of the contact overlap,
@@ -251,25 +237,24 @@ def gap_nodes(gap_max: float, points: int) -> np.ndarray:
     return gap_max * np.linspace(0.0, 1.0, points) ** 2
 
 
-def restitution_nodes(e_min: float, points: int) -> np.ndarray:
-    return np.linspace(e_min, 1.0, points)
-
-
-def joint_scene(base: Scene, gap_mean: float, e: float, realisations: int) -> Scene:
+def joint_scene(base: Scene, gap_mean: float, value: float, realisations: int,
+                key: str = DEFAULT_KEY) -> Scene:
     """The scene of one node of the joint grid: the base scene at mean gap ``gap_mean``
-    (m) and coefficient of restitution ``e``, ``realisations`` gap realisations."""
-    return base.derive({"gaps": {"mean": float(gap_mean)}, "damping": {"e": float(e)},
+    (m) and the fitted scene key ``key`` at ``value``, ``realisations`` gap
+    realisations."""
+    return base.derive({"gaps": {"mean": float(gap_mean)}, fit_key(key).path: float(value),
                         "ensemble": {"realisations": int(realisations)}})
 
 
 @dataclass(frozen=True)
 class JointGrid(WeightedGrid):
     """Simulated observables ``values[name]`` (``JOINT_OBS``: the two timings in s, the
-    probes' peaks in m/s) of shape (G, E, S, R), NaN where not measured, at mean gaps
-    ``gaps`` (G), restitutions ``restitutions`` (E, ascending, the last 1), striker speeds
-    ``speeds`` (S) and R realisations (the same gap patterns at every node)."""
+    probes' peaks in m/s) of shape (G, P, S, R), NaN where not measured, at mean gaps
+    ``gaps`` (G), values ``params`` (P, ascending) of the fitted scene key ``key``
+    (``damping.e``: restitutions, the last 1), striker speeds ``speeds`` (S) and R
+    realisations (the same gap patterns at every node)."""
     gaps: np.ndarray
-    restitutions: np.ndarray
+    params: np.ndarray
     speeds: np.ndarray
     values: dict
     hashes: tuple[str, ...]
@@ -277,6 +262,16 @@ class JointGrid(WeightedGrid):
     wall_s: float = 0.0
     weights: np.ndarray | None = None
     key_prior: str = KEY_PRIOR
+    key: str = DEFAULT_KEY
+
+    @property
+    def fit_key(self) -> FitKey:
+        return fit_key(self.key)
+
+    @property
+    def coords(self) -> np.ndarray:
+        """The nodes in the coordinate the grid interpolates in (``FitKey.coord``)."""
+        return self.fit_key.coord(self.params)
 
     @property
     def realisations(self) -> int:
@@ -284,7 +279,7 @@ class JointGrid(WeightedGrid):
 
     @property
     def n_chains(self) -> int:
-        return int(self.gaps.size * self.restitutions.size * self.speeds.size
+        return int(self.gaps.size * self.params.size * self.speeds.size
                    * self.realisations)
 
     def read_by_fit(self, column: str) -> tuple[np.ndarray, ...]:
@@ -297,50 +292,55 @@ def _joint_cache_file(cache_dir: Path, scene: Scene, tag: str) -> Path:
                               f"v{JOINT_CACHE_FORMAT}.npz")
 
 
-def check_joint_options(gap_max: float, gap_points: int, e_min: float, e_points: int,
-                        realisations: int) -> None:
+def check_joint_options(gap_max: float, gap_points: int, lo: float, points: int,
+                        realisations: int, key: str = DEFAULT_KEY, hi: float | None = None,
+                        options: tuple[str, str] = ("--e-min", "--e-points")) -> None:
+    """The joint grid's options: mean gaps, realisations and the fitted key's range
+    [lo, hi] (hi None: its declared top) in ``points`` nodes, set by ``options``."""
     if gap_points < 3:
         raise GranchainError(f"--gap-points: {gap_points} is too few; give >= 3")
     if not gap_max > 0:
         raise GranchainError(f"--gap-max-nm: {gap_max * 1e9:g} must be > 0")
     if realisations < 2:
         raise GranchainError(f"--realisations: {realisations} is too few; give >= 2")
-    if not (0.0 < e_min < 1.0):
-        raise GranchainError(f"--e-min: {e_min:g} is not between 0 and 1; give the smallest "
-                             "coefficient of restitution to simulate, e.g. 0.8")
-    if e_points < 2:
-        raise GranchainError(f"--e-points: {e_points} is too few; give >= 2")
+    fk = fit_key(key)
+    check_fit_range(fk, lo, fk.fit.hi if hi is None else hi, points, options)
 
 
-def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: float,
-                        e_points: int, realisations: int, cache_dir=None,
+def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, lo: float,
+                        points: int, realisations: int, cache_dir=None,
                         engine: str = "reference", progress: bool | None = None,
-                        emphasis: float = EMPHASIS) -> JointGrid:
+                        emphasis: float = EMPHASIS, key: str = DEFAULT_KEY,
+                        hi: float | None = None) -> JointGrid:
     """Simulate (or read from ``cache_dir``) the joint grid: mean gaps
-    ``gap_nodes(gap_max, gap_points)`` x restitutions ``restitution_nodes(e_min,
-    e_points)`` x the base scene's speeds x ``realisations`` designed realisations (module
-    doc). ``progress`` and ``emphasis`` as :func:`simulate_grid`."""
+    ``gap_nodes(gap_max, gap_points)`` x the fitted scene key ``key``'s values
+    ``FitKey.nodes(lo, hi, points)`` (hi None: its declared top; damping.e: restitutions
+    from lo to 1) x the base scene's speeds x ``realisations`` designed realisations
+    (module doc). ``progress`` and ``emphasis`` as :func:`simulate_grid`."""
     import time
     from ..runplan import plan_run
     from ..progress import bar
     from ..simulate import run_scene
+    fk = fit_key(key)
+    hi = fk.fit.hi if hi is None else float(hi)
     check_base(base)
-    check_restitution_base(base)
-    check_joint_options(gap_max, gap_points, e_min, e_points, realisations)
+    check_fit_base(base, fk)
+    check_joint_options(gap_max, gap_points, lo, points, realisations, key, hi)
     speeds = np.array(sorted(set(float(v) for v in base.striker_velocities)))
     if speeds[0] <= 0:
         raise GranchainError("scene field 'striker.velocity': a speed of 0 has no wave; give "
                              "speeds > 0")
     base = base.derive(striker={"velocity": [float(v) for v in speeds]})
     designed = design(base, realisations, emphasis)
-    gaps, es = gap_nodes(gap_max, gap_points), restitution_nodes(e_min, e_points)
-    shape = (gaps.size, es.size, speeds.size, realisations)
+    gaps, ps = gap_nodes(gap_max, gap_points), fk.nodes(lo, hi, points)
+    shape = (gaps.size, ps.size, speeds.size, realisations)
     out = {c: np.full(shape, np.nan) for c in JOINT_OBS}
     hashes, simulated, todo = [], 0, []
     t0 = time.perf_counter()
     for k, g in enumerate(gaps):
-        for j, e in enumerate(es):
-            scene = plan_run(joint_scene(base, g, e, realisations), per_speed=False).scene
+        for j, p in enumerate(ps):
+            scene = plan_run(joint_scene(base, g, p, realisations, key),
+                             per_speed=False).scene
             hashes.append(scene.hash)
             path = (_joint_cache_file(cache_dir, scene, designed.tag) if cache_dir is not None
                     else None)
@@ -367,6 +367,6 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, e_min: flo
                 buf = io.BytesIO()
                 np.savez(buf, **{c: out[c][k, j] for c in JOINT_OBS})
                 atomic_write_bytes(path, buf.getvalue(), force=True, field="--cache-dir")
-    return JointGrid(gaps, es, speeds, out, tuple(hashes), simulated,
-                     time.perf_counter() - t0, designed.weights)
+    return JointGrid(gaps, ps, speeds, out, tuple(hashes), simulated,
+                     time.perf_counter() - t0, designed.weights, key=key)
 

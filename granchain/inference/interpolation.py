@@ -4,8 +4,9 @@ itself (module doc of :mod:`granchain.inference`).
 - The gap-only grid: linear in the mean gap (``_interp_gap``), linear in (log v, log t)
   between striker speeds (``_interp_speed``); its error :func:`interp_rel_error`.
 - The joint grid: the timing as in the gap-only grid and the peaks as v_max / v_s linear
-  in log v, log-linear in the restitution, linear in the mean gap (:func:`joint_values`);
-  its errors per observable and per mean-gap node :func:`joint_interp_errors`."""
+  in log v, log-linear in the fitted key's coordinate (the restitution; the log of a key
+  with a log-uniform prior), linear in the mean gap (:func:`joint_values`); its errors per
+  observable and per mean-gap node :func:`joint_interp_errors`."""
 from __future__ import annotations
 
 import math
@@ -87,9 +88,11 @@ def _weights(nodes: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return j, np.clip(w, 0.0, 1.0)
 
 
-def _interp_e(A: np.ndarray, es: np.ndarray, e: np.ndarray, axis: int = 1) -> np.ndarray:
-    """A (..., E, ...) -> (..., len(e), ...) along ``axis``: log A linear in e."""
-    j, w = _weights(es, np.asarray(e, float))
+def _interp_param(A: np.ndarray, coords: np.ndarray, u: np.ndarray,
+                  axis: int = 1) -> np.ndarray:
+    """A (..., P, ...) -> (..., len(u), ...) along ``axis``: log A linear in the fitted
+    key's coordinate (nodes ``coords``, points ``u``; ``FitKey.coord``)."""
+    j, w = _weights(coords, np.asarray(u, float))
     shape = [1] * A.ndim
     shape[axis] = w.size
     w = w.reshape(shape)
@@ -105,13 +108,13 @@ def _interp_g(A: np.ndarray, gaps: np.ndarray, g: np.ndarray) -> np.ndarray:
     return (1 - w) * A[j] + w * A[j + 1]
 
 
-def joint_values(grid: JointGrid, column: str, v: float, g, e) -> np.ndarray:
+def joint_values(grid: JointGrid, column: str, v: float, g, p) -> np.ndarray:
     """(len(g), R, 3) simulated (timing, vmax_1, vmax_2) at speed v and the pairs
-    (g[i], e[i])."""
-    A = _at_speed(grid, column, v)                                    # (G, E, R, 3)
-    g, e = np.atleast_1d(np.asarray(g, float)), np.atleast_1d(np.asarray(e, float))
+    (g[i], p[i]) of mean gap and the fitted key's value."""
+    A = _at_speed(grid, column, v)                                    # (G, P, R, 3)
+    g, p = np.atleast_1d(np.asarray(g, float)), np.atleast_1d(np.asarray(p, float))
     jg, wg = _weights(grid.gaps, g)
-    je, we = _weights(grid.restitutions, e)
+    je, we = _weights(grid.coords, grid.fit_key.coord(p))
     out = 0.0
     with np.errstate(invalid="ignore", divide="ignore"):
         L = np.log(A)
@@ -128,11 +131,12 @@ def joint_interp_errors(grid: JointGrid, column: str) -> dict:
     v_max_2), measured on the grid as in the gap-only fit (each interior node against the
     interpolation of its two neighbours, 95th percentile / 4): ``g`` per mean-gap node (G;
     an end node takes its neighbour's; the error changes by orders of magnitude over the
-    gaps, so it is interpolated between the nodes), ``e`` and ``speed`` one value each."""
+    gaps, so it is interpolated between the nodes), ``param`` (along the fitted key) and
+    ``speed`` one value each."""
     names = (column, "v_max_1", "v_max_2")
     out = {}
     for name in names:
-        A = grid.values[name]                                            # (G, E, S, R)
+        A = grid.values[name]                                            # (G, P, S, R)
         if name != column:
             A = A / grid.speeds[None, None, :, None]
         g = grid.gaps
@@ -142,8 +146,8 @@ def joint_interp_errors(grid: JointGrid, column: str) -> dict:
         per = np.array([_p95(x) for x in node]) / 4.0                     # (G - 2,)
         g_err = np.concatenate([[per[0]], per, [per[-1]]])                # every node
         e_err = s_err = 0.0
-        if grid.restitutions.size >= 3:
-            es = grid.restitutions
+        if grid.params.size >= 3:
+            es = grid.coords
             w = ((es[1:-1] - es[:-2]) / (es[2:] - es[:-2]))[None, :, None, None]
             with np.errstate(invalid="ignore", divide="ignore"):
                 mid = np.exp((1 - w) * np.log(A[:, :-2]) + w * np.log(A[:, 2:]))
@@ -157,7 +161,7 @@ def joint_interp_errors(grid: JointGrid, column: str) -> dict:
                 else:
                     mid = (1 - w) * A[:, :, :-2] + w * A[:, :, 2:]
                 s_err = _p95(np.abs(A[:, :, 1:-1] - mid) / A[:, :, 1:-1]) / 4.0
-        out[name] = {"g": g_err, "e": e_err, "speed": s_err}
+        out[name] = {"g": g_err, "param": e_err, "speed": s_err}
     return out
 
 
@@ -172,7 +176,7 @@ def _model_rel(errs: dict, column: str, fine_g: np.ndarray, gaps: np.ndarray) ->
     cols = []
     for name in (column, "v_max_1", "v_max_2"):
         d = errs[name]
-        cols.append(np.sqrt(np.interp(fine_g, gaps, d["g"]) ** 2 + d["e"] ** 2
+        cols.append(np.sqrt(np.interp(fine_g, gaps, d["g"]) ** 2 + d["param"] ** 2
                             + d["speed"] ** 2))
     return np.stack(cols, axis=-1)
 

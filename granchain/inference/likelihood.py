@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from .grid import Grid, JointGrid
-from .interpolation import (_at_speed, _interp_e, _interp_g, _interp_gap, _interp_speed,
+from .interpolation import (_at_speed, _interp_param, _interp_g, _interp_gap, _interp_speed,
                             _model_rel, joint_interp_errors, joint_values)
 from .measurements import Measurements
 
@@ -82,7 +82,8 @@ def gap_model_check(grid: Grid, meas: Measurements, fine: np.ndarray, pdf: np.nd
 
 def joint_log_likelihood(grid: JointGrid, meas: Measurements, fine_g: np.ndarray,
                          fine_e: np.ndarray, errs: dict | None = None) -> np.ndarray:
-    """log L(g, e), shape (F_g, F_e): per group (a chain), the kernel density over the R
+    """log L(g, p), shape (F_g, F_e), at mean gaps ``fine_g`` and values ``fine_e`` of the
+    fitted key: per group (a chain), the kernel density over the R
     realisations of the group's 3m observables (each row's timing and two peaks),
     standardised by the row's observed timing and striker speed (module doc)."""
     if errs is None:
@@ -98,7 +99,8 @@ def joint_log_likelihood(grid: JointGrid, meas: Measurements, fine_g: np.ndarray
         var_model = (np.tile(rel, (1, m)) * y[None, :]) ** 2                 # (F_g, d)
         nodes = np.concatenate([_at_speed(grid, meas.column, float(meas.v[i])) for i in idx],
                                axis=-1) / scale                            # (G, E, R, d)
-        Ne = _interp_e(nodes, grid.restitutions, fine_e, axis=1)          # (G, F_e, R, d)
+        Ne = _interp_param(nodes, grid.coords, grid.fit_key.coord(fine_e),
+                           axis=1)                                         # (G, F_e, R, d)
         rows = max(1, int(CHUNK_BYTES // (fine_e.size * R * d * 8 * 6)))
         for a in range(0, fine_g.size, rows):
             b = min(a + rows, fine_g.size)

@@ -23,7 +23,7 @@ TIMING_COLUMNS = ("dt_peak_s", "dt_front_s")
 PEAK_COLUMNS = ("vmax_1_m_s", "vmax_2_m_s")     # measured peaks at the two probes (m/s)
 COLUMNS = ("v_striker_m_s", *TIMING_COLUMNS, "dt_err_s", "chain_id", *PEAK_COLUMNS,
            "vmax_err_m_s")
-FITS = ("gap_mean", "restitution")      # what --fit may name
+FITS = ("gap_mean", "restitution")      # the joint fit of a damped scene (fit_for)
 # the most data rows a measurement file may hold (the joint fit of the peaks: fewer, each
 # row costs ~0.4-1 s of likelihood; 1000 rows took 7 min on a small grid), and one chain's
 # series (its rows enter the likelihood together: a kernel density in as many dimensions,
@@ -240,23 +240,29 @@ def read_measurements(path, peaks: bool = False) -> Measurements:
 
 
 def parse_fit(text: str) -> tuple[str, ...]:
-    """The parameters ``--fit`` names, in FITS order: ``gap_mean`` (the default) or
-    ``gap_mean,restitution``; every other value is one GranchainError."""
+    """What ``--fit`` names: ``("gap_mean",)`` (the default), or ``("gap_mean", KEY)`` with
+    KEY the path of a fittable scene key (``inference.fitkeys``; named by its path or its
+    results' name: ``restitution`` is ``damping.e``). Every other value is one
+    GranchainError naming --fit and the fittable keys."""
+    from .fitkeys import fit_key, fittable_text
     names = [w.strip() for w in str(text).split(",")]
-    for w in names:
-        if w not in FITS:
-            close = difflib.get_close_matches(w, FITS, n=1)
-            raise GranchainError(f"--fit: unknown parameter {short(w)}; " + (
-                f"did you mean {close[0]!r}?" if close else
-                "fit gap_mean, or gap_mean,restitution"))
     for j, w in enumerate(names):
         if w in names[:j]:
             raise GranchainError(f"--fit: {short(w)} is named twice; name each parameter once")
-    if "gap_mean" not in names:
-        raise GranchainError("--fit: the restitution is fitted together with the mean gap "
-                             "(both set the timing and the peaks); give --fit "
-                             "gap_mean,restitution")
-    return tuple(f for f in FITS if f in names)
+    keys = [fit_key(w).path for w in names if w != "gap_mean"]
+    for j, k in enumerate(keys):
+        if k in keys[:j]:
+            raise GranchainError(f"--fit: {k} is named twice (by its path and its name); "
+                                 "name each parameter once")
+    if keys and "gap_mean" not in names:
+        raise GranchainError(f"--fit: {keys[0]} is fitted together with the mean gap (both "
+                             "set the timing and the peaks); give --fit "
+                             f"gap_mean,{names[0]}")
+    if len(keys) > 1:
+        raise GranchainError(f"--fit: one scene key is fitted beside the mean gap (got "
+                             f"{', '.join(keys)}); give gap_mean,KEY with KEY one of "
+                             f"{fittable_text()}")
+    return ("gap_mean", *keys)
 
 
 def fit_for(base: Scene, columns) -> tuple[str, ...]:

@@ -10,6 +10,7 @@ import numpy as np
 from ..errors import GranchainError
 from ..gaps import Member
 from ..scene import Scene
+from .fitkeys import DEFAULT_KEY, fit_key
 from .grid import peak, timing
 
 
@@ -32,19 +33,21 @@ def simulate_rows(base: Scene, gap_mean: float, speeds, realisations,
     return out
 
 
-def simulate_joint_rows(base: Scene, gap_mean: float, e: float | None, speeds, realisations,
-                        column: str, engine: str = "reference") -> np.ndarray:
+def simulate_joint_rows(base: Scene, gap_mean: float, value: float | None, speeds,
+                        realisations, column: str, engine: str = "reference",
+                        key: str = DEFAULT_KEY) -> np.ndarray:
     """(rows, 3) simulated (timing in s, vmax_1, vmax_2 in m/s) of chains of the base scene
-    at mean gap ``gap_mean`` (m) and restitution ``e`` (None: the base scene's damping as
-    it is, e.g. another law), one per (speed, realisation) pair: synthetic measurements
-    (give the base scene another ``gaps.seed`` for chains the grid never saw)."""
+    at mean gap ``gap_mean`` (m) and the scene key ``key`` at ``value`` (default: the
+    restitution e; None: the base scene as it is, e.g. another damping law), one per
+    (speed, realisation) pair: synthetic measurements (give the base scene another
+    ``gaps.seed`` for chains the grid never saw)."""
     from ..runplan import plan_run
     from ..observables import summarize
     from ..simulate import trajectories
     speeds = [float(v) for v in speeds]
     change = {"gaps": {"mean": float(gap_mean)}, "striker": {"velocity": sorted(set(speeds))}}
-    if e is not None:
-        change["damping"] = {"e": float(e)}
+    if value is not None:
+        change[fit_key(key).path] = float(value)
     scene = plan_run(base.derive(change), per_speed=False).scene
     mem = [Member(i, v, int(r)) for i, (v, r) in enumerate(zip(speeds, realisations))]
     out = np.empty((len(mem), 3))

@@ -81,7 +81,8 @@ from granchain.lammps.deckplan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, D
                                    DUMP_COLUMNS, DUMP_NAME, ENERGY_NAME, LEDGER_BINARY_NAME,
                                    LEDGER_INPUTS, LEDGER_NAME, LOG_NAME, OUTPUTS, SCREEN_NAME,
                                    WALL_FORCE_COLUMN, WORKDIR_FILES,
-                                   WORK_COLUMNS, DeckPlan,
+                                   WORK_COLUMNS, POTENTIAL_EXTRA_COLUMN, WALL_EXTRA_COLUMN,
+                                   DeckPlan, ledger_inputs,
                                    ledger_binary_columns, max_travel, plan)
 from granchain.lammps import field
 from granchain.lammps.parts import Parts
@@ -141,9 +142,13 @@ def _ledger_block(scene: Scene, pl: DeckPlan, parts: Parts) -> str:
     notes = {LEDGER_INPUTS[name][0]: p.ledger_note for name, p in on if name in LEDGER_INPUTS}
     notes[WALL_FORCE_COLUMN] = (f"x force of the end wall on the last sphere "
                                 f"({field.WALL_FORCE_INPUT}, 1e-9 N)")
-    inputs = [LEDGER_INPUTS[eff][1] for eff in LEDGER_INPUTS if scene.has(eff)]
-    if WALL_FORCE_COLUMN in pl.ledger_columns:
-        inputs.append(field.WALL_FORCE_INPUT)
+    columns = ledger_inputs(scene)
+    for c, q in columns:
+        if c == POTENTIAL_EXTRA_COLUMN:
+            notes[c] = f"the contacts' elastic energy beyond the pair style's ({q})"
+        elif c == WALL_EXTRA_COLUMN:
+            notes[c] = f"x force the plugin adds on the last sphere at the end wall ({q}, 1e-9 N)"
+    inputs = [q for _, q in columns]
     units = "1e-15 J" if WALL_FORCE_COLUMN not in pl.ledger_columns else "1e-15 J unless noted"
     k = len(inputs)
     values = 'c_ledger[*]' if k > 1 else 'c_ledger'
@@ -401,15 +406,23 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
         if plugin is None:
             raise GranchainError("deck: this scene needs the groove/drag plugin; pass "
                                  "plugin=PATH (write_deck builds it)")
-        plugin_variable = ("# path of the fix groove/drag plugin (cached build); 'index' style, so\n"
+        what = "fix groove/drag plugin" if parts.has_fix else "granchain plugin"
+        plugin_variable = (f"# path of the {what} (cached build); 'index' style, so\n"
                            "# 'lmp -var plugin PATH -in deck.lmp' overrides it\n"
                            f"variable        plugin index {plugin}")
-        fixes = parts.collect("fix")
-        args = [a for _, a in fixes] + parts.collect("fix_option")
-        plugin_fix = ("\n# fix groove/drag: the granchain plugin "
-                      "(lammps_inputs/plugin/fix_groove_drag.md), the laws LAMMPS lacks\n"
-                      "plugin          load ${plugin}\n" + "\n".join(c for c, _ in fixes) + "\n"
-                      "fix             gd all groove/drag " + " &\n                ".join(args) + "\n")
+        if parts.has_fix:
+            fixes = parts.collect("fix")
+            args = [a for _, a in fixes] + parts.collect("fix_option")
+            plugin_fix = ("\n# fix groove/drag: the granchain plugin "
+                          "(lammps_inputs/plugin/fix_groove_drag.md), the laws LAMMPS lacks\n"
+                          "plugin          load ${plugin}\n" + "\n".join(c for c, _ in fixes)
+                          + "\nfix             gd all groove/drag "
+                          + " &\n                ".join(args) + "\n")
+        else:
+            plugin_fix = ("\n# the granchain plugin (lammps_inputs/plugin/), the laws LAMMPS "
+                          "lacks\nplugin          load ${plugin}\n")
+        plugin_fix += "".join(ln + "\n" for lines in parts.collect("plugin_lines")
+                              for ln in lines)
     else:
         plugin_variable = "# (this scene needs no LAMMPS plugin)"
         plugin_fix = ""
@@ -418,7 +431,7 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
     computes = ["compute         ke all ke"] + [c for c, _, _ in energies]
     values = ["c_ke"] + [v for _, v, _ in energies]
     ledger_note = "".join(f", {what}" for _, _, what in energies)
-    if parts.plugin:
+    if parts.has_fix:
         fix_energies = parts.collect("fix_energy")
         values += [v for v, _ in fix_energies]
         ledger_note += ", cumulative work of the " + " and of the ".join(w for _, w in fix_energies)

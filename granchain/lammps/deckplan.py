@@ -16,6 +16,7 @@ from granchain.effects import SPECS, physics_terms
 from granchain.errors import GranchainError
 from granchain.guards import require_resolved
 from granchain.gaps import member_gaps, member_radii, members, realise
+from granchain.lammps import field
 from granchain.lammps.parts import Parts
 from granchain.runplan import RunPlan, plan_run, step_grid
 from granchain.scene import Scene
@@ -56,6 +57,27 @@ WORK_COLUMNS = {name: spec.lammps_ledger for name, spec in SPECS.items()
 # the chain's last sphere (fix wall/gran's per-atom 'contacts' output, force units), after
 # the energy columns
 WALL_FORCE_COLUMN = "wall_force"
+# the per-chain ledger's columns of what an effect adds beyond the pair style and fix
+# wall/gran (``EffectSpec.lammps_potential``, ``lammps_wall_force``): its contacts' elastic
+# energy beyond the Hertz energy the engine computes from the positions (added to the
+# potential column) and its x force on the last sphere at the end wall (added to the
+# wall force)
+POTENTIAL_EXTRA_COLUMN = "potential_extra"
+WALL_EXTRA_COLUMN = "wall_force_extra"
+
+
+def ledger_inputs(scene: Scene) -> tuple[tuple[str, str], ...]:
+    """(column, the per-atom LAMMPS quantity summed per chain) of the per-chain ledger, in
+    its order: the works and the rotational energy (``LEDGER_INPUTS``), the effects'
+    elastic energies beyond Hertz's, then with an end wall its force (fix wall/gran's)
+    and the effects' parts of it."""
+    on = [s for name, s in SPECS.items() if scene.has(name)]
+    out = [LEDGER_INPUTS[s.name] for s in on if s.name in LEDGER_INPUTS]
+    out += [(POTENTIAL_EXTRA_COLUMN, s.lammps_potential) for s in on if s.lammps_potential]
+    if scene.wall is not None:
+        out.append((WALL_FORCE_COLUMN, field.WALL_FORCE_INPUT))
+        out += [(WALL_EXTRA_COLUMN, s.lammps_wall_force) for s in on if s.lammps_wall_force]
+    return tuple(out)
 
 def batch_members(scene: Scene, gaps, v_striker, radii=None):
     """(gaps (B, n-1), v_striker (B,), radii (B, n) or None) of the chains a deck runs.
@@ -134,8 +156,8 @@ class DeckPlan:
     t_note: str
     output: str                # one of OUTPUTS
     dump_columns: tuple[str, ...]   # columns of the trajectory file (() if output "none")
-    ledger_columns: tuple[str, ...]   # ENERGY_COLUMNS entries of ledger.txt, in order
-    #                                   (and WALL_FORCE_COLUMN last with an end wall)
+    ledger_columns: tuple[str, ...]   # the columns of ledger.txt, in order
+    #                                   (:func:`ledger_inputs`)
     gaps: np.ndarray           # (B, n-1) m
     v_striker: np.ndarray      # (B,) m/s
     # (B, n) m: each chain's own radii (a radius spread, ``gaps.member_radii``), or None:
@@ -193,9 +215,7 @@ def plan(scene: Scene, *, gaps=None, v_striker=None, radii=None,
                   if caps else "t_end auto: no striker moves")
     nsamples = int(math.ceil(t_si / sdt - 1e-9)) if t_si > 0 else 0
     nsteps = nsamples * every
-    ledger = tuple(col for eff, (col, _) in LEDGER_INPUTS.items() if scene.has(eff))
-    if scene.wall is not None:
-        ledger += (WALL_FORCE_COLUMN,)
+    ledger = tuple(col for col, _ in ledger_inputs(scene))
     return DeckPlan(n_chains=B, n=scene.n, every=every, nsteps=nsteps, sample_dt=sdt,
                     dt=scene.dt, t_run=nsteps * scene.dt, auto=auto and nsteps > 0,
                     t_note=t_note, output=output,

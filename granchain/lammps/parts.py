@@ -7,15 +7,18 @@ from dataclasses import dataclass
 
 from granchain.effects import MODULES
 from granchain.effects.spec import DeckPart, pair_words
+from granchain.lammps.field import WALL_X
 
 
 @dataclass(frozen=True)
 class Deck:
     """What an effect's hook may read of the deck: its first chain's terms, each chain's
-    terms under a radius spread (else None) and the number of chains."""
+    terms under a radius spread (else None), the number of chains and the x (um) of the
+    end wall's plane (chain b's sphere i is atom b*n + i)."""
     terms: object
     members: list | None = None
     n_chains: int = 1
+    wall_x: float = WALL_X
 
 
 class Parts:
@@ -49,6 +52,12 @@ class Parts:
         return [v for p in self.all if (v := getattr(p, name))]
 
     @property
-    def plugin(self) -> bool:
-        """Does the deck load the granchain plugin (an effect has a part of its fix)?"""
+    def has_fix(self) -> bool:
+        """Does the deck have fix groove/drag (an effect has a part of its arguments)?"""
         return bool(self.collect("fix"))
+
+    @property
+    def plugin(self) -> bool:
+        """Does the deck load the granchain plugin (fix groove/drag, or an effect's lines of
+        its other styles)?"""
+        return self.has_fix or bool(self.collect("plugin_lines"))

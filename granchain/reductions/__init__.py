@@ -15,7 +15,8 @@ Modules, one job each (every name is importable from ``granchain.reductions``):
                   gbar), a trace's pulse width and the energy columns;
 - ``vibrometer``  the vibrometer study;
 - ``field``       the field's studies (a precompressed chain, the chain on a wall);
-- ``questions``   the chapter's questions (a sphere-size tolerance, contact dissipation).
+- ``questions``   the chapter's questions (a sphere-size tolerance, contact dissipation,
+                  yielding and adhesive contacts).
 
 A missing table or column is a one-line :class:`~granchain.errors.GranchainError`.
 """
@@ -34,7 +35,8 @@ from .vibrometer import (VIB_QUANTITIES, read_vibrometer_trace, vibrometer_bands
 from .field import (SOLITARY_WALL_EXPONENT, precompression_rows, power_law_fit, wall_fits)
 from .questions import (MEASURED_PEAKS, SPREAD_KINDS, spread_oscillation, first_reaching,
                         dissipation_curves, last_crossing, interpolate_at,
-                        dissipation_match)
+                        dissipation_match, plasticity_curves, plasticity_match,
+                        plasticity_exponents, cohesion_curves, cohesion_match)
 
 __all__ = [
     "PROBES", "MATERIAL_LABEL", "VMAX_RE", "NEEDS", "read_table", "read_trace", "require",
@@ -47,4 +49,6 @@ __all__ = [
     "nearest_bandwidth", "SOLITARY_WALL_EXPONENT", "precompression_rows", "power_law_fit",
     "wall_fits", "MEASURED_PEAKS", "SPREAD_KINDS", "spread_oscillation", "first_reaching",
     "dissipation_curves", "last_crossing", "interpolate_at", "dissipation_match",
+    "plasticity_curves", "plasticity_match", "plasticity_exponents", "cohesion_curves",
+    "cohesion_match",
 ]

@@ -1,5 +1,6 @@
-"""Reductions of the chapter's questions, beyond Eq. 5.1: a sphere-size tolerance and
-contact dissipation (tables/radius_spread.csv, tables/dissipation.csv)."""
+"""Reductions of the chapter's questions, beyond Eq. 5.1: a sphere-size tolerance, contact
+dissipation, yielding and adhesive contacts (tables/radius_spread.csv,
+tables/dissipation.csv, tables/plasticity.csv, tables/adhesion.csv)."""
 from __future__ import annotations
 
 import math
@@ -8,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from .chapter import band, oscillation, peak_profile
+from .field import power_law_fit
 from .table import NEEDS, arrived, materials_in, reference_engine, require, require_vmax
 
 # The chapter's measured peaks (Fig. 5.2b, 5.2c): (value, half-width of its 95% interval),
@@ -60,23 +62,24 @@ def first_reaching(x, y, target: float) -> float:
     return math.nan
 
 
-def dissipation_curves(df: pd.DataFrame) -> pd.DataFrame:
-    """Per (material, gap_mean_nm, v_striker_m_s, restitution_e) of the dissipation study
-    (reference engine when mixed), ascending e within each (material, gap, v_s): ``n``,
-    and the median, 5th and 95th percentiles over its chains of v_max,1 / v_s (``v1``),
+def _curves(df: pd.DataFrame, study: str, *settings: str) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, v_striker_m_s, ``settings``) of a question study
+    (reference engine when mixed), ascending in each key after the material: ``n``, and
+    the median, 5th and 95th percentiles over its chains of v_max,1 / v_s (``v1``),
     v_max,2 / v_s (``v2``) and v_max,2 / v_max,1 (``ratio``, the rows' v_max_ratio), and
-    over its arrived chains (``n_arrived``) of v_g in m/s (``vg``): columns ``<q>_median``,
-    ``<q>_p5``, ``<q>_p95``."""
-    require(df, NEEDS["dissipation"], "dissipation")
+    over its arrived chains (``n_arrived``) of v_g in m/s (``vg``): columns
+    ``<q>_median``, ``<q>_p5``, ``<q>_p95``."""
+    require(df, NEEDS[study], study)
     d = reference_engine(df)
     vs = d["v_striker_m_s"].to_numpy(dtype=float)
     d = d.assign(_v1=d["v_max_1_m_s"].to_numpy(dtype=float) / vs,
                  _v2=d["v_max_2_m_s"].to_numpy(dtype=float) / vs)
-    keys = ["material", "gap_mean_nm", "v_striker_m_s", "restitution_e"]
+    keys = ["material", "gap_mean_nm", "v_striker_m_s", *settings]
     rows = []
     for mat in materials_in(d):
         for key, g in d[d["material"] == mat].groupby(keys[1:], sort=True):
-            row = {"material": mat, **dict(zip(keys[1:], (float(k) for k in key))),
+            row = {"material": mat, **dict(zip(keys[1:], (
+                bool(k) if isinstance(k, (bool, np.bool_)) else float(k) for k in key))),
                    "n": int(len(g))}
             ok = arrived(g)
             row["n_arrived"] = int(len(ok))
@@ -88,6 +91,28 @@ def dissipation_curves(df: pd.DataFrame) -> pd.DataFrame:
     cols = keys + ["n", "n_arrived"] + [f"{q}_{s}" for q in ("v1", "v2", "ratio", "vg")
                                         for s in ("median", "p5", "p95")]
     return pd.DataFrame(rows, columns=cols)
+
+
+def dissipation_curves(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, v_striker_m_s, restitution_e) of the dissipation study,
+    ascending e within each (material, gap, v_s): the bands of :func:`_curves`."""
+    return _curves(df, "dissipation", "restitution_e")
+
+
+def plasticity_curves(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, v_striker_m_s, yield_pressure_Pa) of the plasticity
+    study, ascending p_y within each (material, gap, v_s), the elastic chain (p_y inf)
+    last: the bands of :func:`_curves`."""
+    return _curves(df, "plasticity", "yield_pressure_Pa")
+
+
+def cohesion_curves(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, v_striker_m_s, groove_cohesion, surface_energy_J_m2) of
+    the adhesion study, ascending gamma within each (material, gap, v_s, groove), the chain
+    without adhesion (gamma 0, groove False) first: the bands of :func:`_curves`."""
+    require(df, NEEDS["cohesion"], "cohesion")
+    d = df.assign(groove_cohesion=df["groove_cohesion"].astype(bool))
+    return _curves(d, "cohesion", "groove_cohesion", "surface_energy_J_m2")
 
 
 def last_crossing(x, y, target: float) -> float:
@@ -142,4 +167,94 @@ def dissipation_match(df: pd.DataFrame) -> pd.DataFrame:
                      "striker_v2": MEASURED_PEAKS["v2"][0] / v2,
                      "e_max": float(e[-1]), "ratio_at_e_max": float(ratio[-1]),
                      "v1_at_e_max": float(g["v1_median"].iloc[-1])})
+    return pd.DataFrame(rows)
+
+
+def plasticity_match(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, v_striker_m_s) of the plasticity study, on the median
+    curves of :func:`plasticity_curves` against log p_y (its finite p_y; the elastic chain
+    is the limit p_y -> inf): ``py_v1`` the largest p_y at which the median v_max,1 / v_s
+    equals the chapter's measured 0.57 (:func:`last_crossing` in log p_y), ``py_v1_lo`` and
+    ``py_v1_hi`` where it equals the ends of the measured interval, 0.48 and 0.66 (NaN where
+    it never does in the study's range), the medians v_max,2 / v_s (``v2``), the ratio
+    (``ratio``) and v_g (``vg``, m/s) there (linear in log p_y), the elastic chain's
+    ``v1_elastic`` and ``ratio_elastic``, the smallest p_y's ``py_min``, ``v1_at_py_min`` and
+    the largest's ``py_max``, ``v1_at_py_max``; ``n_py`` the number of finite p_y."""
+    c = plasticity_curves(df)
+    m1, h1 = MEASURED_PEAKS["v1"]
+    rows = []
+    for key, g in c.groupby(["material", "gap_mean_nm", "v_striker_m_s"], sort=False):
+        fin = g[np.isfinite(g["yield_pressure_Pa"].to_numpy(dtype=float))]
+        el = g[~np.isfinite(g["yield_pressure_Pa"].to_numpy(dtype=float))]
+        lp = np.log10(fin["yield_pressure_Pa"].to_numpy(dtype=float))
+        v1 = fin["v1_median"].to_numpy(dtype=float)
+        lo, hi = last_crossing(lp, v1, m1 - h1), last_crossing(lp, v1, m1 + h1)
+        at = last_crossing(lp, v1, m1)
+        row = {"material": key[0], "gap_mean_nm": float(key[1]),
+               "v_striker_m_s": float(key[2]), "n_py": int(lp.size),
+               "py_v1": 10.0 ** at if math.isfinite(at) else math.nan,
+               "py_v1_lo": 10.0 ** lo if math.isfinite(lo) else math.nan,
+               "py_v1_hi": 10.0 ** hi if math.isfinite(hi) else math.nan}
+        for q in ("v2", "ratio", "vg"):
+            row[q] = interpolate_at(lp, fin[f"{q}_median"], at) if lp.size else math.nan
+        row["v1_elastic"] = float(el["v1_median"].iloc[0]) if len(el) else math.nan
+        row["ratio_elastic"] = float(el["ratio_median"].iloc[0]) if len(el) else math.nan
+        row["py_min"] = float(10.0 ** lp[0]) if lp.size else math.nan
+        row["v1_at_py_min"] = float(v1[0]) if lp.size else math.nan
+        row["py_max"] = float(10.0 ** lp[-1]) if lp.size else math.nan
+        row["v1_at_py_max"] = float(v1[-1]) if lp.size else math.nan
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def plasticity_exponents(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, yield_pressure_Pa) of the plasticity study: the exponent
+    ``b`` of the median v_max,1 = a v_s^b over the study's striker speeds
+    (:func:`~granchain.reductions.field.power_law_fit`; the chapter measures a linear
+    v_max,1(v_s), b = 1, as does an elastic Hertz chain), its prefactor ``a`` (m/s at
+    v_s = 1 m/s), the same for v_max,2 (``b2``), and ``n_v`` the number of speeds."""
+    c = plasticity_curves(df)
+    rows = []
+    for key, g in c.groupby(["material", "gap_mean_nm", "yield_pressure_Pa"], sort=False):
+        vs = g["v_striker_m_s"].to_numpy(dtype=float)
+        b, a = power_law_fit(vs, g["v1_median"].to_numpy(dtype=float) * vs)
+        b2, _ = power_law_fit(vs, g["v2_median"].to_numpy(dtype=float) * vs)
+        rows.append({"material": key[0], "gap_mean_nm": float(key[1]),
+                     "yield_pressure_Pa": float(key[2]), "n_v": int(vs.size), "b": b, "a": a,
+                     "b2": b2})
+    return pd.DataFrame(rows)
+
+
+def cohesion_match(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (material, gap_mean_nm, v_striker_m_s, groove_cohesion) of the adhesion study,
+    on the median curves of :func:`cohesion_curves` against log gamma (its gamma > 0; the
+    chain without adhesion is gamma -> 0): ``gamma_v1`` the least gamma at which the median
+    v_max,1 / v_s falls to the chapter's measured 0.57 (:func:`first_reaching` in log gamma:
+    the weakest adhesion that gives the measured peak; the curve need not be monotone, the
+    contacts' pull raises the peak at large gamma); NaN where it never does in the study's
+    range, or where the least gamma's is 0.57 or below already (the crossing lies below the
+    study's range), the chain without adhesion's ``v1_none``, the least gamma's
+    ``gamma_min``, ``v1_at_gamma_min``, and the largest gamma's ``gamma_max``,
+    ``v1_at_gamma_max``, ``ratio_at_gamma_max`` and ``vg_at_gamma_max``; ``n_gamma`` the
+    number of gamma > 0."""
+    c = cohesion_curves(df)
+    m1 = MEASURED_PEAKS["v1"][0]
+    none = c[c["surface_energy_J_m2"] == 0]
+    rows = []
+    for key, g in c[c["surface_energy_J_m2"] > 0].groupby(
+            ["material", "gap_mean_nm", "v_striker_m_s", "groove_cohesion"], sort=False):
+        lg = np.log10(g["surface_energy_J_m2"].to_numpy(dtype=float))
+        v1 = g["v1_median"].to_numpy(dtype=float)
+        at = first_reaching(lg, -v1, -m1) if v1[0] > m1 else math.nan
+        base = none[(none["material"] == key[0]) & (none["gap_mean_nm"] == key[1])
+                    & (none["v_striker_m_s"] == key[2])]
+        rows.append({"material": key[0], "gap_mean_nm": float(key[1]),
+                     "v_striker_m_s": float(key[2]), "groove_cohesion": bool(key[3]),
+                     "n_gamma": int(lg.size),
+                     "gamma_v1": 10.0 ** at if math.isfinite(at) else math.nan,
+                     "v1_none": float(base["v1_median"].iloc[0]) if len(base) else math.nan,
+                     "gamma_min": float(10.0 ** lg[0]), "v1_at_gamma_min": float(v1[0]),
+                     "gamma_max": float(10.0 ** lg[-1]), "v1_at_gamma_max": float(v1[-1]),
+                     "ratio_at_gamma_max": float(g["ratio_median"].iloc[-1]),
+                     "vg_at_gamma_max": float(g["vg_median"].iloc[-1])})
     return pd.DataFrame(rows)

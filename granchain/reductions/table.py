@@ -56,6 +56,12 @@ NEEDS = {
     "dissipation": ["material", "v_striker_m_s", "gap_mean_nm", "realisation",
                     "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio", "v_g_m_s", "wave_arrived",
                     "damping_model", "restitution_e"],
+    "plasticity": ["material", "v_striker_m_s", "gap_mean_nm", "realisation",
+                   "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio", "v_g_m_s", "wave_arrived",
+                   "plasticity_model", "yield_pressure_Pa"],
+    "cohesion": ["material", "v_striker_m_s", "gap_mean_nm", "realisation",
+                 "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio", "v_g_m_s", "wave_arrived",
+                 "cohesion_model", "surface_energy_J_m2", "groove_cohesion"],
 }
 
 

@@ -44,7 +44,8 @@ REPORTED = ["vmax_slope", "vmax1_over_vs", "vmax2_over_vs", "vmax_ratio", "vg_ne
 NEEDS_EXPERIMENT = ["fitted_gap_316", "fitted_gap_440c"]
 
 STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length",
-           "vibrometer", "precompression", "wall", "radius_spread", "dissipation")
+           "vibrometer", "precompression", "wall", "radius_spread", "dissipation",
+           "plasticity", "adhesion")
 
 
 def comparison(packed_sweep: pd.DataFrame, packed_trace: pd.DataFrame | None = None,
@@ -53,13 +54,16 @@ def comparison(packed_sweep: pd.DataFrame, packed_trace: pd.DataFrame | None = N
                radius: float | None = None, vibrometer: pd.DataFrame | None = None,
                precompression: pd.DataFrame | None = None, wall: pd.DataFrame | None = None,
                radius_spread: pd.DataFrame | None = None,
-               dissipation: pd.DataFrame | None = None) -> pd.DataFrame:
+               dissipation: pd.DataFrame | None = None,
+               plasticity: pd.DataFrame | None = None,
+               adhesion: pd.DataFrame | None = None) -> pd.DataFrame:
     """The comparison table (one row per chapter number, columns ``COLUMNS``);
     ``radius`` (m) of the spheres (the tables do not carry it; default 150 um). Only
     packed_sweep is required; rows whose table is not given hold NaN (the
     pulse_width row needs the trace and is left out without it; the vibrometer rows
     need the vibrometer study's table, the field rows the precompression and wall
-    studies' tables, the question rows the radius_spread and dissipation studies')."""
+    studies' tables, the question rows the radius_spread, dissipation, plasticity and
+    adhesion studies')."""
     pk = thesis_rows.packed_chain(packed_sweep, radius)
     rows = (thesis_rows.packed_chain_rows(pk)
             + thesis_rows.group_velocity_rows(pk)
@@ -70,7 +74,9 @@ def comparison(packed_sweep: pd.DataFrame, packed_trace: pd.DataFrame | None = N
             + thesis_rows.instrument_rows(pk, vibrometer)
             + thesis_rows.field_rows(pk, precompression, wall)
             + thesis_rows.tolerance_rows(pk, radius_spread)
-            + thesis_rows.dissipation_rows(pk, dissipation))
+            + thesis_rows.dissipation_rows(pk, dissipation)
+            + thesis_rows.plasticity_rows(pk, plasticity)
+            + thesis_rows.adhesion_rows(pk, adhesion))
     return pd.DataFrame(rows, columns=COLUMNS)
 
 

@@ -19,7 +19,9 @@ FIGURES = {"packed_sweep": "chapter Fig. 5.1b, 5.1c", "packed_trace": "chapter F
            "precompression": "beyond the chapter: a precompressed chain",
            "wall": "beyond the chapter: the chain on a wall",
            "radius_spread": "beyond the chapter: sphere-size tolerance against Fig. 5.3b",
-           "dissipation": "beyond the chapter: contact dissipation against Fig. 5.2"}
+           "dissipation": "beyond the chapter: contact dissipation against Fig. 5.2",
+           "plasticity": "beyond the chapter: yielding contacts against Fig. 5.2",
+           "adhesion": "beyond the chapter: adhesive contacts against Fig. 5.2"}
 # The probes the figures label and measure: the chapter's (the scene default).
 PROBES = tuple(DEFAULTS["probes"])
 
@@ -73,6 +75,20 @@ def _question_text(scenes, dist: str) -> str:
                                             if x["radius_sd_m"] > 0))
             parts.append(f"{mat}: {gtxt}; packed with {dists} radius spreads of sd "
                          + ", ".join(f"{x * 1e6:g}" for x in sds) + " um")
+        elif "surface_energy_J_m2" in st[0]:
+            gs = ", ".join(f"{g:g}" for g in dict.fromkeys(
+                x["surface_energy_J_m2"] for x in st if x["surface_energy_J_m2"] > 0))
+            grooved = any(x["groove_cohesion"] for x in st)
+            model = next(x["cohesion_model"] for x in st if x["cohesion_model"] != "none")
+            parts.append(f"{mat}: {gtxt}, each without adhesion and with {model} contacts at "
+                         f"gamma = {gs} J/m^2" + (", with and without the groove's flats "
+                                                 "adhering" if grooved else ""))
+        elif "yield_pressure_Pa" in st[0]:
+            pys = ", ".join(f"{p / 1e6:.4g}" for p in dict.fromkeys(x["yield_pressure_Pa"]
+                                                                    for x in st)
+                            if p != float("inf"))
+            parts.append(f"{mat}: {gtxt}, each elastic and with Thornton's contacts at p_y = "
+                         f"{pys} MPa")
         else:
             es = ", ".join(f"{e:g}" for e in dict.fromkeys(x["restitution_e"] for x in st))
             parts.append(f"{mat}: {gtxt}, each at e = {es} ({st[0]['damping_model']})")
@@ -117,13 +133,14 @@ def caption_sizes(plan: Plan, study: str) -> dict:
             out["seed"] = str(spec.get("seed", base["seed"]))
             out["gap_seed"] = str(base["seed"])
         else:
-            out["model"] = spec.get("model", "coeff_restitution")
+            out["model"] = spec.get("model", {"dissipation": "coeff_restitution",
+                                              "plasticity": "thornton"}.get(study, "jkr"))
             gm = spec["gap_mean_nm"]
             out["gap_mean_nm"] = "; ".join(
                 f"{m}: " + ", ".join(f"{g:g}" for g in (v if isinstance(v, list) else [v]))
                 for m, v in gm.items()) if isinstance(gm, dict) else None
     for key in ("v_striker", "gap_mean_nm", "extra_length_um", "realisations", "force_N",
-                "sd_um", "e"):
+                "sd_um", "e", "yield_pressure_factor", "surface_energy"):
         if key in spec and out.get(key) is None:
             v = spec[key]
             out[key] = ", ".join(f"{x:g}" for x in v) if isinstance(v, (list, tuple)) \

@@ -30,6 +30,14 @@ The chapter's questions (optional studies, ``QUESTION_STUDIES``; beyond Eq. 5.1)
 - dissipation     contact damping (effect ``contact_damping``, ``damping: {model, e}``): one
                   scene per coefficient of restitution e, packed and with the mean gaps
                   each material is given
+- plasticity      yielding contacts (effect ``plastic_contact``, Thornton's law): the elastic
+                  chain and one scene per limiting pressure p_y (factors of the material's
+                  library value), every striker speed, packed and with the mean gaps each
+                  material is given
+- adhesion        adhesive contacts (effect ``adhesion``, LAMMPS's jkr or dmt): the chain
+                  without adhesion and one scene per surface energy gamma, with and
+                  without the groove's flats adhering (``adhesion.groove``), at the lowest
+                  striker speeds
 
 ``lammps_check`` may also name field chains (``chains``: a dimer, a chain on a wall, a
 preloaded chain...), which the LAMMPS-vs-reference comparison runs beside its own scenes
@@ -316,7 +324,8 @@ def _material_gaps(spec: dict, materials: list[str], where: str) -> dict[str, li
 
 def question_scenes(preset: dict, study: str) -> list[StudyScene]:
     """The scenes of a question study (none if the preset lacks it), per material, at the
-    study's one striker speed; each row carries the study's setting columns.
+    study's striker speeds (one for radius_spread and dissipation); each row carries the
+    study's setting columns.
 
     radius_spread: the packed chain (one chain, no spread), then one packed scene per sd in
     ``sd_um`` whose members draw their radii about the nominal ones
@@ -325,7 +334,8 @@ def question_scenes(preset: dict, study: str) -> list[StudyScene]:
     gaps of each mean in ``gap_mean_nm`` and no spread; ``realisations`` each.
     dissipation: per mean gap of the material (0: packed, one chain; else
     ``realisations``), one scene per coefficient of restitution in ``e``: the base effects
-    plus ``contact_damping`` with ``damping: {model, e}``."""
+    plus ``contact_damping`` with ``damping: {model, e}``. plasticity:
+    :func:`_plasticity_scenes`; adhesion: :func:`_adhesion_scenes`."""
     spec = (preset.get("studies") or {}).get(study)
     if not spec:
         return []
@@ -363,6 +373,13 @@ def question_scenes(preset: dict, study: str) -> list[StudyScene]:
                     lambda raw: None)
         return out
 
+    if study == "plasticity":
+        _plasticity_scenes(preset, spec, materials, add, where)
+        return out
+    if study == "adhesion":
+        _adhesion_scenes(preset, spec, materials, add, where)
+        return out
+
     model = spec.get("model", "coeff_restitution")
 
     def damped(e):
@@ -379,6 +396,83 @@ def question_scenes(preset: dict, study: str) -> list[StudyScene]:
                     1 if g == 0 else reals, g,
                     (("damping_model", model), ("restitution_e", float(e))), damped(e))
     return out
+
+
+def _plasticity_scenes(preset: dict, spec: dict, materials: list[str], add, where: str):
+    """plasticity: per mean gap of the material (0: packed, one chain; else
+    ``realisations``), the elastic chain (p_y infinite), then one scene per factor in
+    ``yield_pressure_factor``: the effect ``plastic_contact`` with p_y that factor times the
+    material's library value (``materials.yaml``). The base effects that Thornton's law does
+    not act with yet (``plastic_contact.NOT_WITH``: the contact and rolling friction) are left
+    out of every scene of the study, the elastic one included."""
+    from ..effects.plastic_contact import MODELS, NOT_WITH
+    from ..materials import library
+    model = MODELS[0]
+    reals = int(spec["realisations"])
+    elastic = (("plasticity_model", "none"), ("yield_pressure_Pa", math.inf))
+
+    def edit(py):
+        def apply(raw):
+            raw["effects"] = [e for e in raw["effects"] if e not in NOT_WITH]
+            if py is not None:
+                raw["effects"].append("plastic_contact")
+                raw["plasticity"] = {"model": model, "yield_pressure": float(py)}
+        return apply
+
+    known = library()
+    for material, gaps in _material_gaps(spec, materials, where).items():
+        mat = known.get(material)
+        if mat is None or mat.yield_pressure is None:
+            have = ", ".join(k for k, m in known.items() if m.yield_pressure is not None)
+            raise ConfigError(f"invalid configuration at '{where}': material '{material}' has "
+                              "no yield_pressure in the material library; study materials "
+                              f"that have one ({have})")
+        for g in gaps:
+            r = 1 if g == 0 else reals
+            add(material, f"gap{_fmt_num(g)}nm-elastic", _gaps(preset, g), r, g,
+                      elastic, edit(None))
+            for f in _as_list(spec["yield_pressure_factor"]):
+                py = float(f) * mat.yield_pressure
+                add(material, f"gap{_fmt_num(g)}nm-py{_fmt_num(f)}", _gaps(preset, g),
+                          r, g, (("plasticity_model", model), ("yield_pressure_Pa", py)),
+                          edit(py))
+
+
+def _adhesion_scenes(preset: dict, spec: dict, materials: list[str], add, where: str):
+    """adhesion: per mean gap of the material (0: packed, one chain; else
+    ``realisations``), the chain without adhesion, then one scene per surface energy gamma
+    in ``surface_energy`` (J/m^2) and groove setting in ``groove`` (the groove's flats
+    adhere too: ``adhesion.groove``): the effect ``adhesion`` with ``adhesion: {model,
+    surface_energy, groove}``. The base effects the model does not act with
+    (``adhesion.not_with``: jkr's contact damping and friction) are left out of every scene
+    of the study, the one without adhesion included."""
+    from ..effects.adhesion import not_with
+    model = spec.get("model", "jkr")
+    drop = not_with(model)
+    reals = int(spec["realisations"])
+    none = (("cohesion_model", "none"), ("surface_energy_J_m2", 0.0), ("groove_cohesion", False))
+
+    def edit(gamma, groove):
+        def apply(raw):
+            raw["effects"] = [e for e in raw["effects"] if e not in drop]
+            if gamma is not None:
+                raw["effects"].append("adhesion")
+                raw["adhesion"] = {"model": model, "surface_energy": float(gamma),
+                                   "groove": bool(groove)}
+        return apply
+
+    for material, gaps in _material_gaps(spec, materials, where).items():
+        for g in gaps:
+            r = 1 if g == 0 else reals
+            add(material, f"gap{_fmt_num(g)}nm-none", _gaps(preset, g), r, g, none,
+                edit(None, False))
+            for groove in _as_list(spec["groove"]):
+                for gamma in _as_list(spec["surface_energy"]):
+                    tag = f"gap{_fmt_num(g)}nm-{model}{_fmt_num(gamma)}" + \
+                        ("-groove" if groove else "")
+                    add(material, tag, _gaps(preset, g), r, g,
+                        (("cohesion_model", model), ("surface_energy_J_m2", float(gamma)),
+                         ("groove_cohesion", bool(groove))), edit(gamma, groove))
 
 
 def _pattern(values, n: int, where: str) -> list:

@@ -4,13 +4,15 @@
    External per-particle forces for 1D chains of spheres in a V-groove
    (chain along x, spheres roll about y; omega_y > 0 rolls a sphere in +x):
 
-   groove Coulomb friction (keyword "groove s S mu MU g G kt KT [gamma GAMMA]";
-   KT and GAMMA may instead name a per-atom property d_NAME of fix property/atom,
+   groove Coulomb friction (keyword "groove s S mu MU g G kt KT [gamma GAMMA] [load N]";
+   KT, GAMMA and N may instead name a per-atom property d_NAME of fix property/atom,
    for spheres that differ in size or material)
      slip velocity of the sphere on the groove walls
        u = v_x - s*R*omega_y      (rotation yes)
        u = v_x                    (rotation no)
-     Coulomb limit  Fc = mu*m*g/s  (walls carry a total normal load m*g/s)
+     Coulomb limit  Fc = mu*(m*g/s + N)  (walls carry a total normal load m*g/s from the
+     weight, plus N: e.g. the adhesive pull-off of the two sphere-flat contacts; N = 0
+     unless given)
      Cundall-Strack elastic-plastic spring(-dashpot) with per-atom history xi
      (gamma = 0 unless given; the return mapping is that of LAMMPS
      pair granular "tangential linear_history"):
@@ -69,13 +71,13 @@ FixGrooveDrag::FixGrooveDrag(LAMMPS *lmp, int narg, char **arg) :
   groove_flag = drag_flag = 0;
   rotation = 1;
   drag_form = DRAG_AS_PRINTED;
-  sfac = mu = gravity = kt = gamma = t0 = lenL = 0.0;
-  kt_index = gamma_index = -1;
+  sfac = mu = gravity = kt = gamma = load = t0 = lenL = 0.0;
+  kt_index = gamma_index = load_index = -1;
   work_local[0] = work_local[1] = 0.0;
   work_all[0] = work_all[1] = 0.0;
 
   // ---- parse keywords ----
-  // groove s S mu MU g G kt KT [gamma GAMMA]  (sub-keywords in any order)
+  // groove s S mu MU g G kt KT [gamma GAMMA] [load N]  (sub-keywords in any order)
   // drag T0 T L LEN [form as_printed|odd]
   // rotation yes|no
 
@@ -84,7 +86,7 @@ FixGrooveDrag::FixGrooveDrag(LAMMPS *lmp, int narg, char **arg) :
     if (strcmp(arg[iarg], "groove") == 0) {
       if (groove_flag) bad_arg("keyword 'groove' given twice");
       groove_flag = 1;
-      int have_s = 0, have_mu = 0, have_g = 0, have_kt = 0, have_gamma = 0;
+      int have_s = 0, have_mu = 0, have_g = 0, have_kt = 0, have_gamma = 0, have_load = 0;
       iarg++;
       while (iarg < narg) {
         const char *key = arg[iarg];
@@ -101,12 +103,15 @@ FixGrooveDrag::FixGrooveDrag(LAMMPS *lmp, int narg, char **arg) :
           have = &have_kt; dest = &kt;
         } else if (strcmp(key, "gamma") == 0) {
           have = &have_gamma; dest = &gamma; allow_zero = true;
+        } else if (strcmp(key, "load") == 0) {
+          have = &have_load; dest = &load; allow_zero = true;
         } else break;
         if (*have) bad_arg(fmt::format("groove value '{}' given twice", key));
         if (iarg + 1 >= narg) bad_arg(fmt::format("groove value '{}' needs a number", key));
-        if ((dest == &kt || dest == &gamma) && strncmp(arg[iarg + 1], "d_", 2) == 0) {
+        if ((dest == &kt || dest == &gamma || dest == &load) &&
+            strncmp(arg[iarg + 1], "d_", 2) == 0) {
           // a per-atom value: the custom property d_NAME (fix property/atom)
-          std::string &name = (dest == &kt) ? kt_name : gamma_name;
+          std::string &name = (dest == &kt) ? kt_name : (dest == &gamma) ? gamma_name : load_name;
           name = arg[iarg + 1] + 2;
           if (name.empty())
             bad_arg(fmt::format("groove value '{}' needs a property name after d_", key));
@@ -251,6 +256,7 @@ void FixGrooveDrag::init()
   }
   kt_index = custom_index(kt_name, "kt");
   gamma_index = custom_index(gamma_name, "gamma");
+  load_index = custom_index(load_name, "load");
 }
 
 /* ----------------------------------------------------------------------
@@ -272,26 +278,28 @@ int FixGrooveDrag::custom_index(const std::string &name, const char *key)
 }
 
 /* ----------------------------------------------------------------------
-   per-atom kt must be > 0 and gamma >= 0 (finite) on every atom of the group
+   per-atom kt must be > 0, gamma >= 0 and load >= 0 (finite) on every atom of the group
 ------------------------------------------------------------------------- */
 
 void FixGrooveDrag::check_peratom()
 {
-  if (kt_index < 0 && gamma_index < 0) return;
+  if (kt_index < 0 && gamma_index < 0 && load_index < 0) return;
   const double *ktv = kt_index >= 0 ? atom->dvector[kt_index] : nullptr;
   const double *gav = gamma_index >= 0 ? atom->dvector[gamma_index] : nullptr;
+  const double *ldv = load_index >= 0 ? atom->dvector[load_index] : nullptr;
   const int *mask = atom->mask;
   int bad = 0;
   for (int i = 0; i < atom->nlocal; i++) {
     if (!(mask[i] & groupbit)) continue;
     if (ktv && !(std::isfinite(ktv[i]) && ktv[i] > 0.0)) bad = 1;
     if (gav && !(std::isfinite(gav[i]) && gav[i] >= 0.0)) bad = 1;
+    if (ldv && !(std::isfinite(ldv[i]) && ldv[i] >= 0.0)) bad = 1;
   }
   int any = 0;
   MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, world);
   if (any)
     error->all(FLERR, "Fix groove/drag: a per-atom groove value is out of range on some atom "
-                      "(kt must be > 0, gamma >= 0, both finite)");
+                      "(kt must be > 0, gamma >= 0, load >= 0, all finite)");
 }
 
 /* ----------------------------------------------------------------------
@@ -336,6 +344,7 @@ void FixGrooveDrag::apply(int increment)
   // per-atom stick spring and dashpot (d_NAME), or the fix's own values
   const double *ktv = kt_index >= 0 ? atom->dvector[kt_index] : nullptr;
   const double *gav = gamma_index >= 0 ? atom->dvector[gamma_index] : nullptr;
+  const double *ldv = load_index >= 0 ? atom->dvector[load_index] : nullptr;
 
   for (int i = 0; i < nlocal; i++) {
     if (!(mask[i] & groupbit)) continue;
@@ -354,7 +363,7 @@ void FixGrooveDrag::apply(int increment)
       const double kti = ktv ? ktv[i] : kt;
       const double gai = gav ? gav[i] : gamma;
       double fg = -kti * xi - gai * u;
-      const double fc = mu * m * gravity / sfac;
+      const double fc = mu * (m * gravity / sfac + (ldv ? ldv[i] : load));
       if (std::fabs(fg) > fc) {
         fg = std::copysign(fc, fg);    // sign of the trial force, not of a velocity
         // return mapping: the spring alone holds the cap. Unlike LAMMPS's

@@ -62,10 +62,11 @@ class FixGrooveDrag : public Fix {
   double gravity;     // g
   double kt;          // stiffness of the groove tangential spring (force/distance)
   double gamma;       // optional dashpot in parallel with the spring (force/velocity)
-  // per-atom kt / gamma: names of fix property/atom vectors d_NAME ("" if a number)
-  // and their indices in atom->dvector (-1 if a number), resolved in init()
-  std::string kt_name, gamma_name;
-  int kt_index, gamma_index;
+  double load;        // normal load of the walls beyond the weight's m*g/s (force; 0 unless given)
+  // per-atom kt / gamma / load: names of fix property/atom vectors d_NAME ("" if a
+  // number) and their indices in atom->dvector (-1 if a number), resolved in init()
+  std::string kt_name, gamma_name, load_name;
+  int kt_index, gamma_index, load_index;
   double t0;          // drag time constant T0
   double lenL;        // drag length L
 

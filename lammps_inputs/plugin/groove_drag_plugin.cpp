@@ -1,5 +1,5 @@
 /* ----------------------------------------------------------------------
-   granchain: plugin registration for fix groove/drag
+   granchain: plugin registration for fix groove/drag and fix thornton/chain
 
    Load in an input script with
      plugin load /path/to/groove_drag.so
@@ -11,6 +11,7 @@
 #include "lammpsplugin.h"
 
 #include "fix_groove_drag.h"
+#include "fix_thornton_chain.h"
 
 using namespace LAMMPS_NS;
 
@@ -21,6 +22,11 @@ using namespace LAMMPS_NS;
 static Fix *groove_drag_creator(LAMMPS *lmp, int argc, char **argv)
 {
   return new FixGrooveDrag(lmp, argc, argv);
+}
+
+static Fix *thornton_chain_creator(LAMMPS *lmp, int argc, char **argv)
+{
+  return new FixThorntonChain(lmp, argc, argv);
 }
 
 extern "C" void lammpsplugin_init(void *lmp, void *handle, void *regfunc)
@@ -35,5 +41,10 @@ extern "C" void lammpsplugin_init(void *lmp, void *handle, void *regfunc)
   plugin.author = "granchain";
   plugin.creator.v2 = (lammpsplugin_factory2 *) &groove_drag_creator;
   plugin.handle = handle;
+  (*register_plugin)(&plugin, lmp);
+
+  plugin.name = "thornton/chain";
+  plugin.info = "granchain Thornton elastic-plastic normal contact for 1D sphere chains v1.0";
+  plugin.creator.v2 = (lammpsplugin_factory2 *) &thornton_chain_creator;
   (*register_plugin)(&plugin, lmp);
 }

@@ -237,6 +237,8 @@ rule thesis_comparison:
         wall=parquet_path("wall") if "wall" in OPTIONAL else [],
         radius_spread=parquet_path("radius_spread") if "radius_spread" in OPTIONAL else [],
         dissipation=parquet_path("dissipation") if "dissipation" in OPTIONAL else [],
+        plasticity=parquet_path("plasticity") if "plasticity" in OPTIONAL else [],
+        adhesion=parquet_path("adhesion") if "adhesion" in OPTIONAL else [],
         code=THESIS_CODE,
     output:
         csv=report(

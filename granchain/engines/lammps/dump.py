@@ -73,7 +73,7 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
         if walled else None
     XL = np.concatenate([p[7] for p in parts]) if walled else None
     if ledger is not None:
-        _fill_ledger(E, None if sampled else WF, pl, ledger)
+        _fill_ledger(E, WF, pl, ledger, sampled)
     _fill_residual(scene, E)
     return {"step": step, "v": V, "energy": E, "last_overlap": last_overlap, "wall_force": WF,
             "last_disp": XL}
@@ -137,8 +137,8 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
             if hi > S:
                 raise GranchainError(f"{lwhat} does not match the trajectory: more than {S} "
                                      f"samples; {path.name} has {S}")
-            _fill_ledger(E[lo:hi], None if WF is None or sampled else WF[lo:hi], pl,
-                         np.stack([block[c] for c in lcols], axis=2))
+            _fill_ledger(E[lo:hi], None if WF is None else WF[lo:hi], pl,
+                         np.stack([block[c] for c in lcols], axis=2), sampled)
 
         lstep, _ = read_binary_dump(lpath, lcols, B, pl.nsamples, lwhat, consume=ledger)
         if not np.array_equal(lstep, step):

@@ -180,15 +180,22 @@ def _fill_mechanical(E, KE, EH, WL) -> None:
         E[:, :, E_WORK_LOAD] = WL
 
 
-def _fill_ledger(E, WF, pl: "deckmod.DeckPlan", ledger) -> None:
-    """The per-chain LAMMPS ledger (samples, B, k) into E's columns (1e-15 J) and the end
-    wall's force on the last sphere into WF (samples, B) in N, as a compression (> 0);
-    WF None: not wanted (with a velocity-dependent wall law it comes from the samples'
-    state, :func:`sampled_wall_force`)."""
+def _fill_ledger(E, WF, pl: "deckmod.DeckPlan", ledger, sampled: bool = False) -> None:
+    """The per-chain LAMMPS ledger (samples, B, k) into E's columns (1e-15 J; an effect's
+    elastic energy beyond Hertz's added to the potential column) and the end wall's
+    force on the last sphere into WF (samples, B) in N, as a compression (> 0), the
+    effects' parts of it added; WF None: not wanted. ``sampled``: WF already holds fix
+    wall/gran's law at the samples' state (:func:`sampled_wall_force`, a velocity-
+    dependent wall law), which replaces its own column."""
     for j, name in enumerate(pl.ledger_columns):
         if name == deckmod.WALL_FORCE_COLUMN:
-            if WF is not None:
+            if WF is not None and not sampled:
                 WF[:] = -ledger[:, :, j] * FORCE
+        elif name == deckmod.WALL_EXTRA_COLUMN:
+            if WF is not None:
+                WF -= ledger[:, :, j] * FORCE
+        elif name == deckmod.POTENTIAL_EXTRA_COLUMN:
+            E[:, :, E_POT] += ledger[:, :, j] * ENERGY
         else:
             E[:, :, ENERGY_COLUMNS.index(name)] = ledger[:, :, j] * ENERGY
 

@@ -22,6 +22,12 @@ keys of ``granchain.thesis.COLUMNS``, in table order:
 - :func:`dissipation_rows`      beyond the chapter: which contact damping e gives the measured
                                 v_max,2/v_max,1, and does it give the measured peaks or leave
                                 a loss at the striker (dissipation study)?
+- :func:`plasticity_rows`       beyond the chapter: which limiting pressure of Thornton's
+                                yielding contacts gives the measured v_max,1, and is v_max,1(v_s)
+                                then linear, as measured (plasticity study)?
+- :func:`adhesion_rows`         beyond the chapter: which surface energy of adhesive contacts,
+                                alone or with the groove's flats, gives the measured v_max,1 at
+                                the lowest speeds (adhesion study)?
 
 Every number comes from granchain.reductions; reasons quote the numbers that support them.
 """
@@ -37,7 +43,10 @@ from .instrument import instrument_rows
 from .field import field_rows
 from .tolerance import tolerance_rows
 from .dissipation import dissipation_rows
+from .plasticity import plasticity_rows
+from .adhesion import adhesion_rows
 
 __all__ = ["PackedChain", "packed_chain", "packed_chain_rows", "group_velocity_rows",
            "experiment_rows", "gap_rows", "bound_rows", "energy_rows", "instrument_rows",
-           "field_rows", "tolerance_rows", "dissipation_rows"]
+           "field_rows", "tolerance_rows", "dissipation_rows",
+           "plasticity_rows", "adhesion_rows"]
