@@ -73,7 +73,8 @@ MEMBER = {
                  "planned but a value left its physical bounds (NaN, and a line in "
                  "warnings naming the scene key at fault)."),
     "wave_arrived": _b("Both probes' peaks were measured (final); v_g and the probes' "
-                       "observables are NaN otherwise."),
+                       "observables are NaN otherwise (always in a two-sphere scene, "
+                       "which has no probes)."),
     "peaks_not_final": _s("The particles (1-based, ';'-separated) whose peak the run did not "
                           "measure; their vmax_p columns are NaN. Empty when all are final."),
     "v_max_1_m_s": _f("m/s", "Peak velocity v_max,1 of the first probe particle."),
@@ -119,6 +120,18 @@ MEMBER = {
                                 "static preload); NaN when the run did not see that peak."),
     "t_wall_peak_s": _f("s", "Time of the wall's force peak."),
     "wall_force_static_N": _f("N", "The wall's static force (the chain's dead load F0)."),
+    # a two-sphere scene's columns (chain.n 2), tables.columns(pair=True)
+    "pair_collision": _s("How the two-sphere collision ended by the end of the run: "
+                         "separated, captured (the pair stays bound: its contact closed and "
+                         "the energy of its relative motion below what the contact's opening "
+                         "takes), unfinished (the striker not yet arrived, or the contact "
+                         "still closed with the energy to open: a longer t_end finishes "
+                         "it) or no_impact (v_s = 0)."),
+    "pair_captured": _b("The pair was captured (pair_collision captured)."),
+    "pair_restitution": _f("1", "The measured coefficient of restitution e = -(v2' - v1') "
+                                "/ (v2 - v1) = (v2' - v1') / v_s of the two-sphere "
+                                "collision, from the final velocities; NaN unless "
+                                "pair_collision is separated."),
     # a question study's setting columns (tables.SETTING_COLUMNS)
     "radius_spread_distribution": _s("The law of the spheres' radius spread (none for the "
                                      "study's chains of equal spheres)."),
@@ -141,6 +154,9 @@ MEMBER_PATTERNS = {
     "vmax_p<i>_m_s": (re.compile(r"vmax_p\d+_m_s"),
                       _f("m/s", "Peak velocity of particle i (1-based, zero-padded to the "
                                 "width of n, at least 2 digits); NaN when not final.")),
+    "vfinal_p<i>_m_s": (re.compile(r"vfinal_p\d+_m_s"),
+                        _f("m/s", "Velocity of particle i at the end of the run (t_end, "
+                                  "the last sample), numbered as vmax_p<i>_m_s.")),
 }
 
 # ---------------------------------------------------------------------------------------
@@ -207,7 +223,10 @@ RUN_JSON = {
                                   "across a gap), timed at the plateau's start."),
     "final": Column("list", "", "Per particle: its peak is final (inside the record)."),
     "not_final": Column("list", "", "The particles (1-based) whose peak is not final."),
-    "probes": Column("list", "", "The two probe particles (1-based)."),
+    "v_final": Column("list", "m/s", "Velocity of each particle at the end of the run "
+                                     "(t_end, the last sample)."),
+    "probes": Column("list", "", "The two probe particles (1-based); [2, 2] in a two-sphere "
+                                 "scene, which has none (its probe keys below are null)."),
     "v_max_1": Column("float", "m/s", "Peak velocity of the first probe."),
     "v_max_2": Column("float", "m/s", "Peak velocity of the second probe."),
     "dt_peak": Column("float", "s", "Time between the probes' peaks."),
@@ -248,6 +267,19 @@ RUN_JSON = {
     "t_wall_peak": Column("float", "s", "Time of that peak."),
     "wall_force_static": Column("float", "N", "The wall's static force (the dead load)."),
     "wall_peak_final": Column("bool", "", "The wall's force peak was measured."),
+    "pair": Column("bool", "", "A two-sphere scene (chain.n 2): its probe keys (v_max_1, "
+                               "v_max_2, dt_peak, dt_front, gap_mean_probes, v_g, v_g_front) "
+                               "are null and wave_arrived false, and the collision keys "
+                               "below are present only then."),
+    "collision": Column("string", "", "How the collision ended: separated, captured, "
+                                      "unfinished or no_impact (as the table's "
+                                      "pair_collision)."),
+    "captured": Column("bool", "", "The pair was captured: its contact still closed at the "
+                                   "end, the energy of its relative motion below what the "
+                                   "contact's opening takes."),
+    "restitution": Column("float", "1", "The measured coefficient of restitution (v2' - "
+                                        "v1') / v_s from the final velocities; null unless "
+                                        "the collision is separated."),
     "out_of_bounds": Column("list", "", "The values that left their physical bounds (a "
                                         "group velocity above the bar sound speed sqrt(E/rho) "
                                         "of the stiffest sphere, a delay that is not "
@@ -401,7 +433,9 @@ COMPARISON = {
     "realisation": _i("The member's gap realisation."),
     "v_striker_m_s": _f("m/s", "The member's striker speed."),
     "quantity": _s("What the row compares: an observable (v_max[i], v_max_1, v_max_2, "
-                   "dt_peak, dt_front, v_g, v_g_front), the sample count, a ledger entry, the "
+                   "dt_peak, dt_front, v_g, v_g_front; the final velocities of every "
+                   "particle, 'v_final, every particle'; a two-sphere scene's "
+                   "restitution), the sample count, a ledger entry, the "
                    "balance, the end wall's force, or 'v(t), every particle' (the whole "
                    "trajectories, for the traced members)."),
     "reference": _f("of the quantity", "The reference engine's value (NaN for the "
@@ -490,8 +524,8 @@ ACCURACY = {
 SECTIONS = (
     ("Per-member table", "`results/<preset>/tables/<study>.csv` and `<study>.parquet`: one row "
      "per ensemble member, columns in this order (`tables.columns`). The vibrometer's, the "
-     "wall's and the setting columns are there only in the tables of measured scenes, of "
-     "walled scenes and of the question studies.", MEMBER, MEMBER_PATTERNS),
+     "wall's, the pair's and the setting columns are there only in the tables of measured "
+     "scenes, of walled scenes, of two-sphere scenes and of the question studies.", MEMBER, MEMBER_PATTERNS),
     ("Summary table", "`results/<preset>/tables/<study>_summary.csv`: one row per group of "
      "members (material, engine, striker speed, mean gap, extra length; the scene and the "
      "setting columns where the table has them), percentile bands of the main observables "

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .collision import terms_of
 from .effects import residual_work
 from .errors import GranchainError
 from .observables import OK_STATUSES, status_text, summarize
@@ -53,6 +54,8 @@ WHY_V = ("not the 1e-3 of a loose cross-check: same law and Verlet, rounding onl
          "1e-3 would miss a dropped groove/drag term (~1e-4)")
 WHY_TRAJECTORY = ("the whole record (LAMMPS text dump read with MDAnalysis): same law, Verlet "
                   "and sample grid, rounding only (measured <= 5.0e-8 v_s)")
+WHY_FINAL = ("the last sample of the record: it carries the rounding of the whole run, as "
+             "the trajectory row does")
 WHY_T = "same integrator and sample grid: peak times differ by rounding only (measured <= 1.2e-9)"
 WHY_E = ("same steps: rounding only (measured <= 7.3e-9 E0); 5e-8 E0 still resolves "
          "the groove (~1e-3 E0) and drag (~1e-4 E0) works")
@@ -163,7 +166,8 @@ def compare(scene: Scene, *, nprocs: int = 1, workdir=None, force: bool = False,
     t2 = time.perf_counter()
     rows, status, notes = [], {"reference": [], "lammps": []}, []
     for i, (m, r, lt) in enumerate(zip(mem, ref, lmp)):
-        results = summarize(r, cs.probes), summarize(lt, cs.probes)
+        results = (summarize(r, cs.probes, terms_of(cs, r)),
+                   summarize(lt, cs.probes, terms_of(cs, lt)))
         for row in member_rows(cs, r, lt, trace=traced[i] if i < k else None,
                                results=results):
             rows.append(dict(member=m.index, realisation=m.realisation, v_striker=m.v_striker,
@@ -228,7 +232,8 @@ def member_rows(scene: Scene, ref, lmp, *, trace=None, results=None) -> list[dic
     sample record of this member (``ref`` itself if it has one), adding the row of the
     trajectories themselves, max |v_lammps - v_reference| / v_s over every particle and
     sample. ``results``: both runs' ``summarize``, if the caller has them."""
-    sr, sl = results or (summarize(ref, scene.probes), summarize(lmp, scene.probes))
+    sr, sl = results or (summarize(ref, scene.probes, terms_of(scene, ref)),
+                         summarize(lmp, scene.probes, terms_of(scene, lmp)))
     vfloor = arrival_speed(max(ref.v_striker, 1e-300))
     out = [_row("samples", sr.samples, sl.samples, float(abs(sr.samples - sl.samples)),
                 "exact", 0.0, WHY_SAMPLES)]
@@ -240,6 +245,12 @@ def member_rows(scene: Scene, ref, lmp, *, trace=None, results=None) -> list[dic
                         TRAJ_TOL, WHY_TRAJECTORY))
     for i, (a, b) in enumerate(zip(sr.v_max, sl.v_max)):
         out.append(_row(f"v_max[{i + 1}]", a, b, _rel(a, b, vfloor), "rel", V_TOL, WHY_V))
+    dvf = float(np.max(np.abs(np.subtract(sl.v_final, sr.v_final))))
+    out.append(_row("v_final, every particle", math.nan, math.nan,
+                    dvf / max(ref.v_striker, 1e-300), "max/v_s", TRAJ_TOL, WHY_FINAL))
+    if sr.pair or sl.pair:
+        a, b = sr.restitution, sl.restitution
+        out.append(_row("restitution", a, b, _rel(a, b, 0.0), "rel", V_TOL, WHY_V))
     for q, a, b in (("v_max_1", sr.v_max_1, sl.v_max_1), ("v_max_2", sr.v_max_2, sl.v_max_2)):
         out.append(_row(q, a, b, _rel(a, b, vfloor), "rel", V_TOL, WHY_V))
     for q, a, b in (("dt_peak", sr.dt_peak, sl.dt_peak), ("dt_front", sr.dt_front, sl.dt_front)):

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import obsrules, stoprule
+from . import collision, obsrules, stoprule
 from .effects import SPECS
 from .trajectory import ENERGY_COLUMNS, Trajectory
 
@@ -189,12 +189,21 @@ MEASURED_COLUMNS = ("v_max_1_measured_m_s", "v_max_2_measured_m_s", "v_max_ratio
 WALL_FIELDS = ("walled", "wall_force_max", "t_wall_peak", "wall_force_static",
                "wall_peak_final")
 WALL_COLUMNS = ("wall_force_max_N", "t_wall_peak_s", "wall_force_static_N")
+# ChainResult fields of a two-sphere collision (``granchain.collision``), and the table
+# columns of a two-sphere scene's run
+PAIR_FIELDS = ("pair", "collision", "captured", "restitution")
+PAIR_COLUMNS = ("pair_collision", "pair_captured", "pair_restitution")
 
 
 def vmax_columns(n: int) -> list[str]:
     """``vmax_p01_m_s`` ... one per particle, zero-padded to the width of n (at least 2)."""
     width = max(2, len(str(n)))
     return [f"vmax_p{i:0{width}d}_m_s" for i in range(1, n + 1)]
+
+
+def vfinal_columns(n: int) -> list[str]:
+    """``vfinal_p01_m_s`` ... one per particle, numbered as :func:`vmax_columns`."""
+    return [c.replace("vmax_p", "vfinal_p", 1) for c in vmax_columns(n)]
 
 
 def _ratio(a: float, b: float) -> float:
@@ -208,9 +217,11 @@ class ChainResult:
 
     Per particle (tuples of n, particle i at index i - 1): v_max, t_peak, t_front (NaN
     where the peak is not final), plateau, final. not_final: the particles (1-based)
-    whose peak is not final. probes: the probe particles (1-based). v_max_1, v_max_2,
-    dt_peak, dt_front, v_g, v_g_front: the probes' observables (module docstring);
-    gap_mean_probes: mean gap between the probes (m). energy: the energy ledger.
+    whose peak is not final. v_final: each particle's velocity at the end of the run (the
+    last sample, t_end). probes: the probe particles (1-based). v_max_1, v_max_2,
+    dt_peak, dt_front, v_g, v_g_front: the probes' observables (module docstring; NaN in
+    a two-sphere scene, which has no probes); gap_mean_probes: mean gap between the
+    probes (m). energy: the energy ledger.
     steps, rejected_steps: integration steps taken and rejected (adaptive, event);
     force_evaluations: right-hand-side (force routine) evaluations; wall_s: the
     engine's wall time of this chain; t_end: time of the last sample; samples: their count.
@@ -231,6 +242,7 @@ class ChainResult:
     plateau: tuple[bool, ...]
     final: tuple[bool, ...]
     not_final: tuple[int, ...]
+    v_final: tuple[float, ...]
     probes: tuple[int, ...]
     v_max_1: float
     v_max_2: float
@@ -274,6 +286,13 @@ class ChainResult:
     t_wall_peak: float | None = None
     wall_force_static: float | None = None
     wall_peak_final: bool | None = None
+    # A two-sphere collision (pair True, a scene of chain.n 2; otherwise left out of the
+    # JSON and the table row): how it ended (``collision.OUTCOMES``), whether the pair
+    # was captured, and the measured restitution (NaN unless separated)
+    pair: bool = False
+    collision: str | None = None
+    captured: bool | None = None
+    restitution: float | None = None
     # the fields (energy entries as ``energy.<entry>``) whose value left its physical
     # bounds (:func:`bounded`): NaN here, each with a line in ``warnings``
     out_of_bounds: tuple[str, ...] = ()
@@ -294,6 +313,8 @@ class ChainResult:
                 continue
             if not self.walled and f.name in WALL_FIELDS:
                 continue
+            if not self.pair and f.name in PAIR_FIELDS:
+                continue
             v = getattr(self, f.name)
             if isinstance(v, tuple):
                 v = list(v)
@@ -306,7 +327,8 @@ class ChainResult:
         """This run's columns of the results table (``granchain.tables``): engine,
         method, dt_s, v_striker_m_s, realisation, status, wave_arrived, peaks_not_final,
         the probes' observables, gap_mean_probes_nm, the ``ENERGY_MAP`` columns, steps,
-        warnings, and ``vmax_columns(n)``. Needs the member fields (``run_scene``)."""
+        warnings, the two-sphere collision's ``PAIR_COLUMNS``, ``vmax_columns(n)`` and
+        ``vfinal_columns(n)``. Needs the member fields (``run_scene``)."""
         if self.realisation is None or self.dt is None:
             raise ValueError("a table row needs a run of simulate.run_scene (realisation "
                              "and dt are not set)")
@@ -340,7 +362,13 @@ class ChainResult:
             row.update({"wall_force_max_N": float(self.wall_force_max),
                         "t_wall_peak_s": float(self.t_wall_peak),
                         "wall_force_static_N": float(self.wall_force_static)})
+        if self.pair:
+            row.update({"pair_collision": self.collision,
+                        "pair_captured": bool(self.captured),
+                        "pair_restitution": float(self.restitution)})
         for col, v in zip(vmax_columns(self.n), self.v_max):
+            row[col] = float(v)
+        for col, v in zip(vfinal_columns(self.n), self.v_final):
             row[col] = float(v)
         return row
 
@@ -395,14 +423,23 @@ def probe_span(traj: Trajectory, probes=(2, 13)) -> tuple[float, float]:
     return gbar, (p2 - p1) * (2.0 * traj.radius + gbar)
 
 
-def summarize(traj: Trajectory, probes=(2, 13)) -> ChainResult:
-    """All observables of one chain (member fields unset: ``simulate.run_scene`` sets them)."""
+def summarize(traj: Trajectory, probes=(2, 13), terms=None) -> ChainResult:
+    """All observables of one chain (member fields unset: ``simulate.run_scene`` sets them).
+    A two-sphere chain has no probes (its probe observables are NaN) and needs ``terms``,
+    its physics (``effects.physics_terms``), for its collision (``granchain.collision``)."""
     v_max, t_peak, t_front, plateau, final = peaks(traj)
     p1, p2 = probes[0], probes[1]
     i1, i2 = p1 - 1, p2 - 1
     gbar, span = probe_span(traj, probes)
+    pair = {}
+    if traj.n == 2:
+        if terms is None:
+            raise ValueError("a two-sphere chain's collision needs its physics (terms)")
+        c = collision.measure(traj.v_striker, traj.v[-1], traj.last_overlap, terms)
+        pair = {"pair": True, "collision": c.collision, "captured": c.captured,
+                "restitution": c.restitution}
     # both probes' peaks measured, by a run that did not fail numerically
-    arrived = bool(traj.v_striker > 0 and final[i1] and final[i2]
+    arrived = bool(traj.v_striker > 0 and final[i1] and final[i2] and not pair
                    and traj.status in ("passed", "done", "timeout"))
     wall = {}
     if traj.wall_force is not None:
@@ -423,12 +460,13 @@ def summarize(traj: Trajectory, probes=(2, 13)) -> ChainResult:
         plateau=tuple(plateau.tolist()),
         final=tuple(final.tolist()),
         not_final=tuple(i + 1 for i in range(traj.n) if not final[i]),
+        v_final=tuple(float(x) for x in traj.v[-1]),
         probes=tuple(int(p) for p in probes),
-        v_max_1=float(v_max[i1]),
-        v_max_2=float(v_max[i2]),
+        v_max_1=float(v_max[i1]) if not pair else math.nan,
+        v_max_2=float(v_max[i2]) if not pair else math.nan,
         dt_peak=dt_peak,
         dt_front=dt_front,
-        gap_mean_probes=gbar,
+        gap_mean_probes=gbar if not pair else math.nan,
         v_g=v_g,
         v_g_front=v_g_front,
         energy=energy_ledger(traj),
@@ -439,7 +477,7 @@ def summarize(traj: Trajectory, probes=(2, 13)) -> ChainResult:
         t_end=float(traj.t[-1]),
         samples=int(traj.t.size if traj.observed is None or traj.observed.samples is None
                     else traj.observed.samples),
-        **wall,
+        **wall, **pair,
     )
     return bounded(result, traj.limits)
 
@@ -483,7 +521,7 @@ def status_summary(statuses) -> str:
 _TIMING_PAIRS = (("dt_peak", "v_g"), ("dt_front", "v_g_front"),
                  ("dt_peak_measured", "v_g_measured"), ("dt_front_measured", "v_g_front_measured"))
 _SPEEDS = ("v_max_1", "v_max_2", "v_max_1_measured", "v_max_2_measured", "wall_force_max",
-           "t_wall_peak", "wall_force_static")
+           "t_wall_peak", "wall_force_static", "restitution")
 
 
 def bounded(r: ChainResult, limits=None) -> ChainResult:
@@ -522,7 +560,7 @@ def bounded(r: ChainResult, limits=None) -> ChainResult:
         if x is not None and math.isinf(x):
             drop("nonfinite", name)
     per_particle = {}
-    for name in ("v_max", "t_peak", "t_front"):
+    for name in ("v_max", "t_peak", "t_front", "v_final"):
         vals = getattr(r, name)
         if any(math.isinf(x) for x in vals):
             per_particle[name] = tuple(math.nan if math.isinf(x) else x for x in vals)

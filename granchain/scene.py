@@ -317,7 +317,8 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
     material = material_of(spec["material"])
 
     n = number(spec, "chain.n",
-               fix=f"a chain needs at least 3 particles (the striker and two probes) and at most "
+               fix=f"give 2 (a two-sphere collision) or a chain of at least 3 particles (the striker "
+               f"and two probes), at most "
                f"{MAX_SPHERES}")
     radii, materials = chain_spheres(spec, n, material, given)
     radius = radii[1]
@@ -384,7 +385,9 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
     settings = tuple((m.SPEC.name, m.settings(spec[m.SECTION], frozenset(given), m.SPEC.name in eff))
                      for m in SECTIONED)
 
-    pr = probes_of(spec["probes"], n)
+    pr = probes_of(spec["probes"], n, "probes" in given)
+    if n == 2:
+        spec.pop("probes", None)            # a two-sphere scene has none
 
     # integrator
     method = KEY_BY_PATH["integrator.method"].choice(spec["integrator"]["method"], "method")
@@ -415,6 +418,9 @@ def _validate(raw: dict, given: set[str], whole: set[str] | None = None) -> Scen
     realisations = number(spec, "ensemble.realisations",
                           fix="give a whole number of gap realisations >= 1")
     measurement = measurement_of(spec, given)
+    if n == 2 and measurement is not None:
+        raise SceneError("measurement", "a two-sphere scene has no probes to record",
+                         "drop measurement, or give chain.n >= 3")
     drop_unset(spec)
     for m in SECTIONED:
         if getattr(m, "SECTION_OPTIONAL", False) and m.SPEC.name not in eff and not any(

@@ -289,7 +289,15 @@ def effects_of(value) -> frozenset[str]:
     return eff
 
 
-def probes_of(value, n: int) -> tuple[int, int]:
+def probes_of(value, n: int, given: bool = True) -> tuple[int, int]:
+    """The two probe particles (1-based). A two-sphere scene (n = 2) has none: it keeps
+    (2, 2), the one sphere struck, for the code that reads the probes, and measures no
+    wave (``observables.summarize``); a ``probes`` key it gives is refused."""
+    if n == 2:
+        if given:
+            raise SceneError("probes", "a two-sphere scene has no probes (its collision is "
+                             "measured by the restitution)", "drop probes, or give chain.n >= 3")
+        return 2, 2
     example = f"write probes: [2, {n}] (two particles from 2 to n = {n}; particle 1 is the striker)"
     if not isinstance(value, list) or len(value) != 2:
         raise SceneError("probes", f"expected a list of exactly two particles, got {_short(value)}",

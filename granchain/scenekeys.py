@@ -134,8 +134,10 @@ KEYS: tuple[Key, ...] = (
         "glass, each with its source; E, nu, rho of 316 and 440C are handbook values (the "
         "thesis's Table 2.1 is not available). null: the default. Refused beside a "
         "`chain.materials` list.", allowed=_MATERIAL),
-    Key("chain.n", "1", "Number of spheres, particle 1 (the striker) included: at least the "
-        "striker and two probes.", integer=True, lo=3, hi=MAX_SPHERES),
+    Key("chain.n", "1", "Number of spheres, particle 1 (the striker) included. 2: the "
+        "two-sphere collision, the restitution experiment (no probes; its result gives the "
+        "measured restitution and whether the pair was captured); from 3: a chain with two "
+        "probes.", integer=True, lo=2, hi=MAX_SPHERES),
     Key("chain.radius", "m", "Sphere radius (the chapter's). A list gives each sphere its "
         "own, particle 1 (the striker) first: dimer, tapered and impurity chains. Every "
         "contact is Hertzian with 1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j and R* = R_i R_j/(R_i "
@@ -190,7 +192,8 @@ KEYS: tuple[Key, ...] = (
                        for r, why in reqs]) + ".",
         choices=EFFECTS, allowed="a list of these, each once"),
     Key("probes", "1", "The two particles whose velocities are recorded and compared (the "
-        "chapter's), in the direction the wave travels; particle 1 is the striker.",
+        "chapter's), in the direction the wave travels; particle 1 is the striker. A "
+        "two-sphere scene has none (refused there; its probe observables are null).",
         allowed="two particles p1, p2 with 2 <= p1 < p2 <= n"),
     Key("integrator.method", "-", "`rk4` and `verlet`: a fixed step `dt` (the chapter's RK4); "
         "`adaptive` (DOP853) and `event` (event-driven; no end wall): the step follows "

@@ -15,6 +15,7 @@ import numpy as np
 from .errors import GranchainError
 from .gaps import Member, member_gaps, member_radii, members
 from .vibrometer import measure, needs_trace
+from .collision import terms_of
 from .observables import ChainResult, bounded, summarize
 from .runplan import RunPlan, plan_run
 from .costmodel import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS
@@ -115,7 +116,7 @@ def run_scene(scene: Scene | RunPlan, engine: str = "reference", realisations=No
     if progress is not None:
         kw = {**kw, "progress": False}
     for m, traj in trajectories(plan, mem, engine, **kw):
-        s = summarize(traj, scene.probes)
+        s = summarize(traj, scene.probes, terms_of(scene, traj))
         extra = {}
         if needs_trace(scene):
             # the vibrometer reads the probes' histories (traj.t, traj.v); its noise

@@ -46,7 +46,8 @@ import numpy as np
 import pandas as pd
 
 from . import columns as reference
-from .observables import ENERGY_MAP, MEASURED_COLUMNS, WALL_COLUMNS, ChainResult, vmax_columns
+from .observables import (ENERGY_MAP, MEASURED_COLUMNS, PAIR_COLUMNS, WALL_COLUMNS, ChainResult,
+                          vfinal_columns, vmax_columns)
 
 FLOAT_FORMAT = "%.17g"
 NA_REP = "NaN"
@@ -90,17 +91,21 @@ TIMING_COLUMNS = ("study", "engine", "batch", "scene_hash", "members", "steps", 
 
 
 def columns(n: int, measured: bool = False, walled: bool = False,
-            settings=()) -> list[str]:
+            settings=(), pair: bool | None = None) -> list[str]:
     """The table's columns: ``BASE_COLUMNS``, for a table of measured scenes the
     vibrometer's ``MEASURED_COLUMNS`` (``granchain.vibrometer``), for scenes with an end
-    wall its ``WALL_COLUMNS``, the ``settings`` columns a question study's table has (of
-    ``SETTING_COLUMNS``, in that order), then one v_max per particle."""
+    wall its ``WALL_COLUMNS``, for two-sphere scenes the collision's ``PAIR_COLUMNS``
+    (``pair`` None: when n is 2), the ``settings`` columns a question study's table has
+    (of ``SETTING_COLUMNS``, in that order), then one v_max per particle and one final
+    velocity per particle."""
     unknown = set(settings) - set(SETTING_COLUMNS)
     if unknown:
         raise ValueError(f"unknown setting columns {sorted(unknown)}")
+    pair = n == 2 if pair is None else pair
     return (list(BASE_COLUMNS) + (list(MEASURED_COLUMNS) if measured else [])
-            + (list(WALL_COLUMNS) if walled else [])
-            + [c for c in SETTING_COLUMNS if c in settings] + vmax_columns(n))
+            + (list(WALL_COLUMNS) if walled else []) + (list(PAIR_COLUMNS) if pair else [])
+            + [c for c in SETTING_COLUMNS if c in settings] + vmax_columns(n)
+            + vfinal_columns(n))
 
 
 def setting_columns(keys) -> tuple[str, ...]:
@@ -155,6 +160,8 @@ def study_table(rows: list[dict], n: int) -> pd.DataFrame:
     for c in ("realisation", "seed", "steps", "force_evaluations"):
         df[c] = df[c].astype("int64")
     df["wave_arrived"] = df["wave_arrived"].astype(bool)
+    if "pair_captured" in df:
+        df["pair_captured"] = df["pair_captured"].astype(bool)
     return df
 
 

@@ -979,6 +979,16 @@ def dmt_force(K: float, Rs: float, gamma: float, delta: float) -> float:
     return K * delta ** 1.5 - 4.0 * np.pi * gamma * Rs if delta > 0 else 0.0
 
 
+def dmt_pulloff(K: float, Rs: float, gamma: float) -> float:
+    """The DMT pull-off force (N, > 0): minus the least force of :func:`dmt_force` over
+    the overlaps of a closed contact (it falls to its least as delta -> 0+), found by
+    bounded minimisation over delta in (0, 1e-6 R*]."""
+    from scipy.optimize import minimize_scalar
+    res = minimize_scalar(lambda x: dmt_force(K, Rs, gamma, x * 1e-6 * Rs), bounds=(1e-300, 1.0),
+                          method="bounded", options={"xatol": 1e-14})
+    return -min(res.fun, dmt_force(K, Rs, gamma, 1e-300))
+
+
 def jkr_delta(a: float, Rs: float, E: float, gamma: float) -> float:
     """JKR's overlap at contact radius a: a^2/R* - sqrt(2 pi w a / E*), w = 2 gamma."""
     return a * a / Rs - np.sqrt(2.0 * np.pi * (2.0 * gamma) * a / E)

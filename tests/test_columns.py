@@ -16,7 +16,7 @@ from granchain.inference import Inference, JointInference
 from granchain.observables import LEDGER_ENTRIES, ChainResult
 
 CONFIG = Path(__file__).resolve().parents[1] / "config" / "config.yaml"
-SIZES = (1, 9, 10, 99, 100, 150)
+SIZES = (1, 2, 9, 10, 99, 100, 150)
 FLAGS = list(itertools.product((False, True), repeat=2))
 SETTINGS = [s for k in range(len(tables.SETTING_COLUMNS) + 1)
             for s in itertools.combinations(tables.SETTING_COLUMNS, k)]

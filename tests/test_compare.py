@@ -37,7 +37,9 @@ def test_rows_of_a_hertz_chain():
                  *ENERGY_COLUMNS):
         assert name in q
     assert df.ok.map(lambda x: x is True).all() and cmp.ok     # every row checked and met
-    vrows = df.quantity.str.startswith("v_")
+    final = df.quantity == "v_final, every particle"
+    assert final.sum() == 1 and (df.loc[final, "tolerance"] == compare_mod.TRAJ_TOL).all()
+    vrows = df.quantity.str.startswith("v_") & ~final
     assert vrows.sum() == 15 + 4 and (df.loc[vrows, "tolerance"] == compare_mod.V_TOL).all()
     assert (df.loc[df.quantity.str.startswith("dt_"), "tolerance"] == compare_mod.T_TOL).all()
     assert cmp.meta["balance"] == "independent"

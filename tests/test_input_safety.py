@@ -200,7 +200,8 @@ def test_a_null_section_resets_it_to_the_defaults():
     ("striker: {velocity: [0.1, abc]}", "'striker.velocity[1]'"),
     ("chain: {n: 1.0e+400}", "'chain.n'"),
     ("chain: {n: 1%s}" % ("0" * 400), "'chain.n'"),
-    ("chain: {n: 2}", "'chain.n'"),
+    ("chain: {n: 1}", "'chain.n'"),
+    ("chain: {n: 2}\nprobes: [2, 13]", "'probes'"),
     ("t_end: 2024-13-45", "'<file>'"),
 ])
 def test_error_paths_use_the_users_keys(tmp_path, capsys, text, field):
@@ -294,7 +295,7 @@ def _fake_result():
     return ChainResult(
         v_striker=0.1, wave_arrived=False, status="done", v_max=(nan, nan), t_peak=(nan, nan),
         t_front=(nan, nan), plateau=(False, False), final=(False, False), not_final=(1, 2),
-        probes=(1, 2), v_max_1=nan, v_max_2=nan, dt_peak=nan, dt_front=nan,
+        v_final=(nan, nan), probes=(1, 2), v_max_1=nan, v_max_2=nan, dt_peak=nan, dt_front=nan,
         gap_mean_probes=0.0, v_g=nan, v_g_front=nan,
         energy=EnergyLedger(**{k: 0.0 for k in LEDGER_ENTRIES}), steps=0, rejected_steps=0,
         force_evaluations=0,
@@ -475,10 +476,10 @@ def test_results_are_frozen_typed_and_keep_their_json_and_row_layout():
     assert pickle.loads(pickle.dumps(run)) == run
     doc = run.to_json()
     # an unmeasured run's JSON leaves the vibrometer's fields out (granchain.vibrometer),
-    # a free-end run the end wall's
-    from granchain.observables import MEASURED_FIELDS, WALL_FIELDS
+    # a free-end run the end wall's, a chain's those of the two-sphere collision
+    from granchain.observables import MEASURED_FIELDS, PAIR_FIELDS, WALL_FIELDS
     assert list(doc) == [f.name for f in dataclasses.fields(ChainResult)
-                         if f.name not in MEASURED_FIELDS + WALL_FIELDS]
+                         if f.name not in MEASURED_FIELDS + WALL_FIELDS + PAIR_FIELDS]
     assert list(doc["energy"]) == ledger and isinstance(doc["v_max"], list)
     assert doc["member"] == 0 and doc["engine"] == "reference" and doc["method"] == "rk4"
     # to_row: the run's columns; member_row adds the study's, in table order

@@ -6,8 +6,8 @@ The independent solution (tests/independent.py, ``ThorntonContact``: the paper's
 written there, a collision's outcome from its branches' energies by quadrature, no time
 stepping) first checks Thornton's closed form e(v/v_y) against the law. Then the engine
 (RK4) is run on the two-sphere collision: a chain of three whose third sphere lies 1 mm
-away (a scene's smallest chain; it is not reached within the run), so the striker and
-particle 2 collide alone. Measured at dt = 1e-10 s over v/v_y = 0.5-30 (ss316 pairs,
+away (not reached within the run; tests/test_collisions.py runs two-sphere scenes), so
+the striker and particle 2 collide alone. Measured at dt = 1e-10 s over v/v_y = 0.5-30 (ss316 pairs,
 equal and unequal spheres, a 440C striker on 316): |e - e_Thornton| <= 3.8e-9 (3e-14
 below v_y, where e = 1), the ledger's balance <= 1.9e-9 of E0, its work column the
 independent dissipation to <= 1.2e-8 (exactly 0 below v_y); the errors of RK4 and of

@@ -14,7 +14,7 @@ from conftest import REPO, SCENES, packed
 @pytest.mark.parametrize("override, field, words", [
     ("chain.radius=-1", "chain.radius", "must be > 0"),
     ("chain.radius=.nan", "chain.radius", "not a finite number"),
-    ("chain.n=2", "chain.n", "at least 3"),
+    ("chain.n=1", "chain.n", "below 2"),
     ("effects=[hertz,magic]", "effects[1]", "unknown effect 'magic'"),
     ("effects=[hertz,particle_friction]", "effects", "add rotation"),
     ("effects=[air_drag]", "effects", "'hertz' is missing"),

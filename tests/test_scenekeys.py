@@ -112,7 +112,6 @@ def test_declared_default_is_what_the_loader_fills_in(path):
 
 # the other keys a key needs to count (its effect on, its distribution or model, its block)
 CONTEXT = {
-    "chain.n": {"probes": [2, 3]},
     "chain.radius_spread.": {"chain": {"radius_spread": {"sd": 1e-7}}},
     "gaps.mean": {"gaps": {"distribution": "fixed"}},
     "gaps.seed": {"gaps": {"distribution": "uniform", "mean": 20e-9}},

@@ -44,6 +44,11 @@ def _print_human(scene, runs, out=None):
         cut = list(r.not_final)
         note = (f"; peak not measured (n/a) for particle{'s' if len(cut) > 1 else ''} "
                 f"{_ranges(cut)}" if cut else "")
+        if r.pair:
+            print(f"{head}: {_collision_text(r)}; final velocities {fmt(r.v_final[0])} and "
+                  f"{fmt(r.v_final[1])} m/s at t = {fmt(r.t_end)} s ({status_text(r.status)})",
+                  file=out)
+            continue
         if not r.wave_arrived:
             missed = [p for p in (p1, p2) if p in cut]
             print(f"{head}: no measured peak at probe{'s' if len(missed) > 1 else ''} "
@@ -72,6 +77,17 @@ def _print_human(scene, runs, out=None):
                     if r.wall_peak_final else "n/a (its peak is not inside the run)")
             print(f"  end wall ({scene.wall.name}): dynamic force peak {peak}", file=out)
     print_warnings([w for r in runs for w in r.warnings], out)
+
+
+def _collision_text(r) -> str:
+    """What a two-sphere collision came to, for the human output."""
+    if r.collision == "separated":
+        return f"separated, restitution e = {fmt(r.restitution)}"
+    if r.collision == "captured":
+        return "captured (the pair stays bound; no restitution)"
+    if r.collision == "unfinished":
+        return "unfinished by the end of the run (no restitution: a longer t_end finishes it)"
+    return "no impact (the striker does not move)"
 
 
 def _ranges(ps) -> str:

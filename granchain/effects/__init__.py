@@ -77,6 +77,18 @@ def residual_work(effects) -> tuple[str, ...]:
                  and not SPECS[e].lammps_reports_work)
 
 
+def separation(terms, k: int, d: float) -> tuple[float, float]:
+    """(d_open, Phi) of contact k at overlap d (m), by the normal law in force: the overlap
+    at which the contact opens, and the work its force does on the relative motion of its
+    spheres on the way there (J; negative: the energy they need to part). From the last
+    enabled effect in registry order whose module has ``separation`` (hertz's otherwise;
+    an effect without it adds no attraction)."""
+    for m in reversed(MODULES):
+        if hasattr(m, "separation") and (m is hertz or terms.has(m.SPEC.name)):
+            return m.separation(getattr(terms, m.SPEC.name), terms.chain, k, d)
+    raise AssertionError("hertz has separation")
+
+
 def _has(self, name: str) -> bool:
     return getattr(self, name) is not None
 
@@ -113,5 +125,5 @@ def physics_terms(scene) -> Terms:
 
 
 __all__ = ["MODULES", "SPECS", "ENERGY_COLUMNS", "EffectSpec", "Terms", "physics_terms",
-           "residual_work", "acts_on_normal", "Chain", "Hertz", "AirDrag", "GrooveFriction",
+           "residual_work", "acts_on_normal", "separation", "Chain", "Hertz", "AirDrag", "GrooveFriction",
            "Rotation", "ParticleFriction", "RollingFriction"]

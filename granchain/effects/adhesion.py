@@ -54,7 +54,7 @@ from ..materials import effective_modulus
 from ..units import lmp_float as _r, to_micro
 from ..validate import Fit, Key, short
 from . import slots as S
-from .hertz import force as hertz_force
+from .hertz import energy as hertz_energy, force as hertz_force
 from .lanes import bit, closing_speed, contact_overlap
 from .spec import DeckPart, EffectSpec, compiled
 
@@ -324,6 +324,33 @@ def contact_crit(F, d, G, P, FL, n, k, l):
     jkr = FL[S.F_ADHESION_JKR] != 0
     Fne = law(G[S.G_HERTZ_K * n + k, l], Rs, G[S.G_ADHESION_EMIX * n + k, l], g, jkr, d)
     return abs(Fne + 2.0 * pulloff_force(Rs, g, jkr))
+
+
+def jkr_work(Rs, E, g, a):
+    """The antiderivative V(a) (J) of the JKR force over the overlap along the law's
+    branch, as a function of the contact radius a: dV/da = F(a) d delta/da, V(a) = 8 E* a^5
+    / (15 R*^2) - (8/3) sqrt(pi g E*) a^(7/2) / R* + 2 pi g a^2."""
+    return (8.0 * E * a ** 5 / (15.0 * Rs * Rs)
+            - 8.0 / 3.0 * math.sqrt(math.pi * g * E) * a ** 3.5 / Rs + 2.0 * math.pi * g * a * a)
+
+
+def separation(ad, chain, k: int, d: float) -> tuple[float, float]:
+    """(d_open, Phi) of contact k (spheres k+1, k+2; 1-based) held closed at overlap d (m):
+    where it opens (dmt: 0; jkr: the pull-off distance -delta_po) and the work its law's
+    force does on the relative motion from d to there, Phi = int_{d_open}^d F ds (J;
+    negative: the pair needs that much energy of relative motion to part)."""
+    R, mats = chain.radii, chain.materials
+    Rs = 0.5 * R[k] if R[k] == R[k + 1] else R[k] * R[k + 1] / (R[k] + R[k + 1])
+    E = effective_modulus(mats[k], mats[k + 1])
+    g = ad.gamma
+    if ad.model == "dmt":
+        return 0.0, (hertz_energy(chain.K[k], d) - pulloff_force(Rs, g, False) * d
+                     if d > 0.0 else 0.0)
+    d_open = -pulloff_distance(Rs, E, g)
+    if d <= d_open:
+        return d_open, 0.0
+    a_po = jkr_radius(Rs, E, g, d_open)
+    return d_open, jkr_work(Rs, E, g, jkr_radius(Rs, E, g, d)) - jkr_work(Rs, E, g, a_po)
 
 
 # ---------------------------------------------------------------------------------------

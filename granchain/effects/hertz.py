@@ -33,6 +33,13 @@ def energy(K, d):
     return 0.4 * K * d * d * math.sqrt(d) if d > 0.0 else 0.0
 
 
+def separation(term, chain, k: int, d: float) -> tuple[float, float]:
+    """(d_open, Phi) of contact k (spheres k+1, k+2; 1-based) at overlap d (m): the
+    contact opens at d_open = 0, and its force gives the relative motion of the two
+    spheres Phi = int_0^d F ds = (2/5) K d^(5/2) (J, 0 when open) on the way there."""
+    return 0.0, energy(chain.K[k], d)
+
+
 def peak_overlap(m_red, K, v):
     """The largest overlap (m) of a head-on collision of reduced mass m_red (kg) at
     closing speed v (m/s): (5 m_red v^2 / (4 K))^(2/5)."""

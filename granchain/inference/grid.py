@@ -78,8 +78,12 @@ def complete_base(base: Scene, meas: Measurements) -> tuple[Scene, dict]:
 def check_gappable(base: Scene) -> None:
     """Refuse (SceneError naming the key) a base scene whose chain cannot have gaps: a
     preloaded chain (``precompression.force``) is pressed together, so it has no mean gap
-    to infer."""
+    to infer; a two-sphere scene has no probes to time."""
     from ..errors import SceneError
+    if base.n == 2:
+        raise SceneError("chain.n", "a two-sphere scene has no probes, so no timing between "
+                         "them to infer a gap from", "give a chain of chain.n >= 3 with its "
+                         "probes")
     if base.precompression > 0.0 or "precompression.force" in base.given:
         raise SceneError("precompression.force", "a preloaded chain is pressed together and "
                          "has no gaps, so the inference cannot give it a gap law",
