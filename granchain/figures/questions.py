@@ -207,6 +207,38 @@ def dissipation(df: pd.DataFrame, out) -> list[Path]:
     return save(fig, out)
 
 
+def _measured(ax, band_key) -> None:
+    """The chapter's measured value of a panel's quantity and its 95% interval (grey), if
+    it has one (``MEASURED_PEAKS``)."""
+    if band_key is not None:
+        val, half = MEASURED_PEAKS[band_key]
+        ax.axhspan(val - half, val + half, color="0.75", alpha=0.45, lw=0)
+        ax.axhline(val, color="0.35", lw=1.0)
+
+
+def _smallest_gap(c: pd.DataFrame, mat: str) -> pd.DataFrame:
+    """The curves of material ``mat`` at its smallest mean gap (packed when there)."""
+    cm = c[c["material"] == mat]
+    return cm[cm["gap_mean_nm"] == cm["gap_mean_nm"].min()]
+
+
+def _log_panels(axes, against: str, xlabel: str) -> None:
+    """The 2 x 2 panels of DISSIPATION_PANELS on a log x axis: titles, labels, legend."""
+    for ax, (_, ylab, _) in zip(axes, DISSIPATION_PANELS):
+        ax.set_xscale("log")
+        ax.set_ylabel(ylab)
+        ax.set_title(f"{ylab} against {against}", fontsize=8.5)
+    for ax in axes[2:]:
+        ax.set_xlabel(xlabel)
+    axes[3].legend(loc="best", fontsize=5.5, ncol=2)
+
+
+def _shades(n: int) -> list:
+    """n colours along viridis, light to dark, its ends left out."""
+    cmap = colormap("viridis")
+    return [cmap(0.15 + 0.7 * i / max(n - 1, 1)) for i in range(n)]
+
+
 @drawn
 def plasticity(df: pd.DataFrame, out) -> list[Path]:
     """v_max,1 / v_s, v_max,2 / v_s, v_max,2 / v_max,1 and v_g against the striker speed
@@ -223,18 +255,12 @@ def plasticity(df: pd.DataFrame, out) -> list[Path]:
     mats = list(dict.fromkeys(c["material"]))
     dashes = ("-", "--", "-.", ":")
     for ax, (q, ylab, band_key) in zip(axes, DISSIPATION_PANELS):
-        if band_key is not None:
-            val, half = MEASURED_PEAKS[band_key]
-            ax.axhspan(val - half, val + half, color="0.75", alpha=0.45, lw=0)
-            ax.axhline(val, color="0.35", lw=1.0)
+        _measured(ax, band_key)
         for k, mat in enumerate(mats):
-            cm = c[c["material"] == mat]
-            cm = cm[cm["gap_mean_nm"] == cm["gap_mean_nm"].min()]
+            cm = _smallest_gap(c, mat)
             pys = sorted(set(cm["yield_pressure_Pa"]), reverse=True)
             finite = [p for p in pys if np.isfinite(p)]
-            cmap = colormap("viridis")
-            shades = [cmap(0.15 + 0.7 * i / max(len(finite) - 1, 1))
-                      for i in range(len(finite))]
+            shades = _shades(len(finite))
             for py in pys:
                 g = cm[cm["yield_pressure_Pa"] == py].sort_values("v_striker_m_s")
                 if np.isfinite(py):
@@ -243,12 +269,7 @@ def plasticity(df: pd.DataFrame, out) -> list[Path]:
                     col, what = "k", "elastic"
                 ax.plot(g["v_striker_m_s"], g[f"{q}_median"], "o", ls=dashes[k % 4],
                         color=col, ms=3.5, lw=1.0, label=f"{label(mat)}, {what}")
-        ax.set_xscale("log")
-        ax.set_ylabel(ylab)
-        ax.set_title(ylab + " against v_s", fontsize=8.5)
-    for ax in axes[2:]:
-        ax.set_xlabel("striker speed v_s (m/s)")
-    axes[3].legend(loc="best", fontsize=5.5, ncol=2)
+    _log_panels(axes, "v_s", "striker speed v_s (m/s)")
     lines = []
     for mat in mats:
         mm = m[(m["material"] == mat)]
@@ -277,17 +298,12 @@ def adhesion(df: pd.DataFrame, out) -> list[Path]:
     axes = axes.ravel()
     mats = list(dict.fromkeys(c["material"]))
     speeds = sorted(set(c["v_striker_m_s"]))
-    cmap = colormap("viridis")
-    shade = {v: cmap(0.15 + 0.7 * i / max(len(speeds) - 1, 1)) for i, v in enumerate(speeds)}
+    shade = dict(zip(speeds, _shades(len(speeds))))
     g_min = float(c.loc[c["surface_energy_J_m2"] > 0, "surface_energy_J_m2"].min())
     for ax, (q, ylab, band_key) in zip(axes, DISSIPATION_PANELS):
-        if band_key is not None:
-            val, half = MEASURED_PEAKS[band_key]
-            ax.axhspan(val - half, val + half, color="0.75", alpha=0.45, lw=0)
-            ax.axhline(val, color="0.35", lw=1.0)
+        _measured(ax, band_key)
         for k, mat in enumerate(mats):
-            cm = c[c["material"] == mat]
-            cm = cm[cm["gap_mean_nm"] == cm["gap_mean_nm"].min()]
+            cm = _smallest_gap(c, mat)
             marker = "os^v"[k % 4]
             for (vs, groove), g in cm[cm["surface_energy_J_m2"] > 0].groupby(
                     ["v_striker_m_s", "groove_cohesion"]):
@@ -299,12 +315,7 @@ def adhesion(df: pd.DataFrame, out) -> list[Path]:
             for _, r in none.iterrows():
                 ax.plot([g_min / 2], [r[f"{q}_median"]], marker, mfc="none",
                         color=shade[r["v_striker_m_s"]], ms=6)
-        ax.set_xscale("log")
-        ax.set_ylabel(ylab)
-        ax.set_title(ylab + " against gamma", fontsize=8.5)
-    for ax in axes[2:]:
-        ax.set_xlabel("surface energy gamma (J/m^2; hollow: no adhesion)")
-    axes[3].legend(loc="best", fontsize=5.5, ncol=2)
+    _log_panels(axes, "gamma", "surface energy gamma (J/m^2; hollow: no adhesion)")
     lines = []
     for (mat, groove), mm in m.groupby(["material", "groove_cohesion"], sort=False):
         mm = mm[mm["gap_mean_nm"] == mm["gap_mean_nm"].min()].sort_values("v_striker_m_s")
