@@ -134,3 +134,59 @@ def test_adhesion_rows_quote_the_reduction(tiny_rows):
         else:
             assert r["project_value"] == pytest.approx(want, rel=1e-12)
         assert r["unit"] == "J/m^2" and np.isfinite(m.loc[groove, "v1_none"])
+
+
+def test_capture_scenes_are_two_spheres_with_the_law_alone():
+    P = _preset("default")
+    spec = P["studies"]["capture"]
+    scenes = gw.study_scenes(P, "capture")
+    assert len(scenes) == len(spec["surface_energy"])
+    for ss, gamma in zip(scenes, spec["surface_energy"]):
+        sc = ss.scene
+        assert sc.n == 2 and sc.effects == frozenset({"hertz", "adhesion"})
+        assert sc.setting("adhesion").surface_energy == gamma
+        assert sc.t_end == spec["t_end_s"] and list(sc.striker_velocities) == spec["v_striker"]
+        assert dict(ss.setting)["surface_energy_J_m2"] == gamma
+
+
+def test_the_capture_velocity_is_read_from_the_separated_collisions():
+    """A law that loses the energy (1/2) m* v_c^2 per collision: e = sqrt(1 - v_c^2/v^2)
+    above v_c; v_c = 2 mm/s comes back exactly, bracketed by 1.5 (captured) and 3 mm/s."""
+    vc = 0.002
+    rows = [{"material": "ss440c", "v_striker_m_s": v, "surface_energy_J_m2": 0.3,
+             "cohesion_model": "jkr",
+             "pair_collision": "captured" if v < vc else "separated",
+             "pair_restitution": math.sqrt(1 - (vc / v) ** 2) if v > vc else math.nan}
+            for v in (0.001, 0.0015, 0.003, 0.006, 0.012)]
+    c = reductions.capture_velocities(pd.DataFrame(rows)).iloc[0]
+    assert c["v_c"] == pytest.approx(vc, rel=1e-12) and c["bracketed"]
+    assert (c["v_captured_max"], c["v_separated_min"]) == (0.0015, 0.003)
+    assert (c["n_captured"], c["n_separated"]) == (2, 3)
+
+
+def test_the_capture_velocity_follows_jkr_against_an_independent_solution():
+    """The tiny preset's two 440C spheres (JKR, gamma 0.3 and 1 J/m^2, Verlet at 0.2 ns):
+    v_c from the engine's restitutions against tests/independent.py's capture velocity
+    (the law's hysteresis energy, integrated there), to 2e-3; the rows' exponent between
+    the two gammas near JKR's 5/6."""
+    from granchain import tables as gtables
+    from granchain.materials import effective_modulus, library
+    from granchain.simulate import run_scene
+    from independent import jkr_capture_velocity
+    P = _preset("tiny")
+    rows = []
+    for ss in gw.study_scenes(P, "capture"):
+        rows += [gtables.member_row(ss.meta, r, 2) for r in run_scene(ss.scene)]
+    df = gtables.study_table(rows, 2)
+    cv = reductions.capture_velocities(df)
+    st = library()["ss440c"]
+    R = P["base"]["radius"]
+    m = 4.0 / 3.0 * math.pi * R ** 3 * st.rho
+    for _, c in cv.iterrows():
+        want = jkr_capture_velocity(R / 2, effective_modulus(st, st), c["surface_energy_J_m2"],
+                                    m / 2)
+        assert c["v_c"] == pytest.approx(want, rel=2e-3), (c["surface_energy_J_m2"], want)
+        assert c["bracketed"] and c["n_unfinished"] == 0
+    rows = {r["id"]: r for r in thesis_rows.capture_rows(None, df)}
+    assert rows["adh_capture_exponent_ss440c"]["project_value"] == pytest.approx(5 / 6,
+                                                                                  abs=0.01)

@@ -137,7 +137,7 @@ def _paths(tdir, rdir):
     p["vibrometer"] = tdir / "vibrometer.csv"
     p["vibrometer_trace"] = rdir / "vibrometer_ss440c.npz"
     for study in ("precompression", "wall", "radius_spread", "dissipation", "plasticity",
-                  "adhesion"):
+                  "adhesion", "capture"):
         p[study] = tdir / f"{study}.csv"
     return p
 
@@ -602,13 +602,36 @@ def _check_adhesion(fig, tdir, rdir):
     assert curves >= 2
 
 
+def _check_capture(fig, tdir, rdir):
+    """Left: per gamma the separated collisions' restitution against v_s and the captured
+    ones at e = 0; right: per material v_c = median v_s sqrt(1 - e^2) of the separated
+    collisions against gamma, recomputed here."""
+    ca = pd.read_csv(tdir / "capture.csv")
+    ax = _panel(fig, "restitution against v_s")
+    axc = _panel(fig, "capture velocity against gamma")
+    for (mat, gamma), g in ca.groupby(["material", "surface_energy_J_m2"]):
+        sep = g[g["pair_collision"] == "separated"].sort_values("v_striker_m_s")
+        cap = g[g["pair_collision"] == "captured"].sort_values("v_striker_m_s")
+        assert len(sep) and len(cap), (gamma, g["pair_collision"].tolist())
+        _assert_drawn(ax, sep["v_striker_m_s"], sep["pair_restitution"], f"{gamma}: e")
+        _assert_drawn(ax, cap["v_striker_m_s"], np.zeros(len(cap)), f"{gamma}: captured")
+    for mat, d in ca.groupby("material"):
+        vc = []
+        for gamma, g in d.groupby("surface_energy_J_m2"):
+            sep = g[g["pair_collision"] == "separated"]
+            vc.append(np.median(sep["v_striker_m_s"] * np.sqrt(1 - sep["pair_restitution"] ** 2)))
+        _assert_drawn(axc, sorted(set(d["surface_energy_J_m2"])), vc, f"{mat}: v_c",
+                      rtol=1e-9)
+
+
 FIGURE_DATA = {"fig5_1a": _check_fig5_1a, "fig5_1b": _check_fig5_1b,
                "fig5_1c": _check_fig5_1c, "fig5_3b": _check_fig5_3b,
                "fig5_3c": _check_fig5_3c, "fig5_4b": _check_fig5_4b,
                "fig5_2a": _check_fig5_2a, "vibrometer": _check_vibrometer,
                "precompression": _check_precompression, "wall": _check_wall,
                "radius_spread": _check_radius_spread, "dissipation": _check_dissipation,
-               "plasticity": _check_plasticity, "adhesion": _check_adhesion}
+               "plasticity": _check_plasticity, "adhesion": _check_adhesion,
+               "capture": _check_capture}
 
 
 def test_every_figure_has_its_data_check():
@@ -941,7 +964,8 @@ TABLE_IDS = (["vmax_slope", "vmax1_over_vs", "vmax2_over_vs", "vmax_ratio", "vg_
                 "diss_vmax2_at_e", "diss_striker_factor"]
              + [f"plast_{w}_{m}" for m in ("ss316", "ss440c")
                 for w in ("vmax1_library", "py_match", "exponent")]
-             + [f"adh_gamma_{w}_{m}" for m in ("ss440c",) for w in ("contacts", "groove")])
+             + [f"adh_gamma_{w}_{m}" for m in ("ss440c",) for w in ("contacts", "groove")]
+             + [f"adh_capture_{w}_ss440c" for w in ("velocity", "exponent")])
 # the chapter's questions: row id -> (chapter value, its uncertainty, kind)
 QUESTION_ROWS = {
     "spread_oscillation": (0.20, math.nan, "simulation (beyond the chapter)"),
@@ -1043,7 +1067,8 @@ def test_row_builders_without_their_tables(tables):
     for rows, table in ((thesis_rows.tolerance_rows(pk), "radius_spread"),
                         (thesis_rows.dissipation_rows(pk), "dissipation"),
                         (thesis_rows.plasticity_rows(pk), "plasticity"),
-                        (thesis_rows.adhesion_rows(pk), "adhesion")):
+                        (thesis_rows.adhesion_rows(pk), "adhesion"),
+                        (thesis_rows.capture_rows(pk), "capture")):
         assert all(math.isnan(r["project_value"]) for r in rows)
         assert all(r["reason"].startswith(f"{table} table not given") for r in rows)
     energy = thesis_rows.energy_rows(pk)      # no trace: no pulse width; sweep's 0.1 m/s row

@@ -26,12 +26,14 @@ granchain.reductions.
   p_y of Thornton's yielding contacts, with the measured bands (plasticity; beyond the
   chapter);
 - :func:`adhesion`  the same against the surface energy gamma of adhesive contacts, with and
-  without the groove's flats adhering (adhesion; beyond the chapter).
+  without the groove's flats adhering (adhesion; beyond the chapter);
+- :func:`capture`  two adhesive spheres: restitution against v_s and the capture velocity
+  against gamma (capture; beyond the chapter).
 
 Modules: ``style`` (fixed rcParams, colours, deterministic saving), ``fig5_1`` (packed
 chain), ``fig5_2`` (the vibrometer), ``fig5_3`` (random gaps), ``fig5_4`` (loose chains), ``field``
 (the field's chains: precompression, wall), ``questions`` (the chapter's questions:
-radius_spread, dissipation, plasticity, adhesion). Output is deterministic: a
+radius_spread, dissipation, plasticity, adhesion, capture). Output is deterministic: a
 rerun on the same tables gives byte-identical PNG and PDF files.
 
 Command line (what the workflow's figure rules call)::
@@ -55,7 +57,7 @@ from .fig5_2 import fig5_2a, vibrometer
 from .fig5_3 import fig5_3b, fig5_3c
 from .fig5_4 import fig5_4b
 from .field import precompression, wall
-from .questions import adhesion, dissipation, plasticity, radius_spread
+from .questions import adhesion, capture, dissipation, plasticity, radius_spread
 
 # name -> (drawing function, the tables it reads, in argument order)
 FIGURES = {
@@ -73,6 +75,7 @@ FIGURES = {
     "dissipation": (dissipation, ["dissipation"]),
     "plasticity": (plasticity, ["plasticity"]),
     "adhesion": (adhesion, ["adhesion"]),
+    "capture": (capture, ["capture"]),
 }
 # readers of the inputs that are not result tables
 READERS = {"trace": read_trace, "vibrometer_trace": read_vibrometer_trace}
@@ -104,7 +107,8 @@ def build_parser() -> argparse.ArgumentParser:
                                              "workflow's tables (PNG and PDF).")
     ap.add_argument("name", help=", ".join(FIGURES))
     for study in ("packed_sweep", "gap_profile", "gap_sweep", "extra_length", "vibrometer",
-                  "precompression", "wall", "radius_spread", "dissipation", "plasticity", "adhesion"):
+                  "precompression", "wall", "radius_spread", "dissipation", "plasticity", "adhesion",
+                  "capture"):
         ap.add_argument("--" + study.replace("_", "-"), dest=study,
                         help=f"results/<preset>/tables/{study}.csv")
     ap.add_argument("--trace", help="results/<preset>/traces/packed_trace_<material>.npz")

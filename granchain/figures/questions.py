@@ -15,7 +15,8 @@ import numpy as np
 import pandas as pd
 from matplotlib.ticker import FuncFormatter
 
-from ..reductions import (MEASURED_PEAKS, PROBES, cohesion_curves, cohesion_match,
+from ..reductions import (MEASURED_PEAKS, PROBES, capture_velocities, cohesion_curves,
+                        cohesion_match,
                         dissipation_curves, dissipation_match,
                         first_reaching, label, n_particles, peak_profile, plasticity_curves,
                         plasticity_match, reference_engine, spread_oscillation)
@@ -325,4 +326,50 @@ def adhesion(df: pd.DataFrame, out) -> list[Path]:
                         else "no gamma of the study") + f" ({r['v_striker_m_s']:g} m/s)")
     fig.suptitle("Adhesive contacts against the measured peaks\n" + "; ".join(lines),
                  fontsize=8.5)
+    return save(fig, out)
+
+
+@drawn
+def capture(df: pd.DataFrame, out) -> list[Path]:
+    """Two adhesive spheres. Left: the measured restitution e against v_s (log) of each
+    surface energy's separated collisions, the captured ones as crosses at e = 0. Right:
+    the capture velocity v_c against gamma (log-log; :func:`~granchain.reductions.capture_velocities`:
+    the median of v_s sqrt(1 - e^2)), with the bracket between the fastest captured and
+    the slowest separated collision as a bar, and the JKR scaling v_c ~ gamma^(5/6)
+    (dotted) through the largest gamma's v_c."""
+    cv = capture_velocities(df)
+    fig, (ax, axc) = figure(ncols=2, size=(10.0, 4.2))
+    gammas = sorted(set(df["surface_energy_J_m2"]))
+    shade = dict(zip(gammas, _shades(len(gammas))))
+    for (mat, gamma), g in df.groupby(["material", "surface_energy_J_m2"], sort=True):
+        sep = g[g["pair_collision"] == "separated"].sort_values("v_striker_m_s")
+        cap = g[g["pair_collision"] == "captured"].sort_values("v_striker_m_s")
+        ax.plot(sep["v_striker_m_s"], sep["pair_restitution"], "o-", color=shade[gamma], ms=3.5,
+                lw=1.0, label=f"{label(mat)}, gamma = {gamma:g} J/m^2")
+        ax.plot(cap["v_striker_m_s"], np.zeros(len(cap)), "x", color=shade[gamma], ms=6)
+    ax.set_xscale("log")
+    ax.set_xlabel("striker speed v_s (m/s)")
+    ax.set_ylabel("restitution e (separated); x: captured")
+    ax.set_title("restitution against v_s", fontsize=8.5)
+    ax.legend(loc="best", fontsize=6)
+    for mat, c in cv.groupby("material", sort=False):
+        ok = c[np.isfinite(c["v_c"])]
+        axc.plot(ok["surface_energy_J_m2"], ok["v_c"], "o-", color=color(mat), ms=4,
+                 label=f"{label(mat)}: v_c = median v_s sqrt(1 - e^2)")
+        for _, r in c.iterrows():
+            if np.isfinite(r["v_captured_max"]) and np.isfinite(r["v_separated_min"]):
+                axc.plot([r["surface_energy_J_m2"]] * 2, [r["v_captured_max"],
+                         r["v_separated_min"]], "-", color=color(mat), lw=3, alpha=0.35)
+        if len(ok):
+            g1, v1 = ok["surface_energy_J_m2"].iloc[-1], ok["v_c"].iloc[-1]
+            x = np.array([ok["surface_energy_J_m2"].min(), g1])
+            axc.plot(x, v1 * (x / g1) ** (5 / 6), ":", color="0.3", lw=1.0,
+                     label="JKR scaling v_c ~ gamma^(5/6)")
+    axc.set_xscale("log")
+    axc.set_yscale("log")
+    axc.set_xlabel("surface energy gamma (J/m^2)")
+    axc.set_ylabel("capture velocity v_c (m/s)")
+    axc.set_title("capture velocity against gamma (bar: fastest captured to slowest "
+                  "separated)", fontsize=8.5)
+    axc.legend(loc="best", fontsize=6)
     return save(fig, out)

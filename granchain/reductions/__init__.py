@@ -36,7 +36,8 @@ from .field import (SOLITARY_WALL_EXPONENT, precompression_rows, power_law_fit, 
 from .questions import (MEASURED_PEAKS, SPREAD_KINDS, spread_oscillation, first_reaching,
                         dissipation_curves, last_crossing, interpolate_at,
                         dissipation_match, plasticity_curves, plasticity_match,
-                        plasticity_exponents, cohesion_curves, cohesion_match)
+                        plasticity_exponents, cohesion_curves, cohesion_match,
+                        capture_velocities)
 
 __all__ = [
     "PROBES", "MATERIAL_LABEL", "VMAX_RE", "NEEDS", "read_table", "read_trace", "require",
@@ -50,5 +51,5 @@ __all__ = [
     "wall_fits", "MEASURED_PEAKS", "SPREAD_KINDS", "spread_oscillation", "first_reaching",
     "dissipation_curves", "last_crossing", "interpolate_at", "dissipation_match",
     "plasticity_curves", "plasticity_match", "plasticity_exponents", "cohesion_curves",
-    "cohesion_match",
+    "cohesion_match", "capture_velocities",
 ]

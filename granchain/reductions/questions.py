@@ -258,3 +258,35 @@ def cohesion_match(df: pd.DataFrame) -> pd.DataFrame:
                      "ratio_at_gamma_max": float(g["ratio_median"].iloc[-1]),
                      "vg_at_gamma_max": float(g["vg_median"].iloc[-1])})
     return pd.DataFrame(rows)
+
+
+def capture_velocities(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (material, surface_energy_J_m2) of the capture study (two-sphere collisions,
+    ascending gamma): ``n`` collisions, ``n_captured``, ``n_separated``, ``n_unfinished``;
+    ``v_c`` the capture velocity, the median over the separated collisions of
+    v_s sqrt(1 - e^2) (a law that loses a fixed energy per collision, as JKR's hysteresis
+    without damping does, gives v_c exactly: e^2 = 1 - v_c^2 / v_s^2), with its least and
+    largest values ``v_c_min``, ``v_c_max``; ``v_captured_max`` the fastest captured
+    collision and ``v_separated_min`` the slowest separated one (NaN where none), and
+    ``bracketed``: v_captured_max < v_c < v_separated_min where both exist."""
+    require(df, NEEDS["capture"], "capture")
+    rows = []
+    for mat in materials_in(df):
+        for gamma, g in df[df["material"] == mat].groupby("surface_energy_J_m2", sort=True):
+            sep = g[g["pair_collision"] == "separated"]
+            cap = g[g["pair_collision"] == "captured"]
+            vs = sep["v_striker_m_s"].to_numpy(dtype=float)
+            e = sep["pair_restitution"].to_numpy(dtype=float)
+            vc = vs * np.sqrt(np.clip(1.0 - e ** 2, 0.0, None))
+            lo, med, hi = (float(np.min(vc)), float(np.median(vc)), float(np.max(vc))) \
+                if vc.size else (math.nan,) * 3
+            vcap = float(cap["v_striker_m_s"].max()) if len(cap) else math.nan
+            vsep = float(vs.min()) if vs.size else math.nan
+            rows.append({"material": mat, "surface_energy_J_m2": float(gamma),
+                         "n": int(len(g)), "n_captured": int(len(cap)),
+                         "n_separated": int(len(sep)),
+                         "n_unfinished": int((g["pair_collision"] == "unfinished").sum()),
+                         "v_c": med, "v_c_min": lo, "v_c_max": hi,
+                         "v_captured_max": vcap, "v_separated_min": vsep,
+                         "bracketed": bool(vcap < med < vsep)})
+    return pd.DataFrame(rows)

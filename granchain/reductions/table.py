@@ -62,6 +62,8 @@ NEEDS = {
     "cohesion": ["material", "v_striker_m_s", "gap_mean_nm", "realisation",
                  "v_max_1_m_s", "v_max_2_m_s", "v_max_ratio", "v_g_m_s", "wave_arrived",
                  "cohesion_model", "surface_energy_J_m2", "groove_cohesion"],
+    "capture": ["material", "v_striker_m_s", "pair_collision", "pair_restitution",
+                "cohesion_model", "surface_energy_J_m2"],
 }
 
 

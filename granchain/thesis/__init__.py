@@ -45,7 +45,7 @@ NEEDS_EXPERIMENT = ["fitted_gap_316", "fitted_gap_440c"]
 
 STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", "extra_length",
            "vibrometer", "precompression", "wall", "radius_spread", "dissipation",
-           "plasticity", "adhesion")
+           "plasticity", "adhesion", "capture")
 
 
 def comparison(packed_sweep: pd.DataFrame, packed_trace: pd.DataFrame | None = None,
@@ -56,14 +56,15 @@ def comparison(packed_sweep: pd.DataFrame, packed_trace: pd.DataFrame | None = N
                radius_spread: pd.DataFrame | None = None,
                dissipation: pd.DataFrame | None = None,
                plasticity: pd.DataFrame | None = None,
-               adhesion: pd.DataFrame | None = None) -> pd.DataFrame:
+               adhesion: pd.DataFrame | None = None,
+               capture: pd.DataFrame | None = None) -> pd.DataFrame:
     """The comparison table (one row per chapter number, columns ``COLUMNS``);
     ``radius`` (m) of the spheres (the tables do not carry it; default 150 um). Only
     packed_sweep is required; rows whose table is not given hold NaN (the
     pulse_width row needs the trace and is left out without it; the vibrometer rows
     need the vibrometer study's table, the field rows the precompression and wall
-    studies' tables, the question rows the radius_spread, dissipation, plasticity and
-    adhesion studies')."""
+    studies' tables, the question rows the radius_spread, dissipation, plasticity,
+    adhesion and capture studies')."""
     pk = thesis_rows.packed_chain(packed_sweep, radius)
     rows = (thesis_rows.packed_chain_rows(pk)
             + thesis_rows.group_velocity_rows(pk)
@@ -76,7 +77,8 @@ def comparison(packed_sweep: pd.DataFrame, packed_trace: pd.DataFrame | None = N
             + thesis_rows.tolerance_rows(pk, radius_spread)
             + thesis_rows.dissipation_rows(pk, dissipation)
             + thesis_rows.plasticity_rows(pk, plasticity)
-            + thesis_rows.adhesion_rows(pk, adhesion))
+            + thesis_rows.adhesion_rows(pk, adhesion)
+            + thesis_rows.capture_rows(pk, capture))
     return pd.DataFrame(rows, columns=COLUMNS)
 
 

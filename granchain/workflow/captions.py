@@ -21,7 +21,8 @@ FIGURES = {"packed_sweep": "chapter Fig. 5.1b, 5.1c", "packed_trace": "chapter F
            "radius_spread": "beyond the chapter: sphere-size tolerance against Fig. 5.3b",
            "dissipation": "beyond the chapter: contact dissipation against Fig. 5.2",
            "plasticity": "beyond the chapter: yielding contacts against Fig. 5.2",
-           "adhesion": "beyond the chapter: adhesive contacts against Fig. 5.2"}
+           "adhesion": "beyond the chapter: adhesive contacts against Fig. 5.2",
+           "capture": "beyond the chapter: two adhesive spheres' capture velocity"}
 # The probes the figures label and measure: the chapter's (the scene default).
 PROBES = tuple(DEFAULTS["probes"])
 
@@ -80,9 +81,12 @@ def _question_text(scenes, dist: str) -> str:
                 x["surface_energy_J_m2"] for x in st if x["surface_energy_J_m2"] > 0))
             grooved = any(x["groove_cohesion"] for x in st)
             model = next(x["cohesion_model"] for x in st if x["cohesion_model"] != "none")
-            parts.append(f"{mat}: {gtxt}, each without adhesion and with {model} contacts at "
-                         f"gamma = {gs} J/m^2" + (", with and without the groove's flats "
-                                                 "adhering" if grooved else ""))
+            if all(x["cohesion_model"] != "none" for x in st):
+                parts.append(f"{mat}: two spheres with {model} contacts at gamma = {gs} J/m^2")
+            else:
+                parts.append(f"{mat}: {gtxt}, each without adhesion and with {model} contacts "
+                             f"at gamma = {gs} J/m^2" + (", with and without the groove's "
+                                                         "flats adhering" if grooved else ""))
         elif "yield_pressure_Pa" in st[0]:
             pys = ", ".join(f"{p / 1e6:.4g}" for p in dict.fromkeys(x["yield_pressure_Pa"]
                                                                     for x in st)
@@ -140,7 +144,7 @@ def caption_sizes(plan: Plan, study: str) -> dict:
                 f"{m}: " + ", ".join(f"{g:g}" for g in (v if isinstance(v, list) else [v]))
                 for m, v in gm.items()) if isinstance(gm, dict) else None
     for key in ("v_striker", "gap_mean_nm", "extra_length_um", "realisations", "force_N",
-                "sd_um", "e", "yield_pressure_factor", "surface_energy"):
+                "sd_um", "e", "yield_pressure_factor", "surface_energy", "t_end_s"):
         if key in spec and out.get(key) is None:
             v = spec[key]
             out[key] = ", ".join(f"{x:g}" for x in v) if isinstance(v, (list, tuple)) \

@@ -8,7 +8,7 @@ Each ensemble study runs on one engine, its ``engine`` key (reference unless set
 top-level ``engine`` (``--config engine=lammps``) sets it for every ensemble study of the
 preset, and for the field's studies (``FIELD_STUDIES``: precompression, wall) and the
 chapter's questions (``QUESTION_STUDIES``: radius_spread, dissipation, plasticity,
-adhesion) when the preset has
+adhesion, capture) when the preset has
 them. ``lammps_check`` runs the engines its ``engines`` list names and ignores
 both.
 """
@@ -28,8 +28,9 @@ ENSEMBLE_STUDIES = ("packed_sweep", "packed_trace", "gap_profile", "gap_sweep", 
 FIELD_STUDIES = ("precompression", "wall")
 # Optional studies that put a question of the chapter to its own chain (beyond Eq. 5.1): a
 # sphere-size tolerance (radius_spread), contact dissipation (dissipation), yielding
-# contacts (plasticity) and adhesive ones (adhesion); each runs on one engine too.
-QUESTION_STUDIES = ("radius_spread", "dissipation", "plasticity", "adhesion")
+# contacts (plasticity), adhesive ones in the chain (adhesion) and two adhesive spheres'
+# capture (capture); each runs on one engine too.
+QUESTION_STUDIES = ("radius_spread", "dissipation", "plasticity", "adhesion", "capture")
 # every optional ensemble study, in table order
 OPTIONAL_STUDIES = FIELD_STUDIES + QUESTION_STUDIES
 

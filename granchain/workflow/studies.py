@@ -38,6 +38,9 @@ The chapter's questions (optional studies, ``QUESTION_STUDIES``; beyond Eq. 5.1)
                   without adhesion and one scene per surface energy gamma, with and
                   without the groove's flats adhering (``adhesion.groove``), at the lowest
                   striker speeds
+- capture         two adhesive spheres (``chain.n: 2``) at each surface energy over the
+                  striker speeds: how each collision ends and its restitution, so the
+                  capture velocity against gamma
 
 ``lammps_check`` may also name field chains (``chains``: a dimer, a chain on a wall, a
 preloaded chain...), which the LAMMPS-vs-reference comparison runs beside its own scenes
@@ -335,7 +338,8 @@ def question_scenes(preset: dict, study: str) -> list[StudyScene]:
     dissipation: per mean gap of the material (0: packed, one chain; else
     ``realisations``), one scene per coefficient of restitution in ``e``: the base effects
     plus ``contact_damping`` with ``damping: {model, e}``. plasticity:
-    :func:`_plasticity_scenes`; adhesion: :func:`_adhesion_scenes`."""
+    :func:`_plasticity_scenes`; adhesion: :func:`_adhesion_scenes`; capture:
+    :func:`_capture_scenes`."""
     spec = (preset.get("studies") or {}).get(study)
     if not spec:
         return []
@@ -378,6 +382,9 @@ def question_scenes(preset: dict, study: str) -> list[StudyScene]:
         return out
     if study == "adhesion":
         _adhesion_scenes(preset, spec, materials, add, where)
+        return out
+    if study == "capture":
+        _capture_scenes(spec, materials, add)
         return out
 
     model = spec.get("model", "coeff_restitution")
@@ -473,6 +480,25 @@ def _adhesion_scenes(preset: dict, spec: dict, materials: list[str], add, where:
                     add(material, tag, _gaps(preset, g), r, g,
                         (("cohesion_model", model), ("surface_energy_J_m2", float(gamma)),
                          ("groove_cohesion", bool(groove))), edit(gamma, groove))
+
+
+def _capture_scenes(spec: dict, materials: list[str], add):
+    """capture: per material and surface energy gamma in ``surface_energy``, one two-sphere
+    scene (``chain.n: 2``, the restitution experiment) at every striker speed: the contact
+    law alone (effects hertz and adhesion, ``model``), no groove and no air, run to the
+    fixed ``t_end_s`` (a pair held closed in tension is not an end the run can wait for)."""
+    model = spec.get("model", "jkr")
+    for material in materials:
+        for gamma in _as_list(spec["surface_energy"]):
+            def edit(raw, gamma=gamma):
+                raw["chain"] = {"n": 2, "radius": raw["chain"]["radius"]}
+                raw["effects"] = ["hertz", "adhesion"]
+                raw["adhesion"] = {"model": model, "surface_energy": float(gamma)}
+                raw["t_end"] = float(spec["t_end_s"])
+                raw.pop("probes", None)
+            add(material, f"{model}{_fmt_num(gamma)}", {"distribution": "none"}, 1, 0.0,
+                (("cohesion_model", model), ("surface_energy_J_m2", float(gamma)),
+                 ("groove_cohesion", False)), edit)
 
 
 def _pattern(values, n: int, where: str) -> list:

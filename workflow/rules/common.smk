@@ -27,7 +27,7 @@ RESULTS = f"results/{PRESET}"
 FIG_DIR = f"{RESULTS}/figures"
 STUDIES = PLAN.studies      # the chapter's, then the optional ones the preset has
 # the optional studies the preset has, the field's (precompression, wall) and the chapter's
-# questions (radius_spread, dissipation, plasticity, adhesion): each has a figure of its name
+# questions (radius_spread, dissipation, plasticity, adhesion, capture): each has a figure of its name
 OPTIONAL = [s for s in gw.OPTIONAL_STUDIES if s in STUDIES]
 FIGURES = ["fig5_1b", "fig5_1c", "fig5_3b", "fig5_3c", "fig5_4b"] + OPTIONAL   # fig5_1a: one per material
 BATCH_THREADS = int(P["batch"]["threads"])

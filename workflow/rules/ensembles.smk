@@ -50,7 +50,7 @@ rule run_batch:
         table=f"{RESULTS}/work/{{study}}/reference_{{index}}.csv",
         timing=f"{RESULTS}/work/{{study}}/reference_{{index}}.timing.csv",
     wildcard_constraints:
-        study="packed_sweep|gap_profile|gap_sweep|extra_length|lammps_check|precompression|wall|radius_spread|dissipation|plasticity|adhesion",
+        study="packed_sweep|gap_profile|gap_sweep|extra_length|lammps_check|precompression|wall|radius_spread|dissipation|plasticity|adhesion|capture",
     params:
         batch=lambda w: batch_of(w.study, "reference", w.index).key(),
         study=lambda w: w.study,

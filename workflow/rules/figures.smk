@@ -239,6 +239,7 @@ rule thesis_comparison:
         dissipation=parquet_path("dissipation") if "dissipation" in OPTIONAL else [],
         plasticity=parquet_path("plasticity") if "plasticity" in OPTIONAL else [],
         adhesion=parquet_path("adhesion") if "adhesion" in OPTIONAL else [],
+        capture=parquet_path("capture") if "capture" in OPTIONAL else [],
         code=THESIS_CODE,
     output:
         csv=report(

@@ -28,6 +28,9 @@ keys of ``granchain.thesis.COLUMNS``, in table order:
 - :func:`adhesion_rows`         beyond the chapter: which surface energy of adhesive contacts,
                                 alone or with the groove's flats, gives the measured v_max,1 at
                                 the lowest speeds (adhesion study)?
+- :func:`capture_rows`          beyond the chapter, against theory: two adhesive spheres'
+                                capture velocity and its JKR scaling with gamma (capture
+                                study).
 
 Every number comes from granchain.reductions; reasons quote the numbers that support them.
 """
@@ -44,9 +47,9 @@ from .field import field_rows
 from .tolerance import tolerance_rows
 from .dissipation import dissipation_rows
 from .plasticity import plasticity_rows
-from .adhesion import adhesion_rows
+from .adhesion import adhesion_rows, capture_rows
 
 __all__ = ["PackedChain", "packed_chain", "packed_chain_rows", "group_velocity_rows",
            "experiment_rows", "gap_rows", "bound_rows", "energy_rows", "instrument_rows",
            "field_rows", "tolerance_rows", "dissipation_rows",
-           "plasticity_rows", "adhesion_rows"]
+           "plasticity_rows", "adhesion_rows", "capture_rows"]

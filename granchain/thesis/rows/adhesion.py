@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pandas as pd
 
 from ... import reductions
@@ -73,4 +74,60 @@ def adhesion_rows(pk: PackedChain, adhesion: pd.DataFrame | None = None) -> list
                 f"{r['gamma_max']:g} J/m^2 {r['v1_at_gamma_max']:.3f} v_s (ratio "
                 f"{r['ratio_at_gamma_max']:.3f}, v_g {r['vg_at_gamma_max']:.1f} m/s; NaN "
                 "where the far probe's peak is not final)"))
+    return rows
+
+
+JKR_CAPTURE_EXPONENT = 5 / 6    # v_c ~ gamma^(5/6): JKR's hysteresis energy ~ gamma^(5/3)
+GAMMA_AT = 0.1                  # J/m^2: the surface energy the row quotes (the nearest)
+
+
+def capture_rows(pk: PackedChain, capture: pd.DataFrame | None = None) -> list[dict]:
+    """Per material of the capture study (two adhesive spheres), from
+    :func:`granchain.reductions.capture_velocities`:
+
+    - adh_capture_velocity_<material>: the capture velocity v_c (m/s) at the study's
+      surface energy nearest 0.1 J/m^2, the reason listing every gamma's and whether the
+      collisions bracket it;
+    - adh_capture_exponent_<material>: the exponent b of v_c = a gamma^b over the study's
+      gammas (power-law fit), against JKR's 5/6."""
+    from ...reductions import power_law_fit
+    ev = "capture; capture.csv"
+    theory = "JKR's hysteresis energy ~ gamma^(5/3): v_c ~ gamma^(5/6) (theory)"
+    if capture is None:
+        return [make_row(f"adh_capture_{w}_{mat}", f"{reductions.label(mat)}: {q}",
+                         "theory (beyond the chapter)", theory, v, math.nan, u, ev,
+                         "capture table not given (the preset has no capture study)")
+                for mat in ("ss440c",)
+                for w, q, v, u in (("velocity", "capture velocity of two spheres", math.nan,
+                                    "m/s"),
+                                   ("exponent", "exponent of v_c ~ gamma^b",
+                                    JKR_CAPTURE_EXPONENT, "-"))]
+    cv = reductions.capture_velocities(capture)
+    rows = []
+    for mat in reductions.materials_in(cv):
+        c = cv[cv["material"] == mat]
+        gam = c["surface_energy_J_m2"].to_numpy(dtype=float)
+        k = int(np.argmin(np.abs(np.log(gam) - math.log(GAMMA_AT))))
+        r = c.iloc[k]
+        model = str(capture["cohesion_model"].iloc[0])
+        each = "; ".join(
+            f"{x['surface_energy_J_m2']:g} J/m^2: " + (
+                f"{x['v_c'] * 1e3:.4g} mm/s ({x['n_separated']} separated, "
+                f"{x['n_captured']} captured" + (", bracketed" if x["bracketed"] else "")
+                + ")" if math.isfinite(x["v_c"]) else
+                f"none separated ({x['n_captured']} captured, {x['n_unfinished']} "
+                "unfinished)")
+            for _, x in c.iterrows())
+        rows.append(make_row(
+            f"adh_capture_velocity_{mat}", f"{reductions.label(mat)}, two spheres, {model}: "
+            f"the capture velocity at gamma = {r['surface_energy_J_m2']:g} J/m^2",
+            "theory (beyond the chapter)", theory, math.nan, r["v_c"], "m/s", ev,
+            f"v_c = median v_s sqrt(1 - e^2) over the separated collisions; {each}"))
+        b, _ = power_law_fit(gam, c["v_c"].to_numpy(dtype=float))
+        rows.append(make_row(
+            f"adh_capture_exponent_{mat}", f"{reductions.label(mat)}, two spheres, {model}: "
+            "the exponent b of v_c = a gamma^b", "theory (beyond the chapter)", theory,
+            JKR_CAPTURE_EXPONENT, b, "-", ev,
+            f"power-law fit over gamma = {gam.min():g}-{gam.max():g} J/m^2 "
+            f"({int(np.isfinite(c['v_c']).sum())} with a v_c)"))
     return rows
