@@ -19,7 +19,7 @@ from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
 from .lanes import any_contact, bit, clip_to_cap, overlap
-from .spec import DeckPart, EffectSpec, compiled, normal_cap, normal_crit
+from .spec import DeckPart, EffectSpec, compiled, normal_cap, normal_crit, switches
 
 SPEC = EffectSpec("particle_friction", state=(("L_PARTICLE_HIST", "contact"),),
                   work="work_particle_friction", work_slot="L_WORK_PARTICLE",
@@ -110,6 +110,7 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
     mindlin = FL[S.F_PARTICLE_MINDLIN] != 0
     ot = LO[S.L_PARTICLE_HIST]
     owt = LO[S.L_WORK_PARTICLE]
+    on = switches(FL)
     for l in range(L):
         dy[owt, l] = 0.0
     for k in range(n - 1):
@@ -132,7 +133,7 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
                 wk1 = y[ow + k + 1, l]
                 w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
                 # the Coulomb cap on Fncrit (LAMMPS's; |F| unless a law says otherwise)
-                xi = contact_map(y[ot + k, l] + w * hist_dt, kt, mu * normal_crit(fn, d, G, P, FL, n, k, l))
+                xi = contact_map(y[ot + k, l] + w * hist_dt, kt, mu * normal_crit(fn, d, G, P, FL, on, n, k, l))
                 y[ot + k, l] = xi if d > 0.0 else 0.0
         for l in range(L):
             fn = f[k, l]
@@ -146,7 +147,7 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
             wk1 = y[ow + k + 1, l]
             # slip R_k omega_k + R_k+1 omega_k+1 (LAMMPS: radi omega_i + radj omega_j)
             w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
-            T, rate = contact_force(y[ot + k, l], w, kt, mu * normal_crit(fn, d, G, P, FL, n, k, l))
+            T, rate = contact_force(y[ot + k, l], w, kt, mu * normal_crit(fn, d, G, P, FL, on, n, k, l))
             # LAMMPS applies the tangential force at the contact point: lever arm
             # R_i - delta/2 on each sphere (the slip above uses full radii, as LAMMPS
             # does)
@@ -175,6 +176,7 @@ def project(y, G, P, FL, LO):
     mu = P[S.P_PARTICLE_MU]
     oKt = S.G_PARTICLE_SPRING * n
     mindlin = FL[S.F_PARTICLE_MINDLIN] != 0
+    on = switches(FL)
     for k in range(n - 1):
         if not any_contact(y, ox, G, k, L):
             for l in range(L):
@@ -184,7 +186,7 @@ def project(y, G, P, FL, LO):
             d = overlap(y, ox, G, k, l)
             ktc = G[oKt + k, l]
             kt = ktc * math.sqrt(d) if mindlin else ktc
-            xi = contact_map(y[ot + k, l], kt, normal_cap(mu, y, G, P, FL, ov, n, k, l, d))
+            xi = contact_map(y[ot + k, l], kt, normal_cap(mu, y, G, P, FL, on, ov, n, k, l, d))
             y[ot + k, l] = 0.0 if d <= 0.0 else xi
 
 

@@ -21,7 +21,7 @@ from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
 from .lanes import any_contact, bit, clip_to_cap, overlap
-from .spec import DeckPart, EffectSpec, compiled, normal_cap, normal_crit
+from .spec import DeckPart, EffectSpec, compiled, normal_cap, normal_crit, switches
 
 SPEC = EffectSpec("rolling_friction", state=(("L_ROLLING_HIST", "contact"),),
                   work="work_rolling_friction", work_slot="L_WORK_ROLLING",
@@ -126,6 +126,7 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
     oRe = S.G_ROLLING_REFF * n
     op = LO[S.L_ROLLING_HIST]
     owro = LO[S.L_WORK_ROLLING]
+    on = switches(FL)
     for l in range(L):
         dy[owro, l] = 0.0
     for k in range(n - 1):
@@ -144,7 +145,7 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
                 loaded = d > 0.0
                 Reff = G[oRe + k, l]
                 vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
-                rho, M = moment_lammps_order(y[op + k, l], vr, kr, gr, mur * normal_crit(fn, d, G, P, FL, n, k, l),
+                rho, M = moment_lammps_order(y[op + k, l], vr, kr, gr, mur * normal_crit(fn, d, G, P, FL, on, n, k, l),
                                                 hist_dt)
                 y[op + k, l] = rho if loaded else 0.0
                 dy[op + k, l] = vr if loaded else 0.0
@@ -165,7 +166,7 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
                 loaded = d > 0.0
                 Reff = G[oRe + k, l]
                 vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
-                M = moment(y[op + k, l], vr, kr, gr, mur * normal_crit(fn, d, G, P, FL, n, k, l))
+                M = moment(y[op + k, l], vr, kr, gr, mur * normal_crit(fn, d, G, P, FL, on, n, k, l))
                 dy[op + k, l] = vr if loaded else 0.0
                 tq = Reff * M / G[oI + k, l]
                 tq1 = Reff * M / G[oI + k + 1, l]
@@ -190,6 +191,7 @@ def project(y, G, P, FL, LO):
     kr = P[S.P_ROLLING_SPRING]
     gr = P[S.P_ROLLING_DASHPOT]
     mur = P[S.P_ROLLING_MU]
+    on = switches(FL)
     for k in range(n - 1):
         if not any_contact(y, ox, G, k, L):
             for l in range(L):
@@ -199,7 +201,7 @@ def project(y, G, P, FL, LO):
             d = overlap(y, ox, G, k, l)
             vr = G[oRe + k, l] * (y[ow + k, l] - y[ow + k + 1, l])
             rho = rolling_map(y[op + k, l], vr, kr, gr,
-                               normal_cap(mur, y, G, P, FL, ov, n, k, l, d))
+                               normal_cap(mur, y, G, P, FL, on, ov, n, k, l, d))
             y[op + k, l] = 0.0 if d <= 0.0 else rho
 
 

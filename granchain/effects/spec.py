@@ -201,20 +201,29 @@ HOOKS = {
 }
 
 
-# A composed contact law an effect's compiled code may call (the composer puts the
-# composed function in its place; called from Python it is not defined).
-def normal_cap(coef, y, G, P, FL, ov, n, k, l, d):
+# The composed contact laws an effect's compiled code may call (the composer puts the
+# composed functions in their place; called from Python they are not defined).
+def switches(FL):
+    """The effects that are on, one bit each (``EffectSpec.switch``), from the flags FL.
+    An effect reads it once, before its lane loops, and hands it to :func:`normal_crit`
+    and :func:`normal_cap`: a load from FL inside a lane loop (the array may alias the
+    state the loop writes, so it is loaded again in every lane) keeps LLVM from
+    vectorising the loop."""
+    raise NotImplementedError("switches is composed by granchain.engines.compose")
+
+
+def normal_cap(coef, y, G, P, FL, on, ov, n, k, l, d):
     """coef Fncrit: the Coulomb cap of inner contact k of lane l at overlap d > 0, Fncrit
     the :func:`normal_crit` of F, the net normal force of every effect's
-    ``contact_normal`` (registry order); ov: the offset of
-    the velocities in y (``LO[L_VEL]``, read before the lane loop: a load from LO inside it
-    keeps LLVM from vectorising the loop)."""
+    ``contact_normal`` (registry order); on: :func:`switches`; ov: the offset of the
+    velocities in y (``LO[L_VEL]``, read before the lane loop, as ``on`` is)."""
     raise NotImplementedError("normal_cap is composed by granchain.engines.compose")
 
 
-def normal_crit(F, d, G, P, FL, n, k, l):
+def normal_crit(F, d, G, P, FL, on, n, k, l):
     """The normal force of the Coulomb caps (LAMMPS's Fncrit) of contact k of lane l at
-    overlap d, of net normal force F: |F|, unless an effect's ``contact_crit`` gives it."""
+    overlap d, of net normal force F: |F|, unless an effect on (``on``: :func:`switches`)
+    gives it by its ``contact_crit``."""
     raise NotImplementedError("normal_crit is composed by granchain.engines.compose")
 
 

@@ -12,13 +12,17 @@ few functions that call them in turn:
   ``EffectSpec.order``;
 - ``project_histories(y, G, P, FL, LO)``: every ``project``;
 - ``effect_energies(y, G, P, FL, LO, out)``: every ``energies``;
-- ``normal_crit(F, d, G, P, FL, n, k, l)``: the normal force of the Coulomb caps
+- ``switches(FL) -> on``: one bit per effect with a switch, set while it is on; the
+  effects read it before their lane loops and hand it to the two laws below, which test
+  its bits, not FL (a load from FL inside a lane loop keeps LLVM from vectorising it);
+- ``normal_crit(F, d, G, P, FL, on, n, k, l)``: the normal force of the Coulomb caps
   (LAMMPS's Fncrit) of a contact of net normal force F: |F|, or the ``contact_crit`` of
   the last effect on that has one; the effects' friction laws call it in place of
   ``effects.spec.normal_crit``;
-- ``normal_cap(coef, y, G, P, FL, ov, n, k, l, d)``: coef Fncrit of an inner contact, F the
-  ``contact_normal`` of every effect in turn (an effect's ``contact_cap`` when it alone
-  is on); the effects' return mappings call it in place of ``effects.spec.normal_cap``;
+- ``normal_cap(coef, y, G, P, FL, on, ov, n, k, l, d)``: coef Fncrit of an inner contact,
+  F the ``contact_normal`` of every effect in turn (an effect's ``contact_cap`` when it
+  alone is on); the effects' return mappings call it in place of
+  ``effects.spec.normal_cap``;
 - ``wall_force(d, w, G, P, FL, n, l)``: the end wall's force at overlap d and closing
   speed w, by the same ``contact_normal`` laws;
 - ``wall_force_at(y, G, P, FL, LO, n, l)``: the end wall's force in the state y: its
@@ -58,14 +62,17 @@ from .hermite import hermite_root
 use_jit_cache()   # before the first @njit(cache=True)
 
 _DISPATCHERS: dict = {}
-_NAMESPACES: dict[str, dict] = {}
+_NAMESPACES: dict[tuple[str, str], dict] = {}
 
 
-def _namespace(module) -> dict:
-    """The globals the compiled copies of a module's marked functions see."""
-    if module.__name__ not in _NAMESPACES:
-        _NAMESPACES[module.__name__] = dict(vars(module))
-    return _NAMESPACES[module.__name__]
+def _namespace(module, variant: str = "") -> dict:
+    """The globals the compiled copies of a module's marked functions see (a
+    :data:`PLAIN` variant: its own copy, in which the composed contact laws are the
+    plain ones)."""
+    key = (module.__name__, variant)
+    if key not in _NAMESPACES:
+        _NAMESPACES[key] = dict(vars(module))
+    return _NAMESPACES[key]
 
 
 # The hooks that run over a whole block (their lane loops inside): each compiled once, on
@@ -77,32 +84,47 @@ def _namespace(module) -> dict:
 # time.
 BLOCK_HOOKS = ("normal", "forces", "project", "energies")
 
+# The variant of a block hook that calls the composed contact laws (``normal_crit``,
+# ``normal_cap``) compiled again with the plain ones in their place (Fncrit = |F|, the cap
+# of the first normal law alone), which the composed functions call while no other
+# normal law and no ``contact_crit`` is on: a law that may be switched on inside a lane
+# loop keeps LLVM from vectorising it (its loads run only in the lanes that take the
+# branch), and the friction laws' loops are the kernels' longest.
+PLAIN = "plain"
 
-def _jit(fn):
+
+def _jit(fn, variant: str = ""):
     """The numba dispatcher of a marked function: a copy of it over its module's
     namespace, in which every marked function is its dispatcher (compiled lazily, at the
     first call that reaches it). A block hook (:data:`BLOCK_HOOKS`) is compiled on its
     own, every other marked function inlined where it is called."""
-    if fn not in _DISPATCHERS:
+    if (fn, variant) not in _DISPATCHERS:
         module = sys.modules[fn.__module__]
-        ns = _namespace(module)
+        ns = _namespace(module, variant)
         copy = types.FunctionType(fn.__code__, ns, fn.__name__, fn.__defaults__, fn.__closure__)
-        copy.__qualname__, copy.__doc__ = fn.__qualname__, fn.__doc__
-        copy.__module__ = fn.__module__
+        # numba's cache tells compiled functions apart by their qualified names
+        copy.__qualname__ = fn.__qualname__ + (f"__{variant}" if variant else "")
+        copy.__doc__, copy.__module__ = fn.__doc__, fn.__module__
         if any(getattr(module, h, None) is fn for h in BLOCK_HOOKS):
             opts = {"error_model": "numpy", "boundscheck": False}
         else:
             opts = {"inline": "always"}
-        _DISPATCHERS[fn] = njit(cache=True, **opts)(copy)
-    return _DISPATCHERS[fn]
+        _DISPATCHERS[fn, variant] = njit(cache=True, **opts)(copy)
+    return _DISPATCHERS[fn, variant]
 
 
-def _bind(module) -> None:
-    """Every marked function in the module's namespace becomes its dispatcher."""
-    ns = _namespace(module)
+def _bind(module, variant: str = "") -> None:
+    """Every marked function in the module's namespace becomes its dispatcher (the
+    module's own in the variant)."""
+    ns = _namespace(module, variant)
     for k, v in list(ns.items()):
         if _marked(v):
-            ns[k] = _jit(v)
+            ns[k] = _jit(v, variant if v.__module__ == module.__name__ else "")
+
+
+def _composes(module) -> bool:
+    """Does the module's compiled code call the composed contact laws?"""
+    return any(v is spec.normal_crit or v is spec.normal_cap for v in vars(module).values())
 
 
 def compiled(fn):
@@ -128,15 +150,56 @@ def _switch(module) -> str | None:
     return None if flag is None else f"FL[{getattr(codes, flag)}] != 0"
 
 
+def _bit(module) -> int | None:
+    """The module's bit in ``switches(FL)`` (its place among the effects with a switch,
+    in registry order), or None (always on)."""
+    switched = [m for m in MODULES if m.SPEC.switch is not None]
+    return switched.index(module) if module in switched else None
+
+
+def _on(module) -> str | None:
+    """'on & (1 << j) != 0' of the module's bit j in ``switches(FL)``, or None."""
+    j = _bit(module)
+    return None if j is None else f"on & {1 << j} != 0"
+
+
 def _call(module, hook: str, args: str, assign: str = "", indent: str = "    ",
-          guard: bool = True) -> list[str]:
-    """Source lines calling a module's hook (under its switch, if ``guard``)."""
+          guard: bool = True, switch=_switch) -> list[str]:
+    """Source lines calling a module's hook (under its switch, if ``guard``: ``switch``
+    gives the test, on FL (:func:`_switch`) or on ``switches(FL)`` (:func:`_on`))."""
     name = f"{module.SPEC.name}__{hook}"
     line = f"{assign}{name}({args})"
-    cond = _switch(module)
+    cond = switch(module)
     if cond is None or not guard:
         return [indent + line]
     return [f"{indent}if {cond}:", f"{indent}    {line}"]
+
+
+def _plain(by) -> tuple[object, list, str | None]:
+    """(capper, others, when): the effect whose ``contact_cap`` is the cap while it
+    alone is on, the other normal and ``contact_crit`` laws, and the test on FL that
+    none of them is on (the :data:`PLAIN` hooks may run), None if one of them is always
+    on or no effect has a ``contact_cap``."""
+    capper = next(iter(by["contact_cap"]), None)
+    others = [m for m in by["contact_normal"] if m is not capper]
+    others += [m for m in by["contact_crit"] if m is not capper and m not in others]
+    if capper is None or not all(_switch(m) for m in others):
+        return capper, others, None
+    return capper, others, " and ".join(f"not ({_switch(m)})" for m in others) or "True"
+
+
+def _block_call(module, hook: str, args: str, when: str | None) -> list[str]:
+    """Source lines calling a module's block hook under its switch, its :data:`PLAIN`
+    variant while ``plain`` (the composed function's local: ``when`` held) if it calls
+    the composed contact laws."""
+    if when is None or not _composes(module):
+        return _call(module, hook, args)
+    name = f"{module.SPEC.name}__{hook}"
+    lines = ["if plain:", f"    {name}__{PLAIN}({args})", "else:", f"    {name}({args})"]
+    cond = _switch(module)
+    if cond is None:
+        return ["    " + x for x in lines]
+    return [f"    if {cond}:"] + ["        " + x for x in lines]
 
 
 @lru_cache(maxsize=1)
@@ -145,6 +208,7 @@ def source() -> str:
     hooked = [(m, _hooks(m)) for m in MODULES]
     by = {h: [m for m, hs in hooked if h in hs] for h in spec.HOOKS}
     forces = sorted(by["forces"], key=lambda m: m.SPEC.order)   # stable: registry order
+    capper, others, when = _plain(by)
     out = ["# The composed physics of the reference kernels, written by",
            "# granchain.engines.compose from granchain.effects.MODULES.", ""]
 
@@ -153,14 +217,17 @@ def source() -> str:
         out += _call(m, "normal", "y, G, P, FL, LO, dy, f, shut", "shut = ")
     out += ["    return shut", "", ""]
 
-    out += ["def effect_forces(y, G, P, FL, LO, hist_dt, dy, f, shut):"]
+    # the block hooks that call the composed contact laws: their plain variant while no
+    # other normal law and no contact_crit is on
+    plain = [] if when is None else [f"    plain = {when}"]
+    out += ["def effect_forces(y, G, P, FL, LO, hist_dt, dy, f, shut):"] + plain
     for m in forces:
-        out += _call(m, "forces", "y, G, P, FL, LO, hist_dt, dy, f, shut")
+        out += _block_call(m, "forces", "y, G, P, FL, LO, hist_dt, dy, f, shut", when)
     out += ["    return", "", ""]
 
-    out += ["def project_histories(y, G, P, FL, LO):"]
+    out += ["def project_histories(y, G, P, FL, LO):"] + plain
     for m in by["project"]:
-        out += _call(m, "project", "y, G, P, FL, LO")
+        out += _block_call(m, "project", "y, G, P, FL, LO", when)
     out += ["    return", "", ""]
 
     out += ["def effect_energies(y, G, P, FL, LO, out):"]
@@ -168,33 +235,44 @@ def source() -> str:
         out += _call(m, "energies", "y, G, P, FL, LO, out")
     out += ["    return", "", ""]
 
+    # the effects on, one bit each: read once per lane loop by the laws below, which
+    # run inside the lane loops and test these bits, not FL
+    out += ["def switches(FL):", "    on = 0"]
+    for m in MODULES:
+        if _bit(m) is not None:
+            out += [f"    if {_switch(m)}:", f"        on |= {1 << _bit(m)}"]
+    out += ["    return on", "", ""]
+
     # the caps' normal force: |F| unless an effect on says otherwise (the last one on)
     crits = by["contact_crit"]
-    out += ["def normal_crit(F, d, G, P, FL, n, k, l):"]
+    out += ["def normal_crit(F, d, G, P, FL, on, n, k, l):"]
     for m in reversed(crits):
-        out += _call(m, "contact_crit", "F, d, G, P, FL, n, k, l", "return ")
+        out += _call(m, "contact_crit", "F, d, G, P, FL, n, k, l", "return ", switch=_on)
     out += ["    return abs(F)", "", ""]
 
     normals = by["contact_normal"]
-    out += ["def normal_cap(coef, y, G, P, FL, ov, n, k, l, d):"]
-    capper = next(iter(by["contact_cap"]), None)
-    others = [m for m in normals if m is not capper]
-    others += [m for m in crits if m is not capper and m not in others]
-    shortcut = capper is not None and all(_switch(m) for m in others)
+    out += ["def normal_cap(coef, y, G, P, FL, on, ov, n, k, l, d):"]
+    shortcut = when is not None
     if shortcut:
-        alone = " and ".join(f"not ({_switch(m)})" for m in others) or "True"
+        alone = " and ".join(f"not ({_on(m)})" for m in others) or "True"
         out += [f"    if {alone}:",
                 f"        return {capper.SPEC.name}__contact_cap(coef, d, G, n, k, l)"]
     out += ["    w = y[ov + k, l] - y[ov + k + 1, l]",
             "    F = 0.0"]
     for m in normals:
-        # past the shortcut the one other law is on: checking its switch again inside
-        # the return mappings' lane loops keeps LLVM from vectorising them
+        # past the shortcut the one other law is on: its switch need not be tested again
         unguarded = shortcut and len(others) == 1
         out += _call(m, "contact_normal", "F, d, w, G, P, FL, n, k, l", "F = ",
-                     guard=not unguarded)
-    out += ["    return coef * " + ("normal_crit(F, d, G, P, FL, n, k, l)" if crits else "abs(F)"),
-            "", ""]
+                     guard=not unguarded, switch=_on)
+    out += ["    return coef * " + ("normal_crit(F, d, G, P, FL, on, n, k, l)" if crits
+                                    else "abs(F)"), "", ""]
+
+    # the plain laws (no other normal law, no contact_crit on)
+    if when is not None:
+        out += [f"def normal_crit__{PLAIN}(F, d, G, P, FL, on, n, k, l):",
+                "    return abs(F)", "", "",
+                f"def normal_cap__{PLAIN}(coef, y, G, P, FL, on, ov, n, k, l, d):",
+                f"    return {capper.SPEC.name}__contact_cap(coef, d, G, n, k, l)", "", ""]
 
     # the first normal law gives the force of any overlap (zero when open), the others
     # act on a closed contact
@@ -228,8 +306,10 @@ def source() -> str:
     return "\n".join(out)
 
 
+# the composed contact laws the PLAIN hooks call in their plain form
+PLAIN_LAWS = ("normal_crit", "normal_cap")
 COMPOSED = ("normal_forces", "effect_forces", "project_histories", "effect_energies",
-            "normal_crit", "normal_cap", "wall_force", "wall_force_at", "locate")
+            "switches", "normal_crit", "normal_cap", "wall_force", "wall_force_at", "locate")
 
 
 def _file(text: str) -> str:
@@ -255,26 +335,33 @@ def _compose() -> dict:
     text = source()
     ns = {"__name__": "granchain_composed", "__builtins__": __builtins__}
     for m in MODULES:
+        if _composes(m):
+            _bind(m, PLAIN)
         for h, fn in _hooks(m).items():
             ns[f"{m.SPEC.name}__{h}"] = _jit(fn)
+            if _composes(m) and h in BLOCK_HOOKS:
+                ns[f"{m.SPEC.name}__{h}__{PLAIN}"] = _jit(fn, PLAIN)
     exec(compile(text, _file(text), "exec"), ns)
     out = {}
-    for name in COMPOSED:
+    for name in COMPOSED + tuple(f"{c}__{PLAIN}" for c in PLAIN_LAWS if f"{c}__{PLAIN}" in ns):
         fn = ns[name]
         fn.__module__ = "granchain_composed"
         out[name] = njit(cache=True, inline="always")(fn)
     # the composed functions call each other (wall_force_at calls wall_force, normal_cap
     # normal_crit) compiled
     ns.update(out)
-    # the effects' compiled code calls these in place of the stubs of effects.spec
-    services = ((spec.normal_cap, out["normal_cap"]), (spec.normal_crit, out["normal_crit"]),
-                (spec.hermite_root, hermite_root))
-    for ns in _NAMESPACES.values():
+    # the effects' compiled code calls these in place of the stubs of effects.spec (the
+    # plain laws in the PLAIN variants, where there are plain laws)
+    for (_, variant), ns in _NAMESPACES.items():
+        laws = {c: out.get(f"{c}__{variant}" if variant else c, out[c]) for c in PLAIN_LAWS}
+        services = ((spec.normal_cap, laws["normal_cap"]),
+                    (spec.normal_crit, laws["normal_crit"]),
+                    (spec.switches, out["switches"]), (spec.hermite_root, hermite_root))
         for k, v in list(ns.items()):
             for stub, real in services:
                 if v is stub:
                     ns[k] = real
-    return out
+    return {c: out[c] for c in COMPOSED}
 
 
 globals().update(_compose())

@@ -197,10 +197,18 @@ def verlet_block(y, acc, h, gaps, P, FL, LO, f):
     ox = LO[L_DISP]
     ov = LO[L_VEL]
     hh = 0.5 * h
+    # the half kicks of the velocities and of the effects' kicked blocks (the spins), each
+    # entry on its own: written here, not in an inlined helper, whose binding of y and acc
+    # at every call would count references inside the loop
     for i in range(n):
         for l in range(L):
             y[ov + i, l] += hh * acc[ov + i, l]
-        _kick(y, acc, LO, hh, i, L)
+    for slot in KICKED:
+        o = LO[slot]
+        if o >= 0:
+            for i in range(n):
+                for l in range(L):
+                    y[o + i, l] += hh * acc[o + i, l]
     for i in range(n):
         for l in range(L):
             y[ox + i, l] += h * y[ov + i, l]
@@ -213,17 +221,12 @@ def verlet_block(y, acc, h, gaps, P, FL, LO, f):
     for i in range(n):
         for l in range(L):
             y[ov + i, l] += hh * acc[ov + i, l]
-        _kick(y, acc, LO, hh, i, L)
-
-
-@njit(cache=True, inline="always")
-def _kick(y, acc, LO, hh, i, L):
-    """Half kick of entry i of the effects' kicked blocks (the spins)."""
     for slot in KICKED:
         o = LO[slot]
         if o >= 0:
-            for l in range(L):
-                y[o + i, l] += hh * acc[o + i, l]
+            for i in range(n):
+                for l in range(L):
+                    y[o + i, l] += hh * acc[o + i, l]
 
 
 # Per-chain entry points (1D state of one chain): the block routines on a block of one
