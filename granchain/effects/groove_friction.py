@@ -287,7 +287,8 @@ def _sphere(scene, material, R, m, I):
     (the flats' pull-off, ``adhesion.groove_load``)."""
     st = scene.setting(SPEC.name)
     load = groove_load(scene, R)
-    Fc = st.mu * (m * st.g / st.s + load)
+    # mu m g / s as without the load, then mu load (bit for bit the chain without adhesion)
+    Fc = st.mu * m * st.g / st.s + st.mu * load
     if st.kt is None:
         kt = mindlin_stiffness(scene, material, R, m) if st.g > 0 else 1.0
     else:
