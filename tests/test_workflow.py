@@ -675,25 +675,35 @@ def test_tiny_field_studies(tiny_run, monkeypatch, tmp_path):
 
 
 def test_tiny_question_studies(tiny_run, monkeypatch, tmp_path):
-    """radius_spread and dissipation: tables with their setting columns (a radius spread's
-    distribution and sd, the damping's model and e) from the study, no Eq. 5.4 bound,
-    summaries per setting, provenance with each scene's setting, figures and the thesis
-    rows; a member of each re-runs alone to its row, byte for byte."""
+    """The question studies: tables with their setting columns (a radius spread's
+    distribution and sd, the damping's model and e, the yielding contacts' p_y, the
+    cohesive law's gamma and groove) from the study, no Eq. 5.4 bound, summaries per
+    setting, provenance with each scene's setting, figures and the thesis rows; the
+    chains of radius_spread and dissipation all arrive and pass (a strongly yielding or
+    adhering chain may stall its wave; capture's two spheres have no probes); a member of
+    radius_spread and of dissipation re-runs alone to its row, byte for byte."""
     P = tiny_preset()
     root = tiny_run / "results" / "tiny"
-    settings = {"radius_spread": tables.SPREAD_COLUMNS, "dissipation": tables.DAMPING_COLUMNS}
+    settings = {"radius_spread": tables.SPREAD_COLUMNS, "dissipation": tables.DAMPING_COLUMNS,
+                "plasticity": tables.YIELD_COLUMNS, "adhesion": tables.COHESION_COLUMNS,
+                "capture": tables.COHESION_COLUMNS}
+    assert set(settings) == set(gw.QUESTION_STUDIES)
     for study in gw.QUESTION_STUDIES:
         df = _tables(tiny_run, study)
         scenes = gw.study_scenes(P, study)
-        assert list(df.columns) == tables.columns(P["base"]["n"], settings=settings[study])
-        assert len(df) == sum(ss.members for ss in scenes) and df["wave_arrived"].all()
-        assert (df["status"] == "passed").all() and df["v_g_bound_eq54_m_s"].isna().all()
+        n = scenes[0].scene.n
+        assert list(df.columns) == tables.columns(n, settings=settings[study], pair=n == 2)
+        assert len(df) == sum(ss.members for ss in scenes)
+        assert df["v_g_bound_eq54_m_s"].isna().all()
+        if study in ("radius_spread", "dissipation"):
+            assert df["wave_arrived"].all() and (df["status"] == "passed").all()
         by_hash = {ss.scene.hash: dict(ss.setting) for ss in scenes}
         for col in settings[study]:
             assert (df[col] == df["scene_hash"].map(lambda h: by_hash[h][col])).all(), col
         summ = tables.read_csv(root / "tables" / f"{study}_summary.csv")
         assert list(summ.columns) == tables.summary_columns(settings=settings[study])
-        assert summ["n"].sum() == len(df) and len(summ) == len(scenes)
+        assert summ["n"].sum() == len(df)
+        assert len(summ) == sum(len(ss.scene.striker_velocities) for ss in scenes)
         prov = json.loads((root / "tables" / f"{study}.provenance.json").read_text())
         assert "not computed" in prov["eq54_bound"] and len(prov["settings"]) == len(scenes)
     assert_figures_show_their_tables(root, gw.QUESTION_STUDIES, monkeypatch, tmp_path)
@@ -712,8 +722,14 @@ def test_tiny_question_studies(tiny_run, monkeypatch, tmp_path):
         assert w[-1] == 0 and (w[:-1] < 0).all() and (np.diff(w) > 0).all(), w
     th = pd.read_csv(root / "tables" / "thesis_comparison.csv").set_index("id")
     for id_ in ("spread_oscillation", "diss_e_ratio_packed", "diss_e_ratio_gapped",
-                "diss_vmax1_at_e", "diss_vmax2_at_e", "diss_striker_factor"):
+                "diss_vmax1_at_e", "diss_vmax2_at_e", "diss_striker_factor",
+                "plast_vmax1_library_ss316", "plast_vmax1_library_ss440c",
+                "plast_exponent_ss316", "adh_capture_velocity_ss440c",
+                "adh_capture_exponent_ss440c"):
         assert math.isfinite(th.loc[id_, "project_value"]), id_
+    # two adhesive spheres: captured below v_c, separated above it, at each gamma
+    ca = _tables(tiny_run, "capture")
+    assert set(ca["pair_collision"]) == {"captured", "separated"}
     # one member of each, alone
     for study, row, key in (("radius_spread", spread.iloc[-1], "radius_sd_m"),
                             ("dissipation", di[di["gap_mean_nm"] > 0].iloc[-1], "restitution_e")):

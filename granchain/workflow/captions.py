@@ -139,7 +139,7 @@ def caption_sizes(plan: Plan, study: str) -> dict:
         else:
             out["model"] = spec.get("model", {"dissipation": "coeff_restitution",
                                               "plasticity": "thornton"}.get(study, "jkr"))
-            gm = spec["gap_mean_nm"]
+            gm = spec.get("gap_mean_nm", [0])
             out["gap_mean_nm"] = "; ".join(
                 f"{m}: " + ", ".join(f"{g:g}" for g in (v if isinstance(v, list) else [v]))
                 for m, v in gm.items()) if isinstance(gm, dict) else None
