@@ -201,6 +201,23 @@ for f in loaded:
     assert [f for f, c in changed.items() if c != "True"] == []
 
 
+def test_kept_list_of_kernel_sources_follows_an_added_import(tmp_path, monkeypatch):
+    """The list of the kernels' sources kept between processes is the parsed one, and a
+    kernel module that gains an import of another module of the package gets a list with
+    that module in the next process (the kept list is not reused)."""
+    pkg = _copy_package(tmp_path)
+    monkeypatch.setenv("GRANCHAIN_CACHE_DIR", str(tmp_path / "cache"))
+    code = ("from granchain.engines import backend\n"
+            "kept = backend.kernel_sources()\n"
+            "print(int(kept == backend._kernel_sources()), int('progress.py' in kept))")
+    assert _in_copy(code, tmp_path) == ["1", "0"]
+    assert _in_copy(code, tmp_path) == ["1", "0"]           # read back from the kept list
+    assert len(list((tmp_path / "cache" / "kernel-sources").iterdir())) == 1
+    text = (pkg / "engines" / "codes.py").read_text()
+    (pkg / "engines" / "codes.py").write_text(text + "\nfrom .. import progress  # noqa\n")
+    assert _in_copy(code, tmp_path) == ["1", "1"]
+
+
 @pytest.mark.parametrize("method", sorted({m for m, _ in warmup.RUNS}))
 def test_every_warm_up_scene_is_valid_with_every_effect_it_can_hold(method):
     """Each warm-up run's scene validates, with every registered effect on but those set
@@ -241,3 +258,118 @@ def test_warm_up_in_two_processes_covers_every_entry_point(tmp_path):
     assert out.stdout.strip() == "[]"
     cached = {p.name.split(".")[1].split("-")[0] for p in tmp_path.rglob("*.nbi")}
     assert set(backend.ENTRY_POINTS) <= cached, set(backend.ENTRY_POINTS) - cached
+
+
+# --- the block kernel in forked workers --------------------------------------------------
+def _fake_args(nblk, lanes):
+    """run_blocks' 32 arguments with the shapes of a call over nblk blocks of lanes chains."""
+    from granchain.engines import forked
+    args = [np.zeros(1) for _ in range(32)]
+    for i in forked._PER_BLOCK:
+        args[i] = np.zeros((nblk, 3, lanes))
+    for i in forked._PER_CHAIN:
+        args[i] = np.zeros((nblk * lanes, 2))
+    args[forked._OBSERVE] = True
+    return tuple(args)
+
+
+class _Marks:
+    """A stand-in module whose run_blocks marks every block and chain it was given with
+    the process that ran it (and fails in the workers when told to)."""
+    def __init__(self, fail_in_worker=False):
+        self.parent, self.fail = os.getpid(), fail_in_worker
+
+    def run_blocks(self, *a):
+        from granchain.engines import forked
+        if self.fail and os.getpid() != self.parent:
+            raise RuntimeError("worker failed")
+        for i in forked._WRITTEN:
+            a[i][...] = os.getpid()
+
+
+def test_forked_blocks_cover_every_block_once_in_numbas_schedule():
+    from granchain.engines import forked
+    for nblk, workers in ((2, 2), (5, 2), (16, 2), (7, 3)):
+        args = _fake_args(nblk, 4)
+        assert forked.run_blocks(_Marks(), args, 4, workers)
+        Y = args[1][:, 0, 0]
+        pids = list(dict.fromkeys(Y.tolist()))
+        assert len(pids) == min(workers, nblk) and os.getpid() == pids[0]
+        # contiguous shares, one more block for each of the first nblk % workers
+        sizes = [int((Y == p).sum()) for p in pids]
+        assert sizes == [nblk // workers + (t < nblk % workers) for t in range(workers)]
+        for i in forked._PER_CHAIN:            # each chain written by its block's process
+            if i in forked._WRITTEN:
+                assert np.array_equal(args[i][:, 0], np.repeat(Y, 4))
+        assert not args[forked._PER_CHAIN[6]].any()     # NT is read, not written back
+
+
+def test_a_failed_worker_leaves_the_arrays_untouched():
+    from granchain.engines import forked
+    args = _fake_args(4, 2)
+    assert not forked.run_blocks(_Marks(fail_in_worker=True), args, 2, 2)
+    assert not any(args[i].any() for i in forked._WRITTEN)
+
+
+_FORKED_RUN = """
+import sys, pickle
+import numpy as np
+from granchain.engines import forked, reference
+from granchain.scene import load_scene
+taken = []
+real = forked.run_blocks
+forked.run_blocks = lambda *a, **k: taken.append(real(*a, **k)) or taken[-1]
+d = np.load(sys.argv[1])
+scene = load_scene(sys.argv[2]).derive(
+    integrator={"method": "verlet", "dt": 1e-9},
+    effects=["hertz", "groove_friction", "air_drag", "rotation", "particle_friction"])
+out = [(t.status, t.steps, t.v, t.energy, t.observed.v_max, t.observed.t_peak,
+        t.observed.t_front) for t in reference.run(scene, d["gaps"], d["vs"], progress=False,
+                                                   trace=False)]
+pickle.dump((out, taken, "numba" in sys.modules), open(sys.argv[3], "wb"))
+"""
+
+
+@pytest.mark.slow
+def test_forked_block_kernels_bit_identical_to_jit_threads(aot_cache, tmp_path, monkeypatch):
+    """Chains of every effect, their observables measured on the fly, in a process that
+    has not loaded numba: the ahead-of-time kernel in two forked workers (the path taken,
+    numba never imported) gives numba's two threads' results in this process bit for
+    bit."""
+    import pickle
+    scene_file = f"{SCENES}/gaps-20nm-440c.yaml"
+    scene = load_scene(scene_file).derive(
+        integrator={"method": "verlet", "dt": 1e-9},
+        effects=["hertz", "groove_friction", "air_drag", "rotation", "particle_friction"])
+    gaps = np.random.default_rng(5).uniform(0, 40e-9, (70, scene.n - 1))
+    vs = np.full(70, 0.1)
+    np.savez(tmp_path / "in.npz", gaps=gaps, vs=vs)
+    env = dict(os.environ, GRANCHAIN_CACHE_DIR=str(aot_cache), NUMBA_NUM_THREADS="2")
+    subprocess.run([sys.executable, "-c", _FORKED_RUN, str(tmp_path / "in.npz"), scene_file,
+                    str(tmp_path / "out.pkl")], env=env, check=True)
+    a, taken, numba_loaded = pickle.loads((tmp_path / "out.pkl").read_bytes())
+    assert taken and all(taken) and not numba_loaded
+    monkeypatch.setattr(backend, "num_threads", lambda: 2)
+    from granchain.engines import forked
+    monkeypatch.setattr(forked, "usable", lambda *a: False)     # numba's threads here
+    b = list(reference.run(scene, gaps, vs, progress=False, trace=False))
+    assert len(a) == len(b) == 70
+    for x, y in zip(a, b):
+        assert x[0] == y.status and x[1] == y.steps
+        assert np.array_equal(x[2], y.v) and np.array_equal(x[3], y.energy)
+        for u, f in zip(x[4:], ("v_max", "t_peak", "t_front")):
+            assert np.array_equal(u, getattr(y.observed, f), equal_nan=True)
+
+
+@pytest.mark.slow
+def test_many_chain_run_on_two_cores_imports_no_numba(aot_cache):
+    code = ("import sys, io, contextlib\n"
+            "from granchain.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n"
+            f"    rc = main(['run', '{SCENES}/gaps-20nm-440c.yaml', '--json', '--set',"
+            " 'ensemble.realisations=80', '--set', 'integrator.method=verlet'])\n"
+            "print(rc, 'numba' in sys.modules)\n")
+    env = dict(os.environ, GRANCHAIN_CACHE_DIR=str(aot_cache), NUMBA_NUM_THREADS="2")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         check=True).stdout.split()
+    assert out == ["0", "False"]

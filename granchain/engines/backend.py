@@ -87,7 +87,32 @@ def _imports(module: str, path: Path) -> set[str]:
 def kernel_sources() -> tuple[str, ...]:
     """Every source file the compiled kernels are made of, relative to the package: the
     entry points' modules and every module of the package they import, transitively,
-    with the packages' ``__init__.py`` that importing them runs."""
+    with the packages' ``__init__.py`` that importing them runs.
+
+    Parsing the modules for their imports costs a few tenths of a second, which every
+    process would pay before its first step; the list is kept in the cache directory under
+    the hash of the whole package's sources (any edit anywhere finds no entry and parses
+    again)."""
+    entry = cache_dir() / "kernel-sources" / f"{source_hash()[:24]}.txt"
+    try:
+        listed = tuple(entry.read_text().split())
+        if listed and all((_PKG / f).is_file() for f in listed):
+            return listed
+    except OSError:
+        pass
+    found = _kernel_sources()
+    try:
+        entry.parent.mkdir(parents=True, exist_ok=True)
+        tmp = entry.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text("\n".join(found) + "\n")
+        os.replace(tmp, entry)           # atomic: a concurrent reader sees all or nothing
+    except OSError:
+        pass
+    return found
+
+
+def _kernel_sources() -> tuple[str, ...]:
+    """:func:`kernel_sources`, found from the import statements."""
     seen: set[str] = set()
     todo = list(_ENTRY_MODULES)
     while todo:

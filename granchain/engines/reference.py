@@ -25,6 +25,7 @@ from ..trajectory import OnTheFly, RunInfo, Trajectory
 from . import backend
 from . import chunks
 from . import codes
+from . import forked
 from . import obscodes
 
 M_EVENT = 3
@@ -558,10 +559,15 @@ def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V
         Vbuf = np.empty((Bp, BLOCK_WINDOW, nv))
         Ebuf = np.empty((Bp, BLOCK_WINDOW, codes.E_LEN))
     counts = np.zeros(Bp, dtype=np.int64)
+    workers = backend.num_threads()
+    aot = backend.aot_module() if observe else None
     while np.any(STATUS[:B] == codes.S_RUNNING):
-        kern.run_blocks(mcode, YB, ACC, YF, T, NS, STEPS, STATUS, VT, GB, P, FL, layout.LO, dt,
-                        every, NTp, auto, Vbuf, Ebuf, counts, observe, float(sample_dt),
-                        float(wall_static), *obs.args())
+        args = (mcode, YB, ACC, YF, T, NS, STEPS, STATUS, VT, GB, P, FL, layout.LO, dt,
+                every, NTp, auto, Vbuf, Ebuf, counts, observe, float(sample_dt),
+                float(wall_static), *obs.args())
+        if not (forked.usable(aot, workers, nblk)
+                and forked.run_blocks(aot, args, Lb, workers)):
+            kern.run_blocks(*args)
         if not observe:
             _collect(counts[:B], Vbuf, Ebuf, V_parts, E_parts)
     obs.NS = NS[:B]
