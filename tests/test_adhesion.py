@@ -322,3 +322,58 @@ def test_groove_adhesion_agrees_with_lammps(model, extra, tmp_path):
     rows = cmp.rows
     v = rows[rows.quantity.str.startswith("v_max") | rows.quantity.str.startswith("v_g")]
     assert len(v) > 0 and v["diff"].max() < 2e-9
+
+
+# ---------------------------------------------------------------------------------------
+# the end wall held closed in tension
+def wall_scene(speeds):
+    """Three steel spheres against a JKR wall of 316 (gamma = 1 J/m^2), Verlet at 1 ns:
+    at 0.02 m/s the last sphere pulls off the wall, at 0.002 m/s the wall holds it."""
+    return scene_from_dict({
+        "name": "jkr-wall", "chain": {"n": 3}, "probes": [2, 3], "t_end": 6e-5,
+        "integrator": {"method": "verlet", "dt": 1e-9}, "effects": ["hertz", "adhesion"],
+        "adhesion": {"model": "jkr", "surface_energy": 1.0}, "walls": {"end": "ss316"},
+        "striker": {"velocity": list(speeds)}})
+
+
+def test_jkr_wall_force_in_tension_is_the_laws():
+    """The recorded end-wall force of a JKR wall contact held closed in tension is the
+    law's tensile force: it falls to the pull-off force -3 pi gamma R (R* = R at a flat)
+    just before the sphere leaves, never below it; the peak stays the largest compressive
+    force, before the tension."""
+    (t,), _ = runs(wall_scene((0.02,)))
+    F = t.wall_force
+    F_po = 3.0 * math.pi * 1.0 * R
+    j = int(np.argmin(F))
+    assert F[j] < 0.0
+    assert F[j] == pytest.approx(-F_po, rel=1e-4)
+    assert F.min() >= -F_po * (1.0 + 1e-9)
+    assert F[j + 1:].max() == 0.0                      # open after the pull-off
+    from granchain.observables import wall_peak
+    top, tpk, final = wall_peak(t)
+    assert final and top == pytest.approx(F.max() - t.wall_static, rel=1e-3)
+    assert tpk < t.t[j]
+
+
+@pytest.mark.lammps
+def test_jkr_wall_force_in_tension_agrees_with_lammps():
+    """fix wall/gran's own jkr force and the reference engine's recorded wall force agree
+    sample by sample, the tensile samples held at d <= 0 included (measured 5.7e-10 of
+    the peak), for a wall that lets the sphere go (0.02 m/s) and one that holds it
+    (0.002 m/s)."""
+    from granchain.engines import lammps as lmp
+    sc = wall_scene((0.002, 0.02))
+    mem = members(sc)
+    g, vs = member_gaps(sc, mem), np.array([m.v_striker for m in mem])
+    ref = list(reference.run(sc, g, vs, method="verlet"))
+    other = list(lmp.run(sc, g, vs))
+    for a, b in zip(ref, other):
+        # the two engines sample on their own grids: the steps both sampled
+        _, ia, ib = np.intersect1d(np.rint(a.t / 1e-9), np.rint(b.t / 1e-9),
+                                   return_indices=True)
+        assert len(ia) > 1000
+        Fa, Fb = a.wall_force[ia], b.wall_force[ib]
+        # below -(8/9) F_po, the force at touch, only where the wall holds d <= 0
+        held = -8.0 / 9.0 * 3.0 * math.pi * 1.0 * R
+        assert (Fa < held).sum() > 10 and (Fb < held).sum() == (Fa < held).sum()
+        assert np.abs(Fa - Fb).max() < 2e-9 * np.abs(Fa).max()
