@@ -377,3 +377,51 @@ def test_jkr_wall_force_in_tension_agrees_with_lammps():
         held = -8.0 / 9.0 * 3.0 * math.pi * 1.0 * R
         assert (Fa < held).sum() > 10 and (Fb < held).sum() == (Fa < held).sum()
         assert np.abs(Fa - Fb).max() < 2e-9 * np.abs(Fa).max()
+
+
+# ---------------------------------------------------------------------------------------
+# the energy the contacts' attraction can give the motion (inference.check_peaks)
+@pytest.mark.parametrize("model", ["jkr", "dmt"])
+def test_well_depth_is_the_laws_work_from_touch_to_equilibrium(model):
+    """-int_0^{delta_eq} F d delta of the independent laws (F(delta_eq) = 0), integrated
+    numerically, against the closed forms of adhesion.well_depth."""
+    from scipy.integrate import quad
+    from scipy.optimize import brentq
+    K = 4.0 / 3.0 * ESTAR * math.sqrt(RS)
+    if model == "jkr":
+        F = lambda d: ind.jkr_force(RS, ESTAR, GAMMA, d)          # noqa: E731
+    else:
+        F = lambda d: ind.dmt_force(K, RS, GAMMA, d)              # noqa: E731
+    d_eq = brentq(F, 1e-300, 1e-6, xtol=1e-25, rtol=1e-15)
+    want = -quad(F, 0.0, d_eq, epsabs=0.0, epsrel=1e-12, limit=200)[0]
+    assert want > 0.0
+    assert adhesion.well_depth(model, K, RS, ESTAR, GAMMA) == pytest.approx(want, rel=1e-9)
+
+
+def test_check_peaks_counts_the_adhesive_energy(tmp_path):
+    """A peak above v_s, which the adhesion study's chains reach (1.26 v_s at 1 J/m^2,
+    0.01 m/s), is accepted for an adhesive base scene and refused without adhesion; a
+    peak beyond striker and adhesion together is still refused."""
+    from granchain import inference
+    from granchain.effects import physics_terms, touch_energy
+    from granchain.errors import GranchainError
+    plain = scene_from_dict({"name": "p", "striker": {"velocity": 0.01},
+                             "gaps": {"distribution": "uniform", "mean": 2e-8}})
+    sticky = plain.derive(**{"effects": ["hertz", "adhesion"],
+                             "adhesion": {"model": "jkr", "surface_energy": 1.0}})
+    W = touch_energy(physics_terms(sticky))
+    # 14 contacts, each its well's depth
+    K = 4.0 / 3.0 * ESTAR * math.sqrt(RS)
+    assert W == pytest.approx(14 * adhesion.well_depth("jkr", K, RS, ESTAR, 1.0), rel=1e-12)
+    top = math.sqrt(0.01 ** 2 + 2.0 * W / plain.masses[1])
+    csv_path = tmp_path / "m.csv"
+    head = "v_striker_m_s,dt_front_s,vmax_1_m_s,vmax_2_m_s,vmax_err_m_s\n"
+    csv_path.write_text(head + "0.01,1.0e-5,0.0126,0.008,0\n")
+    meas = inference.read_measurements(csv_path, peaks=True)
+    inference.check_peaks(meas, sticky)
+    with pytest.raises(GranchainError, match="vmax_1_m_s.*above"):
+        inference.check_peaks(meas, plain)
+    csv_path.write_text(head + f"0.01,1.0e-5,{1.01 * top:.6g},0.008,0\n")
+    meas = inference.read_measurements(csv_path, peaks=True)
+    with pytest.raises(GranchainError, match="vmax_1_m_s.*adhesion"):
+        inference.check_peaks(meas, sticky)

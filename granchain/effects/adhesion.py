@@ -371,6 +371,31 @@ def separation(ad, chain, k: int, d: float) -> tuple[float, float]:
     return d_open, jkr_work(Rs, E, g, jkr_radius(Rs, E, g, d)) - jkr_work(Rs, E, g, a_po)
 
 
+def well_depth(model: str, K: float, Rs: float, E: float, g: float) -> float:
+    """The energy (J, > 0) a contact of Hertz constant K, R*, E* releases into the motion
+    of its spheres from first touch (delta = 0, the force's jump onto the law) down to the
+    bottom of its well, where the force vanishes: -int_0^{delta_eq} F d delta.
+    dmt: delta_eq = (F_po / K)^(2/3), depth (3/5) F_po delta_eq. jkr: along the law's
+    branch from a_0 = (4 pi gamma R*^2 / E*)^(1/3) (delta = 0) to a_eq = (9 pi gamma R*^2
+    / E*)^(1/3) (F = 0), V(a_0) - V(a_eq) with V :func:`jkr_work`."""
+    if model == "dmt":
+        F_po = pulloff_force(Rs, g, False)
+        return 0.6 * F_po * (F_po / K) ** (2.0 / 3.0)
+    a0 = (4.0 * math.pi * g * Rs * Rs / E) ** (1.0 / 3.0)
+    a_eq = (9.0 * math.pi * g * Rs * Rs / E) ** (1.0 / 3.0)
+    return jkr_work(Rs, E, g, a0) - jkr_work(Rs, E, g, a_eq)
+
+
+def touch_energy(ad, chain) -> float:
+    """The most energy (J) the adhesive contacts can give the spheres' motion: each
+    contact's :func:`well_depth` (a contact gives it once on touching and takes at least
+    as much back to open), summed over the sphere contacts and the end wall."""
+    r = rows(ad, chain)
+    K = tuple(chain.K) + ((chain.K_wall,) if chain.wall is not None else ())
+    return sum(well_depth(ad.model, K[k], r["G_ADHESION_RSTAR"][k], r["G_ADHESION_EMIX"][k],
+                          ad.gamma) for k in range(len(K)))
+
+
 # ---------------------------------------------------------------------------------------
 # Tabor's parameter and the groove's pull-off
 def tabor(Rs: float, E: float, gamma: float, z0: float = Z0) -> float:
