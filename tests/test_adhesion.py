@@ -322,3 +322,106 @@ def test_groove_adhesion_agrees_with_lammps(model, extra, tmp_path):
     rows = cmp.rows
     v = rows[rows.quantity.str.startswith("v_max") | rows.quantity.str.startswith("v_g")]
     assert len(v) > 0 and v["diff"].max() < 2e-9
+
+
+# ---------------------------------------------------------------------------------------
+# the end wall held closed in tension
+def wall_scene(speeds):
+    """Three steel spheres against a JKR wall of 316 (gamma = 1 J/m^2), Verlet at 1 ns:
+    at 0.02 m/s the last sphere pulls off the wall, at 0.002 m/s the wall holds it."""
+    return scene_from_dict({
+        "name": "jkr-wall", "chain": {"n": 3}, "probes": [2, 3], "t_end": 6e-5,
+        "integrator": {"method": "verlet", "dt": 1e-9}, "effects": ["hertz", "adhesion"],
+        "adhesion": {"model": "jkr", "surface_energy": 1.0}, "walls": {"end": "ss316"},
+        "striker": {"velocity": list(speeds)}})
+
+
+def test_jkr_wall_force_in_tension_is_the_laws():
+    """The recorded end-wall force of a JKR wall contact held closed in tension is the
+    law's tensile force: it falls to the pull-off force -3 pi gamma R (R* = R at a flat)
+    just before the sphere leaves, never below it; the peak stays the largest compressive
+    force, before the tension."""
+    (t,), _ = runs(wall_scene((0.02,)))
+    F = t.wall_force
+    F_po = 3.0 * math.pi * 1.0 * R
+    j = int(np.argmin(F))
+    assert F[j] < 0.0
+    assert F[j] == pytest.approx(-F_po, rel=1e-4)
+    assert F.min() >= -F_po * (1.0 + 1e-9)
+    assert F[j + 1:].max() == 0.0                      # open after the pull-off
+    from granchain.observables import wall_peak
+    top, tpk, final = wall_peak(t)
+    assert final and top == pytest.approx(F.max() - t.wall_static, rel=1e-3)
+    assert tpk < t.t[j]
+
+
+@pytest.mark.lammps
+def test_jkr_wall_force_in_tension_agrees_with_lammps():
+    """fix wall/gran's own jkr force and the reference engine's recorded wall force agree
+    sample by sample, the tensile samples held at d <= 0 included (measured 5.7e-10 of
+    the peak), for a wall that lets the sphere go (0.02 m/s) and one that holds it
+    (0.002 m/s)."""
+    from granchain.engines import lammps as lmp
+    sc = wall_scene((0.002, 0.02))
+    mem = members(sc)
+    g, vs = member_gaps(sc, mem), np.array([m.v_striker for m in mem])
+    ref = list(reference.run(sc, g, vs, method="verlet"))
+    other = list(lmp.run(sc, g, vs))
+    for a, b in zip(ref, other):
+        # the two engines sample on their own grids: the steps both sampled
+        _, ia, ib = np.intersect1d(np.rint(a.t / 1e-9), np.rint(b.t / 1e-9),
+                                   return_indices=True)
+        assert len(ia) > 1000
+        Fa, Fb = a.wall_force[ia], b.wall_force[ib]
+        # below -(8/9) F_po, the force at touch, only where the wall holds d <= 0
+        held = -8.0 / 9.0 * 3.0 * math.pi * 1.0 * R
+        assert (Fa < held).sum() > 10 and (Fb < held).sum() == (Fa < held).sum()
+        assert np.abs(Fa - Fb).max() < 2e-9 * np.abs(Fa).max()
+
+
+# ---------------------------------------------------------------------------------------
+# the energy the contacts' attraction can give the motion (inference.check_peaks)
+@pytest.mark.parametrize("model", ["jkr", "dmt"])
+def test_well_depth_is_the_laws_work_from_touch_to_equilibrium(model):
+    """-int_0^{delta_eq} F d delta of the independent laws (F(delta_eq) = 0), integrated
+    numerically, against the closed forms of adhesion.well_depth."""
+    from scipy.integrate import quad
+    from scipy.optimize import brentq
+    K = 4.0 / 3.0 * ESTAR * math.sqrt(RS)
+    if model == "jkr":
+        F = lambda d: ind.jkr_force(RS, ESTAR, GAMMA, d)          # noqa: E731
+    else:
+        F = lambda d: ind.dmt_force(K, RS, GAMMA, d)              # noqa: E731
+    d_eq = brentq(F, 1e-300, 1e-6, xtol=1e-25, rtol=1e-15)
+    want = -quad(F, 0.0, d_eq, epsabs=0.0, epsrel=1e-12, limit=200)[0]
+    assert want > 0.0
+    assert adhesion.well_depth(model, K, RS, ESTAR, GAMMA) == pytest.approx(want, rel=1e-9)
+
+
+def test_check_peaks_counts_the_adhesive_energy(tmp_path):
+    """A peak above v_s, which the adhesion study's chains reach (1.26 v_s at 1 J/m^2,
+    0.01 m/s), is accepted for an adhesive base scene and refused without adhesion; a
+    peak beyond striker and adhesion together is still refused."""
+    from granchain import inference
+    from granchain.effects import physics_terms, touch_energy
+    from granchain.errors import GranchainError
+    plain = scene_from_dict({"name": "p", "striker": {"velocity": 0.01},
+                             "gaps": {"distribution": "uniform", "mean": 2e-8}})
+    sticky = plain.derive(**{"effects": ["hertz", "adhesion"],
+                             "adhesion": {"model": "jkr", "surface_energy": 1.0}})
+    W = touch_energy(physics_terms(sticky))
+    # 14 contacts, each its well's depth
+    K = 4.0 / 3.0 * ESTAR * math.sqrt(RS)
+    assert W == pytest.approx(14 * adhesion.well_depth("jkr", K, RS, ESTAR, 1.0), rel=1e-12)
+    top = math.sqrt(0.01 ** 2 + 2.0 * W / plain.masses[1])
+    csv_path = tmp_path / "m.csv"
+    head = "v_striker_m_s,dt_front_s,vmax_1_m_s,vmax_2_m_s,vmax_err_m_s\n"
+    csv_path.write_text(head + "0.01,1.0e-5,0.0126,0.008,0\n")
+    meas = inference.read_measurements(csv_path, peaks=True)
+    inference.check_peaks(meas, sticky)
+    with pytest.raises(GranchainError, match="vmax_1_m_s.*above"):
+        inference.check_peaks(meas, plain)
+    csv_path.write_text(head + f"0.01,1.0e-5,{1.01 * top:.6g},0.008,0\n")
+    meas = inference.read_measurements(csv_path, peaks=True)
+    with pytest.raises(GranchainError, match="vmax_1_m_s.*adhesion"):
+        inference.check_peaks(meas, sticky)

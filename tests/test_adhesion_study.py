@@ -190,3 +190,32 @@ def test_the_capture_velocity_follows_jkr_against_an_independent_solution():
     rows = {r["id"]: r for r in thesis_rows.capture_rows(None, df)}
     assert rows["adh_capture_exponent_ss440c"]["project_value"] == pytest.approx(5 / 6,
                                                                                   abs=0.01)
+
+
+@pytest.mark.parametrize("study", ["plasticity", "adhesion", "capture"])
+def test_a_member_of_a_new_study_rerun_alone_reproduces_its_row(study):
+    """rerun_member picks a question study's scene by its setting columns: a member of
+    the tiny preset's plasticity, adhesion and capture studies (a scene with its law on),
+    re-run alone, gives the row its scene's batch run gives (all its speeds, through the
+    same CSV writer: byte for byte); without the setting several scenes match."""
+    from granchain import tables
+    from granchain.errors import GranchainError
+    from granchain.workflow.run import member_rows, run_members
+    P = _preset()
+    scenes = gw.study_scenes(P, study)
+    ss = scenes[-1]
+    setting = dict(ss.setting)
+    assert setting and len(scenes) > 1
+    runs = run_members(ss.scene, ss.engines[0], [0])
+    row = member_rows(ss, runs).iloc[-1].to_dict()
+    assert all(row[k] == v for k, v in setting.items())
+    keys = {k: row[k] for k in setting}
+    new = gw.rerun_member(P, study, material=row["material"], v_striker=row["v_striker_m_s"],
+                          realisation=int(row["realisation"]), gap_mean_nm=row["gap_mean_nm"],
+                          **keys)
+    a = tables.csv_text(tables.study_table([row], ss.scene.n))
+    b = tables.csv_text(tables.study_table([new], ss.scene.n))
+    assert a == b
+    with pytest.raises(GranchainError, match="scenes of study"):
+        gw.rerun_member(P, study, material=row["material"], v_striker=row["v_striker_m_s"],
+                        realisation=0, gap_mean_nm=row["gap_mean_nm"])

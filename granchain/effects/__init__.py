@@ -89,6 +89,15 @@ def separation(terms, k: int, d: float) -> tuple[float, float]:
     raise AssertionError("hertz has separation")
 
 
+def touch_energy(terms) -> float:
+    """The most energy (J) the contacts' laws can give the spheres' motion beyond what
+    the striker brings (the work their attraction does from first touch to the bottom of
+    their well): the sum of each enabled effect's ``touch_energy`` (0 for a law without
+    attraction)."""
+    return sum(m.touch_energy(getattr(terms, m.SPEC.name), terms.chain) for m in MODULES
+               if hasattr(m, "touch_energy") and terms.has(m.SPEC.name))
+
+
 def _has(self, name: str) -> bool:
     return getattr(self, name) is not None
 
@@ -125,5 +134,5 @@ def physics_terms(scene) -> Terms:
 
 
 __all__ = ["MODULES", "SPECS", "ENERGY_COLUMNS", "EffectSpec", "Terms", "physics_terms",
-           "residual_work", "acts_on_normal", "separation", "Chain", "Hertz", "AirDrag", "GrooveFriction",
+           "residual_work", "acts_on_normal", "separation", "touch_energy", "Chain", "Hertz", "AirDrag", "GrooveFriction",
            "Rotation", "ParticleFriction", "RollingFriction"]

@@ -16,7 +16,9 @@ delta (m):
   contact opens (the force jumps to 0) and closes again only at delta > 0. The contact's
   state (closed or not) is a per-contact block of the state, 1 or 0 (entry n-1: the end
   wall's), updated as LAMMPS does in each force call (velocity Verlet) or after each step
-  (the other methods).
+  (the other methods). The end wall's recorded force is the law's, tensile (< 0) while
+  the wall holds the sphere closed at delta <= 0 (:func:`history_normal`; LAMMPS's fix
+  wall/gran reports the same); the wall's peak force stays the largest compressive one.
 
 Tabor's parameter of a contact, mu = (R* w^2 / (E*^2 z0^3))^(1/3) with w = 2 gamma the work
 of adhesion and z0 = Z0 = 0.3 nm (the equilibrium separation of the surfaces'
@@ -306,13 +308,29 @@ def _touch(y, G, P, FL, LO):
 @compiled
 def contact_normal(F, d, w, G, P, FL, n, k, l):
     """The force of contact k in lane l at overlap d > 0 (the end wall's, the caps): the
-    law's force added to F (which holds Hertz's and the damping's). A contact held closed
-    in tension is not seen here: the end wall's recorded force is 0 there."""
+    law's force added to F (which holds Hertz's and the damping's). A jkr contact held
+    closed in tension (d <= 0) is :func:`history_normal`'s."""
     if d <= 0.0:
         return F
     K = G[S.G_HERTZ_K * n + k, l]
     return F + law(K, G[S.G_ADHESION_RSTAR * n + k, l], G[S.G_ADHESION_EMIX * n + k, l],
                    P[S.P_ADHESION_GAMMA], FL[S.F_ADHESION_JKR] != 0, d) - hertz_force(K, d)
+
+
+@compiled
+def history_normal(F, d, y, LO, G, P, FL, n, k, l):
+    """The force of contact k in lane l at overlap d <= 0 in the state y (the end wall's
+    recorded force): the jkr law's tensile force while the contact is held closed (its
+    closed state in y, as the last force call or step left it, and d above the pull-off
+    distance), F otherwise (and at d > 0, where :func:`contact_normal` gave the law)."""
+    if d > 0.0 or FL[S.F_ADHESION_JKR] == 0:
+        return F
+    Rs = G[S.G_ADHESION_RSTAR * n + k, l]
+    E = G[S.G_ADHESION_EMIX * n + k, l]
+    g = P[S.P_ADHESION_GAMMA]
+    if not closed(d, y[LO[S.L_ADHESION_TOUCH] + k, l] != 0.0, Rs, E, g, True):
+        return F
+    return F + jkr_force(Rs, E, g, d)
 
 
 @compiled
@@ -351,6 +369,31 @@ def separation(ad, chain, k: int, d: float) -> tuple[float, float]:
         return d_open, 0.0
     a_po = jkr_radius(Rs, E, g, d_open)
     return d_open, jkr_work(Rs, E, g, jkr_radius(Rs, E, g, d)) - jkr_work(Rs, E, g, a_po)
+
+
+def well_depth(model: str, K: float, Rs: float, E: float, g: float) -> float:
+    """The energy (J, > 0) a contact of Hertz constant K, R*, E* releases into the motion
+    of its spheres from first touch (delta = 0, the force's jump onto the law) down to the
+    bottom of its well, where the force vanishes: -int_0^{delta_eq} F d delta.
+    dmt: delta_eq = (F_po / K)^(2/3), depth (3/5) F_po delta_eq. jkr: along the law's
+    branch from a_0 = (4 pi gamma R*^2 / E*)^(1/3) (delta = 0) to a_eq = (9 pi gamma R*^2
+    / E*)^(1/3) (F = 0), V(a_0) - V(a_eq) with V :func:`jkr_work`."""
+    if model == "dmt":
+        F_po = pulloff_force(Rs, g, False)
+        return 0.6 * F_po * (F_po / K) ** (2.0 / 3.0)
+    a0 = (4.0 * math.pi * g * Rs * Rs / E) ** (1.0 / 3.0)
+    a_eq = (9.0 * math.pi * g * Rs * Rs / E) ** (1.0 / 3.0)
+    return jkr_work(Rs, E, g, a0) - jkr_work(Rs, E, g, a_eq)
+
+
+def touch_energy(ad, chain) -> float:
+    """The most energy (J) the adhesive contacts can give the spheres' motion: each
+    contact's :func:`well_depth` (a contact gives it once on touching and takes at least
+    as much back to open), summed over the sphere contacts and the end wall."""
+    r = rows(ad, chain)
+    K = tuple(chain.K) + ((chain.K_wall,) if chain.wall is not None else ())
+    return sum(well_depth(ad.model, K[k], r["G_ADHESION_RSTAR"][k], r["G_ADHESION_EMIX"][k],
+                          ad.gamma) for k in range(len(K)))
 
 
 # ---------------------------------------------------------------------------------------

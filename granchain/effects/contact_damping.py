@@ -40,7 +40,7 @@ from .spec import DeckPart, EffectSpec, compiled, pair_words
 
 SPEC = EffectSpec("contact_damping", work="work_contact_damping", work_slot="L_WORK_DAMPING",
                   table_column="work_damping_J", work_note="the contact damping", lammps_reports_work=False,
-                  params=("P_DAMPING_COEF",),
+                  normal_speed=True, params=("P_DAMPING_COEF",),
                   flags=("F_CONTACT_DAMPING", "F_DAMPING_MODEL", "F_DAMPING_LIMIT"),
                   rows=("G_DAMPING_MEFF", "G_DAMPING_RSTAR"))
 

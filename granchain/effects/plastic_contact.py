@@ -279,8 +279,10 @@ def project(y, G, P, FL, LO):
 
 @compiled
 def history_normal(F, d, y, LO, G, P, FL, n, k, l):
-    """The force of contact k in lane l at overlap d > 0 in the state y: F (Hertz's and
-    the damping's) with Thornton's force in place of Hertz's."""
+    """The force of contact k in lane l at overlap d in the state y: F (Hertz's and
+    the damping's) with Thornton's force in place of Hertz's; F itself at d <= 0."""
+    if d <= 0.0:
+        return F
     stored = y[LO[S.L_PLASTIC_DMAX] + k, l]
     dm = d if d > stored else stored
     dly = G[S.G_PLASTIC_DY * n + k, l]

@@ -36,6 +36,11 @@ class EffectSpec:
     lammps_wall_force: the per-atom LAMMPS quantity (force units) of the x force the
         effect adds at the end wall beyond fix wall/gran's, summed per chain into the
         recorded wall force; or None.
+    normal_speed: True when its ``contact_normal`` depends on the closing speed (contact
+        damping): the LAMMPS engine then records the end wall's force as the reference
+        law at each sample's x and v (fix wall/gran's own output takes the half-step
+        velocity); otherwise it records fix wall/gran's own output, which holds a contact
+        the law keeps closed in tension (JKR) as the law's tensile force.
     params, flags: the slots of the kernels' parameter vector P and flag vector FL that
         the effect's ``kernel(term)`` fills (``P_*``, ``F_*``).
     rows: the per-sphere or per-contact rows of the kernels' per-chain array G that the
@@ -60,6 +65,7 @@ class EffectSpec:
     lammps_reports_work: bool = True
     lammps_potential: str | None = None
     lammps_wall_force: str | None = None
+    normal_speed: bool = False
     params: tuple[str, ...] = ()
     flags: tuple[str, ...] = ()
     rows: tuple[str, ...] = ()
@@ -178,9 +184,10 @@ HOOKS = {
                        "force, the Coulomb caps)"),
     "history_normal": ("(F, d, y, LO, G, P, FL, n, k, l) -> F",
                        "a normal law that reads its history in the state y: the force of "
-                       "contact k in lane l at overlap d > 0 given the force F of the "
-                       "contact_normal laws, where the state is at hand (the end wall's "
-                       "recorded force)"),
+                       "contact k in lane l at overlap d (of either sign: a contact its "
+                       "history holds closed at d <= 0 carries a force there) given the "
+                       "force F of the contact_normal laws, where the state is at hand (the "
+                       "end wall's recorded force)"),
     "contact_crit": ("(F, d, G, P, FL, n, k, l) -> Fncrit",
                      "the normal force of the Coulomb caps (LAMMPS's Fncrit) of contact k in "
                      "lane l at overlap d, whose net normal force is F, when the law says "

@@ -27,7 +27,8 @@ few functions that call them in turn:
   speed w, by the same ``contact_normal`` laws;
 - ``wall_force_at(y, G, P, FL, LO, n, l)``: the end wall's force in the state y: its
   ``wall_force``, then every ``history_normal`` law (a law whose force depends on its
-  history in y) on a closed wall contact;
+  history in y: a plastic contact's largest overlap, a JKR contact held closed in
+  tension at an overlap <= 0);
 - ``locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol) -> tau``: the earliest switch any
   effect's ``locate`` finds inside a trial step, -1 if none.
 
@@ -291,9 +292,7 @@ def source() -> str:
             "    d = y[LO[%d] + n - 1, l] - G[n - 1, l]" % codes.L_DISP,
             "    F = wall_force(d, y[LO[%d] + n - 1, l], G, P, FL, n, l)" % codes.L_VEL]
     for m in by["history_normal"]:
-        out += ["    if d > 0.0:"] + _call(m, "history_normal",
-                                             "F, d, y, LO, G, P, FL, n, n - 1, l", "F = ",
-                                             indent="        ")
+        out += _call(m, "history_normal", "F, d, y, LO, G, P, FL, n, n - 1, l", "F = ")
     out += ["    return F", "", ""]
 
     out += ["def locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol):", "    best = -1.0"]

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..effects import physics_terms, touch_energy
 from ..errors import GranchainError
 from ..scene import Scene
 from ..validate import short
@@ -300,21 +301,26 @@ def peak_bounds(base: Scene) -> tuple[float, float]:
 
 def check_peaks(meas: Measurements, base: Scene, source: str = "") -> None:
     """Every given peak must be one the base scene's striker can cause: at most
-    ``peak_bounds`` x v_s, plus PEAK_SIGMAS of its stated error (a peak measured just above
-    an attainable value is noise, one far above it is not from this chain: a unit or a
-    column mix-up)."""
+    sqrt((b v_s)^2 + 2 W / m_p), b its ``peak_bounds`` and W the energy the contacts'
+    attraction can add (``effects.touch_energy``: 0 without adhesion), plus PEAK_SIGMAS of
+    its stated error (a peak measured just above an attainable value is noise, one far
+    above it is not from this chain: a unit or a column mix-up)."""
     if meas.vmax_1 is None and meas.vmax_2 is None:
         return
     bounds = peak_bounds(base)
+    W = touch_energy(physics_terms(base))
+    m = base.masses
     for col, vals, bound, p in zip(PEAK_COLUMNS, (meas.vmax_1, meas.vmax_2), bounds,
                                    base.probes[:2]):
         if vals is None:
             continue
         for k, (x, vs, e, line) in enumerate(zip(vals, meas.v, meas.peak_err, meas.lines)):
-            top = bound * vs
+            top = bound * vs if W == 0.0 else math.sqrt((bound * vs) ** 2 + 2.0 * W / m[p - 1])
             if math.isfinite(x) and x > top * (1 + PEAK_RTOL) + PEAK_SIGMAS * e:
                 who = ("a striker of its mass" if bound == 1.0 else
                        f"the base scene's striker (at most {bound:.4g} v_s)")
+                if W > 0.0:
+                    who += f" and the contacts' adhesion (up to {W:.3g} J)"
                 raise _bad(f"{source}row {k + 1} (line {line}), column {col!r}",
                            f"{x:g} m/s is above what {who} can give particle {p} at "
                            f"v_s = {vs:g} m/s ({top:g} m/s"

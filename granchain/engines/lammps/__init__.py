@@ -51,7 +51,8 @@ sample:
 
 End wall: ``Trajectory.wall_force`` is the force fix wall/gran applied to the last
 sphere at each sample (its per-atom ``contacts`` output, summed per chain into the
-ledger; N, > 0 in compression), ``wall_static`` its static part K_w w_0^(3/2) as the
+ledger; N, > 0 in compression, < 0 while a JKR contact is held closed in tension),
+``wall_static`` its static part K_w w_0^(3/2) as the
 reference engine states it. With contact damping it is the force at the sample's state,
 F_el + eta w of the dumped x and vx (``ledger.sampled_wall_force``: the reference
 kernels' own law, evaluated), as the reference engine

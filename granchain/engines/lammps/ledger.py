@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...effects import SPECS, acts_on_normal, physics_terms, residual_work
+from ...effects import SPECS, physics_terms, residual_work
 from ...lammps import deck as deckmod
 from ...scene import Scene
 from ...trajectory import ENERGY_COLUMNS
@@ -43,9 +43,9 @@ class Geometry:
     x2_0: np.ndarray              # (B,) um: particle 2's initial x in each chain
     x_last0: float | np.ndarray   # um: the last sphere's initial x (the same in every
     #                               chain of a deck with an end wall; (B,) under a spread)
-    # the end wall's law when its force depends on the sphere's velocity (an effect acts on
-    # the normal force after the elastic law, e.g. contact damping; None: it does not, or
-    # no wall): the reference kernels' (P, FL, G (B, G_LEN * n)) of the deck's chains; the
+    # the end wall's law when its force depends on the sphere's velocity (an effect on
+    # declares EffectSpec.normal_speed: contact damping; None: none does, or no wall, and
+    # the recorded force is fix wall/gran's own): the reference kernels' (P, FL, G (B, G_LEN * n)) of the deck's chains; the
     # wall force is then that law at each sample's state (:func:`sampled_wall_force`)
     wall_law: tuple | None = None
 
@@ -100,7 +100,8 @@ def _member_geometry(scene: Scene, pl: "deckmod.DeckPlan", members) -> Geometry:
 def _wall_law(terms, members) -> tuple | None:
     """:attr:`Geometry.wall_law` of a deck whose first chain has these terms (``members``:
     each chain's)."""
-    if terms.chain.K_wall is None or not acts_on_normal([e for e in SPECS if terms.has(e)]):
+    if terms.chain.K_wall is None or not any(s.normal_speed for e, s in SPECS.items()
+                                             if terms.has(e)):
         return None
     from ..reference import chain_rows, pack
     rows: dict = {}
