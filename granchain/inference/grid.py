@@ -133,12 +133,27 @@ class WeightedGrid:
         return int(np.sum(bad))
 
 
+def node_setting(scenes) -> dict:
+    """The integrator of a grid's node scenes: ``method``, ``dt_s``, ``tolerance`` (the
+    method's own; None for a fixed step) and ``v_g_tolerance`` (what method auto was
+    asked; None without auto) when every node has the same; else ``method`` "per node"
+    and the others None (a base scene of method auto resolved node by node)."""
+    from ..scenekeys import TOLERANCE_METHODS
+    got = {(s.method, float(s.dt), s.tolerance if s.method in TOLERANCE_METHODS else None,
+            s.auto_tolerance) for s in scenes}
+    if len(got) != 1:
+        return {"method": "per node", "dt_s": None, "tolerance": None, "v_g_tolerance": None}
+    m, dt, tol, auto = got.pop()
+    return {"method": m, "dt_s": dt, "tolerance": tol, "v_g_tolerance": auto}
+
+
 @dataclass(frozen=True)
 class Grid(WeightedGrid):
     """Simulated timings: ``timings[column]`` of shape (G, S, R) in s (NaN where the wave
     did not arrive), at mean gaps ``gaps`` (G, m), striker speeds ``speeds`` (S, m/s,
     ascending) and R realisations; ``hashes`` the grid scenes' hashes; ``simulated`` how
-    many chains this call ran (the rest came from the cache)."""
+    many chains this call ran (the rest came from the cache); ``setting`` the integrator
+    of its scenes (:func:`node_setting`; None: not known)."""
     gaps: np.ndarray
     speeds: np.ndarray
     timings: dict
@@ -146,6 +161,7 @@ class Grid(WeightedGrid):
     simulated: int
     weights: np.ndarray | None = None
     key_prior: str = GAP_ONLY_KEY_PRIOR
+    setting: dict | None = None
 
     @property
     def realisations(self) -> int:
@@ -194,10 +210,11 @@ def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: in
     designed = design(base, realisations, emphasis)
     gaps = np.linspace(0.0, gap_max, gap_points)
     out = {c: np.full((gaps.size, speeds.size, realisations), np.nan) for c in TIMING_COLUMNS}
-    hashes, simulated, todo = [], 0, []
+    hashes, simulated, todo, scenes = [], 0, [], []
     for k, g in enumerate(gaps):
         scene = plan_run(grid_scene(base, g, realisations), per_speed=False).scene
         hashes.append(scene.hash)
+        scenes.append(scene)
         path = _cache_file(cache_dir, scene, designed.tag) if cache_dir is not None else None
         if path is not None and path.exists():
             with np.load(path) as z:
@@ -220,7 +237,8 @@ def simulate_grid(base: Scene, gap_max: float, gap_points: int, realisations: in
                 buf = io.BytesIO()
                 np.savez(buf, **{c: out[c][k] for c in TIMING_COLUMNS})
                 atomic_write_bytes(path, buf.getvalue(), force=True, field="--cache-dir")
-    return Grid(gaps, speeds, out, tuple(hashes), simulated, designed.weights)
+    return Grid(gaps, speeds, out, tuple(hashes), simulated, designed.weights,
+                setting=node_setting(scenes))
 
 
 def peak(result, probe: int) -> float:
@@ -252,7 +270,7 @@ class JointGrid(WeightedGrid):
     probes' peaks in m/s) of shape (G, P, S, R), NaN where not measured, at mean gaps
     ``gaps`` (G), values ``params`` (P, ascending) of the fitted scene key ``key``
     (``damping.e``: restitutions, the last 1), striker speeds ``speeds`` (S) and R
-    realisations (the same gap patterns at every node)."""
+    realisations (the same gap patterns at every node); ``setting`` as :class:`Grid`."""
     gaps: np.ndarray
     params: np.ndarray
     speeds: np.ndarray
@@ -263,6 +281,7 @@ class JointGrid(WeightedGrid):
     weights: np.ndarray | None = None
     key_prior: str = KEY_PRIOR
     key: str = DEFAULT_KEY
+    setting: dict | None = None
 
     @property
     def fit_key(self) -> FitKey:
@@ -335,13 +354,14 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, lo: float,
     gaps, ps = gap_nodes(gap_max, gap_points), fk.nodes(lo, hi, points)
     shape = (gaps.size, ps.size, speeds.size, realisations)
     out = {c: np.full(shape, np.nan) for c in JOINT_OBS}
-    hashes, simulated, todo = [], 0, []
+    hashes, simulated, todo, scenes = [], 0, [], []
     t0 = time.perf_counter()
     for k, g in enumerate(gaps):
         for j, p in enumerate(ps):
             scene = plan_run(joint_scene(base, g, p, realisations, key),
                              per_speed=False).scene
             hashes.append(scene.hash)
+            scenes.append(scene)
             path = (_joint_cache_file(cache_dir, scene, designed.tag) if cache_dir is not None
                     else None)
             if path is not None and path.exists():
@@ -368,5 +388,6 @@ def simulate_joint_grid(base: Scene, gap_max: float, gap_points: int, lo: float,
                 np.savez(buf, **{c: out[c][k, j] for c in JOINT_OBS})
                 atomic_write_bytes(path, buf.getvalue(), force=True, field="--cache-dir")
     return JointGrid(gaps, ps, speeds, out, tuple(hashes), simulated,
-                     time.perf_counter() - t0, designed.weights, key=key)
+                     time.perf_counter() - t0, designed.weights, key=key,
+                     setting=node_setting(scenes))
 
