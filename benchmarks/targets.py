@@ -188,8 +188,10 @@ def _twenty_rows(path: Path) -> None:
 def row_inference() -> None:
     with tempfile.TemporaryDirectory(prefix="granchain-targets-") as tmp:
         tmp = Path(tmp)
+        # as a user runs it: numpy's BLAS with its own threads
         env = dict(_env(), NUMBA_CACHE_DIR=str(tmp / "numba"),
                    GRANCHAIN_CACHE_DIR=str(tmp / "cache"))
+        env.pop("OMP_NUM_THREADS")
         cmd = [sys.executable, "-m", "granchain.cli", "infer", "--scene", str(EXAMPLE_SCENE),
                "--fit", "gap_mean,restitution", "--json", "--no-progress"]
         fresh = _timed([*cmd[:4], str(EXAMPLE_CSV), *cmd[4:], "--cache-dir",
