@@ -225,8 +225,8 @@ from .interpolation import interp_rel_error, joint_values, joint_interp_errors
 from .likelihood import (CHUNK_BYTES, kernel_log_density, log_likelihood, gap_model_check,
                          joint_log_likelihood, joint_model_check)
 from .result import FitResult
-from .setting import (ACCURACY_FRACTION, smallest_error, data_tolerance,
-                      scene_gives_integrator, choose_setting)
+from .setting import (ACCURACY_FRACTION, CHOICE_GAP, smallest_error, scene_gives_integrator,
+                      choose_setting)
 from .gapfit import (FINE_POINTS, EDGE_WEIGHT, PRIOR, PRIOR_G0, Inference, log_prior,
                      posterior_summary, eq54_gaps, infer)
 from .jointfit import (FINE_G, FINE_E, ZOOM_DROP, PREDICTIVE_DRAWS, PREDICTIVE_SEED,
@@ -249,7 +249,7 @@ __all__ = [
     "CHUNK_BYTES", "kernel_log_density", "log_likelihood", "gap_model_check",
     "joint_log_likelihood", "joint_model_check",
     "FitResult",
-    "ACCURACY_FRACTION", "smallest_error", "data_tolerance", "scene_gives_integrator",
+    "ACCURACY_FRACTION", "CHOICE_GAP", "smallest_error", "scene_gives_integrator",
     "choose_setting",
     "FINE_POINTS", "EDGE_WEIGHT", "PRIOR", "PRIOR_G0", "Inference", "log_prior",
     "posterior_summary", "eq54_gaps", "infer",
