@@ -18,7 +18,8 @@ ensembles (never from Eq. 5.4).
 
 - Grid: mean gaps ``0, dg, ..., gap_max`` x the base scene's striker speeds x R gap
   realisations, each grid cell one scene derived from the base scene (``Scene.derive``)
-  and run through ``simulate.run_scene``. Realisation r has the same normalised gap
+  and run through ``simulate.run_scene`` (the cells that differ only in their mean gap in
+  one call, with the same values as a call each). Realisation r has the same normalised gap
   pattern at every mean gap (common random numbers): for a uniform or exponential law its
   gaps are exactly ``mean x pattern_r``. The patterns are designed
   (``granchain.gapdesign``): the law's own draws, but with the gaps on either side of each
