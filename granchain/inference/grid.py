@@ -195,7 +195,9 @@ def _run_nodes(nodes: list, designed, realisations: int, engine: str, update) ->
     joint example, 27 % less wall time and 13 % less CPU than one call per node, every value
     the same bit for bit). ``nodes``: (mean gap, resolved node scene) pairs, the scenes
     alike but for their mean gap; each node's realisations take the designed gaps of its
-    mean gap. Returns, per node in order, (realisation, result) pairs."""
+    mean gap. Returns, per node in order, (realisation, result) pairs. The callers cache
+    each node when its call ends: a run stopped during a call simulates its nodes again
+    next time."""
     from ..simulate import run_scene
     out = [[] for _ in nodes]
     groups: dict = {}
