@@ -2,6 +2,7 @@
 side in one run.
 
     python benchmarks/targets.py [--repeats 3] [--chains 1000] [--presets] [--full]
+                                 [--no-inference | --only-inference]
 
 Rows (whole processes unless said; each pair alternates ``--repeats`` times, medians):
 
@@ -16,9 +17,16 @@ Rows (whole processes unless said; each pair alternates ``--repeats`` times, med
    chains at 20 nm/0.1 m/s, 190 nm/0.01 m/s and 100 nm/1 m/s): particle-force
    evaluations per second in lanes, against the block Verlet kernel on the same chains
    (in this process, fastest of the repeats); the ratio Verlet / event.
-4. With ``--presets``: the default preset from nothing (a fresh clone, empty kernel
+4. ``granchain infer`` of the shipped joint example (measurements/example_restitution.csv,
+   ``--fit gap_mean,restitution``: 28,224 simulated chains) from a fresh state (empty
+   kernel caches, JIT and ahead-of-time, and an empty grid cache: ``NUMBA_CACHE_DIR`` and
+   ``GRANCHAIN_CACHE_DIR`` in a new temporary directory, compile included); then a
+   20-row joint fit (synthetic: four chains at five striker speeds each, on the same base
+   scene) from an empty grid cache with the kernels that run compiled. One process each,
+   once (a repeat would find its caches warm).
+5. With ``--presets``: the default preset from nothing (a fresh clone, empty kernel
    caches) and again with its kernels compiled (results removed), ``snakemake --cores 2``.
-5. With ``--full``: the full preset from nothing (about half an hour on 2 cores).
+6. With ``--full``: the full preset from nothing (about half an hour on 2 cores).
 
 The machines are shared and noisy: compare the ratios of one run, not absolute times across
 runs. Every number printed is measured in this run.
@@ -151,6 +159,52 @@ def row_event_throughput(repeats: int) -> None:
           + " (target: within 2x)", flush=True)
 
 
+EXAMPLE_CSV = ROOT / "measurements" / "example_restitution.csv"
+EXAMPLE_SCENE = ROOT / "measurements" / "example_restitution.yaml"
+
+
+def _twenty_rows(path: Path) -> None:
+    """A SYNTHETIC 20-row measurement file for the joint fit: four chains of the shipped
+    example's base scene (mean gap 47 nm, e = 0.92, gap seed 2025), each struck at five
+    speeds in 0.03-0.1 m/s, the example's noise (0.2 us, 2 % of v_s)."""
+    import numpy as np
+
+    from granchain.inference import simulate_joint_rows
+    from granchain.scene import load_scene
+    base = load_scene(EXAMPLE_SCENE).derive({"gaps": {"seed": 2025}})
+    speeds = np.tile([0.03, 0.045, 0.06, 0.08, 0.1], 4)
+    reals = np.repeat(np.arange(4), 5)
+    X = simulate_joint_rows(base, 47e-9, 0.92, speeds, reals, "dt_front_s")
+    perr = 0.02 * speeds
+    X = X + np.stack([np.full(speeds.size, 0.2e-6), perr, perr], axis=1) * \
+        np.random.default_rng(3).standard_normal(X.shape)
+    lines = ["# SYNTHETIC: benchmarks/targets.py, 47 nm, e = 0.92",
+             "v_striker_m_s,dt_front_s,dt_err_s,vmax_1_m_s,vmax_2_m_s,vmax_err_m_s,chain_id"]
+    lines += [f"{v:.6g},{x[0]:.6e},2.0e-07,{x[1]:.6e},{x[2]:.6e},{e:.2e},C{r}"
+              for v, x, e, r in zip(speeds, X, perr, reals)]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def row_inference() -> None:
+    with tempfile.TemporaryDirectory(prefix="granchain-targets-") as tmp:
+        tmp = Path(tmp)
+        # as a user runs it: numpy's BLAS with its own threads
+        env = dict(_env(), NUMBA_CACHE_DIR=str(tmp / "numba"),
+                   GRANCHAIN_CACHE_DIR=str(tmp / "cache"))
+        env.pop("OMP_NUM_THREADS")
+        cmd = [sys.executable, "-m", "granchain.cli", "infer", "--scene", str(EXAMPLE_SCENE),
+               "--fit", "gap_mean,restitution", "--json", "--no-progress"]
+        fresh = _timed([*cmd[:4], str(EXAMPLE_CSV), *cmd[4:], "--cache-dir",
+                        str(tmp / "grids-example")], env)
+        rows = tmp / "twenty.csv"
+        _twenty_rows(rows)
+        twenty = _timed([*cmd[:4], str(rows), *cmd[4:], "--cache-dir", str(tmp / "grids-20")],
+                        env)
+    print(f"4. granchain infer, shipped joint example from a fresh state (compile included): "
+          f"{fresh:.0f} s (target 60 s); a 20-row joint fit from an empty grid cache: "
+          f"{twenty:.0f} s (target 120 s)", flush=True)
+
+
 def _preset(preset: str, clone: Path, cache: Path) -> float:
     env = dict(os.environ, PYTHONPATH=str(clone), GRANCHAIN_CACHE_DIR=str(cache))
     t0 = time.perf_counter()
@@ -167,11 +221,11 @@ def row_presets(full: bool, presets: bool) -> None:
             cold = _preset("default", clone, cache)
             shutil.rmtree(clone / "results")
             warm = _preset("default", clone, cache)
-            print(f"4. default preset, snakemake --cores 2: {cold:.0f} s from nothing "
+            print(f"5. default preset, snakemake --cores 2: {cold:.0f} s from nothing "
                   f"(target 90 s), {warm:.0f} s with compiled kernels (target 45 s)", flush=True)
         if full:
             t = _preset("full", clone, cache)
-            print(f"5. full preset, snakemake --cores 2: {t / 60:.1f} min "
+            print(f"6. full preset, snakemake --cores 2: {t / 60:.1f} min "
                   f"{'with compiled kernels' if presets else 'from nothing'} "
                   "(target 15 min)", flush=True)
 
@@ -182,13 +236,21 @@ def main(argv=None):
     ap.add_argument("--chains", type=int, default=1000)
     ap.add_argument("--presets", action="store_true", help="time the default preset")
     ap.add_argument("--full", action="store_true", help="time the full preset")
+    ap.add_argument("--no-inference", action="store_true",
+                    help="leave out row 4 (two granchain infer runs, minutes)")
+    ap.add_argument("--only-inference", action="store_true", help="row 4 alone")
     a = ap.parse_args(argv)
     sys.path.insert(0, str(ROOT))
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; "
           f"{time.strftime('%Y-%m-%d %H:%M')}", flush=True)
+    if a.only_inference:
+        row_inference()
+        return
     row_run_vs_lammps(a.chains, a.repeats)
     row_lammps_overhead(a.repeats)
     row_event_throughput(a.repeats)
+    if not a.no_inference:
+        row_inference()
     if a.presets or a.full:
         row_presets(a.full, a.presets)
 

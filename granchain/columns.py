@@ -343,6 +343,15 @@ _INFER_COMMON = {
                                                "interval is not calibrated), statistic, "
                                                "log_density, p_value, alpha (the flag's "
                                                "threshold) and replicates."),
+    "integrator": Column("object", "", "The integrator the grid's chains ran with and why "
+                                       "(granchain.inference.setting): method, dt_s, "
+                                       "tolerance (the method's own), v_g_tolerance (what "
+                                       "method auto was asked: 0.1 x the smallest stated "
+                                       "relative error, or its default without one), source "
+                                       "(data, default, scene; grid for a grid simulated "
+                                       "before the fit), fraction, "
+                                       "smallest_relative_error, set_by (column and file "
+                                       "line) and reason."),
     "measurements": Column("string", "", "The measurements CSV's path."),
 }
 INFER_JSON = {

@@ -80,19 +80,26 @@ SOURCES_LINE = ("simulated with the base scene's gap law (gaps.distribution) and
 SOURCES_KEYS = {"gap_law_source": "scene", "speeds_source": "scene"}
 
 
+# the synthetic grid says nothing of its integrator (``inference.integrator_record``)
+INTEGRATOR_LINE = "integrator: not known: the grid given to the fit does not say\n"
+
+
 def without_sources(out: str, name: str) -> str:
-    """The command's output with what it says of the base scene's sources and its model
-    check (``granchain.modelcheck``), which the golden files predate, checked and taken
-    out: the posterior itself is today's to the byte (the synthetic grid has equal
-    weights, for which the weighted kernel is the kernel of before)."""
+    """The command's output with what it says of the base scene's sources, its integrator
+    and its model check (``granchain.modelcheck``), which the golden files predate,
+    checked and taken out: the posterior itself is today's to the byte (the synthetic grid
+    has equal weights, for which the weighted kernel is the kernel of before)."""
     if name == "text":
-        assert out.count(SOURCES_LINE) == 1, out
+        assert out.count(SOURCES_LINE) == 1 and out.count(INTEGRATOR_LINE) == 1, out
         check = [ln for ln in out.splitlines(keepends=True) if ln.startswith("model check: ")]
         assert len(check) == 1 and "inside the simulated realisations (p = " in check[0], out
-        return out.replace(SOURCES_LINE, "").replace(check[0], "")
+        return (out.replace(SOURCES_LINE, "").replace(INTEGRATOR_LINE, "")
+                .replace(check[0], ""))
     doc = json.loads(out)
     for key, value in SOURCES_KEYS.items():
         assert doc.pop(key) == value
+    rec = doc.pop("integrator")
+    assert rec["source"] == "grid" and rec["method"] is None, rec
     assert doc.pop("n_unmeasured") == 0          # the synthetic grid measures every chain
     mc = doc.pop("data_outside_model")
     assert mc["flag"] is False and mc["p_value"] >= mc["alpha"], mc

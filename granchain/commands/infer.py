@@ -78,6 +78,9 @@ def _print_sources(res, out) -> None:
           f"the data's striker speeds {speeds} m/s (default: the base scene gives no "
           "striker.velocity)")
     print(f"simulated with {law} and {sp}", file=out)
+    rec = getattr(res, "integrator", None)
+    if rec:
+        print(f"integrator: {rec['reason']}", file=out)
 
 
 def _speeds_origin(src) -> tuple[str, str]:
@@ -312,9 +315,8 @@ def check_joint_grid(base, args, src, rng: FitRange) -> None:
 
 def cmd_infer(args) -> int:
     from ..errors import SceneError
-    from ..inference import (check_fit_base, complete_base, fit_key, infer, parse_fit,
-                            read_measurements)
-    from ..runplan import plan_run
+    from ..inference import (check_fit_base, choose_setting, complete_base, fit_key, infer,
+                             parse_fit, read_measurements)
     fit = parse_fit(args.fit)
     check_paths(args, [("--out", args.out), ("--plot", args.plot)],
                 [("the measurement file", args.measurements)])
@@ -330,10 +332,11 @@ def cmd_infer(args) -> int:
     joint = len(fit) > 1
     rng = fit_range(args, fit_key(fit[1])) if joint else None
     meas = read_measurements(args.measurements, peaks=joint)
-    # the gap law and speeds the base scene leaves out are filled in before method auto
-    # is resolved, so that auto chooses for the scene that runs
+    # the gap law and speeds the base scene leaves out are filled in before the integrator
+    # is chosen (from the data's errors, or the scene's own), so that auto chooses for the
+    # scene that runs
     base, src = complete_base(load_scene(args.scene, args.set), meas)
-    base = plan_run(base, per_speed=False).scene
+    base = choose_setting(base, meas, peaks=joint, source=f"{args.measurements}, ")[0]
     if joint:
         named = next(w.strip() for w in str(args.fit).split(",") if w.strip() != "gap_mean")
         try:

@@ -18,7 +18,8 @@ ensembles (never from Eq. 5.4).
 
 - Grid: mean gaps ``0, dg, ..., gap_max`` x the base scene's striker speeds x R gap
   realisations, each grid cell one scene derived from the base scene (``Scene.derive``)
-  and run through ``simulate.run_scene``. Realisation r has the same normalised gap
+  and run through ``simulate.run_scene`` (the cells that differ only in their mean gap in
+  one call, with the same values as a call each). Realisation r has the same normalised gap
   pattern at every mean gap (common random numbers): for a uniform or exponential law its
   gaps are exactly ``mean x pattern_r``. The patterns are designed
   (``granchain.gapdesign``): the law's own draws, but with the gaps on either side of each
@@ -102,8 +103,10 @@ PEAK_SIGMAS of its stated error is refused (a unit or column mix-up, not noise).
 
 - Grid: mean gaps ``gap_max (k/(G-1))^2`` x restitutions ``linspace(e_min, 1, E)``
   (default 0.7-1, 7 points) x the base scene's speeds x R realisations, each node one
-  derived scene run through ``simulate.run_scene`` with the base scene's integrator (the
-  event method, or what ``auto`` chooses per node), cached per node as the gap-only grid.
+  derived scene run through ``simulate.run_scene`` with one integrator setting
+  (:func:`~granchain.inference.setting.choose_setting`: the base scene's own, else method
+  auto asked for ``ACCURACY_FRACTION`` of the data's smallest stated relative error),
+  cached per node as the gap-only grid.
   Common random numbers: realisation r has the same normalised gap pattern at every node,
   so each realisation's timing and peaks are smooth in (g, e, v) and are interpolated:
   linear in g, log-linear in e (log of each observable linear in e), in v as the gap-only
@@ -141,8 +144,8 @@ PEAK_SIGMAS of its stated error is refused (a unit or column mix-up, not noise).
   physical end of the range, not a grid end.
 
 Why a 2D grid (measured): the grid of the shipped example (21 mean gaps x 7 e x 3 speeds x
-64 realisations = 28,224 chains) ran in 90 s on the shared 2-core machine (auto: RK4 or
-the event method per node), once per base scene, and an inference from it takes 1-3 s;
+64 realisations = 28,224 chains) ran in 90 s on the shared 2-core machine (RK4 at 7.2e-8 s,
+the setting its stated errors ask for), once per base scene, and an inference from it takes 1-3 s;
 its interpolation errors (above: <= 0.3 % in e, <= 1.4 % in g) are well inside the kernel
 (timing spread 4-15 % and v_max,2 3-7 % over realisations at a fixed (g, e)). An emulator
 (e.g. a Gaussian process for the realisations' mean and covariance) would replace their
@@ -195,6 +198,7 @@ Modules, one job each (every public name is importable from ``granchain.inferenc
 - ``fitkeys``        the fittable scene keys, their grid axes and checks;
 - ``grid``           the base scene and the two grids: their nodes, simulation and cache;
 - ``interpolation``  reading a grid between its nodes, and the error of doing so;
+- ``setting``        the integrator the grid runs, from the data's stated errors;
 - ``likelihood``     the kernel density, the two fits' likelihoods and model checks;
 - ``gapfit``         the gap-only fit (:func:`~granchain.inference.gapfit.infer`,
                      :class:`~granchain.inference.gapfit.Inference`): prior, posterior
@@ -222,6 +226,8 @@ from .interpolation import interp_rel_error, joint_values, joint_interp_errors
 from .likelihood import (CHUNK_BYTES, kernel_log_density, log_likelihood, gap_model_check,
                          joint_log_likelihood, joint_model_check)
 from .result import FitResult
+from .setting import (ACCURACY_FRACTION, CHOICE_GAP, smallest_error, scene_gives_integrator,
+                      choose_setting)
 from .gapfit import (FINE_POINTS, EDGE_WEIGHT, PRIOR, PRIOR_G0, Inference, log_prior,
                      posterior_summary, eq54_gaps, infer)
 from .jointfit import (FINE_G, FINE_E, ZOOM_DROP, PREDICTIVE_DRAWS, PREDICTIVE_SEED,
@@ -244,6 +250,8 @@ __all__ = [
     "CHUNK_BYTES", "kernel_log_density", "log_likelihood", "gap_model_check",
     "joint_log_likelihood", "joint_model_check",
     "FitResult",
+    "ACCURACY_FRACTION", "CHOICE_GAP", "smallest_error", "scene_gives_integrator",
+    "choose_setting",
     "FINE_POINTS", "EDGE_WEIGHT", "PRIOR", "PRIOR_G0", "Inference", "log_prior",
     "posterior_summary", "eq54_gaps", "infer",
     "FINE_G", "FINE_E", "ZOOM_DROP", "PREDICTIVE_DRAWS", "PREDICTIVE_SEED", "fine_axes",

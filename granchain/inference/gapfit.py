@@ -17,6 +17,7 @@ from .interpolation import _interp_speed, interp_rel_error
 from .likelihood import gap_model_check, log_likelihood
 from .measurements import Measurements, check_peaks, check_speeds
 from .result import FitResult, shared_fields
+from .setting import choose_setting
 
 FINE_POINTS = 801                         # posterior evaluation points over [0, gap_max]
 EDGE_WEIGHT = 1e-2        # posterior density at gap_max, relative to its peak, that flags
@@ -50,6 +51,7 @@ class Inference(FitResult):
     scene_hashes: tuple[str, ...]
     flags: tuple[str, ...]
     data_outside_model: dict      # modelcheck.ModelCheck.to_json(): flag, statistic, p_value
+    integrator: dict              # the grid's integrator and why (result.integrator_record)
     posterior_g_m: np.ndarray = dataclasses.field(repr=False, compare=False)
     posterior_pdf: np.ndarray = dataclasses.field(repr=False, compare=False)
     grid: Grid | None = dataclasses.field(default=None, repr=False, compare=False)
@@ -106,11 +108,13 @@ def infer(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
           gap_points: int = GAP_POINTS, realisations: int = REALISATIONS, cache_dir=None, grid: Grid | None = None,
           source: str = "", prior: str = PRIOR, progress: bool | None = None) -> Inference:
     """Infer the mean gap (module doc) from ``meas`` with the base scene's model, completed
-    by :func:`~granchain.inference.grid.complete_base`; a given ``grid`` is used as is (it
-    must come from ``simulate_grid`` on the completed base scene). ``progress``: a progress
+    by :func:`~granchain.inference.grid.complete_base`, its integrator chosen from the
+    data's stated errors unless it gives one (:func:`~granchain.inference.setting.choose_setting`);
+    a given ``grid`` is used as is (it must come from ``simulate_grid`` on that scene). ``progress``: a progress
     bar of the grid's simulation on stderr (``simulate_grid``)."""
     base, src = complete_base(base, meas)
     check_base(base)
+    base, chosen = choose_setting(base, meas, peaks=False, source=source)
     check_peaks(meas, base, source)
     # checked before the grid is simulated
     check_speeds(meas, base.striker_velocities if grid is None else grid.speeds, source)
@@ -130,4 +134,4 @@ def infer(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
         eq54_gap_rows_m=tuple(float(r) for r in rows),
         method="grid posterior, simulated-ensemble kernel likelihood",
         interp_rel_error=rel, flags=tuple(flags), posterior_g_m=fine, posterior_pdf=pdf,
-        **shared_fields(base, src, meas, grid, mc))
+        **shared_fields(base, src, meas, grid, mc, chosen))

@@ -25,6 +25,7 @@ from .interpolation import _interp_param, joint_interp_errors, joint_values
 from .likelihood import _trapz_weights, joint_log_likelihood, joint_model_check
 from .measurements import Measurements, check_peaks, check_speeds
 from .result import FitResult, shared_fields
+from .setting import choose_setting
 
 FINE_G, FINE_E = 241, 161         # posterior evaluation points (mean gap, fitted key)
 ZOOM_DROP = 20.0                  # the second pass covers log posterior >= peak - this
@@ -125,6 +126,7 @@ class JointInference(FitResult):
     scene_hashes: tuple[str, ...]
     flags: tuple[str, ...]
     data_outside_model: dict      # as Inference
+    integrator: dict              # as Inference
     posterior_g_m: np.ndarray = dataclasses.field(repr=False, compare=False)
     posterior_p: np.ndarray = dataclasses.field(repr=False, compare=False)    # key values
     posterior_pdf: np.ndarray = dataclasses.field(repr=False, compare=False)   # (F_g, F_e)
@@ -200,7 +202,8 @@ def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
     """Infer the mean gap and the fittable scene key ``key`` (``damping.e``: the
     coefficient of restitution) together (module doc) from ``meas`` (timings and both
     probes' peaks on every row) with the base scene's model, completed by
-    :func:`~granchain.inference.grid.complete_base`. The grid spans the key's values from
+    :func:`~granchain.inference.grid.complete_base`, its integrator as
+    :func:`~granchain.inference.gapfit.infer`'s. The grid spans the key's values from
     ``e_min`` to ``hi`` in ``e_points`` nodes (None: its declared prior range and nodes,
     ``validate.Fit``); a given ``grid`` is used as is (from ``simulate_joint_grid`` on the
     completed base scene). ``progress`` as :func:`~granchain.inference.gapfit.infer`."""
@@ -208,6 +211,7 @@ def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
     base, src = complete_base(base, meas)
     check_base(base)
     check_fit_base(base, fk)
+    base, chosen = choose_setting(base, meas, peaks=meas.has_peaks, source=source)
     if not meas.has_peaks:
         raise GranchainError(f"{source}columns 'vmax_1_m_s', 'vmax_2_m_s': fitting the "
                              f"{fk.fit.label} needs the measured peaks on every row; give "
@@ -291,4 +295,5 @@ def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
         interp_rel_error={k: {"g_max": float(np.max(v["g"])), "param": float(v["param"]),
                               "speed": float(v["speed"])} for k, v in errs.items()},
         flags=tuple(flags), posterior_g_m=fg, posterior_p=fk.value(fu), posterior_pdf=pdf,
-        marginal_g=mg, marginal_p=mp, draws=draws, **shared_fields(base, src, meas, grid, mc))
+        marginal_g=mg, marginal_p=mp, draws=draws,
+        **shared_fields(base, src, meas, grid, mc, chosen))

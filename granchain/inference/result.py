@@ -31,10 +31,12 @@ class FitResult:
         return d
 
 
-def shared_fields(base: Scene, src: dict, meas, grid, check) -> dict:
+def shared_fields(base: Scene, src: dict, meas, grid, check, chosen: dict | None = None
+                  ) -> dict:
     """The fields both results take from the completed base scene ``base`` and its sources
     ``src`` (``grid.complete_base``), the measurements ``meas``, the grid (a ``Grid`` or a
-    ``JointGrid``) and the model check ``check`` (``modelcheck.ModelCheck``)."""
+    ``JointGrid``), the model check ``check`` (``modelcheck.ModelCheck``) and the choice of
+    integrator ``chosen`` (``setting.choose_setting``; :func:`integrator_record`)."""
     return dict(
         n_simulated=grid.n_chains, n_simulated_now=grid.simulated,
         n_unmeasured=grid.unmeasured(meas.column), gap_law=_law(base, grid),
@@ -43,7 +45,22 @@ def shared_fields(base: Scene, src: dict, meas, grid, check) -> dict:
         speeds_m_s=tuple(float(v) for v in grid.speeds), gap_law_source=src["gap_law"],
         speeds_source=src["speeds"], rows=len(meas), chains=len(meas.groups),
         scene=base.name, scene_hashes=grid.hashes, data_outside_model=check.to_json(),
-        grid=grid)
+        integrator=integrator_record(grid, chosen), grid=grid)
+
+
+def integrator_record(grid, chosen: dict | None) -> dict:
+    """The integrator the grid's chains ran with (``grid.setting``), and why: the record
+    ``chosen`` (``setting.choose_setting``) when the grid ran that setting; else the
+    grid's own setting with ``source`` "grid" (a grid simulated before the fit and given
+    to it: the choice made for these data is not what it ran) and no reason of the data."""
+    none = {"method": None, "dt_s": None, "tolerance": None, "v_g_tolerance": None}
+    got = grid.setting if getattr(grid, "setting", None) is not None else none
+    # a node scene derived from a resolved scene keeps its setting, not auto's request
+    if chosen is not None and all(chosen[k] == got[k] for k in ("method", "dt_s", "tolerance")):
+        return dict(chosen)
+    return dict(got, source="grid", fraction=None, smallest_relative_error=None, set_by=None,
+                reason="the setting of the grid given to the fit" if got["method"] is not None
+                else "not known: the grid given to the fit does not say")
 
 
 def _law(base: Scene, grid=None) -> str:
