@@ -75,13 +75,13 @@ def _combine(Kf, coef, nq, af, idx):
 
 
 @njit(cache=True, inline="always")
-def _stage_lanes(y, hl, Kf, coef, nq, af, acc, out, idx):
-    """out = y + h_l sum_{q < nq} coef[q] K_q on every lane l (the sum: ``_combine``)."""
-    ny, L = y.shape
+def _stage_lanes(yf, hf, Kf, coef, nq, af, outf, idx):
+    """out = y + h_l sum_{q < nq} coef[q] K_q on every lane l (the sum: ``_combine``), on
+    the flat views of the block (hf: each lane's step, repeated for every component), in
+    one loop over the whole block."""
     _combine(Kf, coef, nq, af, idx)
-    for j in range(ny):
-        for l in range(L):
-            out[j, l] = y[j, l] + hl[l] * acc[j, l]
+    for m in range(af.shape[0]):
+        outf[m] = yf[m] + hf[m] * af[m]
 
 
 @njit(cache=True, error_model="numpy", boundscheck=False)
@@ -98,11 +98,16 @@ def _rk_trial_lanes(y, hl, g, P, FL, LO, Kb, ynew, tmp, f, acc, scale_abs, rel, 
     af = acc.reshape(M)
     tf = tmp.reshape(M)
     Kf = Kb.reshape((S + 1, M))
+    yf = y.reshape(M)
     idx = np.empty(S + 1, dtype=np.int64)
+    hf = np.empty(M)
+    for j in range(ny):
+        for l in range(L):
+            hf[j * L + l] = hl[l]
     for s in range(1, S):
-        _stage_lanes(y, hl, Kf, A[s], s, af, acc, tmp, idx)
+        _stage_lanes(yf, hf, Kf, A[s], s, af, tf, idx)
         kernels.forces_block(tmp, g, P, FL, LO, 0.0, Kb[s], f)
-    _stage_lanes(y, hl, Kf, Bw, S, af, acc, ynew, idx)
+    _stage_lanes(yf, hf, Kf, Bw, S, af, ynew.reshape(M), idx)
     kernels.forces_block(ynew, g, P, FL, LO, 0.0, Kb[S], f)
     # the error estimates: acc the 5th-order one, tmp the 3rd-order one
     _combine(Kf, E5, S + 1, af, idx)
