@@ -92,6 +92,28 @@ def test_observed_chunks_are_sized_by_the_ring_not_the_record():
         assert np.array_equal(np.concatenate(a), np.arange(1000))
 
 
+def test_the_event_method_without_a_trace_is_chunked_by_what_it_holds(monkeypatch):
+    """Without a trace the event method records no samples: a slow striker's long run
+    fills its chunks up to CHUNK_CHAINS (as the cost model assumes), not to the size of a
+    record it does not keep; with a trace, the record sizes them."""
+    slow = _scene("event", **{"striker.velocity": 0.005, "gaps.mean": 1.9e-7})
+    seen = []
+
+    def record(scene, terms, gaps, vs, *args, **kw):
+        seen.append(len(vs))
+        return iter(())
+
+    monkeypatch.setattr(reference, "_run_chunk_events", record)
+    gaps = np.random.default_rng(0).uniform(0.0, 3.8e-7, (1000, slow.n - 1))
+    for trace in (None, False):
+        seen.clear()
+        list(reference.run(slow, gaps, 0.005, progress=False, trace=trace))
+        assert seen == [chunks.CHUNK_CHAINS, 1000 - chunks.CHUNK_CHAINS], (trace, seen)
+    seen.clear()
+    list(reference.run(slow, gaps, 0.005, progress=False, trace=True))
+    assert sum(seen) == 1000 and max(seen) < chunks.CHUNK_CHAINS, seen
+
+
 def _members(n_chains, n):
     """Gaps of very different totals, so that the chains stop at different samples, and
     striker speeds that include a chain at rest."""

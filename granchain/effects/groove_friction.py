@@ -205,32 +205,61 @@ def project(y, G, P, FL, LO):
 
 
 @compiled
-def locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol):
-    """The first tau in (0, 1) at which a sphere's groove contact switches between stick
-    and slip inside the trial step, i.e. its trial force q = k_g xi + gamma_g u crosses
-    +-Fc beyond a band of rtol times the bead's Fc, or -1 if none does (one chain: 1D
-    states and rows)."""
+def locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol, act, tau):
+    """Per lane l of a block with act[l]: tau[l], the first tau in (0, 1) at which a
+    sphere's groove contact switches between stick and slip inside the lane's trial step
+    of length h[l], i.e. its trial force q = k_g xi + gamma_g u crosses +-Fc beyond a band
+    of rtol times the bead's Fc, or -1 if none does (-1 in every other lane). The test
+    runs over all lanes at once (no branch per lane); the root is found only in the lanes
+    where a force crosses."""
     band = rtol * P[S.P_GROOVE_LIMIT]
     s_g = P[S.P_GROOVE_S]
     rot = FL[S.F_ROTATION] != 0
     og = LO[S.L_GROOVE_HIST]
     ov = LO[S.L_VEL]
     owr = LO[S.L_SPIN] if rot else ov
+    L = y.shape[1]
+    # tau[l] > 0: some force of lane l crosses a cap beyond the band
+    for l in range(L):
+        tau[l] = -1.0
+    for i in range(n):
+        for l in range(L):
+            kg = G[S.G_GROOVE_SPRING * n + i, l]
+            gam = G[S.G_GROOVE_DASHPOT * n + i, l]
+            Fc = G[S.G_GROOVE_LIMIT * n + i, l]
+            sR = s_g * G[S.G_RADIUS * n + i, l]
+            q0 = kg * y[og + i, l] + gam * slip(y[ov + i, l], y[owr + i, l], sR, rot)
+            q1 = kg * ynew[og + i, l] + gam * slip(ynew[ov + i, l], ynew[owr + i, l], sR, rot)
+            mFc = -Fc
+            cross = (((q0 < Fc - band) & (q1 > Fc + band)) | ((q0 > Fc + band) & (q1 < Fc - band))
+                     | ((q0 < mFc - band) & (q1 > mFc + band))
+                     | ((q0 > mFc + band) & (q1 < mFc - band)))
+            tau[l] = 1.0 if cross else tau[l]
+    for l in range(L):
+        if tau[l] > 0.0 and act[l]:
+            tau[l] = _switch_time(y, ynew, K0, K1, G, n, h[l], band, s_g, rot, og, ov, owr, l)
+        else:
+            tau[l] = -1.0
+
+
+@compiled
+def _switch_time(y, ynew, K0, K1, G, n, h, band, s_g, rot, og, ov, owr, l):
+    """The first switch inside the trial step of lane l (``locate``), -1 if none."""
     best = 2.0
     for i in range(n):
-        kg = G[S.G_GROOVE_SPRING * n + i]
-        gam = G[S.G_GROOVE_DASHPOT * n + i]
-        Fc = G[S.G_GROOVE_LIMIT * n + i]
-        sR = s_g * G[S.G_RADIUS * n + i]
+        kg = G[S.G_GROOVE_SPRING * n + i, l]
+        gam = G[S.G_GROOVE_DASHPOT * n + i, l]
+        Fc = G[S.G_GROOVE_LIMIT * n + i, l]
+        sR = s_g * G[S.G_RADIUS * n + i, l]
         # the slip and its rate at both ends of the step
-        u0 = slip(y[ov + i], y[owr + i], sR, rot)
-        u1 = slip(ynew[ov + i], ynew[owr + i], sR, rot)
-        du0 = slip(K0[ov + i], K0[owr + i], sR, rot)
-        du1 = slip(K1[ov + i], K1[owr + i], sR, rot)
-        q0 = kg * y[og + i] + gam * u0
-        q1 = kg * ynew[og + i] + gam * u1
-        w0 = kg * K0[og + i] + gam * du0
-        w1 = kg * K1[og + i] + gam * du1
+        u0 = slip(y[ov + i, l], y[owr + i, l], sR, rot)
+        u1 = slip(ynew[ov + i, l], ynew[owr + i, l], sR, rot)
+        du0 = slip(K0[ov + i, l], K0[owr + i, l], sR, rot)
+        du1 = slip(K1[ov + i, l], K1[owr + i, l], sR, rot)
+        q0 = kg * y[og + i, l] + gam * u0
+        q1 = kg * ynew[og + i, l] + gam * u1
+        w0 = kg * K0[og + i, l] + gam * du0
+        w1 = kg * K1[og + i, l] + gam * du1
         for lev in (Fc, -Fc):
             tau = -1.0
             if q0 < lev - band and q1 > lev + band:

@@ -202,9 +202,11 @@ HOOKS = {
     "project": ("(y, G, P, FL, LO)", "the return mapping of its histories after a step"),
     "energies": ("(y, G, P, FL, LO, out)", "adds its mechanical energy to its column of out "
                  "(E_LEN, L)"),
-    "locate": ("(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol) -> tau",
-               "the event method: the first tau in (0, 1) of a switch of its law inside a "
-               "trial step y -> ynew of length h (rates K0, K1 at its ends), -1 if none"),
+    "locate": ("(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol, act, tau)",
+               "the event method: per lane l with act[l], tau[l] the first tau in (0, 1) "
+               "of a switch of its law inside the lane's trial step y -> ynew of length "
+               "h[l] (rates K0, K1 at its ends), -1 if none or not act[l]; its test over "
+               "the lanes without a branch per lane"),
 }
 
 

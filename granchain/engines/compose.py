@@ -29,8 +29,9 @@ few functions that call them in turn:
   ``wall_force``, then every ``history_normal`` law (a law whose force depends on its
   history in y: a plastic contact's largest overlap, a JKR contact held closed in
   tension at an overlap <= 0);
-- ``locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol) -> tau``: the earliest switch any
-  effect's ``locate`` finds inside a trial step, -1 if none.
+- ``locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol, act, best)``: per lane l with
+  act[l], best[l] the earliest switch any effect's ``locate`` finds inside the lane's
+  trial step of length h[l], -1 if none.
 
 An effect is called only while its switch flag is on (``EffectSpec.switch``). The
 per-lane laws are inlined where they are called (numba ``inline="always"``) and the block
@@ -53,6 +54,7 @@ import sys
 import types
 from functools import lru_cache
 
+import numpy as np
 from numba import njit
 
 from ..effects import MODULES, lanes, spec
@@ -295,13 +297,21 @@ def source() -> str:
         out += _call(m, "history_normal", "F, d, y, LO, G, P, FL, n, n - 1, l", "F = ")
     out += ["    return F", "", ""]
 
-    out += ["def locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol):", "    best = -1.0"]
+    # every lane's earliest switch: each effect's into tau, then the earliest per lane
+    out += ["def locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol, act, best):",
+            "    L = y.shape[1]",
+            "    for l in range(L):",
+            "        best[l] = -1.0"]
+    if by["locate"]:
+        out += ["    tau = np.empty(L)"]
     for m in by["locate"]:
-        out += _call(m, "locate", "y, ynew, K0, K1, G, P, FL, LO, n, h, rtol", "tau = ")
-        body = ["if tau > 0.0 and (best < 0.0 or tau < best):", "    best = tau"]
+        out += _call(m, "locate", "y, ynew, K0, K1, G, P, FL, LO, n, h, rtol, act, tau")
+        body = ["for l in range(L):",
+                "    if tau[l] > 0.0 and (best[l] < 0.0 or tau[l] < best[l]):",
+                "        best[l] = tau[l]"]
         pad = "        " if _switch(m) else "    "
         out += [pad + b for b in body]
-    out += ["    return best", ""]
+    out += ["    return", ""]
     return "\n".join(out)
 
 
@@ -332,7 +342,7 @@ def _compose() -> dict:
     for m in (lanes,) + tuple(MODULES):
         _bind(m)
     text = source()
-    ns = {"__name__": "granchain_composed", "__builtins__": __builtins__}
+    ns = {"__name__": "granchain_composed", "__builtins__": __builtins__, "np": np}
     for m in MODULES:
         if _composes(m):
             _bind(m, PLAIN)

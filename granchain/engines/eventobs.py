@@ -25,25 +25,46 @@ _near_level, _pass_level, _front_level = (
     compiled(r) for r in (obsrules.near_level, obsrules.pass_level, obsrules.front_level))
 
 
+@njit(cache=True, error_model="numpy", boundscheck=False)
+def _peak_inside(y, ynew, K0, K1, LO, n, h, VMAX, lane_b, land, c, act, tau):
+    """Per lane l of a block with act[l]: tau[l], the first tau in (0, 1) of a
+    record-setting velocity maximum inside the lane's step of length h[l], more than
+    ``land`` above both step ends; -1 if none (-1 in every other lane). VMAX[lane_b[l]]:
+    the running maxima of lane l's chain. Where an acceleration turns from + to - is
+    found over all lanes at once; the maximum is examined only in those lanes."""
+    ov = LO[L_VEL]
+    L = y.shape[1]
+    for l in range(L):
+        tau[l] = -1.0
+    for i in range(n):
+        for l in range(L):
+            turns = (K0[ov + i, l] > 0.0) & (K1[ov + i, l] < 0.0)
+            tau[l] = 1.0 if turns else tau[l]
+    for l in range(L):
+        if tau[l] > 0.0 and act[l]:
+            tau[l] = _peak_lane(y, ynew, K0, K1, LO, n, h[l], VMAX, lane_b[l], land, c, l)
+        else:
+            tau[l] = -1.0
+
+
 @njit(cache=True)
-def _peak_inside(y, ynew, K0, K1, LO, n, h, VMAX, bc, land, c):
-    """First tau in (0, 1) of a record-setting velocity maximum inside the step, more
-    than ``land`` above both step ends; -1 if none. VMAX[bc]: the chain's running maxima."""
+def _peak_lane(y, ynew, K0, K1, LO, n, h, VMAX, bc, land, c, l):
+    """``_peak_inside`` in lane l (chain bc)."""
     ox = LO[L_DISP]
     ov = LO[L_VEL]
     best = 2.0
     for i in range(n):
-        a0 = K0[ov + i]
-        a1 = K1[ov + i]
+        a0 = K0[ov + i, l]
+        a1 = K1[ov + i, l]
         if not (a0 > 0.0 and a1 < 0.0):
             continue
-        vcoef(y[ox + i], y[ov + i], a0, ynew[ox + i], ynew[ov + i], a1, h, c)
+        vcoef(y[ox + i, l], y[ov + i, l], a0, ynew[ox + i, l], ynew[ov + i, l], a1, h, c)
         ub = v_bound(c)
-        if ub <= VMAX[bc, i] or ub - max(y[ov + i], ynew[ov + i]) <= land:
+        if ub <= VMAX[bc, i] or ub - max(y[ov + i, l], ynew[ov + i, l]) <= land:
             continue          # no maximum inside the step can pass either test
         tau = turn(c, 0.0, 1.0)
         vp = poly_v(c, tau)
-        if vp > VMAX[bc, i] and vp - max(y[ov + i], ynew[ov + i]) > land and tau < best:
+        if vp > VMAX[bc, i] and vp - max(y[ov + i, l], ynew[ov + i, l]) > land and tau < best:
             best = tau
     return best if best < 1.0 else -1.0
 
@@ -91,16 +112,17 @@ def _merge_oldest(rb, m, DROP, i):
 
 
 @njit(cache=True)
-def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, c):
+def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, l, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP,
+             c):
     """Update the running per-particle observables of chain bc (row bc of VMAX ... DROP)
-    with one accepted step."""
+    with one accepted step, lane l of the block (y, ynew, K0, K1: (ny, L))."""
     ox = LO[L_DISP]
     ov = LO[L_VEL]
     for i in range(n):
-        v0 = y[ov + i]
-        v1 = ynew[ov + i]
-        a0 = K0[ov + i]
-        a1 = K1[ov + i]
+        v0 = y[ov + i, l]
+        v1 = ynew[ov + i, l]
+        a0 = K0[ov + i, l]
+        a1 = K1[ov + i, l]
         built = False
         # largest velocity inside the step
         vmx = v1
@@ -109,7 +131,7 @@ def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, VMAX, TPK, PASSED, RUNEND, RB, R
             vmx = v0
             tmx = 0.0
         if a0 > 0.0 and a1 < 0.0:
-            vcoef(y[ox + i], v0, a0, ynew[ox + i], v1, a1, h, c)
+            vcoef(y[ox + i, l], v0, a0, ynew[ox + i, l], v1, a1, h, c)
             built = True
             # a maximum that cannot set a record leaves every result below unchanged
             # (without it, vmx > VMAX[bc, i] only if an end of the step is above VMAX[bc, i])
@@ -122,7 +144,7 @@ def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, VMAX, TPK, PASSED, RUNEND, RB, R
         tafter = 0.0
         if vmx > VMAX[bc, i]:
             if not built:
-                vcoef(y[ox + i], v0, a0, ynew[ox + i], v1, a1, h, c)
+                vcoef(y[ox + i, l], v0, a0, ynew[ox + i, l], v1, a1, h, c)
                 built = True
             VMAX[bc, i] = vmx
             TPK[bc, i] = t0 + tmx * h
@@ -154,7 +176,7 @@ def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, VMAX, TPK, PASSED, RUNEND, RB, R
             interior = a0 < 0.0 and a1 > 0.0
             if vmn < lo_run or interior:
                 if not built:
-                    vcoef(y[ox + i], v0, a0, ynew[ox + i], v1, a1, h, c)
+                    vcoef(y[ox + i, l], v0, a0, ynew[ox + i, l], v1, a1, h, c)
                     built = True
                 if RUNEND[bc, i] < 0.0:
                     tau = first_cross(c, lo_run, tafter, False)

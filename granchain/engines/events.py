@@ -60,6 +60,7 @@ from .codes import DEFAULT_PAIR, PAIRS, RB_C, RB_H, RB_LEN, RB_MAX, RB_SIZE, RB_
 from .compose import compiled, locate
 from .eventobs import _observe, _peak_inside, finalize  # noqa: F401
 from .hermite import dense, hermite_root
+from .integrators import _col
 from .kernels import energies, forces, project
 
 MAX_TRIES = 60
@@ -67,60 +68,80 @@ PI_BETA = 0.04
 _detached = compiled(obsrules.detached)
 
 
-@njit(cache=True)
-def _predict(y, dy, gaps, LO, n, band, dscale):
-    """Time to the first predicted crossing of 0 by a pair's overlap (inf if none); for
-    a pair on its onset, the time to close by the overlap scale dscale."""
+@njit(cache=True, error_model="numpy", boundscheck=False)
+def _predict(y, dy, gaps, LO, n, band, dscale, best):
+    """Per lane l of a block (y, dy (ny, L), gaps (ng, L)): best[l], the time to the
+    first predicted crossing of 0 by a pair's overlap (inf if none); for a pair on its
+    onset, the time to close by the overlap scale dscale.
+
+    Every lane at once, without a branch per lane: each candidate time is computed and
+    the one that applies selected (a division by zero gives a value that is not
+    selected), so that the loops over the lanes vectorise."""
     ox = LO[kernels.L_DISP]
     ov = LO[kernels.L_VEL]
-    best = math.inf
+    L = y.shape[1]
+    for l in range(L):
+        best[l] = math.inf
     for k in range(n - 1):
-        d = y[ox + k] - y[ox + k + 1] - gaps[k]
-        w = y[ov + k] - y[ov + k + 1]
-        if abs(d) <= band:
+        for l in range(L):
+            d = y[ox + k, l] - y[ox + k + 1, l] - gaps[k, l]
+            w = y[ov + k, l] - y[ov + k + 1, l]
+            a = dy[ov + k, l] - dy[ov + k + 1, l]
             # on the onset or release: a first step into the contact no longer than
             # the time to close to the overlap scale at the pair's speed
-            if w > 0.0 and dscale / w < best:
-                best = dscale / w
-            continue
-        a = dy[ov + k] - dy[ov + k + 1]
-        # 0.5 a s^2 + w s + d = 0, smallest positive root
-        qa = 0.5 * a
-        s = math.inf
-        if qa == 0.0:
-            if w != 0.0:
-                r = -d / w
-                if r > 0.0:
-                    s = r
-        else:
+            s_on = dscale / w if w > 0.0 else math.inf
+            # else 0.5 a s^2 + w s + d = 0, smallest positive root
+            qa = 0.5 * a
+            r = -d / w
+            s_lin = r if (w != 0.0) & (r > 0.0) else math.inf
             disc = w * w - 4.0 * qa * d
-            if disc >= 0.0:
-                sq = math.sqrt(disc)
-                q = -0.5 * (w + (sq if w >= 0.0 else -sq))
-                if q != 0.0:
-                    r1 = q / qa
-                    r2 = d / q
-                    if r1 > 0.0 and r1 < s:
-                        s = r1
-                    if r2 > 0.0 and r2 < s:
-                        s = r2
-        if s < best:
-            best = s
-    return best
+            sq = math.sqrt(max(disc, 0.0))
+            q = -0.5 * (w + (sq if w >= 0.0 else -sq))
+            r1 = q / qa
+            r2 = d / q
+            s_q = r1 if (r1 > 0.0) & (r1 < math.inf) else math.inf
+            s_q = r2 if (r2 > 0.0) & (r2 < s_q) else s_q
+            s_q = s_q if (disc >= 0.0) & (q != 0.0) else math.inf
+            s = s_on if abs(d) <= band else (s_lin if qa == 0.0 else s_q)
+            best[l] = s if s < best[l] else best[l]
+
+
+@njit(cache=True, error_model="numpy", boundscheck=False)
+def _straddle(y, ynew, gaps, LO, n, band, h, act, tau):
+    """After a trial step, per lane l of a block with act[l]: tau[l], the first tau in
+    (0, 1) at which a pair's overlap crosses its band (onset or release inside the lane's
+    step of length h[l]), or -1 if none does (-1 in every other lane). The test runs over
+    all lanes at once; the root is found only in the lanes where an overlap crosses."""
+    ox = LO[kernels.L_DISP]
+    ov = LO[kernels.L_VEL]
+    L = y.shape[1]
+    for l in range(L):
+        tau[l] = -1.0
+    for k in range(n - 1):
+        for l in range(L):
+            d0 = y[ox + k, l] - y[ox + k + 1, l] - gaps[k, l]
+            d1 = ynew[ox + k, l] - ynew[ox + k + 1, l] - gaps[k, l]
+            w0 = y[ov + k, l] - y[ov + k + 1, l]
+            w1 = ynew[ov + k, l] - ynew[ov + k + 1, l]
+            cross = (((d0 < -band) & ((d1 > band) | ((w0 > 0.0) & (w1 < 0.0))))
+                     | ((d0 > band) & (d1 < -band)))
+            tau[l] = 1.0 if cross else tau[l]
+    for l in range(L):
+        if tau[l] > 0.0 and act[l]:
+            tau[l] = _straddle_lane(y, ynew, gaps, ox, ov, n, band, h[l], l)
+        else:
+            tau[l] = -1.0
 
 
 @njit(cache=True)
-def _straddle(y, ynew, gaps, LO, n, band, h):
-    """After a trial step: the first tau in (0, 1) at which a pair's overlap crosses its
-    band (onset or release inside the step), or -1 if none does."""
-    ox = LO[kernels.L_DISP]
-    ov = LO[kernels.L_VEL]
+def _straddle_lane(y, ynew, gaps, ox, ov, n, band, h, l):
+    """``_straddle`` in lane l: the first crossing inside its step, -1 if none."""
     best = 2.0
     for k in range(n - 1):
-        d0 = y[ox + k] - y[ox + k + 1] - gaps[k]
-        d1 = ynew[ox + k] - ynew[ox + k + 1] - gaps[k]
-        w0 = y[ov + k] - y[ov + k + 1]
-        w1 = ynew[ov + k] - ynew[ov + k + 1]
+        d0 = y[ox + k, l] - y[ox + k + 1, l] - gaps[k, l]
+        d1 = ynew[ox + k, l] - ynew[ox + k + 1, l] - gaps[k, l]
+        w0 = y[ov + k, l] - y[ov + k + 1, l]
+        w1 = ynew[ov + k, l] - ynew[ov + k + 1, l]
         tau = -1.0
         if d0 < -band and (d1 > band or (w0 > 0.0 and w1 < 0.0)):
             tau = hermite_root(d0, w0, d1, w1, h, 0.0, True)
@@ -198,6 +219,12 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
         tmp = np.empty(ny)
         ebuf = np.empty(kernels.E_LEN)
         c = np.empty(5)
+        # the lane functions' arguments for a block of one lane: this chain
+        yc, ync, gc, K0c, KSc = _col(y), _col(ynew), _col(g), _col(Kst[0]), _col(Kst[S])
+        hv = np.empty(1)
+        tv = np.empty(1)
+        act = np.ones(1, dtype=np.bool_)
+        lane_b = np.full(1, b, dtype=np.int64)
         if INIT[b] == 0:
             INIT[b] = 1
             forces(y, g, P, FL, LO, 0.0, Kst[0], f)
@@ -236,7 +263,8 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                 continue
             h = min(H[b], t_stop[b] - t)
             clipped = h < H[b]
-            s_ev = _predict(y, Kst[0], g, LO, n, band, dscale)
+            _predict(yc, K0c, gc, LO, n, band, dscale, tv)
+            s_ev = tv[0]
             if s_ev < h:
                 h = s_ev
                 clipped = True
@@ -269,19 +297,23 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                         FIN[b] = kernels.S_STEPFAIL
                         break
                     continue
-                tau = _straddle(y, ynew, g, LO, n, band, h)
+                hv[0] = h
+                _straddle(yc, ync, gc, LO, n, band, hv, act, tv)
+                tau = tv[0]
                 if tau > 0.0:
                     REJ[b] += 1
                     h = max(tau * h, 1e-22)
                     clipped = True
                     continue
-                tau = locate(y, ynew, Kst[0], Kst[S], g, P, FL, LO, n, h, rtol)
+                locate(yc, ync, K0c, KSc, gc, P, FL, LO, n, hv, rtol, act, tv)
+                tau = tv[0]
                 if tau > 0.0:
                     REJ[b] += 1
                     h = max(tau * h, 1e-22)
                     clipped = True
                     continue
-                tau = _peak_inside(y, ynew, Kst[0], Kst[S], LO, n, h, VMAX, b, land, c)
+                _peak_inside(yc, ync, K0c, KSc, LO, n, hv, VMAX, lane_b, land, c, act, tv)
+                tau = tv[0]
                 if tau > 0.0:
                     REJ[b] += 1
                     h = tau * h
@@ -306,7 +338,7 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                 if FIN[b] == kernels.S_RUNNING:
                     FIN[b] = kernels.S_STEPFAIL
                 continue
-            _observe(t, h, y, ynew, Kst[0], Kst[S], LO, n, b, VMAX, TPK, PASSED, RUNEND, RB,
+            _observe(t, h, yc, ync, K0c, KSc, LO, n, b, 0, VMAX, TPK, PASSED, RUNEND, RB,
                      RBN, DROP, c)
             if trace:
                 for j in range(ny):

@@ -168,7 +168,8 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         while stop < len(order) and keys[order[stop]] == key:
             stop += 1
         group = order[start:stop]
-        for chunk in _chunks(group, scene, terms, key, method, trace is False, plan):
+        for chunk in _chunks(group, scene, terms, key, method, trace is False, plan,
+                             samples=method != "event" or bool(trace)):
             rc = None if radii is None else np.atleast_2d(radii)[chunk]
             csp = [sps[i] for i in chunk]
             if method == "event":
@@ -194,15 +195,21 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         next_to_yield += 1
 
 
-def _chunks(group, scene, terms, sample_dt, method, observe=False, plan=None):
+def _chunks(group, scene, terms, sample_dt, method, observe=False, plan=None, samples=True):
     """Split chains into chunks whose memory fits in ``chunks.CHUNK_BYTES`` (and
     ``chunks.CHUNK_CHAINS``; ``chunks.split``): the recorded samples of each chain or, for
     the fixed-step methods measuring on the fly (``observe``), their observables' arrays
     (a chain keeps its first and last samples and a ring of RECORD_RING record samples
-    per particle, whatever its length). ``plan``: the run plan of ``scene`` (planned here
-    if None), whose expected durations size a chain's record."""
+    per particle, whatever its length), or for the event method without a trace (not
+    ``samples``: it records none) its state, stages, rows and on-the-fly observables.
+    ``plan``: the run plan of ``scene`` (planned here if None), whose expected durations
+    size a chain's record."""
     blocked = method in ("rk4", "verlet")          # blocks of LANES chains in lockstep
-    if blocked and observe:
+    if method == "event" and not samples:
+        n = terms.n
+        per_chain = 8 * ((codes.NST + 4) * Layout.of(terms).ny + codes.G_LEN * n
+                         + n * (codes.RB_SIZE * codes.RB_LEN + 8))
+    elif blocked and observe:
         n = terms.n
         per_chain = 8 * (n * (3 * RECORD_RING + obscodes.OBS_F + obscodes.OBS_I + obscodes.OBS_R
                               + 2 * codes.G_LEN)
