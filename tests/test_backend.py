@@ -87,7 +87,7 @@ EDITS = {
                "return 0.5 * K * d * math.sqrt(d) if d > 0.0"),
     "codes": ("engines/codes.py", "RB_SIZE = 48 ", "RB_SIZE = 47 "),
     "obsrules": ("obsrules.py", "PEAK_TOL = 1e-4 ", "PEAK_TOL = 2e-4 "),
-    "compose": ("engines/compose.py", '"    best = -1.0"', '"    best = -2.0"'),
+    "compose": ("engines/compose.py", '"        best[l] = -1.0"', '"        best[l] = -2.0"'),
 }
 
 
