@@ -9,7 +9,7 @@
   :func:`simulate_grid`) and the joint :class:`JointGrid` (x the fitted key's values,
   :func:`simulate_joint_grid`): each node one scene derived from the base scene, run
   through ``simulate.run_scene`` with designed gap realisations (``granchain.gapdesign``)
-  (the nodes that differ only in their mean gap in one call: :func:`_run_nodes`) and
+  (the nodes that differ only in their mean gap in one call: ``_run_nodes``) and
   cached per node, keyed by the node's scene, the design and the package's source.
 
 The method is in the module doc of :mod:`granchain.inference`."""
