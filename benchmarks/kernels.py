@@ -1,7 +1,7 @@
 """Fixed-step reference kernels against the previous kernels and LAMMPS, side by side in one run.
 
     python benchmarks/kernels.py [--chains 1000] [--old-ref 41e9852] [--np 2] [--skip-lammps]
-                                 [--repeats 3] [--cold-compile]
+                                 [--repeats 3] [--cold-compile] [--threads 1]
 
 The ensemble: gaps-20nm-440c (440C, v_s = 0.1 m/s, uniform gaps of mean 20 nm), t_end auto,
 ``--chains`` realisations, in three settings: Hertz-only Verlet, every effect Verlet
@@ -22,8 +22,11 @@ laws, ``granchain/effects/``), times their throughput measured here by a numba p
 cores. With ``--cold-compile``, first the one-time compile: ``granchain warm-up`` (the JIT
 kernels in two processes, then the ahead-of-time module) as a whole process, for each tree
 in turn, each time into empty caches (fresh ``$NUMBA_CACHE_DIR`` and
-``$GRANCHAIN_CACHE_DIR``). The machines are shared: only ratios measured in the one run are
-worth comparing.
+``$GRANCHAIN_CACHE_DIR``). With ``--threads N``, the kernels run on N numba threads
+(``NUMBA_NUM_THREADS``) and each run is measured by its process CPU time around the run,
+not its wall time: on a loaded machine one thread's CPU seconds move far less than the
+wall time of two threads that wait for cores. The machines are shared: only ratios
+measured in the one run are worth comparing.
 """
 from __future__ import annotations
 
@@ -71,18 +74,20 @@ sets, out = json.loads(sys.argv[1]), sys.argv[2]
 sc = load_scene("granchain/scenes/gaps-20nm-440c.yaml", sets)
 mem = members(sc); gaps = member_gaps(sc, mem); vs = np.array([m.v_striker for m in mem])
 list(reference.run(sc, gaps[:2], vs[:2], progress=False))
-t0 = time.perf_counter()
+t0, c0 = time.perf_counter(), time.process_time()
 tr = list(reference.run(sc, gaps, vs, progress=False))
-wall = time.perf_counter() - t0
+wall, cpu = time.perf_counter() - t0, time.process_time() - c0
 np.savez(out, steps=[t.steps for t in tr], status=[t.status for t in tr],
          v=np.concatenate([t.v.ravel() for t in tr]),
          e=np.concatenate([t.energy for t in tr]))
-print(json.dumps({"wall": wall, "ps": int(sum(t.steps for t in tr)) * sc.n}))
+print(json.dumps({"wall": wall, "cpu": cpu, "ps": int(sum(t.steps for t in tr)) * sc.n}))
 """
 
 
-def child(tree: Path, sets, out: Path):
+def child(tree: Path, sets, out: Path, threads: int | None = None):
     env = dict(os.environ, PYTHONPATH=str(tree))
+    if threads:
+        env["NUMBA_NUM_THREADS"] = str(threads)
     r = subprocess.run([sys.executable, "-c", CHILD, json.dumps(sets), str(out)], cwd=tree,
                        env=env, capture_output=True, text=True, check=True)
     return json.loads(r.stdout.strip().splitlines()[-1])
@@ -103,14 +108,15 @@ def cold_compile(tree: Path, scratch: Path) -> dict:
     return {"wall": wall}
 
 
-def alternate(run_a, run_b, repeats: int):
-    """The fastest of ``repeats`` runs of each, a and b taking turns, so that a change in
-    the machine's load falls on both (shared machines)."""
+def alternate(run_a, run_b, repeats: int, key: str = "wall"):
+    """The fastest of ``repeats`` runs of each by ``key`` (their wall or CPU seconds), a
+    and b taking turns, so that a change in the machine's load falls on both (shared
+    machines)."""
     best_a = best_b = None
     for _ in range(repeats):
         a, b = run_a(), run_b()
-        best_a = a if best_a is None or a["wall"] < best_a["wall"] else best_a
-        best_b = b if best_b is None or b["wall"] < best_b["wall"] else best_b
+        best_a = a if best_a is None or a[key] < best_a[key] else best_a
+        best_b = b if best_b is None or b[key] < best_b[key] else best_b
     return best_a, best_b
 
 
@@ -189,6 +195,8 @@ def main(argv=None):
                     help="also time the one-time compile of each tree into empty caches")
     ap.add_argument("--repeats", type=int, default=3,
                     help="runs of each tree, taking turns; the fastest counts (default 3)")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="numba threads of the runs; measure their CPU time, not wall time")
     args = ap.parse_args(argv)
     tmp = Path(tempfile.mkdtemp(prefix="granchain-kernels-"))
     try:
@@ -210,27 +218,34 @@ def main(argv=None):
             print(f"cold compile (granchain warm-up into empty caches, fastest of "
                   f"{args.repeats}): new {new['wall']:.1f} s, previous {prev['wall']:.1f} s: "
                   f"new / previous x{new['wall'] / prev['wall']:.2f}", flush=True)
+        key = "cpu" if args.threads else "wall"
+        if args.threads:
+            cores = args.threads
+            print(f"{args.threads} numba thread(s); times are each run's process CPU seconds",
+                  flush=True)
         rows = {}
         for name, sets in SETTINGS.items():
             sets = [f"ensemble.realisations={args.chains}"] + sets
-            new, prev = alternate(lambda: child(REPO, sets, tmp / f"{name}-new.npz"),
-                                  lambda: child(old, sets, tmp / f"{name}-old.npz"), args.repeats)
+            new, prev = alternate(lambda: child(REPO, sets, tmp / f"{name}-new.npz", args.threads),
+                                  lambda: child(old, sets, tmp / f"{name}-old.npz", args.threads),
+                                  args.repeats, key)
             ident = same(tmp / f"{name}-new.npz", tmp / f"{name}-old.npz")
             nd, ns = OPS[name]
             peak = cores / (nd * t_div + ns * t_sqrt)
             rows[name] = (new, prev, ident, peak)
-            print(f"{name:13s}: new {new['wall']:.2f} s ({new['ps'] / new['wall'] / 1e6:.0f} M "
-                  f"particle-steps/s), previous {prev['wall']:.2f} s "
-                  f"({prev['ps'] / prev['wall'] / 1e6:.0f} M/s): x{prev['wall'] / new['wall']:.2f}; "
+            print(f"{name:13s}: new {new[key]:.2f} s ({new['ps'] / new[key] / 1e6:.0f} M "
+                  f"particle-steps/s), previous {prev[key]:.2f} s "
+                  f"({prev['ps'] / prev[key] / 1e6:.0f} M/s): x{prev[key] / new[key]:.2f}; "
                   f"bit-identical {ident}; all-lanes div/sqrt peak {peak / 1e6:.0f} M/s, "
-                  f"reached {new['ps'] / new['wall'] / peak:.0%}", flush=True)
+                  f"reached {new['ps'] / new[key] / peak:.0%}", flush=True)
         for name, (base, sets) in HETERO_SETTINGS.items():
             sets = [f"ensemble.realisations={args.chains}"] + sets
             base_sets = [f"ensemble.realisations={args.chains}"] + SETTINGS[base]
-            het, prev = alternate(lambda: child(REPO, sets, tmp / f"{name}-new.npz"),
-                                  lambda: child(old, base_sets, tmp / f"{name}-old.npz"),
-                                  args.repeats)
-            rate, rate0 = het["ps"] / het["wall"], prev["ps"] / prev["wall"]
+            het, prev = alternate(lambda: child(REPO, sets, tmp / f"{name}-new.npz", args.threads),
+                                  lambda: child(old, base_sets, tmp / f"{name}-old.npz",
+                                                args.threads),
+                                  args.repeats, key)
+            rate, rate0 = het["ps"] / het[key], prev["ps"] / prev[key]
             print(f"{name:16s}: {het['wall']:.2f} s ({rate / 1e6:.0f} M particle-steps/s) against "
                   f"the previous kernels' uniform {base} ({rate0 / 1e6:.0f} M/s): "
                   f"{rate / rate0:.0%} of their throughput", flush=True)
