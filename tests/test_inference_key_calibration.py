@@ -39,9 +39,7 @@ def outcomes(key: str, cache_dir, scale: float = NOISE_SCALE) -> list[dict]:
                           GRID[key]["realisations"], cache_dir)
     fk = inference.fit_key(key)
     out = []
-    for tr in cal.make_trials([material], [0.02, 0.08], 20, 3, key=key):
-        if tr["level"] != LEVEL[key]:
-            continue
+    for tr in cal.make_trials([material], [LEVEL[key]], 20, 3, key=key):
         X, _ = cal.truth_rows(base, tr, "own", key)
         if not np.all(np.isfinite(X)):
             continue              # no wave at a probe: nothing measured (counted apart)
