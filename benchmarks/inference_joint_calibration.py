@@ -181,7 +181,8 @@ def outcome(tr, res, log: bool = False) -> dict:
     otherwise. ``at_end``: the key's posterior at an end of its grid (flagged), ``bound_e``:
     and its one-sided bound (the other end of the interval) holds the truth; ``rep_e``:
     the reported range (interval or that bound) holds it; ``no_range``: weight at both
-    ends, no range reported."""
+    ends, no range reported; ``rep_g``: the mean gap's reported range (its interval, or
+    its lower bound when flagged at the grid's top) holds the truth."""
     g, e = tr["g"], tr["e"]
     (glo, ghi), (elo, ehi) = res.ci95_m, res.param_ci95
     # weight at an end of the key's grid that is no bound of the key: a flag, that side of
@@ -198,6 +199,8 @@ def outcome(tr, res, log: bool = False) -> dict:
                 flagged=bool(res.flags), at_end=bool(end),
                 bound_e=bool(end) and bool(elo <= e if math.isnan(ehi) else e <= ehi))
     out["rep_e"] = out["cov_e"] or out["bound_e"]
+    # the mean gap's range: its interval, or its lower bound when flagged at the grid's top
+    out["rep_g"] = cg or ("posterior_at_grid_end" in res.flags and bool(glo <= g))
     out["no_range"] = bool(math.isnan(elo) and math.isnan(ehi))
     return out
 
@@ -230,7 +233,8 @@ def report(label: str, res: list[dict], sym: str = "e", log: bool = False) -> st
              else f"{sym} {np.nanmedian(m('width_e')):.4f}")
     err = (f"rel. error {sym} {np.nanmedian(m('err_e')):+.3f}" if log
            else f"error {sym} {np.nanmedian(m('err_e')):+.4f}")
-    return (f"{label:34s} n={n:3d}  coverage g {cov('cov_g')} (truth below "
+    return (f"{label:34s} n={n:3d}  coverage g {cov('cov_g')}, reported range "
+            f"{cov('rep_g')} (truth below "
             f"{int(m('g_low').sum())}, above {int(m('g_high').sum())}), {sym} "
             f"{cov('cov_e')} (below {int(m('e_low').sum())}, above "
             f"{int(m('e_high').sum())}), both {cov('cov_both')}; median width g "
