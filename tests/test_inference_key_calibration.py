@@ -53,17 +53,18 @@ def outcomes(key: str, cache_dir, scale: float = NOISE_SCALE) -> list[dict]:
 def test_key_intervals_cover_near_nominal(key, tmp_path_factory):
     """40 experiments per key (20 of three independent chains, 20 one-chain series at three
     speeds; those where no wave reached a probe are not measured, so not fitted): the
-    range each fit reports holds the truth in at least 0.875 of them, for the key and for
-    the mean gap (at nominal coverage 0.95, fewer has probability about 0.03). The range
-    is the 95 % interval, or, when the posterior reaches an end of the grid (flagged, that
-    side NaN), the one-sided bound the fit still gives; a fit with weight at both ends
-    reports no range and is no miss, but at least half must report one. Measured (the
-    benchmark's run, 2026-11-29): MEASURED. With the kernel's width scaled by 0.3 (an
-    interval too narrow; ``modelcheck.kernel_factor`` x 0.3): MEASURED03: the bound fails."""
+    range each fit reports holds the truth in at least 0.875 of the fitted ones, for the
+    key and for the mean gap (at nominal coverage 0.95, fewer has probability 0.01-0.06 for
+    25-40 fits). The range is the 95 % interval or, when the posterior reaches an end of
+    the grid (flagged, that side NaN), the one-sided bound the fit still gives; a fit with
+    weight at both ends reports no range and counts as a miss. Measured (the benchmark's
+    run, 2026-11-29): p_y's range held it in 30 of 30 fitted (10 without a wave), the mean
+    gap's in 30; gamma's in 37 of 40 (2 with no range), the mean gap's in 39. With the
+    kernel's width scaled by 0.3 (intervals too narrow; ``modelcheck.kernel_factor`` x
+    0.3): MEASURED03: the bound fails."""
     res = outcomes(key, tmp_path_factory.mktemp("key-cal"))
     print("\n" + cal.report(key, res, inference.fit_key(key).fit.symbol, True))
     n = len(res)
     assert n >= 25, n
-    assert sum(not r["no_range"] for r in res) >= n / 2
     assert sum(r["rep_e"] for r in res) >= 0.875 * n
     assert sum(r["rep_g"] for r in res) >= 0.875 * n
