@@ -7,6 +7,7 @@ Grids are small (4 mean gaps x 4-5 values of the key x 2 speeds x 8 realisations
 seconds each): they check that the fit reads the key, not its calibration."""
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -186,3 +187,22 @@ def test_the_command_reports_a_fit_of_the_yield_pressure(tmp_path, capsys):
     assert doc["n_simulated_now"] == 0 and doc["n_simulated"] == 3 * 3 * 2 * 4
     assert doc["yield_pressure_grid"] == [4e8, 1.6e9, 3]
     assert "data_outside_model" in doc and "predictive_outside" in doc
+
+
+def test_the_peaks_check_allows_what_the_fitted_range_of_gamma_gives(tmp_path):
+    """The peaks' bound counts the attraction of the largest surface energy the fit
+    simulates, not the base scene's placeholder: two chains at gamma = 0.5 J/m^2 and 6 mm/s
+    (v_max,1 = 1.14 v_s, measured; peak noise 0.2 % of v_s), fitted on a range to 0.5 with
+    a base scene at 0.1 (whose contacts can add up to 1.07 v_s at that speed), are data,
+    not a unit mix-up.
+    A peak twice the bound at the range's top is still refused."""
+    base = scene_from_dict(yaml.safe_load(STICKY))
+    grid = inference.simulate_joint_grid(base, 200e-9, 3, 0.1, 2, 2, tmp_path, emphasis=0.0,
+                                         key=GAMMA, hi=0.5)
+    meas = measurements(base, GAMMA, 0.5, [0.006, 0.006], gap=20e-9, level=0.002)
+    assert np.max(meas.vmax_1 / meas.v) > 1.1
+    res = inference.infer_joint(base, meas, grid=grid)
+    assert res.predictive_values == 6
+    far = dataclasses.replace(meas, vmax_1=3.0 * meas.vmax_1)
+    with pytest.raises(GranchainError, match="vmax_1_m_s"):
+        inference.infer_joint(base, far, grid=grid)

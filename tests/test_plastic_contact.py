@@ -263,3 +263,17 @@ def test_the_ledger_closes_on_a_walled_chain(case):
     assert led.balance_error < 5e-9
     assert -0.9 < led.work_plastic_contact / led.initial < -0.6
     assert np.max(tr.wall_force) > 0.0
+
+
+def test_method_auto_never_picks_event_for_a_plastic_chain():
+    """Method auto on a gapped plastic chain chooses a method that runs it: event would be
+    the cost model's cheapest on a 316 chain at 500 nm gaps and 0.03-0.1 m/s, and the law
+    refuses it (the grid of ``infer --fit gap_mean,plasticity.yield_pressure`` plans such
+    chains at its default largest mean gap)."""
+    from granchain.runplan import plan_run
+    sc = scene_from_dict({"name": "p", "material": "ss316", "striker": {"velocity": [0.03, 0.1]},
+                          "gaps": {"distribution": "uniform", "mean": 500e-9},
+                          "effects": ["hertz", "plastic_contact"],
+                          "plasticity": {"model": "thornton", "yield_pressure": 1e9},
+                          "integrator": {"method": "auto", "tolerance": 1e-3}})
+    assert plan_run(sc, per_speed=False).scene.method != "event"

@@ -175,8 +175,11 @@ the prior's, uniform or, where it spans a decade or more, log-uniform; the grid'
 the interpolation (log-linear) and the posterior are in the prior's coordinate (the key or
 its log). An end of the range that is a bound of the key (e = 1) is physical; weight at
 another flags ``<name>_at_grid_end``. The result names the key's median, interval and grid
-by its results' name (``JointInference``). Not calibrated for the keys other than e: the
-tests read one held-out value of each on a small grid.
+by its results' name (``JointInference``). The limiting pressure (316 at 0.03-0.1 m/s)
+and the surface energy (slow 440C chains) are calibrated by
+``benchmarks/inference_joint_calibration.py --key KEY``, whose measured coverage, and what
+the data cannot tell, docs/explanation/inference.md gives; the peaks' check takes the
+attraction of the key's largest simulated value (the surface energy's top).
 
 Model check (both fits, ``data_outside_model`` in the result): for data outside the
 simulated cloud the kernel density is the Gaussian tail of the nearest kernels and the

@@ -216,7 +216,10 @@ def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
         raise GranchainError(f"{source}columns 'vmax_1_m_s', 'vmax_2_m_s': fitting the "
                              f"{fk.fit.label} needs the measured peaks on every row; give "
                              "them")
-    check_peaks(meas, base, source)
+    # the peaks' bound at the fitted key's largest value, not the base scene's placeholder:
+    # the most energy the contacts' attraction (its surface energy) can add at any node
+    top = float(grid.params[-1]) if grid is not None else (fk.fit.hi if hi is None else hi)
+    check_peaks(meas, base.derive({fk.path: top}), source)
     check_speeds(meas, base.striker_velocities if grid is None else grid.speeds, source)
     if grid is None:
         grid = simulate_joint_grid(base, gap_max, gap_points,
