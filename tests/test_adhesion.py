@@ -510,13 +510,16 @@ def test_a_contact_held_in_tension_is_damped_and_rubs(name):
 @pytest.mark.parametrize("name", list(TENSION))
 def test_a_jkr_pair_held_in_tension_agrees_with_lammps(name, tmp_path):
     """LAMMPS's jkr pair with viscoelastic damping, or with Mindlin friction and sds
-    rolling, held closed in tension: the same collision outcome (captured at 2 mm/s) and
-    the reference engine's final velocities to 1e-9 v_s (measured <= 3e-10)."""
+    rolling, held closed in tension: the same collision outcome (captured at 2 mm/s,
+    separated at 10 mm/s), the same restitution, and the reference engine's final
+    velocities to 5e-9 v_s (measured 2.8e-10 damped, 1.5e-9 with friction: the captured
+    pair, which oscillates to the end; 9e-11 for the pairs that part)."""
     from granchain.simulate import run_scene
     sc = tension_pair(name)
     lmp = run_scene(sc, engine="lammps", workdir=tmp_path)
     ref = run_scene(sc)
-    assert [r.collision for r in ref][0] == "captured"
+    assert [r.collision for r in ref] == ["captured", "separated"]
     for a, b in zip(lmp, ref):
         assert a.collision == b.collision
-        assert np.max(np.abs(np.subtract(a.v_final, b.v_final))) < 1e-9 * a.v_striker
+        assert np.max(np.abs(np.subtract(a.v_final, b.v_final))) < 5e-9 * a.v_striker
+    assert abs(lmp[1].restitution - ref[1].restitution) < 1e-9
