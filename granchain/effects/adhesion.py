@@ -41,7 +41,34 @@ Fc = mu (m g / s + 2 F_po), on both engines (``fix groove/drag``'s ``load``).
 Both: the Coulomb caps of the tangential and rolling laws use LAMMPS's cohesive Fncrit =
 |F_ne + 2 F_po|, F_ne the law's force above (without the damping force). The damping of
 ``contact_damping`` adds to F; LAMMPS allows only ``viscoelastic`` (no ``limit_damping``)
-with a cohesive law, and so does the scene. The work the adhesive part of the force (the
+with a cohesive law, and so does the scene.
+
+A contact is touching, for every sub-law, exactly where LAMMPS's touch test says so
+(``granular_model.cpp``'s check_contact, ``GranSubModNormalJKR::touch``): while delta > 0,
+and for jkr also while a contact closed before is held closed in tension (-delta_po <
+delta <= 0). In each force call LAMMPS then computes, in this order, for a touching
+contact whatever the sign of delta (``GranularModel::calculate_forces``):
+
+- the contact radius a (``calculate_contact_radius``): jkr's root above (positive down to
+  the pull-off distance); dmt's Hertz radius sqrt(R* delta);
+- F_ne of a (``calculate_forces``) and F_po;
+- the damping force: ``viscoelastic``'s -eta_n0 m_eff a v_n (``gran_sub_mod_damping.cpp``),
+  with the normal law's a: for jkr the JKR radius, in compression and in tension alike
+  (it replaces the damping of Hertz's radius, and so its share of ``work_contact_damping``:
+  :func:`normal`, :func:`jkr_net`); F = F_ne + F_damp;
+- Fncrit = |F_ne + 2 F_po| (``set_fncrit``), the cap of the tangential law (mu Fncrit)
+  and of the rolling law (mu_roll Fncrit) (:func:`contact_crit`);
+- the tangential law (``gran_sub_mod_tangential.cpp``): its history kept and advanced
+  while the contact touches, erased only when it stops touching; ``mindlin``'s stiffness
+  8 G_eff a of the normal law's a, the JKR radius for jkr (:func:`contact_depth`); the
+  lever arms R - delta/2 (> R in tension);
+- the rolling law (``gran_sub_mod_rolling.cpp``, ``sds``): its history kept while
+  touching, the moment capped at mu_roll Fncrit, the lever arm R_eff.
+
+So a jkr contact held closed in tension carries F_ne < 0, the damping of its JKR radius,
+and the friction and rolling laws, capped by |F_ne + 2 F_po| (:func:`contact_held` tells
+the friction laws, through ``spec.touching``). The end wall has no friction or rolling
+law; its damping follows the same rule. The work the adhesive part of the force (the
 law's force less Hertz's) does on the particles is the ledger's ``work_adhesion``; the
 energy JKR loses at each pull-off (its hysteresis) shows there. LAMMPS has no per-atom
 output of it (its ledger closes by construction).
@@ -58,6 +85,7 @@ from ..validate import Fit, Key, short
 from . import slots as S
 from .hertz import energy as hertz_energy, force as hertz_force
 from .lanes import bit, closing_speed, contact_overlap
+from .contact_damping import radius_damping
 from .spec import DeckPart, EffectSpec, compiled
 
 SPEC = EffectSpec("adhesion", state=(("L_ADHESION_TOUCH", "particle"),),
@@ -132,9 +160,9 @@ def settings(sec: dict, given: frozenset, on: bool) -> Settings:
     return Settings(model, gamma, groove)
 
 
-# the effects jkr does not act with yet (a contact held closed in tension carries their
-# forces in LAMMPS; the reference engine does not follow that yet)
-JKR_NOT_WITH = ("contact_damping", "particle_friction", "rolling_friction")
+# the effects jkr does not act with (none: a contact held closed in tension carries the
+# damping and the friction laws on both engines, as in LAMMPS)
+JKR_NOT_WITH: tuple[str, ...] = ()
 
 
 def not_with(model: str) -> tuple[str, ...]:
@@ -144,10 +172,10 @@ def not_with(model: str) -> tuple[str, ...]:
 
 
 def check(scene) -> None:
-    """What LAMMPS refuses beside a cohesive normal law, and what the reference engine does
-    not yet follow: damping other than ``viscoelastic`` or with ``limit_damping``; ``jkr``
-    with contact damping or contact friction (a contact held closed in tension carries
-    them in LAMMPS)."""
+    """What LAMMPS refuses beside a cohesive normal law, and what the engines do not both
+    follow: damping other than ``viscoelastic`` or with ``limit_damping``; ``jkr`` with
+    contact damping at an end wall (the LAMMPS engine records a damped wall's force from
+    the dumped overlap alone, which misses the wall holding the sphere in tension)."""
     st = scene.setting(SPEC.name)
     if st.groove and not scene.has("groove_friction"):
         raise SceneError("adhesion.groove", "has no groove friction to load (groove_friction "
@@ -162,12 +190,14 @@ def check(scene) -> None:
             raise SceneError("damping.limit_damping", "cannot act with adhesion (LAMMPS "
                              "refuses it beside a cohesive normal law)",
                              "write limit_damping: false, or drop adhesion")
-    if st.model == "jkr":
-        other = [e for e in JKR_NOT_WITH if scene.has(e)]
-        if other:
-            raise SceneError("adhesion.model", f"jkr with {', '.join(other)} is not "
-                             "implemented (a contact held closed in tension)",
-                             f"use model dmt, or drop {', '.join(other)}")
+    other = [e for e in not_with(st.model) if scene.has(e)]
+    if other:
+        raise SceneError("adhesion.model", f"{st.model} with {', '.join(other)} is not "
+                         "implemented", f"use model dmt, or drop {', '.join(other)}")
+    if st.model == "jkr" and scene.has("contact_damping") and scene.wall is not None:
+        raise SceneError("adhesion.model", "jkr with contact_damping at an end wall is not "
+                         "implemented (the wall's recorded force in tension)",
+                         "use model dmt, drop contact_damping, or drop walls.end")
 
 
 # ---------------------------------------------------------------------------------------
@@ -192,11 +222,17 @@ def jkr_radius(Rs, E, g, d):
 
 
 @compiled
-def jkr_force(Rs, E, g, d):
-    """The JKR force (N, > 0 repulsive) at overlap d: (4/3) E* a^3 / R* - 4 a sqrt(pi g
-    E* a), a = :func:`jkr_radius`."""
-    a = jkr_radius(Rs, E, g, d)
+def jkr_force_at(Rs, E, g, a):
+    """The JKR force (N, > 0 repulsive) of contact radius a: (4/3) E* a^3 / R* - 4 a
+    sqrt(pi g E* a)."""
     return (4.0 / 3.0) * E * a * a * a / Rs - 4.0 * a * math.sqrt(math.pi * g * E * a)
+
+
+@compiled
+def jkr_force(Rs, E, g, d):
+    """The JKR force (N, > 0 repulsive) at overlap d: :func:`jkr_force_at` of a =
+    :func:`jkr_radius`."""
+    return jkr_force_at(Rs, E, g, jkr_radius(Rs, E, g, d))
 
 
 @compiled
@@ -232,17 +268,21 @@ def law(K, Rs, E, g, jkr, d):
 # L_ADHESION_TOUCH (entry n-1: the end wall's).
 @compiled
 def normal(y, G, P, FL, LO, dy, f, shut):
-    """f of every closed contact becomes the law's force (plus the damping force before
-    it, for dmt); a jkr contact held closed in tension is no longer shut; the work rate of
-    the adhesive part."""
+    """f of every closed contact becomes the law's force: dmt's added to the Hertz force
+    and damping before it; jkr's F_ne (of the JKR contact radius a) plus, with contact
+    damping, the viscoelastic force of that a (which replaces the damping of Hertz's
+    radius, and so its work), also on a contact held closed in tension, which is then no
+    longer shut; the work rate of the adhesive part."""
     n = int(P[S.P_N_SPHERES])
     L = y.shape[1]
     ox = LO[S.L_DISP]
     ov = LO[S.L_VEL]
     ot = LO[S.L_ADHESION_TOUCH]
     owa = LO[S.L_WORK_ADHESION]
+    owc = LO[S.L_WORK_DAMPING]
     wall = FL[S.F_END_WALL] != 0
     jkr = FL[S.F_ADHESION_JKR] != 0
+    damped = FL[S.F_CONTACT_DAMPING] != 0
     g = P[S.P_ADHESION_GAMMA]
     oK = S.G_HERTZ_K * n
     oR = S.G_ADHESION_RSTAR * n
@@ -256,19 +296,40 @@ def normal(y, G, P, FL, LO, dy, f, shut):
         if bit(shut, k) and not jkr:
             continue
         held = 0
-        for l in range(L):
-            d = contact_overlap(y, ox, G, n, k, l)
-            w = closing_speed(y, ov, n, k, l)
-            K = G[oK + k, l]
-            Rs = G[oR + k, l]
-            E = G[oE + k, l]
-            on = closed(d, y[ot + k, l] != 0.0, Rs, E, g, jkr)
-            held += 1 if on else 0
-            F = f[k, l]
-            Fa = (law(K, Rs, E, g, jkr, d) - hertz_force(K, d)) if on else 0.0
-            f[k, l] = F + Fa
-            a = dy[owa, l]
-            dy[owa, l] = a - Fa * w
+        if jkr:
+            for l in range(L):
+                d = contact_overlap(y, ox, G, n, k, l)
+                w = closing_speed(y, ov, n, k, l)
+                Rs = G[oR + k, l]
+                E = G[oE + k, l]
+                on = closed(d, y[ot + k, l] != 0.0, Rs, E, g, True)
+                held += 1 if on else 0
+                F = f[k, l]
+                H = hertz_force(G[oK + k, l], d)
+                a = jkr_radius(Rs, E, g, d)
+                Fne = jkr_force_at(Rs, E, g, a)
+                Fd = radius_damping(a, w, G, P, n, k, l) if damped else 0.0
+                f[k, l] = Fne + Fd if on else F
+                Fa = Fne - H if on else 0.0
+                c = dy[owa, l]
+                dy[owa, l] = c - Fa * w
+                if damped:
+                    # the damping before (of Hertz's radius, d > 0) becomes Fd
+                    c = dy[owc, l]
+                    dy[owc, l] = c - (Fd - (F - H)) * w if on else c
+        else:
+            for l in range(L):
+                d = contact_overlap(y, ox, G, n, k, l)
+                w = closing_speed(y, ov, n, k, l)
+                K = G[oK + k, l]
+                on = d > 0.0
+                held += 1 if on else 0
+                F = f[k, l]
+                Fa = (law(K, G[oR + k, l], G[oE + k, l], g, False, d) - hertz_force(K, d)) \
+                    if on else 0.0
+                f[k, l] = F + Fa
+                c = dy[owa, l]
+                dy[owa, l] = c - Fa * w
         if held > 0 and k < 63:
             shut &= ~(1 << k)
     return shut
@@ -307,14 +368,31 @@ def _touch(y, G, P, FL, LO):
 
 @compiled
 def contact_normal(F, d, w, G, P, FL, n, k, l):
-    """The force of contact k in lane l at overlap d > 0 (the end wall's, the caps): the
-    law's force added to F (which holds Hertz's and the damping's). A jkr contact held
-    closed in tension (d <= 0) is :func:`history_normal`'s."""
+    """The force of contact k in lane l at overlap d > 0 (the end wall's, the caps), given
+    F (Hertz's and the damping's): dmt's law added to F less Hertz's; jkr's F_ne and the
+    viscoelastic damping of its contact radius (:func:`jkr_net`), in place of F. A jkr
+    contact held closed in tension (d <= 0) is :func:`history_normal`'s."""
     if d <= 0.0:
         return F
+    Rs = G[S.G_ADHESION_RSTAR * n + k, l]
+    E = G[S.G_ADHESION_EMIX * n + k, l]
+    g = P[S.P_ADHESION_GAMMA]
+    if FL[S.F_ADHESION_JKR] != 0:
+        return jkr_net(Rs, E, g, d, w, G, P, FL, n, k, l)
     K = G[S.G_HERTZ_K * n + k, l]
-    return F + law(K, G[S.G_ADHESION_RSTAR * n + k, l], G[S.G_ADHESION_EMIX * n + k, l],
-                   P[S.P_ADHESION_GAMMA], FL[S.F_ADHESION_JKR] != 0, d) - hertz_force(K, d)
+    return F + law(K, Rs, E, g, False, d) - hertz_force(K, d)
+
+
+@compiled
+def jkr_net(Rs, E, g, d, w, G, P, FL, n, k, l):
+    """The net normal force of a closed jkr contact k in lane l at overlap d, closing at
+    w: F_ne plus, with contact damping, eta_n0 m_eff a w of the JKR contact radius a
+    (LAMMPS's viscoelastic damping takes the normal law's contact radius)."""
+    a = jkr_radius(Rs, E, g, d)
+    Fne = jkr_force_at(Rs, E, g, a)
+    if FL[S.F_CONTACT_DAMPING] != 0:
+        return Fne + radius_damping(a, w, G, P, n, k, l)
+    return Fne
 
 
 @compiled
@@ -330,7 +408,30 @@ def history_normal(F, d, y, LO, G, P, FL, n, k, l):
     g = P[S.P_ADHESION_GAMMA]
     if not closed(d, y[LO[S.L_ADHESION_TOUCH] + k, l] != 0.0, Rs, E, g, True):
         return F
-    return F + jkr_force(Rs, E, g, d)
+    return F + jkr_net(Rs, E, g, d, closing_speed(y, LO[S.L_VEL], n, k, l), G, P, FL, n, k, l)
+
+
+@compiled
+def contact_held(d, y, LO, G, P, FL, n, k, l):
+    """Is contact k in lane l at overlap d closed (``spec.touching``): LAMMPS's touch of a
+    jkr contact, from its closed state in y (held closed in tension down to the pull-off
+    distance); d > 0 for dmt."""
+    if FL[S.F_ADHESION_JKR] == 0:
+        return d > 0.0
+    return closed(d, y[LO[S.L_ADHESION_TOUCH] + k, l] != 0.0, G[S.G_ADHESION_RSTAR * n + k, l],
+                  G[S.G_ADHESION_EMIX * n + k, l], P[S.P_ADHESION_GAMMA], True)
+
+
+@compiled
+def contact_depth(d, G, P, FL, n, k, l):
+    """The overlap a^2 / R* of contact k's contact radius a at overlap d: jkr's radius
+    (LAMMPS's Mindlin stiffness 8 G_eff a takes the normal law's contact radius); d for
+    dmt (a = sqrt(R* d))."""
+    if FL[S.F_ADHESION_JKR] == 0:
+        return d
+    Rs = G[S.G_ADHESION_RSTAR * n + k, l]
+    a = jkr_radius(Rs, G[S.G_ADHESION_EMIX * n + k, l], P[S.P_ADHESION_GAMMA], d)
+    return a * a / Rs
 
 
 @compiled

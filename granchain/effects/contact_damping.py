@@ -137,11 +137,27 @@ def tsuji_damp(e: float) -> float:
 
 
 @compiled
+def viscoelastic(a, w, meff, damp):
+    """The ``viscoelastic`` damping force eta w = eta_n0 m_eff a w (N) of a contact of
+    contact radius a (m) closing at w (m/s): LAMMPS's, with the normal law's contact
+    radius (Hertz's sqrt(R* delta); a cohesive law's own, see ``adhesion``)."""
+    return damp * meff * a * w
+
+
+@compiled
+def radius_damping(a, w, G, P, n, k, l):
+    """:func:`viscoelastic` of contact k in lane l (its m_eff row) at contact radius a:
+    what a normal law with its own contact radius adds (the only model LAMMPS allows
+    beside a cohesive law)."""
+    return viscoelastic(a, w, G[S.G_DAMPING_MEFF * n + k, l], P[S.P_DAMPING_COEF])
+
+
+@compiled
 def damping_force(fel, d, w, meff, Rs, model, damp):
     """Damping part eta w (N, > 0 while closing) of a contact of overlap d > 0 (m),
     overlap rate w (m/s) and elastic force fel (N)."""
     if model == 0:
-        return damp * meff * math.sqrt(Rs * d) * w
+        return viscoelastic(math.sqrt(Rs * d), w, meff, damp)
     q = meff * fel / d if d > 0.0 else 0.0
     return damp * math.sqrt(q if q > 0.0 else 0.0) * w
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 
-from .spec import compiled
+from .spec import compiled, touching
 
 
 @compiled
@@ -65,6 +65,16 @@ def any_contact(y, ox, G, k, L):
     c = 0
     for l in range(L):
         c += 1 if overlap(y, ox, G, k, l) > 0.0 else 0
+    return c > 0
+
+
+@compiled
+def any_touching(y, ox, LO, G, P, FL, on, n, k, L):
+    """Is inner contact k touching in any of the L lanes (``spec.touching``: closed, or
+    held closed in tension by its law)? ox: the offset of the positions in y."""
+    c = 0
+    for l in range(L):
+        c += 1 if touching(overlap(y, ox, G, k, l), y, LO, G, P, FL, on, n, k, l) else 0
     return c > 0
 
 

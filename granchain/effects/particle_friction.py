@@ -2,9 +2,11 @@
 w = R (omega_k + omega_{k+1}).
 
 Stick through a tangential history spring exactly as LAMMPS ``tangential mindlin``
-(k_t = 8 G_eff a, a = sqrt(R* delta), G_eff = G/(2(2-nu))) or ``linear_history``
-(constant k_t): T = -k_t xi, xi' = w, |T| <= mu_pp f, history rescaled to the cap when
-exceeded and erased when the contact opens. Torque (R - delta/2) T on both spheres
+(k_t = 8 G_eff a, a = sqrt(R* delta), G_eff = G/(2(2-nu)); a normal law with its own
+contact radius gives a through ``spec.radius_depth``) or ``linear_history`` (constant
+k_t): T = -k_t xi, xi' = w, |T| <= mu_pp f, history rescaled to the cap when exceeded and
+erased when the contact stops touching (``spec.touching``: delta > 0, or held closed in
+tension by its normal law). Torque (R - delta/2) T on both spheres
 (LAMMPS's lever arm to the contact point; the slip w uses full radii, as LAMMPS does), so
 both particle-particle terms of Eq. 5.1 carry a minus sign (friction opposes slip on both
 sides). LAMMPS has no per-atom output of this work: its ledger closes by construction.
@@ -18,8 +20,9 @@ from ..errors import SceneError
 from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
-from .lanes import any_contact, bit, clip_to_cap, overlap
-from .spec import DeckPart, EffectSpec, compiled, normal_cap, normal_crit, switches
+from .lanes import any_touching, bit, clip_to_cap, overlap
+from .spec import (DeckPart, EffectSpec, compiled, normal_cap, normal_crit, radius_depth,
+                   switches, touching)
 
 SPEC = EffectSpec("particle_friction", state=(("L_PARTICLE_HIST", "contact"),),
                   work="work_particle_friction", work_slot="L_WORK_PARTICLE",
@@ -114,7 +117,7 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
     for l in range(L):
         dy[owt, l] = 0.0
     for k in range(n - 1):
-        if bit(shut, k) or (k >= 63 and not any_contact(y, ox, G, k, L)):
+        if bit(shut, k) or (k >= 63 and not any_touching(y, ox, LO, G, P, FL, on, n, k, L)):
             for l in range(L):
                 dy[ot + k, l] = 0.0
             if hist_dt > 0.0:
@@ -126,7 +129,7 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
                 fn = f[k, l]
                 d = overlap(y, ox, G, k, l)
                 ktc = G[oKt + k, l]
-                kt = ktc * math.sqrt(d) if mindlin else ktc
+                kt = ktc * math.sqrt(radius_depth(d, G, P, FL, on, n, k, l)) if mindlin else ktc
                 Ra = G[oR + k, l]
                 Rb = G[oR + k + 1, l]
                 wk = y[ow + k, l]
@@ -134,13 +137,13 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
                 w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
                 # the Coulomb cap on Fncrit (LAMMPS's; |F| unless a law says otherwise)
                 xi = contact_map(y[ot + k, l] + w * hist_dt, kt, mu * normal_crit(fn, d, G, P, FL, on, n, k, l))
-                y[ot + k, l] = xi if d > 0.0 else 0.0
+                y[ot + k, l] = xi if touching(d, y, LO, G, P, FL, on, n, k, l) else 0.0
         for l in range(L):
             fn = f[k, l]
             d = overlap(y, ox, G, k, l)
-            loaded = d > 0.0
+            loaded = touching(d, y, LO, G, P, FL, on, n, k, l)
             ktc = G[oKt + k, l]
-            kt = ktc * math.sqrt(d) if mindlin else ktc
+            kt = ktc * math.sqrt(radius_depth(d, G, P, FL, on, n, k, l)) if mindlin else ktc
             Ra = G[oR + k, l]
             Rb = G[oR + k + 1, l]
             wk = y[ow + k, l]
@@ -178,16 +181,16 @@ def project(y, G, P, FL, LO):
     mindlin = FL[S.F_PARTICLE_MINDLIN] != 0
     on = switches(FL)
     for k in range(n - 1):
-        if not any_contact(y, ox, G, k, L):
+        if not any_touching(y, ox, LO, G, P, FL, on, n, k, L):
             for l in range(L):
                 y[ot + k, l] = 0.0
             continue
         for l in range(L):
             d = overlap(y, ox, G, k, l)
             ktc = G[oKt + k, l]
-            kt = ktc * math.sqrt(d) if mindlin else ktc
+            kt = ktc * math.sqrt(radius_depth(d, G, P, FL, on, n, k, l)) if mindlin else ktc
             xi = contact_map(y[ot + k, l], kt, normal_cap(mu, y, G, P, FL, on, ov, n, k, l, d))
-            y[ot + k, l] = 0.0 if d <= 0.0 else xi
+            y[ot + k, l] = xi if touching(d, y, LO, G, P, FL, on, n, k, l) else 0.0
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,10 @@
 """rolling_friction: LAMMPS ``rolling sds`` on the 1D line
 (docs/explanation/lammps_laws.md section 5).
 
-At each loaded contact of spheres k, k+1 the relative rolling velocity
-v_r = R* (omega_k - omega_{k+1}) (R* = R/2) winds a history rho (rho' = v_r, erased when
-the contact opens); the moment M = -k_roll rho - gamma_roll v_r is capped at mu_roll f,
+At each touching contact of spheres k, k+1 (``spec.touching``: delta > 0, or held closed
+in tension by its normal law) the relative rolling velocity v_r = R* (omega_k -
+omega_{k+1}) (R* = R/2) winds a history rho (rho' = v_r, erased when the contact stops
+touching); the moment M = -k_roll rho - gamma_roll v_r is capped at mu_roll f,
 and when the cap is exceeded rho is return-mapped to
 -(mu_roll f sgn(M) + gamma_roll v_r) / k_roll (spring and dashpot hold the cap, as LAMMPS
 stores it). Torque R* M on sphere k, -R* M on sphere k+1 (equal and opposite; opposes
@@ -20,8 +21,9 @@ from ..errors import SceneError
 from ..units import lmp_float as _r, to_micro
 from ..validate import Key
 from . import slots as S
-from .lanes import any_contact, bit, clip_to_cap, overlap
-from .spec import DeckPart, EffectSpec, compiled, normal_cap, normal_crit, switches
+from .lanes import any_touching, bit, clip_to_cap, overlap
+from .spec import (DeckPart, EffectSpec, compiled, normal_cap, normal_crit, switches,
+                   touching)
 
 SPEC = EffectSpec("rolling_friction", state=(("L_ROLLING_HIST", "contact"),),
                   work="work_rolling_friction", work_slot="L_WORK_ROLLING",
@@ -130,7 +132,7 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
     for l in range(L):
         dy[owro, l] = 0.0
     for k in range(n - 1):
-        if bit(shut, k) or (k >= 63 and not any_contact(y, ox, G, k, L)):
+        if bit(shut, k) or (k >= 63 and not any_touching(y, ox, LO, G, P, FL, on, n, k, L)):
             for l in range(L):
                 dy[op + k, l] = 0.0
             if hist_dt > 0.0:
@@ -142,7 +144,7 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
                 # Verlet: LAMMPS's order with the half-step spins
                 fn = f[k, l]
                 d = overlap(y, ox, G, k, l)
-                loaded = d > 0.0
+                loaded = touching(d, y, LO, G, P, FL, on, n, k, l)
                 Reff = G[oRe + k, l]
                 vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
                 rho, M = moment_lammps_order(y[op + k, l], vr, kr, gr, mur * normal_crit(fn, d, G, P, FL, on, n, k, l),
@@ -163,7 +165,7 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
                 # rho after the step
                 fn = f[k, l]
                 d = overlap(y, ox, G, k, l)
-                loaded = d > 0.0
+                loaded = touching(d, y, LO, G, P, FL, on, n, k, l)
                 Reff = G[oRe + k, l]
                 vr = Reff * (y[ow + k, l] - y[ow + k + 1, l])
                 M = moment(y[op + k, l], vr, kr, gr, mur * normal_crit(fn, d, G, P, FL, on, n, k, l))
@@ -193,7 +195,7 @@ def project(y, G, P, FL, LO):
     mur = P[S.P_ROLLING_MU]
     on = switches(FL)
     for k in range(n - 1):
-        if not any_contact(y, ox, G, k, L):
+        if not any_touching(y, ox, LO, G, P, FL, on, n, k, L):
             for l in range(L):
                 y[op + k, l] = 0.0
             continue
@@ -202,7 +204,7 @@ def project(y, G, P, FL, LO):
             vr = G[oRe + k, l] * (y[ow + k, l] - y[ow + k + 1, l])
             rho = rolling_map(y[op + k, l], vr, kr, gr,
                                normal_cap(mur, y, G, P, FL, on, ov, n, k, l, d))
-            y[op + k, l] = 0.0 if d <= 0.0 else rho
+            y[op + k, l] = rho if touching(d, y, LO, G, P, FL, on, n, k, l) else 0.0
 
 
 @dataclass(frozen=True)

@@ -192,6 +192,14 @@ HOOKS = {
                      "the normal force of the Coulomb caps (LAMMPS's Fncrit) of contact k in "
                      "lane l at overlap d, whose net normal force is F, when the law says "
                      "other than |F| (the last effect on that has the hook gives it)"),
+    "contact_held": ("(d, y, LO, G, P, FL, n, k, l) -> bool",
+                     "whether contact k in lane l at overlap d is closed by its law and its "
+                     "history in y (a contact held closed in tension at d <= 0 carries the "
+                     "friction laws and the damping there, as LAMMPS's touch does)"),
+    "contact_depth": ("(d, G, P, FL, n, k, l) -> depth",
+                      "the overlap a^2 / R* of the law's contact radius a at overlap d, when "
+                      "it is not d (the Mindlin stiffness 8 G_eff a = 8 G_eff sqrt(R* "
+                      "depth))"),
     "contact_cap": ("(coef, d, G, n, k, l) -> cap",
                     "coef times its contact_normal when no other contact_normal is on, in "
                     "its own order of operations"),
@@ -234,6 +242,19 @@ def normal_crit(F, d, G, P, FL, on, n, k, l):
     overlap d, of net normal force F: |F|, unless an effect on (``on``: :func:`switches`)
     gives it by its ``contact_crit``."""
     raise NotImplementedError("normal_crit is composed by granchain.engines.compose")
+
+
+def touching(d, y, LO, G, P, FL, on, n, k, l):
+    """Is contact k of lane l at overlap d touching (LAMMPS's touch: its friction, rolling
+    and damping laws act)? d > 0, or the ``contact_held`` of an effect on (``on``:
+    :func:`switches`) says its history holds it closed."""
+    raise NotImplementedError("touching is composed by granchain.engines.compose")
+
+
+def radius_depth(d, G, P, FL, on, n, k, l):
+    """The overlap a^2 / R* of contact k's contact radius a at overlap d: d, unless an
+    effect on gives it by its ``contact_depth``."""
+    raise NotImplementedError("radius_depth is composed by granchain.engines.compose")
 
 
 def hermite_root(d0, w0, d1, w1, h, level, up):

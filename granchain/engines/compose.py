@@ -23,6 +23,12 @@ few functions that call them in turn:
   F the ``contact_normal`` of every effect in turn (an effect's ``contact_cap`` when it
   alone is on); the effects' return mappings call it in place of
   ``effects.spec.normal_cap``;
+- ``touching(d, y, LO, G, P, FL, on, n, k, l)``: whether a contact at overlap d touches:
+  d > 0, or the ``contact_held`` of an effect on (a contact its law holds closed in
+  tension); the effects' friction laws call it in place of ``effects.spec.touching``;
+- ``radius_depth(d, G, P, FL, on, n, k, l)``: the overlap a^2 / R* of the contact radius
+  a: d, or the ``contact_depth`` of the last effect on that has one (``effects.spec
+  .radius_depth``);
 - ``wall_force(d, w, G, P, FL, n, l)``: the end wall's force at overlap d and closing
   speed w, by the same ``contact_normal`` laws;
 - ``wall_force_at(y, G, P, FL, LO, n, l)``: the end wall's force in the state y: its
@@ -127,7 +133,8 @@ def _bind(module, variant: str = "") -> None:
 
 def _composes(module) -> bool:
     """Does the module's compiled code call the composed contact laws?"""
-    return any(v is spec.normal_crit or v is spec.normal_cap for v in vars(module).values())
+    return any(v is spec.normal_crit or v is spec.normal_cap or v is spec.touching
+               or v is spec.radius_depth for v in vars(module).values())
 
 
 def compiled(fn):
@@ -185,7 +192,8 @@ def _plain(by) -> tuple[object, list, str | None]:
     on or no effect has a ``contact_cap``."""
     capper = next(iter(by["contact_cap"]), None)
     others = [m for m in by["contact_normal"] if m is not capper]
-    others += [m for m in by["contact_crit"] if m is not capper and m not in others]
+    for hook in ("contact_crit", "contact_held", "contact_depth"):
+        others += [m for m in by[hook] if m is not capper and m not in others]
     if capper is None or not all(_switch(m) for m in others):
         return capper, others, None
     return capper, others, " and ".join(f"not ({_switch(m)})" for m in others) or "True"
@@ -253,6 +261,21 @@ def source() -> str:
         out += _call(m, "contact_crit", "F, d, G, P, FL, n, k, l", "return ", switch=_on)
     out += ["    return abs(F)", "", ""]
 
+    # touching: d > 0, or a law on holds the contact closed at d <= 0
+    out += ["def touching(d, y, LO, G, P, FL, on, n, k, l):",
+            "    if d > 0.0:",
+            "        return True"]
+    for m in by["contact_held"]:
+        call = f"{m.SPEC.name}__contact_held(d, y, LO, G, P, FL, n, k, l)"
+        test = f"{_on(m)} and {call}" if _on(m) else call
+        out += [f"    if {test}:", "        return True"]
+    out += ["    return False", "", ""]
+    # the contact radius's overlap a^2 / R*: d unless a law on says otherwise
+    out += ["def radius_depth(d, G, P, FL, on, n, k, l):"]
+    for m in reversed(by["contact_depth"]):
+        out += _call(m, "contact_depth", "d, G, P, FL, n, k, l", "return ", switch=_on)
+    out += ["    return d", "", ""]
+
     normals = by["contact_normal"]
     out += ["def normal_cap(coef, y, G, P, FL, on, ov, n, k, l, d):"]
     shortcut = when is not None
@@ -275,7 +298,11 @@ def source() -> str:
         out += [f"def normal_crit__{PLAIN}(F, d, G, P, FL, on, n, k, l):",
                 "    return abs(F)", "", "",
                 f"def normal_cap__{PLAIN}(coef, y, G, P, FL, on, ov, n, k, l, d):",
-                f"    return {capper.SPEC.name}__contact_cap(coef, d, G, n, k, l)", "", ""]
+                f"    return {capper.SPEC.name}__contact_cap(coef, d, G, n, k, l)", "", "",
+                f"def touching__{PLAIN}(d, y, LO, G, P, FL, on, n, k, l):",
+                "    return d > 0.0", "", "",
+                f"def radius_depth__{PLAIN}(d, G, P, FL, on, n, k, l):",
+                "    return d", "", ""]
 
     # the first normal law gives the force of any overlap (zero when open), the others
     # act on a closed contact
@@ -316,9 +343,10 @@ def source() -> str:
 
 
 # the composed contact laws the PLAIN hooks call in their plain form
-PLAIN_LAWS = ("normal_crit", "normal_cap")
+PLAIN_LAWS = ("normal_crit", "normal_cap", "touching", "radius_depth")
 COMPOSED = ("normal_forces", "effect_forces", "project_histories", "effect_energies",
-            "switches", "normal_crit", "normal_cap", "wall_force", "wall_force_at", "locate")
+            "switches", "normal_crit", "normal_cap", "touching", "radius_depth", "wall_force",
+            "wall_force_at", "locate")
 
 
 def _file(text: str) -> str:
@@ -365,6 +393,8 @@ def _compose() -> dict:
         laws = {c: out.get(f"{c}__{variant}" if variant else c, out[c]) for c in PLAIN_LAWS}
         services = ((spec.normal_cap, laws["normal_cap"]),
                     (spec.normal_crit, laws["normal_crit"]),
+                    (spec.touching, laws["touching"]),
+                    (spec.radius_depth, laws["radius_depth"]),
                     (spec.switches, out["switches"]), (spec.hermite_root, hermite_root))
         for k, v in list(ns.items()):
             for stub, real in services:

@@ -451,8 +451,8 @@ def _adhesion_scenes(preset: dict, spec: dict, materials: list[str], add, where:
     in ``surface_energy`` (J/m^2) and groove setting in ``groove`` (the groove's flats
     adhere too: ``adhesion.groove``): the effect ``adhesion`` with ``adhesion: {model,
     surface_energy, groove}``. The base effects the model does not act with
-    (``adhesion.not_with``: jkr's contact damping and friction) are left out of every scene
-    of the study, the one without adhesion included."""
+    (``adhesion.not_with``: none today) are left out of every scene of the study, the one
+    without adhesion included."""
     from ..effects.adhesion import not_with
     model = spec.get("model", "jkr")
     drop = not_with(model)
