@@ -43,10 +43,10 @@ An effect is called only while its switch flag is on (``EffectSpec.switch``). Th
 per-lane laws are inlined where they are called (numba ``inline="always"``) and the block
 hooks compiled once each (:data:`BLOCK_HOOKS`), which the kernels that call these
 functions (``engines.kernels``, ``engines.events``) call: their lane loops vectorise as
-one hand-written routine's would (the same vector instructions in the machine code), but
-each inlined composed function binds its array arguments again, and the reference counts
-of those bindings (atomic increments and decrements that numba's pruning leaves between
-the calls) cost the every-effect kernels a few per cent against the hand-written routine.
+one hand-written routine's would (the same vector instructions in the machine code).
+Each inlined composed function binds its array arguments again; the block routines that
+inline them (``engines.integrators``) allocate nothing and are compiled without numba's
+reference counting, so those bindings count no references.
 
 The generated source (:func:`source`) is a file in the JIT cache folder
 (``backend.jit_cache_dir``, named by the hash of every source the kernels are made of, the

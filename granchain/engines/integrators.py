@@ -43,8 +43,13 @@ from .compose import bit as _bit  # noqa: E402
 # Block kernels: the state of L chains is stored as an (ny, L) array, chains innermost,
 # and every loop runs over the lanes innermost, so that LLVM vectorises across chains
 # (``effects.lanes``: a lane's arithmetic is that of one chain alone, operation for
-# operation; no fastmath: no reassociation and no FMA contraction).
-_blk = njit(cache=True, error_model="numpy", boundscheck=False)
+# operation; no fastmath: no reassociation and no FMA contraction). The block routines
+# allocate nothing (their callers hand them every buffer), so numba's reference counting
+# is compiled out of them (``_nrt=False``): the composed functions inlined into
+# forces_block bind their array arguments again, and the atomic increments and
+# decrements of those bindings cost the every-effect Verlet kernel 8 % of its time on one
+# thread (benchmarks/kernels.py --threads 1). An allocation added here fails to compile.
+_blk = njit(cache=True, error_model="numpy", boundscheck=False, _nrt=False)
 
 
 @njit(cache=True, inline="always")
