@@ -306,9 +306,8 @@ def auto_setting(scene: Scene, model: CostModel | None = None, *,
     if (len({sdt[v] for v in vs}) > 1
             and target < float(model.provenance["sampling_floor_v_g"][cls])):
         methods = list(TOLERANCE_METHODS)
-    if scene.n > model.event_max_n() or scene.wall is not None or scene.has("plastic_contact"):
-        # not measured on chains this long; an end wall, and plastic_contact's loading and
-        # unloading switches, are not events the method locates
+    if scene.n > model.event_max_n() or scene.wall is not None:
+        # not measured on chains this long; an end wall is not an event the method locates
         methods = [m for m in methods if m != "event"]
     pick = model.cheapest(target, obs, methods=methods, scene_class=cls,
                           work=work_ratio(scene, model, cls, durations))

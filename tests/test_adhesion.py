@@ -523,3 +523,57 @@ def test_a_jkr_pair_held_in_tension_agrees_with_lammps(name, tmp_path):
         assert a.collision == b.collision
         assert np.max(np.abs(np.subtract(a.v_final, b.v_final))) < 5e-9 * a.v_striker
     assert abs(lmp[1].restitution - ref[1].restitution) < 1e-9
+
+
+# ---------------------------------------------------------------------------------------
+# the event method: each jump of the force (touch, dmt's opening, jkr's pull-off) crossed in
+# a step of its own (adhesion.locate), so its error bound holds across them
+EVENT_TOLS = (1e-5, 1e-8)
+# |e - e_independent| at each tolerance, bound EVENT_BOUND x the tolerance. Measured on
+# the JKR pairs (1.03, 1.5 and 3 v_c): 5.7e-9 at 1e-8, 3.0e-7 at 1e-6; with the jumps left
+# to the error control (no locate): 5.2e-7 at 1e-8, 2.6e-5 at 1e-6
+EVENT_BOUND = 10.0
+EVENT_SPEEDS = {"jkr": (0.97, 1.5, 3.0), "dmt": (0.3, 3.0)}
+# RK4 steps across each jump of the force: an error of about F_po dt / (m* v) in e per
+# jump, 5e-5 at 0.02 ns and 1.5 v_c
+RK4_JUMPS = 3e-4
+
+
+def _event_pair(model, speeds, method):
+    from granchain.simulate import run_scene
+    sc = scene_from_dict({"name": "pair", "chain": {"n": 2}, "material": "ss440c",
+                          "effects": ["hertz", "adhesion"],
+                          "adhesion": {"model": model, "surface_energy": GAMMA},
+                          "striker": {"velocity": list(speeds)}, "t_end": 4e-5,
+                          "integrator": method})
+    return run_scene(sc)
+
+
+@pytest.mark.parametrize("model", list(EVENT_SPEEDS))
+def test_event_pair_collision_agrees_with_the_independent_solution(model):
+    """Two spheres by the event method at tolerances 1e-5 and 1e-8: captured just below
+    JKR's v_c, above it e = sqrt(1 - v_c^2/v^2); a DMT pair elastic (e = 1: its jumps at
+    touch and opening cancel); within EVENT_BOUND times the tolerance, the error falling
+    with it, and against RK4 at 0.02 ns within RK4's own error at the force's jumps."""
+    vc = ind.jkr_capture_velocity(RS, ESTAR, GAMMA, M_RED)
+    speeds = [f * vc for f in EVENT_SPEEDS[model]]
+    want = [1.0 if model == "dmt" else (ind.jkr_restitution(v, vc) if v > vc else math.nan)
+            for v in speeds]
+    errs = []
+    for tol in EVENT_TOLS:
+        got = _event_pair(model, speeds, {"method": "event", "tolerance": tol})
+        err = 0.0
+        for res, v, e in zip(got, speeds, want):
+            if v < vc and model == "jkr":
+                assert res.collision == "captured" and math.isnan(res.restitution), res
+                continue
+            assert res.collision == "separated", res
+            err = max(err, abs(res.restitution - e))
+        assert err < EVENT_BOUND * tol, (tol, err)
+        errs.append(err)
+    assert errs[1] < errs[0]
+    rk4 = _event_pair(model, speeds, {"method": "rk4", "dt": 2e-11})
+    for a, b in zip(got, rk4):
+        assert a.collision == b.collision
+        if a.collision == "separated":
+            assert abs(a.restitution - b.restitution) < RK4_JUMPS, (a.restitution, b.restitution)

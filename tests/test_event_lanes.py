@@ -32,6 +32,13 @@ SCENES = {
     "damped": _scene(effects=ALL + ["contact_damping"],
                      damping={"model": "coeff_restitution", "e": 0.9}),
     "cut-off": _scene(t_end=4e-6),
+    # the effects that locate switches of a contact law of their own
+    "plastic": _scene(material="ss316",
+                      effects=["hertz", "groove_friction", "air_drag", "rotation",
+                               "plastic_contact"]),
+    "jkr": _scene(effects=["hertz", "groove_friction", "air_drag", "rotation", "adhesion"],
+                  adhesion={"model": "jkr", "surface_energy": 1.0}),
+    "dmt": _scene(effects=ALL + ["adhesion"], adhesion={"model": "dmt", "surface_energy": 1.0}),
 }
 
 

@@ -72,6 +72,9 @@ law; its damping follows the same rule. The work the adhesive part of the force 
 law's force less Hertz's) does on the particles is the ledger's ``work_adhesion``; the
 energy JKR loses at each pull-off (its hysteresis) shows there. LAMMPS has no per-atom
 output of it (its ledger closes by construction).
+
+The event method crosses each jump of the force (touch, dmt's opening, jkr's pull-off) in
+a step of its own (:func:`locate`).
 """
 from __future__ import annotations
 
@@ -86,7 +89,7 @@ from . import slots as S
 from .hertz import energy as hertz_energy, force as hertz_force
 from .lanes import bit, closing_speed, contact_overlap
 from .contact_damping import radius_damping
-from .spec import DeckPart, EffectSpec, compiled
+from .spec import DeckPart, EffectSpec, compiled, hermite_root
 
 SPEC = EffectSpec("adhesion", state=(("L_ADHESION_TOUCH", "particle"),),
                   work="work_adhesion", work_slot="L_WORK_ADHESION",
@@ -443,6 +446,83 @@ def contact_crit(F, d, G, P, FL, n, k, l):
     jkr = FL[S.F_ADHESION_JKR] != 0
     Fne = law(G[S.G_HERTZ_K * n + k, l], Rs, G[S.G_ADHESION_EMIX * n + k, l], g, jkr, d)
     return abs(Fne + 2.0 * pulloff_force(Rs, g, jkr))
+
+
+@compiled
+def locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol, act, tau):
+    """The event method's switches of the law, where its force jumps: a contact not
+    closed at the step's start touches (its overlap rises through 0: the force jumps to
+    -(8/9) F_po for jkr, to -F_po for dmt), a dmt contact opens (its overlap falls
+    through 0), a jkr contact held closed pulls off (its overlap falls through
+    -delta_po). A step that jumps is not one the Runge-Kutta pair integrates to its
+    order (its stages on either side of the jump disagree), so a jump is crossed in a
+    step of its own: a trial step that crosses one from further than the band before it
+    is cut to end half a band before it, and one that starts within the band before it,
+    to end half a band past it (a step of about a band over the closing speed). The band
+    is rtol times the contact's pull-off distance delta_po, the length of either law
+    (DMT's overlap where its force vanishes is 3.1 times it).
+
+    Per lane l with act[l], tau[l] the first tau in (0, 1) at which the lane's trial
+    step y -> ynew of length h[l] is to end, -1 if none (and in every lane without
+    act[l]). The test runs over all lanes at once (no branch per lane); the roots (of
+    the cubic Hermite of the overlap on the step) are found only in the lanes where a
+    jump is crossed."""
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    ov = LO[S.L_VEL]
+    ot = LO[S.L_ADHESION_TOUCH]
+    jkr = FL[S.F_ADHESION_JKR] != 0
+    dmt = not jkr
+    g = P[S.P_ADHESION_GAMMA]
+    m = n if FL[S.F_END_WALL] != 0 else n - 1
+    for l in range(L):
+        tau[l] = -1.0
+    for k in range(m):
+        for l in range(L):
+            d0 = contact_overlap(y, ox, G, n, k, l)
+            d1 = contact_overlap(ynew, ox, G, n, k, l)
+            turn = (closing_speed(y, ov, n, k, l) > 0.0) & (closing_speed(ynew, ov, n, k, l) < 0.0)
+            po = pulloff_distance(G[S.G_ADHESION_RSTAR * n + k, l],
+                                  G[S.G_ADHESION_EMIX * n + k, l], g)
+            held = jkr & (y[ot + k, l] != 0.0)
+            free = not held
+            touch = free & (d0 <= 0.0) & ((d1 > 0.0) | turn)
+            opens = dmt & (d0 > 0.0) & (d1 <= 0.0)
+            pulls = held & (d0 > -po) & (d1 <= -po)
+            tau[l] = 1.0 if (touch | opens | pulls) else tau[l]
+    for l in range(L):
+        if tau[l] > 0.0 and act[l]:
+            tau[l] = _switch_time(y, ynew, G, n, m, h[l], rtol, ox, ov, ot, jkr, g, l)
+        else:
+            tau[l] = -1.0
+
+
+@compiled
+def _switch_time(y, ynew, G, n, m, h, rtol, ox, ov, ot, jkr, g, l):
+    """Where the trial step of lane l is to end (``locate``), -1 if it may stand."""
+    best = 2.0
+    for k in range(m):
+        d0 = contact_overlap(y, ox, G, n, k, l)
+        d1 = contact_overlap(ynew, ox, G, n, k, l)
+        w0 = closing_speed(y, ov, n, k, l)
+        w1 = closing_speed(ynew, ov, n, k, l)
+        po = pulloff_distance(G[S.G_ADHESION_RSTAR * n + k, l], G[S.G_ADHESION_EMIX * n + k, l],
+                              g)
+        band = rtol * po
+        held = jkr and y[ot + k, l] != 0.0
+        t = -1.0
+        if not held and d0 <= 0.0 and (d1 > 0.0 or (w0 > 0.0 and w1 < 0.0)):
+            lev = -0.5 * band if d0 < -band else 0.5 * band
+            t = hermite_root(d0, w0, d1, w1, h, lev, True)
+        elif not jkr and d0 > 0.0 and d1 <= 0.0:
+            lev = 0.5 * band if d0 > band else -0.5 * band
+            t = hermite_root(d0, w0, d1, w1, h, lev, False)
+        elif held and d0 > -po and d1 <= -po:
+            lev = -po + (0.5 * band if d0 > band - po else -0.5 * band)
+            t = hermite_root(d0, w0, d1, w1, h, lev, False)
+        if t > 0.0 and t < best:
+            best = t
+    return best if best < 1.0 else -1.0
 
 
 def jkr_work(Rs, E, g, a):

@@ -43,8 +43,12 @@ dissipates in closed form (:func:`dissipated`), the other methods integrate the 
 With ``contact_damping`` the dashpot acts as without plasticity (its prefactor from the
 Hertz force at the overlap) and adds to Thornton's force. Not composed yet, and refused:
 the contact and rolling friction (their Coulomb caps would need the history-dependent
-normal force), ``damping.limit_damping`` (it holds Hertz's net force, not Thornton's), a
-dead load beyond a contact's F_y (the static state would be plastic) and the event method.
+normal force), ``damping.limit_damping`` (it holds Hertz's net force, not Thornton's) and
+a dead load beyond a contact's F_y (the static state would be plastic).
+
+The event method locates the law's switches (:func:`locate`): a step ends where a contact
+reaches its loading curve (yield, or the end of an elastic reload), where it turns from
+loading to unloading (its largest overlap) and where it opens or closes at delta_p.
 
 LAMMPS has no Thornton law: the granchain plugin's ``fix thornton/chain``
 (lammps_inputs/plugin/fix_thornton_chain.md) adds Thornton's force less Hertz's at every
@@ -69,7 +73,7 @@ from ..validate import Fit, Key
 from . import slots as S
 from .hertz import energy as hertz_energy, force as hertz_force
 from .lanes import bit, closing_speed, contact_overlap
-from .spec import DeckPart, EffectSpec, compiled
+from .spec import DeckPart, EffectSpec, compiled, hermite3, hermite_root
 
 SPEC = EffectSpec("plastic_contact", state=(("L_PLASTIC_DMAX", "particle"),),
                   work="work_plastic_contact", work_slot="L_WORK_PLASTIC",
@@ -81,8 +85,8 @@ SPEC = EffectSpec("plastic_contact", state=(("L_PLASTIC_DMAX", "particle"),),
                   rows=("G_PLASTIC_EMIX", "G_PLASTIC_RSTAR", "G_PLASTIC_DY", "G_PLASTIC_SLOPE"))
 
 # left out of the warm-up's every-effect scene (engines.warmup): it refuses the contact
-# friction, adhesion and the event method
-WARM_UP_APART = "refuses the contact friction, adhesion and the event method"
+# friction and adhesion
+WARM_UP_APART = "refuses the contact friction and adhesion"
 
 MODELS = ("thornton",)
 SECTION = "plasticity"
@@ -136,13 +140,20 @@ def loading(K, dy, Sl, dm):
 
 
 @compiled
+def depth(Fm, Es, Rs, dm):
+    """c = delta_max - delta_p (m): the depth of the unloading curve from the largest
+    overlap dm > dy, of loading force Fm: 3 F_max / (4 E* a_max)."""
+    return 0.75 * Fm / (Es * math.sqrt(Rs * dm))
+
+
+@compiled
 def force(K, Es, Rs, dy, Sl, d, dm):
     """Thornton's force (N) at overlap d of a contact whose largest overlap is dm >= d
     (K its Hertz constant, Es its E*, Rs its R*, dy its delta_y, Sl = pi p_y R*)."""
     if dm <= dy:
         return hertz_force(K, d)
     Fm = loading(K, dy, Sl, dm)
-    c = 0.75 * Fm / (Es * math.sqrt(Rs * dm))
+    c = depth(Fm, Es, Rs, dm)
     x = 1.0 - (dm - d) / c
     return Fm * x * math.sqrt(x) if x > 0.0 else 0.0
 
@@ -154,7 +165,7 @@ def energy(K, Es, Rs, dy, Sl, d, dm):
     if dm <= dy:
         return hertz_energy(K, d)
     Fm = loading(K, dy, Sl, dm)
-    c = 0.75 * Fm / (Es * math.sqrt(Rs * dm))
+    c = depth(Fm, Es, Rs, dm)
     x = 1.0 - (dm - d) / c
     return 0.4 * Fm * c * x * x * math.sqrt(x) if x > 0.0 else 0.0
 
@@ -314,6 +325,98 @@ def energies(y, G, P, FL, LO, out):
                     - hertz_energy(K, d)
 
 
+@compiled
+def locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol, act, tau):
+    """The event method's switches of the law: per lane l with act[l], tau[l] the first
+    tau in (0, 1) inside the lane's trial step y -> ynew of length h[l] at which a
+    contact of largest overlap delta_max (its value at the step's start)
+
+    - reaches the loading curve: its overlap rises through max(delta_max, delta_y) (a
+      virgin contact's yield; the end of an elastic reload);
+    - unloads from it: its closing speed turns from closing to opening at an overlap
+      more than the band above max(delta_max, delta_y) (the largest overlap: the force
+      inside a step reads delta_max at its start, so the step must end there);
+    - with delta_max > delta_y, opens or closes again at the plastic overlap delta_p,
+
+    each beyond a band of rtol times max(delta_max, delta_y); -1 if none (and in every
+    lane without act[l]). The test runs over all lanes at once (no branch per lane); the
+    roots (of the cubic Hermites of the overlap and of the closing speed on the step) are
+    found only in the lanes where a switch happens."""
+    L = y.shape[1]
+    ox = LO[S.L_DISP]
+    ov = LO[S.L_VEL]
+    om = LO[S.L_PLASTIC_DMAX]
+    m = n if FL[S.F_END_WALL] != 0 else n - 1
+    for l in range(L):
+        tau[l] = -1.0
+    for k in range(m):
+        for l in range(L):
+            d0 = contact_overlap(y, ox, G, n, k, l)
+            d1 = contact_overlap(ynew, ox, G, n, k, l)
+            turn = (closing_speed(y, ov, n, k, l) > 0.0) & (closing_speed(ynew, ov, n, k, l) < 0.0)
+            lev, band, dp = _levels(y, G, om, n, k, l, rtol)
+            up = (d0 < lev - band) & ((d1 > lev + band) | turn)
+            top = (d0 >= lev - band) & turn
+            yielded = dp > -math.inf
+            opens = (d0 > dp + band) & (d1 < dp - band)
+            shuts = (d0 < dp - band) & ((d1 > dp + band) | turn)
+            cross = up | top | (yielded & (opens | shuts))
+            tau[l] = 1.0 if cross else tau[l]
+    for l in range(L):
+        if tau[l] > 0.0 and act[l]:
+            tau[l] = _switch_time(y, ynew, K0, K1, G, n, m, h[l], rtol, ox, ov, om, l)
+        else:
+            tau[l] = -1.0
+
+
+@compiled
+def _levels(y, G, om, n, k, l, rtol):
+    """(level, band, delta_p) of contact k in lane l (``locate``): the overlap of the
+    loading curve's start max(delta_max, delta_y), rtol times it, and the plastic
+    overlap (-inf while delta_max <= delta_y: no unloading curve of its own)."""
+    stored = y[om + k, l]
+    dly = G[S.G_PLASTIC_DY * n + k, l]
+    lev = stored if stored > dly else dly
+    Fm = loading(G[S.G_HERTZ_K * n + k, l], dly, G[S.G_PLASTIC_SLOPE * n + k, l], lev)
+    c = depth(Fm, G[S.G_PLASTIC_EMIX * n + k, l], G[S.G_PLASTIC_RSTAR * n + k, l], lev)
+    dp = lev - c if stored > dly else -math.inf
+    return lev, rtol * lev, dp
+
+
+@compiled
+def _switch_time(y, ynew, K0, K1, G, n, m, h, rtol, ox, ov, om, l):
+    """The first switch inside the trial step of lane l (``locate``), -1 if none."""
+    best = 2.0
+    for k in range(m):
+        d0 = contact_overlap(y, ox, G, n, k, l)
+        d1 = contact_overlap(ynew, ox, G, n, k, l)
+        w0 = closing_speed(y, ov, n, k, l)
+        w1 = closing_speed(ynew, ov, n, k, l)
+        turn = w0 > 0.0 and w1 < 0.0
+        lev, band, dp = _levels(y, G, om, n, k, l, rtol)
+        t = -1.0
+        if d0 < lev - band and (d1 > lev + band or turn):
+            t = hermite_root(d0, w0, d1, w1, h, lev, True)
+        elif d0 >= lev - band and turn:
+            # the largest overlap, where the closing speed (its rate: the closing
+            # acceleration) turns, if it is beyond the band
+            s = hermite_root(w0, closing_speed(K0, ov, n, k, l), w1,
+                             closing_speed(K1, ov, n, k, l), h, 0.0, False)
+            if s > 0.0 and hermite3(d0, w0, d1, w1, h, s) > lev + band:
+                t = s
+        if t > 0.0 and t < best:
+            best = t
+        if dp > -math.inf:
+            t = -1.0
+            if d0 > dp + band and d1 < dp - band:
+                t = hermite_root(d0, w0, d1, w1, h, dp, False)
+            elif d0 < dp - band and (d1 > dp + band or turn):
+                t = hermite_root(d0, w0, d1, w1, h, dp, True)
+            if t > 0.0 and t < best:
+                best = t
+    return best if best < 1.0 else -1.0
+
+
 # ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class PlasticContact:
@@ -422,9 +525,6 @@ def check(scene) -> None:
         raise SceneError("damping.limit_damping", "cannot act with plastic_contact (it holds "
                          "Hertz's net force at >= 0, not Thornton's)",
                          "write limit_damping: false, or drop plastic_contact")
-    if scene.method == "event":
-        raise SceneError("integrator.method", "event does not locate plastic_contact's "
-                         "loading and unloading switches", "use rk4, verlet or adaptive")
     if scene.precompression > 0.0:
         pc = build(scene)
         R, mats, n = scene.radii, scene.materials, scene.n

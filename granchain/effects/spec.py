@@ -261,3 +261,9 @@ def hermite_root(d0, w0, d1, w1, h, level, up):
     """The first tau in (0, 1] at which the cubic Hermite of a value (d0, d1 at the ends
     of a step of length h, rates w0, w1) crosses level (up: from below), -1 if none."""
     raise NotImplementedError("hermite_root is given by granchain.engines.compose")
+
+
+def hermite3(d0, w0, d1, w1, h, tau):
+    """The cubic Hermite of a value (d0, d1 at the ends of a step of length h, rates w0,
+    w1) at tau in [0, 1]: the interpolant :func:`hermite_root` searches."""
+    raise NotImplementedError("hermite3 is given by granchain.engines.compose")

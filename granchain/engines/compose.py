@@ -66,7 +66,7 @@ from numba import njit
 from ..effects import MODULES, lanes, spec
 from . import codes
 from .backend import jit_cache_dir, use_jit_cache
-from .hermite import hermite_root
+from .hermite import hermite3, hermite_root
 
 use_jit_cache()   # before the first @njit(cache=True)
 
@@ -395,7 +395,8 @@ def _compose() -> dict:
                     (spec.normal_crit, laws["normal_crit"]),
                     (spec.touching, laws["touching"]),
                     (spec.radius_depth, laws["radius_depth"]),
-                    (spec.switches, out["switches"]), (spec.hermite_root, hermite_root))
+                    (spec.switches, out["switches"]), (spec.hermite_root, hermite_root),
+                    (spec.hermite3, hermite3))
         for k, v in list(ns.items()):
             for stub, real in services:
                 if v is stub:

@@ -18,9 +18,11 @@ output grid, plus event location:
 
 - an effect's own switches (``locate``, ``engines.compose``): a trial step inside which
   one happens (the groove's stick/slip: its trial force k_g xi + gamma_g u crosses the
-  Coulomb cap, beyond a band of the tolerance times the cap) is retried up to it,
-  located the same way. Switches an effect does not locate (the contact and rolling
-  friction's) are left to the error control.
+  Coulomb cap, beyond a band of the tolerance times the cap; a plastic contact's yield,
+  largest overlap and plastic overlap; an adhesive contact's jumps of force, each
+  crossed in a short step of its own) is retried up to it, located the same way.
+  Switches an effect does not locate (the contact and rolling friction's) are left to
+  the error control.
 
 Observables are computed on the fly (no output grid caps the step). Per step and
 particle, the velocity between the step ends is the derivative of the quintic Hermite
