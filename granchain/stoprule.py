@@ -22,11 +22,25 @@ run (the chapter's Fig. 5.3b plots every particle). A peak that is not final (a 
 ``t_end`` cut it off, or an auto run hit its time cap) is reported as NaN with the
 particle flagged, never as a number.
 
+A law that holds contacts closed beyond their touching overlap (an effect with the
+``bond`` hook of ``effects.spec.HOOKS``: adhesion) makes the rule wait, besides, until
+every contact's outcome is decided: no contact held closed with the energy of its
+spheres' relative motion enough to part it (``BOND_UNDECIDED``; a JKR contact held in
+tension at an open overlap is one). A free end also stops when its last particle, having
+seen the wave, is bound to its neighbour (``BOND_CAPTURED``: that energy below the work
+the law takes from it to open the contact) and that pair is alone (two spheres, or the
+contact before it open and not held): a captured pair. A chain that never settles (a
+chain bound as a whole) stops at its cap, status timeout. Laws without the hook (Hertz,
+damping, Thornton's) leave the rule and its stop times as they were.
+
 The rules are written once, in ``granchain.obsrules`` (with their constants): the
 reference kernels (``engines.kernels``, ``engines.events``), the LAMMPS engine's per-chain
 cut (``engines/lammps.auto_stop``) and ``observables.peak_final`` apply them; the LAMMPS
 deck states the stop rule again in its own language (``fix halt`` on ``compute
-contact/atom``, ``lammps/deck.py``).
+contact/atom``, ``lammps/deck.py``). A deck with a law that holds contacts closed has no
+halt (it cannot test the held contacts): it runs to its cap, and the LAMMPS engine cuts
+each record at :func:`settled_sample`, the reference kernels' rule (``kernels._settled``)
+on the sampled record.
 """
 from __future__ import annotations
 

@@ -20,6 +20,13 @@ delta (m):
   the wall holds the sphere closed at delta <= 0 (:func:`history_normal`; LAMMPS's fix
   wall/gran reports the same); the wall's peak force stays the largest compressive one.
 
+With ``t_end: auto`` the run waits until each contact's outcome is decided
+(:func:`bond`, the ``bond`` hook): a contact held closed (at d > 0, or a jkr contact in
+tension above the pull-off distance) is captured when the energy of its spheres' relative
+motion is below the work the law takes from it on the way to the opening
+(:func:`opening_work`), undecided otherwise; the run does not stop while one is
+undecided (``granchain.stoprule``).
+
 Tabor's parameter of a contact, mu = (R* w^2 / (E*^2 z0^3))^(1/3) with w = 2 gamma the work
 of adhesion and z0 = Z0 = 0.3 nm (the equilibrium separation of the surfaces'
 Lennard-Jones potential; Johnson & Greenwood 1997 take z0 of 0.3-0.4 nm), tells which law

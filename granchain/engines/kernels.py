@@ -56,9 +56,10 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
     step, NS[b] samples recorded so far, STEPS/REJ counters, STATUS[b] (S_*), VTHR[b]
     the arrival speed of chain b (``obsrules.arrival``). A sample is taken every
     ``every`` fixed steps (rk4, verlet) or exactly every ``sample_dt`` (dop853). A chain
-    stops after NT[b] samples, or (auto_stop) at the first sample at which its last
-    particle has taken the wave and left (``obsrules.detached``: velocity above
-    VTHR[b], contact with its neighbour open), with status S_PASSED.
+    stops after NT[b] samples, or (auto_stop) at the first sample at which the stop rule
+    holds (:func:`_settled`: its last particle has taken the wave and left,
+    ``obsrules.detached``: velocity above VTHR[b], contact with its neighbour open; and
+    no contact is held closed undecided), with status S_PASSED.
     """
     B = Y.shape[0]
     W = Vout.shape[1]
@@ -207,9 +208,8 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
     stopped. A lane that does not hold a chain starts with a status other than S_RUNNING
     and a zero state. The chains of a block step in lockstep (they share NS while they
     run); each one records its samples and stops exactly as in ``run_window``: after
-    NT[b] samples (S_DONE), or (auto_stop) at the first sample at which its last particle
-    is faster than VTHR[b] with its last contact open (S_PASSED), or on a non-finite
-    state.
+    NT[b] samples (S_DONE), or (auto_stop) at the first sample at which the stop rule
+    holds (:func:`_settled`; S_PASSED), or on a non-finite state.
 
     Without ``observe`` the samples go to rows 0.. of Vout/Eout (counts[b] of them in
     this call). With ``observe`` (Vout/Eout of 2 rows: sample 0, then the latest sample)

@@ -61,7 +61,10 @@ velocity. Spheres of different radii: ``Trajectory.radii``.
 
 With t_end auto the deck stops the batch when every chain has passed (fix halt) and each
 chain's record is cut where the reference engine would have stopped that chain (same
-rule, same per-chain cap), status ``passed`` (or ``timeout`` at the cap).
+rule, same per-chain cap), status ``passed`` (or ``timeout`` at the cap). A law that
+holds contacts closed (``effects.holds_contacts``) leaves the deck without a halt: the
+batch runs to its cap and each record is cut where every contact's outcome is decided
+(``stoprule.settled_sample``, from every contact's overlap in the dump).
 
 Modules: this one runs the engine (``run``, ``auto_stop``); ``dump`` reads a deck's
 output back (``read_binary``, ``read_dump``, ``read_ledger``), ``binary`` parses LAMMPS
