@@ -200,6 +200,17 @@ def test_a_jkr_pair_with_t_end_auto_runs_until_captured_or_separated():
     assert all(r.status == "passed" for r in results)
 
 
+def test_a_jkr_pair_with_t_end_auto_on_the_event_method():
+    """The event method's stop rule is the same: captured below v_c, separated above with
+    the independent e (measured within 3.3e-5)."""
+    vc = _jkr_vc()
+    results = run_scene(_jkr_scene([f * vc for f in AUTO_SPEEDS], t_end="auto",
+                                   output={"sample_dt": "auto"},
+                                   integrator={"method": "event"}))
+    _check_jkr(results, vc)
+    assert all(r.status == "passed" for r in results)
+
+
 def test_a_jkr_run_whose_cap_is_too_short_is_unfinished(monkeypatch):
     """A t_end auto run that reaches its cap (``stoprule.auto_t_max``, here shorter than
     the contact) while the contact is still held reports unfinished, NaN restitution,
