@@ -12,12 +12,15 @@ states, ``collision``:
   velocities before and after the contact as well).
 - ``captured``: their contact is closed and the energy of their relative motion,
   (1/2) m* (v2' - v1')^2, is less than the energy the law's force takes from it on the
-  way to the contact's opening (``effects.separation``): the pair stays bound (no
-  adhesive contact parts without that energy; damping only takes more). Only a law with
-  attraction (``adhesion``) can capture.
+  way to the contact's opening (``effects.bond``, ``effects.separation``): the pair stays
+  bound (no adhesive contact parts without that energy; damping only takes more). Only a
+  law that holds contacts closed (``adhesion``) can capture.
 - ``unfinished``: neither: the striker has not reached particle 2 yet, or their contact
   is still closed with the energy to open, or open while they still close on each other.
-  The run ended before the collision did: a longer ``t_end`` finishes it.
+  The run ended before the collision did: a longer ``t_end`` finishes it. A ``t_end:
+  auto`` run, which lasts until the collision is ``separated`` or ``captured``
+  (``granchain.stoprule``), is unfinished when it reaches its cap first (status timeout),
+  whatever its last sample shows, and so is a run that failed.
 - ``no_impact``: the striker does not move (v_s = 0).
 
 The restitution is NaN in every state but ``separated``. A contact is closed at the end
@@ -30,7 +33,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .effects import physics_terms, separation
+from .effects import bond, physics_terms, separation
+from .effects.spec import BOND_CAPTURED
 
 OUTCOMES = ("separated", "captured", "unfinished", "no_impact")
 
@@ -44,23 +48,27 @@ class Collision:
     restitution: float
 
 
-def measure(v_striker: float, v_final, overlap: float, terms) -> Collision:
+def measure(v_striker: float, v_final, overlap: float, terms,
+            ended: bool = True) -> Collision:
     """The outcome of the collision of a two-sphere chain whose final velocities (m/s)
     are ``v_final`` and whose contact's overlap at the end is ``overlap`` (m; > 0 in
-    contact); ``terms``: its physics (``effects.physics_terms``)."""
+    contact); ``terms``: its physics (``effects.physics_terms``). ``ended``: False when
+    the run did not end by its length or its stop rule (a t_end auto run that hit its
+    cap, or a failed run): the collision is then unfinished."""
     if not v_striker > 0.0:
         return Collision("no_impact", False, math.nan)
+    if not ended:
+        return Collision("unfinished", False, math.nan)
     v1, v2 = float(v_final[0]), float(v_final[1])
     w = v2 - v1                                # > 0: moving apart
-    d_open, phi = separation(terms, 0, overlap)
+    d_open, _ = separation(terms, 0, overlap)
     struck = v2 != 0.0
     closed = overlap > 0.0 or (struck and overlap > d_open)
     if not closed:
         if struck and w >= 0.0:
             return Collision("separated", False, w / v_striker)
         return Collision("unfinished", False, math.nan)
-    m1, m2 = terms.chain.masses[0], terms.chain.masses[1]
-    if 0.5 * m1 * m2 / (m1 + m2) * w * w + phi < 0.0:
+    if bond(terms, 0, overlap, -w, True) == BOND_CAPTURED:
         return Collision("captured", True, math.nan)
     return Collision("unfinished", False, math.nan)
 

@@ -435,7 +435,8 @@ def summarize(traj: Trajectory, probes=(2, 13), terms=None) -> ChainResult:
     if traj.n == 2:
         if terms is None:
             raise ValueError("a two-sphere chain's collision needs its physics (terms)")
-        c = collision.measure(traj.v_striker, traj.v[-1], traj.last_overlap, terms)
+        c = collision.measure(traj.v_striker, traj.v[-1], traj.last_overlap, terms,
+                              ended=traj.status in ("passed", "done"))
         pair = {"pair": True, "collision": c.collision, "captured": c.captured,
                 "restitution": c.restitution}
     # both probes' peaks measured, by a run that did not fail numerically

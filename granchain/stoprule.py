@@ -22,11 +22,25 @@ run (the chapter's Fig. 5.3b plots every particle). A peak that is not final (a 
 ``t_end`` cut it off, or an auto run hit its time cap) is reported as NaN with the
 particle flagged, never as a number.
 
+A law that holds contacts closed beyond their touching overlap (an effect with the
+``bond`` hook of ``effects.spec.HOOKS``: adhesion) makes the rule wait, besides, until
+every contact's outcome is decided: no contact held closed with the energy of its
+spheres' relative motion enough to part it (``BOND_UNDECIDED``; a JKR contact held in
+tension at an open overlap is one). A free end also stops when its last particle, having
+seen the wave, is bound to its neighbour (``BOND_CAPTURED``: that energy below the work
+the law takes from it to open the contact) and that pair is alone (two spheres, or the
+contact before it open and not held): a captured pair. A chain that never settles (a
+chain bound as a whole) stops at its cap, status timeout. Laws without the hook (Hertz,
+damping, Thornton's) leave the rule and its stop times as they were.
+
 The rules are written once, in ``granchain.obsrules`` (with their constants): the
 reference kernels (``engines.kernels``, ``engines.events``), the LAMMPS engine's per-chain
 cut (``engines/lammps.auto_stop``) and ``observables.peak_final`` apply them; the LAMMPS
 deck states the stop rule again in its own language (``fix halt`` on ``compute
-contact/atom``, ``lammps/deck.py``).
+contact/atom``, ``lammps/deck.py``). A deck with a law that holds contacts closed has no
+halt (it cannot test the held contacts): it runs to its cap, and the LAMMPS engine cuts
+each record at :func:`settled_sample`, the reference kernels' rule (``kernels._settled``)
+on the sampled record.
 """
 from __future__ import annotations
 
@@ -35,7 +49,8 @@ import math
 import numpy as np
 
 from . import analytic, obsrules
-from .effects import acts_on_normal
+from .effects import acts_on_normal, bond, separation
+from .effects.spec import BOND_CAPTURED, BOND_UNDECIDED
 from .guards import crossing_time, require_resolved
 # the observable rules' constants (``granchain.obsrules``)
 from .obsrules import ARRIVAL_FRACTION, PASS_FRACTION, PEAK_TOL, PLATEAU_SAMPLES  # noqa: F401
@@ -92,6 +107,56 @@ def wall_left(v_last, x_last, v_striker):
     v_last: velocity of particle n (m/s); x_last: its displacement from its initial
     (static) position (m)."""
     return obsrules.wall_left(np.asarray(v_last), np.asarray(x_last), arrival_speed(v_striker))
+
+
+def held_record(terms, overlaps) -> np.ndarray:
+    """Which contacts the laws in force hold closed at each sample of a record (S, n-1
+    overlaps, m; > 0 in contact), read from the overlaps alone: closed at d > 0, and
+    after that down to the contact's opening overlap (``effects.separation``: 0, or
+    JKR's pull-off distance), until a sample at or beyond it."""
+    ov = np.asarray(overlaps, dtype=float)
+    d_open = np.array([separation(terms, k, 0.0)[0] for k in range(ov.shape[1])])
+    idx = np.arange(ov.shape[0])[:, None]
+    touch = np.maximum.accumulate(np.where(ov > 0.0, idx, -1), axis=0)
+    broke = np.maximum.accumulate(np.where(ov <= d_open, idx, -1), axis=0)
+    return (ov > 0.0) | (touch > broke)
+
+
+def settled_sample(terms, v_striker: float, v, overlaps, last_disp=None) -> int | None:
+    """The first sample after t = 0 of a record at which the t_end auto stop rule holds
+    when a law in force holds contacts closed (``effects.holds_contacts``), as the
+    reference kernels apply it (``engines.kernels._settled``), or None: no contact held
+    closed with the energy to part (``effects.bond`` BOND_UNDECIDED), and the wave has
+    left the chain (:func:`last_detached`, :func:`wall_left`) or, at a free end, the last
+    particle, faster than the arrival speed, is held bound to its neighbour (BOND_CAPTURED)
+    and that pair is alone (two spheres, or the contact before it open and not held).
+
+    v: (S, n) velocities (m/s); overlaps: (S, n-1) the sphere contacts' overlaps (m);
+    last_disp: with an end wall, the last sphere's displacement (m) from its start."""
+    v = np.asarray(v, dtype=float)
+    ov = np.asarray(overlaps, dtype=float)
+    n = v.shape[1]
+    vthr = arrival_speed(v_striker)
+    held = held_record(terms, ov)
+    wall = last_disp is not None
+
+    def state(s, k):
+        return bond(terms, k, float(ov[s, k]), float(v[s, k] - v[s, k + 1]), bool(held[s, k]))
+
+    moving = v[1:, -1] < -vthr if wall else v[1:, -1] > vthr
+    for s in np.flatnonzero(moving) + 1:
+        if wall:
+            left = bool(wall_left(v[s, -1], last_disp[s], v_striker))
+        else:
+            left = bool(last_detached(v[s, -1], ov[s, -1], v_striker))
+        if not left:
+            if wall or state(s, n - 2) != BOND_CAPTURED:
+                continue
+            if n > 2 and (ov[s, n - 3] > 0.0 or held[s, n - 3]):
+                continue
+        if all(state(s, k) != BOND_UNDECIDED for k in range(n - 1)):
+            return int(s)
+    return None
 
 
 def wall_passed(f_after_peak: np.ndarray, f_peak: float) -> bool:

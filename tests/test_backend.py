@@ -81,8 +81,8 @@ SCIPY = Path(importlib.util.find_spec("scipy").origin).parent
 DOP853_FILE = Path("integrate", "_ivp", "dop853_coefficients.py")
 # (file, text in it, replacement): one change of what the kernels compute, per source
 EDITS = {
-    "kernel": ("engines/kernels.py", "return y[ox + k] - y[ox + k + 1] - gaps[k]\n",
-               "return y[ox + k] - y[ox + k + 1] + gaps[k]\n"),
+    "kernel": ("engines/kernels.py", "if wall else _detached(v_last, overlap_last, vthr)\n",
+               "if wall else _detached(v_last, -overlap_last, vthr)\n"),
     "effect": ("effects/hertz.py", "return K * d * math.sqrt(d) if d > 0.0",
                "return 0.5 * K * d * math.sqrt(d) if d > 0.0"),
     "codes": ("engines/codes.py", "RB_SIZE = 48 ", "RB_SIZE = 47 "),

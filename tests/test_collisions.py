@@ -180,12 +180,49 @@ def test_jkr_pair_is_captured_below_the_capture_velocity():
     _check_jkr(results, vc)
 
 
-def test_a_jkr_pair_still_held_at_the_end_is_unfinished():
-    """With t_end auto the run stops once the overlap is open: a JKR contact there is
-    still held in tension, the pair not yet apart: unfinished, no restitution."""
+# t_end auto runs until the collision is decided: just below v_c and well below, captured;
+# just above and well above, separated with e = sqrt(1 - v_c^2/v^2)
+AUTO_SPEEDS = (0.45, 0.99, 1.2, 2.6)
+
+
+def _auto_jkr_scene():
+    return _jkr_scene([f * _jkr_vc() for f in AUTO_SPEEDS], t_end="auto",
+                      output={"sample_dt": "auto"})
+
+
+def test_a_jkr_pair_with_t_end_auto_runs_until_captured_or_separated():
+    """With t_end auto the run does not stop while the JKR contact is held closed in
+    tension with the energy to part (its overlap already open): it stops once the pair
+    has parted (separated, with the independent e) or is bound (captured), status passed."""
     vc = _jkr_vc()
-    res, = run_scene(_jkr_scene([2.6 * vc], t_end="auto", output={"sample_dt": "auto"}))
-    assert res.collision == "unfinished" and math.isnan(res.restitution)
+    results = run_scene(_auto_jkr_scene())
+    _check_jkr(results, vc)
+    assert all(r.status == "passed" for r in results)
+
+
+def test_a_jkr_pair_with_t_end_auto_on_the_event_method():
+    """The event method's stop rule is the same: captured below v_c, separated above with
+    the independent e (measured within 3.3e-5)."""
+    vc = _jkr_vc()
+    results = run_scene(_jkr_scene([f * vc for f in AUTO_SPEEDS], t_end="auto",
+                                   output={"sample_dt": "auto"},
+                                   integrator={"method": "event"}))
+    _check_jkr(results, vc)
+    assert all(r.status == "passed" for r in results)
+
+
+def test_a_jkr_run_whose_cap_is_too_short_is_unfinished(monkeypatch):
+    """A t_end auto run that reaches its cap (``stoprule.auto_t_max``, here shorter than
+    the contact) while the contact is still held reports unfinished, NaN restitution,
+    status timeout, on both engines' stop rules."""
+    import granchain.runplan as runplan
+    monkeypatch.setattr(runplan, "auto_t_max", lambda scene, gaps, v: 3e-7)
+    vc = _jkr_vc()
+    for res in run_scene(_jkr_scene([0.45 * vc, 2.6 * vc], t_end="auto",
+                                    output={"sample_dt": 1e-8})):
+        assert res.status == "timeout", res
+        assert res.collision == "unfinished" and not res.captured, res
+        assert math.isnan(res.restitution)
 
 
 def test_a_captured_pair_writes_null_and_the_flag(tmp_path):
@@ -216,6 +253,34 @@ def test_jkr_pair_on_lammps(tmp_path):
     ref = run_scene(sc)
     for a, b in zip(lmp, ref):
         assert np.max(np.abs(np.subtract(a.v_final, b.v_final))) < 1e-8 * a.v_striker
+
+
+@pytest.mark.lammps
+def test_jkr_pair_with_t_end_auto_on_lammps(tmp_path):
+    """LAMMPS with t_end auto: the deck runs to its cap and the engine cuts each record
+    where the collision is decided, as the reference engine's stop rule: the same
+    outcomes, the independent e, the reference's e to 1e-8 (measured 3e-10)."""
+    vc = _jkr_vc()
+    sc = _auto_jkr_scene()
+    lmp = run_scene(sc, engine="lammps", workdir=tmp_path)
+    _check_jkr(lmp, vc)
+    assert all(r.status == "passed" for r in lmp)
+    for a, b in zip(lmp, run_scene(sc)):
+        assert a.collision == b.collision
+        if a.collision == "separated":
+            assert abs(a.restitution - b.restitution) < 1e-8
+
+
+@pytest.mark.lammps
+def test_a_jkr_run_whose_cap_is_too_short_is_unfinished_on_lammps(monkeypatch, tmp_path):
+    import granchain.runplan as runplan
+    monkeypatch.setattr(runplan, "auto_t_max", lambda scene, gaps, v: 3e-7)
+    vc = _jkr_vc()
+    for res in run_scene(_jkr_scene([0.45 * vc, 2.6 * vc], t_end="auto",
+                                    output={"sample_dt": 1e-8}),
+                         engine="lammps", workdir=tmp_path):
+        assert res.status == "timeout", res
+        assert res.collision == "unfinished" and math.isnan(res.restitution)
 
 
 @pytest.mark.lammps

@@ -47,7 +47,7 @@ from .hertz import Hertz
 from .particle_friction import ParticleFriction
 from .rolling_friction import RollingFriction
 from .rotation import Rotation
-from .spec import EffectSpec
+from .spec import BOND_CAPTURED, BOND_NONE, BOND_UNDECIDED, EffectSpec
 
 # Registry order is the order of the state blocks and of the work columns.
 MODULES = (hertz, rotation, groove_friction, air_drag, particle_friction, rolling_friction,
@@ -87,6 +87,29 @@ def separation(terms, k: int, d: float) -> tuple[float, float]:
         if hasattr(m, "separation") and (m is hertz or terms.has(m.SPEC.name)):
             return m.separation(getattr(terms, m.SPEC.name), terms.chain, k, d)
     raise AssertionError("hertz has separation")
+
+
+def holds_contacts(terms) -> bool:
+    """Does a law in force hold contacts closed (an enabled effect with a ``bond`` hook,
+    ``spec.HOOKS``)? Only then can a contact be captured, or held closed at an open
+    overlap, and the t_end auto stop rule asks each contact's :func:`bond`."""
+    return any(hasattr(m, "bond") and terms.has(m.SPEC.name) for m in MODULES)
+
+
+def bond(terms, k: int, d: float, w: float, held: bool) -> int:
+    """The ``bond`` hook's state (``spec.BOND_*``) of contact k (spheres k+1, k+2) at
+    overlap d (m) and closing speed w (m/s), from the laws in force: ``held`` whether the
+    law held it closed just before (its touch history). BOND_NONE unless
+    :func:`holds_contacts` and the contact is closed (d > 0, or held and d above its
+    opening overlap); then BOND_CAPTURED when (1/2) m* w^2 + Phi < 0 (:func:`separation`),
+    BOND_UNDECIDED otherwise. The engines' compiled hooks decide the same way."""
+    if not holds_contacts(terms):
+        return BOND_NONE
+    d_open, phi = separation(terms, k, d)
+    if not (d > 0.0 or (held and d > d_open)):
+        return BOND_NONE
+    m1, m2 = terms.chain.masses[k], terms.chain.masses[k + 1]
+    return BOND_CAPTURED if 0.5 * m1 * m2 / (m1 + m2) * w * w + phi < 0.0 else BOND_UNDECIDED
 
 
 def touch_energy(terms) -> float:
@@ -134,5 +157,6 @@ def physics_terms(scene) -> Terms:
 
 
 __all__ = ["MODULES", "SPECS", "ENERGY_COLUMNS", "EffectSpec", "Terms", "physics_terms",
-           "residual_work", "acts_on_normal", "separation", "touch_energy", "Chain", "Hertz", "AirDrag", "GrooveFriction",
+           "residual_work", "acts_on_normal", "separation", "touch_energy", "holds_contacts",
+           "bond", "Chain", "Hertz", "AirDrag", "GrooveFriction",
            "Rotation", "ParticleFriction", "RollingFriction"]

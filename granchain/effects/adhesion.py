@@ -20,6 +20,13 @@ delta (m):
   the wall holds the sphere closed at delta <= 0 (:func:`history_normal`; LAMMPS's fix
   wall/gran reports the same); the wall's peak force stays the largest compressive one.
 
+With ``t_end: auto`` the run waits until each contact's outcome is decided
+(:func:`bond`, the ``bond`` hook): a contact held closed (at d > 0, or a jkr contact in
+tension above the pull-off distance) is captured when the energy of its spheres' relative
+motion is below the work the law takes from it on the way to the opening
+(:func:`opening_work`), undecided otherwise; the run does not stop while one is
+undecided (``granchain.stoprule``).
+
 Tabor's parameter of a contact, mu = (R* w^2 / (E*^2 z0^3))^(1/3) with w = 2 gamma the work
 of adhesion and z0 = Z0 = 0.3 nm (the equilibrium separation of the surfaces'
 Lennard-Jones potential; Johnson & Greenwood 1997 take z0 of 0.3-0.4 nm), tells which law
@@ -89,7 +96,8 @@ from . import slots as S
 from .hertz import energy as hertz_energy, force as hertz_force
 from .lanes import bit, closing_speed, contact_overlap
 from .contact_damping import radius_damping
-from .spec import DeckPart, EffectSpec, compiled, hermite_root
+from .spec import (BOND_CAPTURED, BOND_NONE, BOND_UNDECIDED, DeckPart, EffectSpec, compiled,
+                   hermite_root)
 
 SPEC = EffectSpec("adhesion", state=(("L_ADHESION_TOUCH", "particle"),),
                   work="work_adhesion", work_slot="L_WORK_ADHESION",
@@ -438,6 +446,30 @@ def contact_depth(d, G, P, FL, n, k, l):
 
 
 @compiled
+def bond(y, G, P, FL, LO, n, k, l):
+    """Contact k of lane l (n-1: the end wall, of infinite mass): BOND_NONE while the law
+    does not hold it closed (:func:`closed` of its closed state in y); held, BOND_CAPTURED
+    when the energy of its spheres' relative motion, (1/2) m* w^2 (m* their reduced mass,
+    w the closing speed), is less than the law takes from it on the way to the opening
+    (-:func:`opening_work`): no adhesive contact parts without that energy, and damping
+    only takes more; BOND_UNDECIDED otherwise."""
+    d = contact_overlap(y, LO[S.L_DISP], G, n, k, l)
+    Rs = G[S.G_ADHESION_RSTAR * n + k, l]
+    E = G[S.G_ADHESION_EMIX * n + k, l]
+    g = P[S.P_ADHESION_GAMMA]
+    jkr = FL[S.F_ADHESION_JKR] != 0
+    if not closed(d, y[LO[S.L_ADHESION_TOUCH] + k, l] != 0.0, Rs, E, g, jkr):
+        return BOND_NONE
+    w = closing_speed(y, LO[S.L_VEL], n, k, l)
+    m = G[S.G_MASS * n + k, l]
+    if k < n - 1:
+        m2 = G[S.G_MASS * n + k + 1, l]
+        m = m * m2 / (m + m2)
+    phi = opening_work(G[S.G_HERTZ_K * n + k, l], Rs, E, g, jkr, d)
+    return BOND_CAPTURED if 0.5 * m * w * w + phi < 0.0 else BOND_UNDECIDED
+
+
+@compiled
 def contact_crit(F, d, G, P, FL, n, k, l):
     """LAMMPS's cohesive Fncrit = |F_ne + 2 F_po| of contact k at overlap d (F_ne the law's
     force, without the damping force)."""
@@ -533,23 +565,31 @@ def jkr_work(Rs, E, g, a):
             - 8.0 / 3.0 * math.sqrt(math.pi * g * E) * a ** 3.5 / Rs + 2.0 * math.pi * g * a * a)
 
 
+@compiled
+def opening_work(K, Rs, E, g, jkr, d):
+    """Phi (J): the work the law's force does on the relative motion of a contact held
+    closed at overlap d (m) from d to where it opens (dmt: 0; jkr: the pull-off distance
+    -delta_po), Phi = int_{d_open}^d F ds (negative: its spheres need that much energy of
+    relative motion to part); 0 at or beyond the opening."""
+    if not jkr:
+        return hertz_energy(K, d) - pulloff_force(Rs, g, False) * d if d > 0.0 else 0.0
+    d_open = -pulloff_distance(Rs, E, g)
+    if d <= d_open:
+        return 0.0
+    return jkr_work(Rs, E, g, jkr_radius(Rs, E, g, d)) - jkr_work(Rs, E, g,
+                                                                  jkr_radius(Rs, E, g, d_open))
+
+
 def separation(ad, chain, k: int, d: float) -> tuple[float, float]:
     """(d_open, Phi) of contact k (spheres k+1, k+2; 1-based) held closed at overlap d (m):
-    where it opens (dmt: 0; jkr: the pull-off distance -delta_po) and the work its law's
-    force does on the relative motion from d to there, Phi = int_{d_open}^d F ds (J;
-    negative: the pair needs that much energy of relative motion to part)."""
+    where it opens (dmt: 0; jkr: the pull-off distance -delta_po) and
+    :func:`opening_work`."""
     R, mats = chain.radii, chain.materials
     Rs = 0.5 * R[k] if R[k] == R[k + 1] else R[k] * R[k + 1] / (R[k] + R[k + 1])
     E = effective_modulus(mats[k], mats[k + 1])
-    g = ad.gamma
-    if ad.model == "dmt":
-        return 0.0, (hertz_energy(chain.K[k], d) - pulloff_force(Rs, g, False) * d
-                     if d > 0.0 else 0.0)
-    d_open = -pulloff_distance(Rs, E, g)
-    if d <= d_open:
-        return d_open, 0.0
-    a_po = jkr_radius(Rs, E, g, d_open)
-    return d_open, jkr_work(Rs, E, g, jkr_radius(Rs, E, g, d)) - jkr_work(Rs, E, g, a_po)
+    jkr = ad.model == "jkr"
+    d_open = -pulloff_distance(Rs, E, ad.gamma) if jkr else 0.0
+    return d_open, opening_work(chain.K[k], Rs, E, ad.gamma, jkr, d)
 
 
 def well_depth(model: str, K: float, Rs: float, E: float, g: float) -> float:

@@ -210,12 +210,24 @@ HOOKS = {
     "project": ("(y, G, P, FL, LO)", "the return mapping of its histories after a step"),
     "energies": ("(y, G, P, FL, LO, out)", "adds its mechanical energy to its column of out "
                  "(E_LEN, L)"),
+    "bond": ("(y, G, P, FL, LO, n, k, l) -> state",
+             "whether its law holds contact k of lane l closed and whether that is decided: "
+             "BOND_NONE (it does not hold it: open, or a law without attraction), "
+             "BOND_CAPTURED (held, and the energy of the spheres' relative motion is less "
+             "than its law takes from it on the way to the contact's opening: bound), "
+             "BOND_UNDECIDED (held, with the energy to part); the t_end auto stop rule "
+             "waits while a contact is undecided"),
     "locate": ("(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol, act, tau)",
                "the event method: per lane l with act[l], tau[l] the first tau in (0, 1) "
                "of a switch of its law inside the lane's trial step y -> ynew of length "
                "h[l] (rates K0, K1 at its ends), -1 if none or not act[l]; its test over "
                "the lanes without a branch per lane"),
 }
+
+
+# the states of a contact a ``bond`` hook returns (the composed ``contact_bond`` gives the
+# largest of the effects on)
+BOND_NONE, BOND_CAPTURED, BOND_UNDECIDED = 0, 1, 2
 
 
 # The composed contact laws an effect's compiled code may call (the composer puts the

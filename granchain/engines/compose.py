@@ -35,6 +35,9 @@ few functions that call them in turn:
   ``wall_force``, then every ``history_normal`` law (a law whose force depends on its
   history in y: a plastic contact's largest overlap, a JKR contact held closed in
   tension at an overlap <= 0);
+- ``contact_bond(y, G, P, FL, LO, n, k, l)``: the largest ``bond`` state
+  (``effects.spec.BOND_*``) of contact k of lane l by the effects on (BOND_NONE without
+  one): held closed by a law, and then bound or with the energy to part;
 - ``locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol, act, best)``: per lane l with
   act[l], best[l] the earliest switch any effect's ``locate`` finds inside the lane's
   trial step of length h[l], -1 if none.
@@ -324,6 +327,14 @@ def source() -> str:
         out += _call(m, "history_normal", "F, d, y, LO, G, P, FL, n, n - 1, l", "F = ")
     out += ["    return F", "", ""]
 
+    # a contact held closed by a law: the largest state of the effects on
+    out += ["def contact_bond(y, G, P, FL, LO, n, k, l):", "    s = 0"]
+    for m in by["bond"]:
+        lines = _call(m, "bond", "y, G, P, FL, LO, n, k, l", "b = ")
+        pad = " " * (len(lines[-1]) - len(lines[-1].lstrip()))
+        out += lines + [pad + "if b > s:", pad + "    s = b"]
+    out += ["    return s", "", ""]
+
     # every lane's earliest switch: each effect's into tau, then the earliest per lane
     out += ["def locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol, act, best):",
             "    L = y.shape[1]",
@@ -346,7 +357,7 @@ def source() -> str:
 PLAIN_LAWS = ("normal_crit", "normal_cap", "touching", "radius_depth")
 COMPOSED = ("normal_forces", "effect_forces", "project_histories", "effect_energies",
             "switches", "normal_crit", "normal_cap", "touching", "radius_depth", "wall_force",
-            "wall_force_at", "locate")
+            "wall_force_at", "contact_bond", "locate")
 
 
 def _file(text: str) -> str:

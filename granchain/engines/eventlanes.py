@@ -28,7 +28,7 @@ from numba import njit, prange
 from . import kernels
 from .compose import locate
 from .eventobs import _observe, _peak_inside
-from .events import MAX_TRIES, PI_BETA, _detached, _predict, _straddle
+from .events import MAX_TRIES, PI_BETA, _predict, _straddle
 
 _PH_BEGIN, _PH_TRIAL, _PH_EMPTY = 0, 1, 2
 
@@ -405,9 +405,7 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                     BAL[b] = bal
                 if not same[l]:
                     fin[l] = kernels.S_NONFINITE
-                elif auto_stop and _detached(y[ov + n - 1, l],
-                                             y[ox + n - 2, l] - y[ox + n - 1, l] - g[n - 2, l],
-                                             VTHR[b]):
+                elif auto_stop and kernels._settled(y, g, Pb, FLb, LOb, n, l, VTHR[b], False):
                     fin[l] = kernels.S_PASSED
                 phase[l] = _PH_BEGIN
 

@@ -56,10 +56,9 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .. import obsrules
 from . import kernels
 from .codes import DEFAULT_PAIR, PAIRS, RB_C, RB_H, RB_LEN, RB_MAX, RB_SIZE, RB_T0  # noqa: F401
-from .compose import compiled, locate
+from .compose import locate
 from .eventobs import _observe, _peak_inside, finalize  # noqa: F401
 from .hermite import dense, hermite_root
 from .integrators import _col
@@ -67,7 +66,6 @@ from .kernels import energies, forces, project
 
 MAX_TRIES = 60
 PI_BETA = 0.04
-_detached = compiled(obsrules.detached)
 
 
 @njit(cache=True, error_model="numpy", boundscheck=False)
@@ -198,8 +196,9 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
     evaluations, STATUS[b] (kernels.S_*; a stopped chain keeps S_RUNNING with its final
     status in FIN[b] until its last trace samples are out), INIT[b] 0 before the first
     call. A chain stops at t_stop[b] (S_DONE) or, with auto_stop, at the first step end
-    at which its last particle has taken the wave and left (S_PASSED,
-    ``stoprule.last_detached``).
+    at which the stop rule holds (S_PASSED, ``kernels._settled``: its last particle has
+    taken the wave and left, ``stoprule.last_detached``, and no contact is held closed
+    undecided).
     """
     B = Y.shape[0]
     n = int(P[kernels.P_N_SPHERES])
@@ -368,6 +367,6 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                 BAL[b] = bal
             if not kernels._finite(y, LO, n):
                 FIN[b] = kernels.S_NONFINITE
-            elif auto_stop and _detached(y[ov + n - 1], y[ox + n - 2] - y[ox + n - 1] - g[n - 2],
-                                         VTHR[b]):
+            elif auto_stop and kernels._settled(_col(y), _col(g), P, FL, LO, n, 0, VTHR[b],
+                                                False):
                 FIN[b] = kernels.S_PASSED

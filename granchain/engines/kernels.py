@@ -26,9 +26,10 @@ from .. import obsrules  # noqa: E402
 from . import codes  # noqa: E402
 from .codes import (E_LEN, F_END_WALL, L_DISP, L_VEL, M_RK4, M_VERLET, NST,  # noqa: E402
                     P_N_SPHERES, S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL)
-from .compose import compiled, overlap as _overlap_l  # noqa: E402
+from ..effects.spec import BOND_CAPTURED, BOND_NONE, BOND_UNDECIDED  # noqa: E402
+from .compose import compiled, contact_bond, overlap as _overlap_l  # noqa: E402
 # the integrators (and their per-chain entry points, which the tests call through here)
-from .integrators import (_wall_force, dop853_try, energies, energies_block,  # noqa: E402,F401
+from .integrators import (_col, _wall_force, dop853_try, energies, energies_block,  # noqa: E402,F401
                           error_norm, forces, forces_block, project, project_block, rk4_block,
                           rk4_step, rk_trial, verlet_block, verlet_step)
 from .onthefly import _finish_lane, _sample_lane  # noqa: E402
@@ -36,11 +37,6 @@ from .onthefly import _finish_lane, _sample_lane  # noqa: E402
 # every numbered slot as an attribute here too (callers index the kernels' arrays by them)
 globals().update(codes.NAMES)
 _detached, _wall_left = compiled(obsrules.detached), compiled(obsrules.wall_left)
-
-
-@njit(cache=True, inline="always")
-def _overlap(y, ox, gaps, k):
-    return y[ox + k] - y[ox + k + 1] - gaps[k]
 
 
 @njit(cache=True)
@@ -60,9 +56,10 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
     step, NS[b] samples recorded so far, STEPS/REJ counters, STATUS[b] (S_*), VTHR[b]
     the arrival speed of chain b (``obsrules.arrival``). A sample is taken every
     ``every`` fixed steps (rk4, verlet) or exactly every ``sample_dt`` (dop853). A chain
-    stops after NT[b] samples, or (auto_stop) at the first sample at which its last
-    particle has taken the wave and left (``obsrules.detached``: velocity above
-    VTHR[b], contact with its neighbour open), with status S_PASSED.
+    stops after NT[b] samples, or (auto_stop) at the first sample at which the stop rule
+    holds (:func:`_settled`: its last particle has taken the wave and left,
+    ``obsrules.detached``: velocity above VTHR[b], contact with its neighbour open; and
+    no contact is held closed undecided), with status S_PASSED.
     """
     B = Y.shape[0]
     W = Vout.shape[1]
@@ -150,8 +147,8 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
             if not _finite(y, LO, n):
                 STATUS[b] = S_NONFINITE
                 break
-            if auto_stop and _left(y[ov + n - 1], _overlap(y, LO[L_DISP], g, n - 2),
-                                   y[LO[L_DISP] + n - 1], VTHR[b], FL[F_END_WALL] != 0):
+            if auto_stop and _settled(_col(y), _col(g), P, FL, LO, n, 0, VTHR[b],
+                                      FL[F_END_WALL] != 0):
                 STATUS[b] = S_PASSED
 
 
@@ -160,6 +157,29 @@ def _left(v_last, overlap_last, x_last, vthr, wall):
     """Has the wave left the chain? Free end: ``obsrules.detached``; end wall:
     ``obsrules.wall_left`` (x_last: the last sphere's displacement from its start)."""
     return _wall_left(v_last, x_last, vthr) if wall else _detached(v_last, overlap_last, vthr)
+
+
+@njit(cache=True, inline="always")
+def _settled(y, G, P, FL, LO, n, l, vthr, wall):
+    """The t_end auto stop rule of the chain in lane l (``granchain.stoprule``): no
+    contact that an effect's law holds closed with the energy to part (``contact_bond``
+    BOND_UNDECIDED), and the wave has left the chain (:func:`_left`) or, at a free end,
+    the last particle, faster than vthr, is held bound to its neighbour (BOND_CAPTURED)
+    and that pair is alone (two spheres, or the contact before it open and not held)."""
+    ox = LO[L_DISP]
+    v_last = y[LO[L_VEL] + n - 1, l]
+    if not _left(v_last, _overlap_l(y, ox, G, n - 2, l), y[ox + n - 1, l], vthr, wall):
+        if wall or not v_last > vthr:
+            return False
+        if contact_bond(y, G, P, FL, LO, n, n - 2, l) != BOND_CAPTURED:
+            return False
+        if n > 2 and (_overlap_l(y, ox, G, n - 3, l) > 0.0
+                      or contact_bond(y, G, P, FL, LO, n, n - 3, l) != BOND_NONE):
+            return False
+    for k in range(n if wall else n - 1):
+        if contact_bond(y, G, P, FL, LO, n, k, l) == BOND_UNDECIDED:
+            return False
+    return True
 
 
 @njit(cache=True, inline="always")
@@ -188,9 +208,8 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
     stopped. A lane that does not hold a chain starts with a status other than S_RUNNING
     and a zero state. The chains of a block step in lockstep (they share NS while they
     run); each one records its samples and stops exactly as in ``run_window``: after
-    NT[b] samples (S_DONE), or (auto_stop) at the first sample at which its last particle
-    is faster than VTHR[b] with its last contact open (S_PASSED), or on a non-finite
-    state.
+    NT[b] samples (S_DONE), or (auto_stop) at the first sample at which the stop rule
+    holds (:func:`_settled`; S_PASSED), or on a non-finite state.
 
     Without ``observe`` the samples go to rows 0.. of Vout/Eout (counts[b] of them in
     this call). With ``observe`` (Vout/Eout of 2 rows: sample 0, then the latest sample)
@@ -291,8 +310,8 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
                     _stop_lane(y, acc, l, YF, b, S_NONFINITE, STATUS)
                     _finish_lane(b, n, NS, sample_dt, observe, OF, OI, RK, RV, WF, WI, OUT,
                                  WOUT, wall)
-                elif auto_stop and _left(y[ov + n - 1, l], _overlap_l(y, ox, g, n - 2, l),
-                                         y[ox + n - 1, l], VTHR[b], FLb[F_END_WALL] != 0):
+                elif auto_stop and _settled(y, g, Pb, FLb, LOb, n, l, VTHR[b],
+                                            FLb[F_END_WALL] != 0):
                     _stop_lane(y, acc, l, YF, b, S_PASSED, STATUS)
                     _finish_lane(b, n, NS, sample_dt, observe, OF, OI, RK, RV, WF, WI, OUT,
                                  WOUT, wall)

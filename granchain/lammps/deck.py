@@ -71,7 +71,7 @@ from string import Template
 
 import numpy as np
 
-from granchain.effects import SPECS, physics_terms
+from granchain.effects import SPECS, holds_contacts, physics_terms
 from granchain.errors import GranchainError
 from granchain.fileio import OutputKind, file_head, atomic_write_text, check_output_path
 from granchain.runplan import RunPlan
@@ -437,7 +437,12 @@ def render(scene: Scene, *, gaps=None, v_striker=None, radii=None, plugin: str |
         ledger_note += ", cumulative work of the " + " and of the ".join(w for _, w in fix_energies)
     ledger_note += " (energy 1e-15 J)"
 
-    if pl.auto:
+    if pl.auto and holds_contacts(terms):
+        halt = ("# t_end auto: a contact law here holds contacts closed beyond their touching "
+                "overlap,\n# which the deck cannot test: the run lasts to its cap, and the "
+                "engine cuts each chain's\n# record at the first sample at which every "
+                "contact's outcome is decided (granchain.stoprule).")
+    elif pl.auto:
         x_last = None
         if sp.wall is not None:
             lasts = {_r(x[-1]) for x in xs}

@@ -61,7 +61,10 @@ velocity. Spheres of different radii: ``Trajectory.radii``.
 
 With t_end auto the deck stops the batch when every chain has passed (fix halt) and each
 chain's record is cut where the reference engine would have stopped that chain (same
-rule, same per-chain cap), status ``passed`` (or ``timeout`` at the cap).
+rule, same per-chain cap), status ``passed`` (or ``timeout`` at the cap). A law that
+holds contacts closed (``effects.holds_contacts``) leaves the deck without a halt: the
+batch runs to its cap and each record is cut where every contact's outcome is decided
+(``stoprule.settled_sample``, from every contact's overlap in the dump).
 
 Modules: this one runs the engine (``run``, ``auto_stop``); ``dump`` reads a deck's
 output back (``read_binary``, ``read_dump``, ``read_ledger``), ``binary`` parses LAMMPS
@@ -78,13 +81,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ...effects import physics_terms, residual_work
+from ...effects import holds_contacts, physics_terms, residual_work
 from ...errors import GranchainError
 from ...guards import require_resolved, result_limits
 from ...lammps import deck as deckmod
 from ...scene import Scene
 from ...runplan import RunPlan, plan_run
-from ...stoprule import last_detached, wall_left
+from ...stoprule import last_detached, settled_sample, wall_left
 from ...trajectory import RunInfo, Trajectory
 from .dump import read_binary, read_dump
 from .ledger import chain_terms
@@ -215,7 +218,7 @@ def residual_balance(scene: Scene) -> bool:
 
 def _trajectories(scene, pl, data, wall_each, info):
     step, V, E, OL = data["step"], data["v"], data["energy"], data["last_overlap"]
-    WF, XL = data.get("wall_force"), data.get("last_disp")
+    WF, XL, OV = data.get("wall_force"), data.get("last_disp"), data.get("overlaps")
     eff = tuple(sorted(scene.effects))
     limits = result_limits(scene)
     terms = physics_terms(scene)
@@ -227,7 +230,9 @@ def _trajectories(scene, pl, data, wall_each, info):
         keep, status = step.size, "done"
         if scene.t_end is None:
             keep, status = auto_stop(int(pl.chain_samples[b]), vsb, v[:, -1], OL[:, b],
-                                     last_disp=None if XL is None else XL[:, b])
+                                     last_disp=None if XL is None else XL[:, b],
+                                     terms=members[b], v=v,
+                                     overlaps=None if OV is None else OV[:, b])
         bad = np.flatnonzero(~np.all(np.isfinite(v[:keep]), axis=1))
         if bad.size:
             keep, status = int(bad[0]) + 1, "nonfinite"
@@ -254,7 +259,7 @@ def _trajectories(scene, pl, data, wall_each, info):
 
 
 def auto_stop(cap: int, v_striker: float, vlast, overlap_last,
-              last_disp=None) -> tuple[int, str]:
+              last_disp=None, terms=None, v=None, overlaps=None) -> tuple[int, str]:
     """(samples kept, status) of a t_end auto chain, by the stop rule of
     ``granchain.stoprule`` as ``engines.kernels.run_window`` applies it; ``cap``: its
     sample count at most (its run plan's, ``DeckPlan.chain_samples``).
@@ -268,11 +273,20 @@ def auto_stop(cap: int, v_striker: float, vlast, overlap_last,
     and the wall force is back at or below its static value; ``kernels._left``). A chain
     that never does stops at its cap (``stoprule.auto_t_max``), with status timeout. A
     chain at rest keeps its initial sample only.
+
+    When a law of ``terms`` (the chain's physics) holds contacts closed
+    (``effects.holds_contacts``), the chain stops instead at the first sample at which
+    every contact's outcome is decided (``stoprule.settled_sample``), from its velocities
+    ``v`` (S, n) and its contacts' ``overlaps`` (S, n-1).
     """
     S = len(vlast)
     if v_striker <= 0:
         return 1, "done"
     nt = min(S, cap)
+    if terms is not None and holds_contacts(terms):
+        s = settled_sample(terms, v_striker, v[:nt], overlaps[:nt],
+                           None if last_disp is None else last_disp[:nt])
+        return (nt, "timeout") if s is None else (s + 1, "passed")
     if last_disp is not None:
         hit = np.flatnonzero(wall_left(vlast[1:nt], last_disp[1:nt], v_striker))
     else:

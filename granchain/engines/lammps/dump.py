@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...effects import holds_contacts, physics_terms
 from ...errors import GranchainError
 from ...lammps import deck as deckmod
 from ...scene import Scene
@@ -46,7 +47,8 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     if missing:
         raise GranchainError(f"LAMMPS dump {path}: the deck does not dump {', '.join(missing)}")
     job = {"path": str(path), "B": B, "n": n, "velocities": velocities,
-           "geometry": geometry(scene, pl)}
+           "geometry": geometry(scene, pl),
+           "overlaps": holds_contacts(physics_terms(scene))}  # every contact's (stop rule)
     readers = max(1, int(readers))
     if readers == 1:
         parts = [_read_part(job, 0, 1)]
@@ -75,8 +77,9 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     if ledger is not None:
         _fill_ledger(E, WF, pl, ledger, sampled)
     _fill_residual(scene, E)
+    OV = np.concatenate([p[9] for p in parts]) if job["overlaps"] else None
     return {"step": step, "v": V, "energy": E, "last_overlap": last_overlap, "wall_force": WF,
-            "last_disp": XL}
+            "last_disp": XL, "overlaps": OV}
 
 
 def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
@@ -98,6 +101,7 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
                              f"(output {pl.output!r}, columns {' '.join(pl.dump_columns)})")
     geo = geometry(scene, pl)
     walled = deckmod.WALL_FORCE_COLUMN in pl.ledger_columns
+    every = holds_contacts(physics_terms(scene))     # every contact's overlap (stop rule)
     out = {}
 
     def consume(lo, block, frames):
@@ -107,10 +111,14 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
         if not out:
             out.update(V=_zeros((B, frames, n)), E=_new_energies(frames, B),
                        OL=np.empty((frames, B)), WF=np.empty((frames, B)) if walled else None,
-                       XL=np.empty((frames, B)) if walled else None)
+                       XL=np.empty((frames, B)) if walled else None,
+                       OV=np.empty((frames, B, n - 1)) if every else None)
         hi = lo + len(block["x"])
         x = block["x"].reshape(-1, B, n)
-        EH, out["OL"][lo:hi], WL = _potential(x, geo)
+        EH, ov, WL = _potential(x, geo)
+        out["OL"][lo:hi] = ov[..., -1]
+        if every:
+            out["OV"][lo:hi] = ov
         if walled:
             out["XL"][lo:hi] = (x[..., -1] - geo.x_last0) * UM
         v = block["vx"].reshape(-1, B, n)
@@ -146,7 +154,7 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
                                  f"{path.name} has {S}")
     _fill_residual(scene, E)
     return {"step": step, "v": V, "energy": E, "last_overlap": OL, "wall_force": WF,
-            "last_disp": XL}
+            "last_disp": XL, "overlaps": out["OV"][:S] if every else None}
 
 
 def _chain_major(a, B: int, n: int):
@@ -224,7 +232,8 @@ def _read_part(job: dict, part: int, nparts: int):
     """Frames [part*S/nparts, (part+1)*S/nparts) of a dump: (S, step, V, E_potential,
     overlap of the last contact in m, kinetic energy, work of the dead load (None
     without), displacement of the last sphere in m (NaN without an end wall), the wall
-    force at the samples' state in N (None unless ``geometry.wall_law``)), per chain."""
+    force at the samples' state in N (None unless ``geometry.wall_law``), every contact's
+    overlap in m (None unless ``job["overlaps"]``)), per chain."""
     import MDAnalysis as mda
 
     path, B, n, geo = job["path"], job["B"], job["n"], job["geometry"]
@@ -247,6 +256,7 @@ def _read_part(job: dict, part: int, nparts: int):
             WL = np.zeros((hi - lo, B))
             XL = np.empty((hi - lo, B))
             WD = np.empty((hi - lo, B)) if geo.wall_law is not None else None
+            OV = np.empty((hi - lo, B, n - 1)) if job["overlaps"] else None
             for s, ts in enumerate(traj[lo:hi]):
                 data = ts.data
                 step[s] = data["step"]
@@ -256,7 +266,10 @@ def _read_part(job: dict, part: int, nparts: int):
                 V[s] = v
                 KE[s] = _kinetic(v, geo)
                 x = data["x"].reshape(B, n)
-                EH[s], OL[s], wl = _potential(x, geo)
+                EH[s], ov, wl = _potential(x, geo)
+                OL[s] = ov[..., -1]
+                if OV is not None:
+                    OV[s] = ov
                 XL[s] = (x[:, -1] - geo.x_last0) * UM
                 if WD is not None:
                     WD[s] = sampled_wall_force(x[:, -1], v[:, -1], geo)
@@ -267,4 +280,4 @@ def _read_part(job: dict, part: int, nparts: int):
     except (ValueError, IndexError, EOFError, OSError, KeyError, TypeError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise GranchainError(f"LAMMPS dump {path} is truncated or unreadable: {msg}") from None
-    return S, step, V, EH, OL, KE, WL if geo.load > 0 else None, XL, WD
+    return S, step, V, EH, OL, KE, WL if geo.load > 0 else None, XL, WD, OV

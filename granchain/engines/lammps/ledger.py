@@ -134,7 +134,7 @@ def sampled_wall_force(x_last, v_last, geo: Geometry) -> np.ndarray:
 def _potential(x, geo: Geometry):
     """From the positions x (..., B, n) in um: the Hertz energy per chain (J), the
     contacts' and the end wall's (the law of ``effects.hertz.energy``, each contact with
-    its own K), the overlap of each chain's last contact (m) and the work of the dead
+    its own K), the overlap of each contact (..., B, n-1; m) and the work of the dead
     load F0 (x_2 - x_2(0)) (J; None without load)."""
     overlap = (geo.rsum - (x[..., 1:] - x[..., :-1])) * UM
     d = np.maximum(overlap, 0.0)
@@ -143,7 +143,7 @@ def _potential(x, geo: Geometry):
         dw = np.maximum((x[..., -1] + geo.R_last - deckmod.field.WALL_X) * UM, 0.0)
         EH = EH + 0.4 * geo.K_wall * dw * dw * np.sqrt(dw)
     WL = geo.load * (x[..., 1] - geo.x2_0) * UM if geo.load > 0 else None
-    return EH, overlap[..., -1], WL
+    return EH, overlap, WL
 
 
 def _kinetic(v, geo: Geometry):
