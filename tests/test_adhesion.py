@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from granchain.effects import adhesion
+from granchain.effects import adhesion, adhesion_theory
 from granchain.engines import reference
 from granchain.errors import SceneError
 from granchain.gaps import member_gaps, members
@@ -257,8 +257,8 @@ def test_validate_prints_tabor_and_warns_outside_the_regime(tmp_path, capsys, mo
 
 
 def test_tabor_regime_edges():
-    assert adhesion.regime("jkr", 5.0) is None and adhesion.regime("jkr", 4.99)
-    assert adhesion.regime("dmt", 0.1) is None and adhesion.regime("dmt", 0.101)
+    assert adhesion_theory.regime("jkr", 5.0) is None and adhesion_theory.regime("jkr", 4.99)
+    assert adhesion_theory.regime("dmt", 0.1) is None and adhesion_theory.regime("dmt", 0.101)
 
 
 # ---------------------------------------------------------------------------------------

@@ -27,50 +27,25 @@ motion is below the work the law takes from it on the way to the opening
 (:func:`opening_work`), undecided otherwise; the run does not stop while one is
 undecided (``granchain.stoprule``).
 
-Tabor's parameter of a contact, mu = (R* w^2 / (E*^2 z0^3))^(1/3) with w = 2 gamma the work
-of adhesion and z0 = Z0 = 0.3 nm (the equilibrium separation of the surfaces'
-Lennard-Jones potential; Johnson & Greenwood 1997 take z0 of 0.3-0.4 nm), tells which law
-holds: on Johnson & Greenwood's adhesion map (J. Colloid Interface Sci. 192, 326-333) JKR
-for mu above about 5, DMT below about 0.1, neither between (Maugis-Dugdale's transition).
-``granchain validate`` prints each contact's mu and warns where the chosen model is outside
-its regime (:func:`validate_notes`, :func:`validate_warnings`).
+Tabor's parameter of each contact and the adhesion map, which ``granchain validate``
+prints and warns by (:func:`validate_notes`, :func:`validate_warnings`), are in
+``effects.adhesion_theory``, beside the pull-off laws.
 
-With ``groove: true`` the sphere also adheres to the two flats of the V-groove, which adds
-their pull-off to the groove's normal load (:func:`groove_load`): each flat pulls the sphere
-along its own normal with the pull-off force of a sphere on a flat (R* = R, E* of the
-sphere on a flat of its own material, as the groove's Mindlin spring assumes), F_po =
-3 pi gamma R (jkr; (3/2) pi w R) or 4 pi gamma R (dmt; 2 pi w R). Whatever the groove
-angle, that pull is balanced by the flat's own contact force, so each flat's normal load
-is m g / (2 s) + F_po and the two flats' m g / s + 2 F_po (s = sin(angle/2): only the
-weight's share depends on the angle). ``groove_friction`` takes it into its Coulomb limit,
-Fc = mu (m g / s + 2 F_po), on both engines (``fix groove/drag``'s ``load``).
-
-Both: the Coulomb caps of the tangential and rolling laws use LAMMPS's cohesive Fncrit =
-|F_ne + 2 F_po|, F_ne the law's force above (without the damping force). The damping of
+With ``groove: true`` each sphere also adheres to the groove's two flats, whose pull-off
+(a sphere on a flat of its own material) adds to the groove's normal load in
+``groove_friction``'s Coulomb limit on both engines (:func:`groove_load`). The damping of
 ``contact_damping`` adds to F; LAMMPS allows only ``viscoelastic`` (no ``limit_damping``)
 with a cohesive law, and so does the scene.
 
-A contact is touching, for every sub-law, exactly where LAMMPS's touch test says so
+A contact touches, for every sub-law, where LAMMPS's touch test says so
 (``granular_model.cpp``'s check_contact, ``GranSubModNormalJKR::touch``): while delta > 0,
 and for jkr also while a contact closed before is held closed in tension (-delta_po <
-delta <= 0). In each force call LAMMPS then computes, in this order, for a touching
-contact whatever the sign of delta (``GranularModel::calculate_forces``):
-
-- the contact radius a (``calculate_contact_radius``): jkr's root above (positive down to
-  the pull-off distance); dmt's Hertz radius sqrt(R* delta);
-- F_ne of a (``calculate_forces``) and F_po;
-- the damping force: ``viscoelastic``'s -eta_n0 m_eff a v_n (``gran_sub_mod_damping.cpp``),
-  with the normal law's a: for jkr the JKR radius, in compression and in tension alike
-  (it replaces the damping of Hertz's radius, and so its share of ``work_contact_damping``:
-  :func:`normal`, :func:`jkr_net`); F = F_ne + F_damp;
-- Fncrit = |F_ne + 2 F_po| (``set_fncrit``), the cap of the tangential law (mu Fncrit)
-  and of the rolling law (mu_roll Fncrit) (:func:`contact_crit`);
-- the tangential law (``gran_sub_mod_tangential.cpp``): its history kept and advanced
-  while the contact touches, erased only when it stops touching; ``mindlin``'s stiffness
-  8 G_eff a of the normal law's a, the JKR radius for jkr (:func:`contact_depth`); the
-  lever arms R - delta/2 (> R in tension);
-- the rolling law (``gran_sub_mod_rolling.cpp``, ``sds``): its history kept while
-  touching, the moment capped at mu_roll Fncrit, the lever arm R_eff.
+delta <= 0). On a touching contact, whatever the sign of delta, LAMMPS's
+``GranularModel::calculate_forces`` takes the normal law's contact radius a (jkr's root;
+dmt's sqrt(R* delta)) for F_ne, for ``viscoelastic``'s damping -eta_n0 m_eff a v_n
+(:func:`normal`, :func:`jkr_net`) and for ``mindlin``'s stiffness 8 G_eff a
+(:func:`contact_depth`); Fncrit = |F_ne + 2 F_po| caps the tangential and rolling laws
+(:func:`contact_crit`), whose histories are kept while the contact touches.
 
 So a jkr contact held closed in tension carries F_ne < 0, the damping of its JKR radius,
 and the friction and rolling laws, capped by |F_ne + 2 F_po| (:func:`contact_held` tells
@@ -95,6 +70,8 @@ from ..validate import Fit, Key, short
 from . import slots as S
 from .hertz import energy as hertz_energy, force as hertz_force
 from .lanes import bit, closing_speed, contact_overlap
+from .adhesion_theory import (contact_mus, jkr_work, pulloff_distance, pulloff_force,
+                              regime_warnings, tabor_note, well_depth)
 from .contact_damping import radius_damping
 from .spec import (BOND_CAPTURED, BOND_NONE, BOND_UNDECIDED, DeckPart, EffectSpec, compiled,
                    hermite_root)
@@ -136,17 +113,6 @@ _KEY = {k.name: k for k in KEYS}
 # the section of the engines' warm-up scene (every effect on; the kernels are the same
 # for both models)
 WARM_UP = {"model": "dmt", "surface_energy": 0.1}
-# JKR's pull-off distance over (R* gamma^2 / E*^2)^(1/3): (3 pi^2 / 16)^(1/3)
-PULLOFF_PREFIX = (3.0 * math.pi ** 2 / 16.0) ** (1.0 / 3.0)
-
-
-# the equilibrium separation of the surfaces' Lennard-Jones potential in Tabor's parameter
-# (Johnson & Greenwood 1997: 0.3-0.4 nm), and the regimes of their adhesion map: JKR holds
-# above JKR_TABOR, DMT below DMT_TABOR
-Z0 = 0.3e-9
-JKR_TABOR, DMT_TABOR = 5.0, 0.1
-
-
 @dataclass(frozen=True)
 class Settings:
     model: str | None
@@ -244,18 +210,6 @@ def jkr_force(Rs, E, g, d):
     """The JKR force (N, > 0 repulsive) at overlap d: :func:`jkr_force_at` of a =
     :func:`jkr_radius`."""
     return jkr_force_at(Rs, E, g, jkr_radius(Rs, E, g, d))
-
-
-@compiled
-def pulloff_distance(Rs, E, g):
-    """JKR's pull-off distance delta_po (m, > 0): a closed contact opens at delta < -delta_po."""
-    return PULLOFF_PREFIX * (Rs * g * g / (E * E)) ** (1.0 / 3.0)
-
-
-@compiled
-def pulloff_force(Rs, g, jkr):
-    """F_po (N): 3 pi gamma R* (jkr), 4 pi gamma R* (dmt)."""
-    return (3.0 if jkr else 4.0) * math.pi * g * Rs
 
 
 @compiled
@@ -557,14 +511,6 @@ def _switch_time(y, ynew, G, n, m, h, rtol, ox, ov, ot, jkr, g, l):
     return best if best < 1.0 else -1.0
 
 
-def jkr_work(Rs, E, g, a):
-    """The antiderivative V(a) (J) of the JKR force over the overlap along the law's
-    branch, as a function of the contact radius a: dV/da = F(a) d delta/da, V(a) = 8 E* a^5
-    / (15 R*^2) - (8/3) sqrt(pi g E*) a^(7/2) / R* + 2 pi g a^2."""
-    return (8.0 * E * a ** 5 / (15.0 * Rs * Rs)
-            - 8.0 / 3.0 * math.sqrt(math.pi * g * E) * a ** 3.5 / Rs + 2.0 * math.pi * g * a * a)
-
-
 @compiled
 def opening_work(K, Rs, E, g, jkr, d):
     """Phi (J): the work the law's force does on the relative motion of a contact held
@@ -592,21 +538,6 @@ def separation(ad, chain, k: int, d: float) -> tuple[float, float]:
     return d_open, opening_work(chain.K[k], Rs, E, ad.gamma, jkr, d)
 
 
-def well_depth(model: str, K: float, Rs: float, E: float, g: float) -> float:
-    """The energy (J, > 0) a contact of Hertz constant K, R*, E* releases into the motion
-    of its spheres from first touch (delta = 0, the force's jump onto the law) down to the
-    bottom of its well, where the force vanishes: -int_0^{delta_eq} F d delta.
-    dmt: delta_eq = (F_po / K)^(2/3), depth (3/5) F_po delta_eq. jkr: along the law's
-    branch from a_0 = (4 pi gamma R*^2 / E*)^(1/3) (delta = 0) to a_eq = (9 pi gamma R*^2
-    / E*)^(1/3) (F = 0), V(a_0) - V(a_eq) with V :func:`jkr_work`."""
-    if model == "dmt":
-        F_po = pulloff_force(Rs, g, False)
-        return 0.6 * F_po * (F_po / K) ** (2.0 / 3.0)
-    a0 = (4.0 * math.pi * g * Rs * Rs / E) ** (1.0 / 3.0)
-    a_eq = (9.0 * math.pi * g * Rs * Rs / E) ** (1.0 / 3.0)
-    return jkr_work(Rs, E, g, a0) - jkr_work(Rs, E, g, a_eq)
-
-
 def touch_energy(ad, chain) -> float:
     """The most energy (J) the adhesive contacts can give the spheres' motion: each
     contact's :func:`well_depth` (a contact gives it once on touching and takes at least
@@ -619,88 +550,33 @@ def touch_energy(ad, chain) -> float:
 
 # ---------------------------------------------------------------------------------------
 # Tabor's parameter and the groove's pull-off
-def tabor(Rs: float, E: float, gamma: float, z0: float = Z0) -> float:
-    """Tabor's parameter mu = (R* w^2 / (E*^2 z0^3))^(1/3) of a contact of R* (m), E* (Pa)
-    and surface energy gamma (J/m^2; w = 2 gamma the work of adhesion), z0 (m)."""
-    w = 2.0 * gamma
-    return (Rs * w * w / (E * E * z0 ** 3)) ** (1.0 / 3.0)
-
-
-def regime(model: str, mu: float) -> str | None:
-    """Why ``model`` is outside its regime at Tabor's parameter mu, and what to do; None
-    inside it (Johnson & Greenwood 1997's map: JKR above JKR_TABOR, DMT below
-    DMT_TABOR, Maugis-Dugdale's transition between)."""
-    if (model == "jkr" and mu >= JKR_TABOR) or (model == "dmt" and mu <= DMT_TABOR):
-        return None
-    if mu < DMT_TABOR:
-        return f"below {DMT_TABOR:g} DMT holds: use model dmt"
-    if mu > JKR_TABOR:
-        return f"above {JKR_TABOR:g} JKR holds: use model jkr"
-    return (f"between {DMT_TABOR:g} and {JKR_TABOR:g} neither JKR nor DMT holds "
-            "(Maugis-Dugdale's transition): read the results as the model's limit")
-
-
 def contacts(scene) -> list[tuple[str, float]]:
-    """(name, Tabor's mu) of a scene's adhesive contacts, alike ones merged: the
-    sphere-sphere contacts (``contacts 1-14``), the end wall, and with ``groove: true``
-    the groove's flats (each sphere on a flat of its own material)."""
+    """(name, Tabor's mu) of a scene's adhesive contacts, alike ones merged
+    (:func:`~granchain.effects.adhesion_theory.contact_mus`)."""
     from .chain import build as chain_build
     st = scene.setting(SPEC.name)
     chain = chain_build(scene)
-    r = rows(Adhesion(st.model, st.surface_energy, st.groove), chain)
-    n = scene.n
-    out: list[tuple[str, float]] = []
-    mus = [tabor(r["G_ADHESION_RSTAR"][k], r["G_ADHESION_EMIX"][k], st.surface_energy)
-           for k in range(n - 1)]
-    out += _runs("contact", mus)
-    if chain.wall is not None:
-        out.append(("end wall", tabor(r["G_ADHESION_RSTAR"][-1], r["G_ADHESION_EMIX"][-1],
-                                      st.surface_energy)))
-    if st.groove:
-        flats = [tabor(R, effective_modulus(m, m), st.surface_energy)
-                 for R, m in zip(chain.radii, chain.materials)]
-        out += [(f"groove flats of {name.replace('contact', 'sphere')}", mu)
-                for name, mu in _runs("contact", flats)]
-    return out
-
-
-def _runs(what: str, values) -> list[tuple[str, float]]:
-    """Consecutive equal values merged: ('contacts 1-14', mu), ('contact 15', mu)."""
-    out, start = [], 0
-    for k in range(1, len(values) + 1):
-        if k == len(values) or values[k] != values[start]:
-            span = f"{what} {start + 1}" if k - start == 1 else f"{what}s {start + 1}-{k}"
-            out.append((span, values[start]))
-            start = k
-    return out
+    return contact_mus(rows(Adhesion(st.model, st.surface_energy, st.groove), chain), chain,
+                       st.surface_energy, st.groove)
 
 
 def validate_notes(scene) -> list[str]:
     """``granchain validate``'s lines: each adhesive contact's Tabor parameter."""
     st = scene.setting(SPEC.name)
-    parts = "; ".join(f"{name} {mu:.3g}" for name, mu in contacts(scene))
-    return [f"adhesion ({st.model}, gamma = {st.surface_energy:g} J/m^2): Tabor's parameter "
-            f"mu = (R* (2 gamma)^2 / (E*^2 z0^3))^(1/3), z0 = {Z0 * 1e9:g} nm: {parts}"]
+    return [tabor_note(st.model, st.surface_energy, contacts(scene))]
 
 
 def validate_warnings(scene) -> list[str]:
     """``granchain validate``'s warnings: contacts where the chosen model is outside its
-    regime on Johnson & Greenwood (1997)'s adhesion map."""
-    st = scene.setting(SPEC.name)
-    out = []
-    for name, mu in contacts(scene):
-        why = regime(st.model, mu)
-        if why:
-            out.append(f"adhesion.model {st.model} at {name}: Tabor's parameter mu = {mu:.3g} "
-                       f"is outside the model's regime on Johnson & Greenwood (1997)'s "
-                       f"adhesion map; {why}")
-    return out
+    regime on the adhesion map (:func:`~granchain.effects.adhesion_theory.regime`)."""
+    return regime_warnings(scene.setting(SPEC.name).model, contacts(scene))
 
 
 def groove_load(scene, radius: float) -> float:
     """The groove's extra normal load (N) on a sphere of ``radius`` (m): the pull-off of
     its two sphere-flat contacts with the groove, 2 x (3 pi gamma R (jkr) or 4 pi gamma R
-    (dmt)) with ``adhesion.groove``, 0 without it or with the effect off (module doc)."""
+    (dmt)) with ``adhesion.groove``, 0 without it or with the effect off: each flat's pull
+    is balanced by its own contact force whatever the groove's angle."""
     if not scene.has(SPEC.name):
         return 0.0
     st = scene.setting(SPEC.name)
