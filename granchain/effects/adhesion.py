@@ -68,10 +68,10 @@ from ..materials import effective_modulus
 from ..units import lmp_float as _r, to_micro
 from ..validate import Fit, Key, short
 from . import slots as S
-from .hertz import energy as hertz_energy, force as hertz_force
-from .lanes import bit, closing_speed, contact_overlap
 from .adhesion_theory import (contact_mus, jkr_work, pulloff_distance, pulloff_force,
                               regime_warnings, tabor_note, well_depth)
+from .hertz import energy as hertz_energy, force as hertz_force
+from .lanes import bit, closing_speed, contact_overlap
 from .contact_damping import radius_damping
 from .spec import (BOND_CAPTURED, BOND_NONE, BOND_UNDECIDED, DeckPart, EffectSpec, compiled,
                    hermite_root)
@@ -113,6 +113,8 @@ _KEY = {k.name: k for k in KEYS}
 # the section of the engines' warm-up scene (every effect on; the kernels are the same
 # for both models)
 WARM_UP = {"model": "dmt", "surface_energy": 0.1}
+
+
 @dataclass(frozen=True)
 class Settings:
     model: str | None
