@@ -174,19 +174,18 @@ def test_scene_keys():
 
 # ---------------------------------------------------------------------------------------
 # against LAMMPS
+# every effect of Eq. 5.1 with contact damping and adhesion
+EVERY_WITH_ADHESION = ("hertz", "rotation", "groove_friction", "air_drag", "particle_friction",
+                       "rolling_friction", "contact_damping", "adhesion")
 CHAINS = {
     # dmt with every effect LAMMPS allows beside it: the caps' Fncrit, viscoelastic damping
-    "dmt-all": {"effects": ["hertz", "rotation", "groove_friction", "air_drag",
-                            "particle_friction", "rolling_friction", "contact_damping",
-                            "adhesion"],
+    "dmt-all": {"effects": list(EVERY_WITH_ADHESION),
                 "adhesion": {"model": "dmt", "surface_energy": 0.5},
                 "damping": {"model": "viscoelastic", "eta": 1.0e8},
                 "rolling": {"k_roll": 1.0e3}, "striker": {"velocity": 0.05}},
     # jkr with every effect of Eq. 5.1: contacts held closed in tension carry the damping
     # of the JKR radius and the friction and rolling laws capped by |F_ne + 2 F_po|
-    "jkr-all": {"effects": ["hertz", "rotation", "groove_friction", "air_drag",
-                            "particle_friction", "rolling_friction", "contact_damping",
-                            "adhesion"],
+    "jkr-all": {"effects": list(EVERY_WITH_ADHESION),
                 "adhesion": {"model": "jkr", "surface_energy": 1.0},
                 "damping": {"model": "viscoelastic", "eta": 1.0e8},
                 "rolling": {"k_roll": 1.0e3}, "striker": {"velocity": 0.02}},
