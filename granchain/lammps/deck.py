@@ -82,7 +82,7 @@ from granchain.lammps.deckplan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, D
                                    LEDGER_INPUTS, LEDGER_NAME, LOG_NAME, OUTPUTS, SCREEN_NAME,
                                    WALL_FORCE_COLUMN, WORKDIR_FILES,
                                    WORK_COLUMNS, POTENTIAL_EXTRA_COLUMN, WALL_EXTRA_COLUMN,
-                                   DeckPlan, ledger_inputs,
+                                   DeckPlan, cadence_groups, ledger_inputs,
                                    ledger_binary_columns, max_travel, plan)
 from granchain.lammps import field
 from granchain.lammps.parts import Parts
@@ -90,7 +90,7 @@ from granchain.units import MICRO_EXPONENT, lmp_float as _r, to_micro
 from granchain.stoprule import ARRIVAL_FRACTION, arrival_speed
 
 __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "write_deck",
-           "plan", "DeckPlan", "DECK_NAME", "DATA_NAME", "DUMP_NAME", "ENERGY_NAME",
+           "plan", "DeckPlan", "cadence_groups", "DECK_NAME", "DATA_NAME", "DUMP_NAME", "ENERGY_NAME",
            "LEDGER_NAME", "DUMP_COLUMNS", "WORK_COLUMNS", "LEDGER_INPUTS", "OUTPUTS",
            "BINARY_NAME", "LEDGER_BINARY_NAME", "BINARY_COLUMNS", "max_travel",
            "ledger_binary_columns", "WALL_FORCE_COLUMN", "field", "LOG_NAME", "SCREEN_NAME",

@@ -96,6 +96,9 @@ from .binary import read_binary_dump  # noqa: F401
 from .dump import read_ledger  # noqa: F401
 
 METHOD = "lammps-verlet"
+# a kept workdir of a batch of several sample cadences: one directory per deck, named by
+# its steps between samples (``cadence-20``)
+CADENCE_DIR = "cadence-"
 # output path -> (trajectory file, reader)
 READERS = {"binary": ("traj.bin", "read_binary"), "dump": ("traj.dump", "read_dump")}
 
@@ -147,9 +150,7 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
     if B == 0:
         return
     tmp = workdir is None
-    if tmp:
-        wd = Path(tempfile.mkdtemp(prefix="granchain-lammps-"))
-    else:
+    if not tmp:
         wd = Path(workdir)
         if wd.exists() and not wd.is_dir():
             raise GranchainError(f"LAMMPS workdir '{wd}' is not a directory")
@@ -162,10 +163,34 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         except OSError as exc:
             raise GranchainError(f"LAMMPS workdir '{wd}' cannot be created "
                                  f"({exc.strerror or exc}); choose another directory") from None
+    plan = plan_run(scene) if plan is None else plan
+    groups = deckmod.cadence_groups(scene, vs, plan)
+    if len(groups) > 1:
+        # one deck per sample cadence, each chain on its own grid as the reference engine
+        # samples it; a kept workdir holds each deck in a directory of its own
+        if not tmp:
+            # an earlier single deck's files (check_workdir recognised them) would be
+            # mistaken for this run's
+            for stale in deckmod.WORKDIR_FILES:
+                (wd / stale).unlink(missing_ok=True)
+        r = None if radii is None else np.asarray(radii, dtype=float)
+        out: list = [None] * B
+        for every, idx in groups:
+            sub = None if tmp else wd / f"{CADENCE_DIR}{every}"
+            part = run(scene, gaps[idx], vs[idx], workdir=sub, nprocs=nprocs, keep=keep,
+                       force=force, progress=progress, timeout=timeout,
+                       velocities=velocities, readers=readers, output=output,
+                       radii=None if r is None else (r[idx] if r.ndim == 2 else r),
+                       plan=plan)
+            for i, traj in zip(idx, part):
+                out[int(i)] = traj
+        yield from out
+        return
+    if tmp:
+        wd = Path(tempfile.mkdtemp(prefix="granchain-lammps-"))
     try:
         from ...lammps.runner import lammps_version, run_lammps
         t0 = time.perf_counter()
-        plan = plan_run(scene) if plan is None else plan
         pl = deckmod.plan(scene, gaps=gaps, v_striker=vs, radii=radii, output=output,
                           run_plan=plan)
         deck = deckmod.write_deck(scene, wd, gaps=gaps, v_striker=vs, radii=pl.radii, force=True,
