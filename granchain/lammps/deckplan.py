@@ -131,6 +131,12 @@ def _check_radii(scene: Scene, radii, B: int):
     return np.array(r)
 
 
+def cadence_dir(every: int) -> str:
+    """The directory of one deck of a batch of several sample cadences (the engine's kept
+    workdir, ``granchain deck``), named by its steps between samples: ``cadence-20``."""
+    return f"cadence-{int(every)}"
+
+
 def cadence_groups(scene: Scene, v_striker,
                    run_plan: RunPlan | None = None) -> list[tuple[int, np.ndarray]]:
     """The chains of a batch (striker speeds ``v_striker``, (B,) m/s) grouped by sample
