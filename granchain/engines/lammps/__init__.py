@@ -1,10 +1,15 @@
-"""The LAMMPS engine: a batch of chains -> one LAMMPS run -> one Trajectory per chain.
+"""The LAMMPS engine: a batch of chains -> one LAMMPS run per sample cadence -> one
+Trajectory per chain.
 
 ``run(scene, gaps, v_striker)`` writes one deck holding every chain side by side
 (``granchain.lammps.deck.write_deck``), runs it once through
 ``granchain.lammps.runner.run_lammps`` (``nprocs`` MPI ranks), reads its output back and
 yields a :class:`~granchain.trajectory.Trajectory` per chain, in order, like
-``granchain.engines.reference.run``. LAMMPS always integrates with velocity Verlet
+``granchain.engines.reference.run``. A deck samples all its chains on one grid, so a
+batch whose chains the reference engine samples on different grids (striker speeds at
+auto sampling, ``deckplan.cadence_groups``) runs one deck per grid, one after the other:
+each chain is then sampled, and its record cut, on its own grid, as the reference engine
+does (a bound pair that oscillates to the end has the same last sample). LAMMPS always integrates with velocity Verlet
 (``fix nve`` / ``nve/sphere``) at the scene's dt; ``info.method = "lammps-verlet"``.
 
 Two output paths, the same Trajectory objects (tested bit for bit on v):
@@ -96,9 +101,6 @@ from .binary import read_binary_dump  # noqa: F401
 from .dump import read_ledger  # noqa: F401
 
 METHOD = "lammps-verlet"
-# a kept workdir of a batch of several sample cadences: one directory per deck, named by
-# its steps between samples (``cadence-20``)
-CADENCE_DIR = "cadence-"
 # output path -> (trajectory file, reader)
 READERS = {"binary": ("traj.bin", "read_binary"), "dump": ("traj.dump", "read_dump")}
 
@@ -123,8 +125,10 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
     workdir: directory for deck, dump and log; default a temporary directory, removed
     afterwards unless ``keep`` (and kept when the run fails, for the error message names
     its deck or dump). A given directory is kept; it must be empty or absent unless
-    ``force``. ``dt`` overrides the scene's time step. ``nprocs``: MPI ranks of the
-    one LAMMPS run. ``velocities``, ``readers``: see
+    ``force``. A batch of several sample cadences runs a deck per cadence, each in a
+    directory of its own (in a given workdir: ``cadence-<every>``,
+    ``deckplan.cadence_dir``). ``dt`` overrides the scene's time step. ``nprocs``: MPI ranks of
+    each LAMMPS run. ``velocities``, ``readers``: see
     :func:`~granchain.engines.lammps.dump.read_dump` (output "dump"
     only). The scene's
     method must not be auto (``simulate`` and ``compare`` resolve it). ``plan``: the
@@ -176,7 +180,7 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         r = None if radii is None else np.asarray(radii, dtype=float)
         out: list = [None] * B
         for every, idx in groups:
-            sub = None if tmp else wd / f"{CADENCE_DIR}{every}"
+            sub = None if tmp else wd / deckmod.cadence_dir(every)
             part = run(scene, gaps[idx], vs[idx], workdir=sub, nprocs=nprocs, keep=keep,
                        force=force, progress=progress, timeout=timeout,
                        velocities=velocities, readers=readers, output=output,
