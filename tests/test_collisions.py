@@ -259,16 +259,55 @@ def test_jkr_pair_on_lammps(tmp_path):
 def test_jkr_pair_with_t_end_auto_on_lammps(tmp_path):
     """LAMMPS with t_end auto: the deck runs to its cap and the engine cuts each record
     where the collision is decided, as the reference engine's stop rule: the same
-    outcomes, the independent e, the reference's e to 1e-8 (measured 3e-10)."""
+    outcomes, the independent e, the reference's e to 1e-8 (measured 3e-10). Each speed
+    is sampled on its own grid (a deck per cadence), so each record ends on the
+    reference's sample, and the captured pairs, which oscillate to the end, have its
+    final velocities to 2e-9 v_s (measured 1.4e-10; sampled on the finest speed's grid
+    they were 3.1e-2 v_s off)."""
     vc = _jkr_vc()
     sc = _auto_jkr_scene()
     lmp = run_scene(sc, engine="lammps", workdir=tmp_path)
     _check_jkr(lmp, vc)
     assert all(r.status == "passed" for r in lmp)
     for a, b in zip(lmp, run_scene(sc)):
-        assert a.collision == b.collision
+        assert a.collision == b.collision and a.samples == b.samples
+        assert np.max(np.abs(np.subtract(a.v_final, b.v_final))) < 2e-9 * b.v_striker
         if a.collision == "separated":
             assert abs(a.restitution - b.restitution) < 1e-8
+
+
+# a JKR chain whose striker speeds (2, 5 and 20 mm/s) are sampled on three grids (auto
+# sampling on Verlet's 1 ns step: every 20, 16 and 12 steps); at 2 and 5 mm/s spheres 1
+# and 2 stay bound and oscillate to the end of the run
+MIXED_CADENCE = {"name": "mixed-cadence", "chain": {"n": 3}, "probes": [2, 3],
+                 "material": "ss440c", "effects": ["hertz", "adhesion"],
+                 "adhesion": {"model": "jkr", "surface_energy": GAMMA},
+                 "striker": {"velocity": [0.002, 0.005, 0.02]}, "t_end": "auto",
+                 "integrator": {"method": "verlet", "dt": 1e-9}}
+
+
+@pytest.mark.lammps
+def test_a_batch_of_several_sample_cadences_agrees_between_the_engines(tmp_path):
+    """LAMMPS runs a deck per sample cadence, so each chain is sampled on its own grid and
+    its record cut at the reference engine's sample: the same sample count, status and
+    final peaks per speed, the bound spheres' final velocities and every v_max to 2e-9
+    v_s (measured 4.9e-10 v_f, 3.7e-10 v_max; one deck sampling every chain on the finest
+    grid cut the 2 mm/s record at another phase of its oscillation: v_final 5.8e-3 v_s
+    off, v_max 1.7e-6 v_s)."""
+    sc = scene_from_dict(MIXED_CADENCE)
+    lmp = run_scene(sc, engine="lammps", workdir=tmp_path)
+    ref = run_scene(sc)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cadence-12", "cadence-16",
+                                                          "cadence-20"]
+    for a, b in zip(lmp, ref):
+        v = b.v_striker
+        assert a.v_striker == v
+        assert (a.samples, a.status, a.final, a.not_final) == \
+            (b.samples, b.status, b.final, b.not_final), v
+        assert a.status == "passed" and all(b.final), v
+        assert a.t_end == pytest.approx(b.t_end, rel=1e-12, abs=0.0)
+        assert np.max(np.abs(np.subtract(a.v_final, b.v_final))) < 2e-9 * v, v
+        assert np.max(np.abs(np.subtract(a.v_max, b.v_max))) < 2e-9 * v, v
 
 
 @pytest.mark.lammps

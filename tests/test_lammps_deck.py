@@ -111,6 +111,32 @@ def test_cli_deck(tmp_path, capsys, repo):
     assert "traj.bin x vx" in (out / "deck.lmp").read_text()
 
 
+def test_cli_deck_writes_a_deck_per_sample_cadence(tmp_path, capsys, repo):
+    """Two striker speeds at auto sampling are sampled on two grids: granchain deck writes
+    the two decks the engine runs, each sampling its chains on its own grid (the steps of
+    ``runplan.step_grid`` of its speed's interval) and holding only its speed's chains."""
+    from granchain.runplan import plan_run, step_grid
+    from granchain.scene import load_scene
+    path = repo / "granchain/scenes/packed-440c.yaml"
+    sets = ["striker.velocity=[0.02, 0.1]", "effects=[hertz]", "groove=null", "drag=null",
+            "contact=null"]
+    out = tmp_path / "d"
+    assert cli_main(["deck", str(path), "-o", str(out),
+                     *[a for kv in sets for a in ("--set", kv)]]) == 0
+    printed = capsys.readouterr().out.split()
+    sc = load_scene(path, sets)
+    plan = plan_run(sc)
+    every = [step_grid(plan.at(v).sample_dt, sc.dt)[0] for v in (0.02, 0.1)]
+    assert every[0] != every[1]
+    assert printed == [str(out / f"cadence-{e}" / "deck.lmp") for e in every]
+    assert not (out / "deck.lmp").exists()
+    for e, v in zip(every, (0.02, 0.1)):
+        d = out / f"cadence-{e}"
+        assert f"dump            d all custom {e} traj.dump" in (d / "deck.lmp").read_text()
+        vel = (d / DATA_NAME).read_text().split("Velocities\n\n", 1)[1].splitlines()
+        assert len(vel) == sc.n and float(vel[0].split()[1]) == to_micro(v, "velocity")
+
+
 def test_only_enabled_effects_appear(tmp_path):
     h = write_deck(hertz_scene(), tmp_path / "h").read_text()
     assert "groove/drag" not in h and "plugin load" not in h and not re.search(r"^variable", h, re.M)

@@ -264,12 +264,12 @@ def cmd_compare(args) -> int:
 
 
 def cmd_deck(args) -> int:
-    from ..lammps.deck import DATA_NAME, DECK_NAME, write_deck
+    from ..lammps.deck import DATA_NAME, DECK_NAME, write_decks
     check_paths(args, [("-o/--output", Path(args.output) / name)
                        for name in (DECK_NAME, DATA_NAME)])
     scene = load(args)
-    path = write_deck(scene, Path(args.output), force=args.force, output=args.write)
-    print(path)
+    for path in write_decks(scene, Path(args.output), force=args.force, output=args.write):
+        print(path)
     return 0
 
 

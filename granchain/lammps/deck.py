@@ -36,7 +36,9 @@ Choices (also stated in the deck's comments):
   ``granchain.stoprule``): the reference engine's stop rule, applied to the whole batch. ``granchain.engines.lammps`` then cuts each chain's
   record where the reference engine would have stopped that chain.
 * Cadence: every = round(sample_interval / dt) (``runplan.step_grid``, as the reference
-  engine), from the member with the finest sampling (``SpeedPlan.sample_dt``).
+  engine), from the member with the finest sampling (``SpeedPlan.sample_dt``). The
+  LAMMPS engine and ``granchain deck`` (:func:`write_decks`) give a deck the members of
+  one cadence (``cadence_groups``), so each is sampled on its own grid.
 * Per-sample output, by the deck option ``output`` (:data:`OUTPUTS`, default ``"dump"``):
   ``"dump"`` the text trajectory dump (``traj.dump``, every sample, sorted by id,
   ``%.17g``: ``id x y z vx`` only, :data:`DUMP_COLUMNS`; the engine's ``output="dump"``
@@ -74,7 +76,7 @@ import numpy as np
 from granchain.effects import SPECS, holds_contacts, physics_terms
 from granchain.errors import GranchainError
 from granchain.fileio import OutputKind, file_head, atomic_write_text, check_output_path
-from granchain.runplan import RunPlan
+from granchain.runplan import RunPlan, plan_run
 from granchain.scene import Scene
 from granchain.scenekeys import NAME_RE, NAME_RULE
 from granchain.lammps.deckplan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, DECK_NAME,
@@ -82,7 +84,8 @@ from granchain.lammps.deckplan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, D
                                    LEDGER_INPUTS, LEDGER_NAME, LOG_NAME, OUTPUTS, SCREEN_NAME,
                                    WALL_FORCE_COLUMN, WORKDIR_FILES,
                                    WORK_COLUMNS, POTENTIAL_EXTRA_COLUMN, WALL_EXTRA_COLUMN,
-                                   DeckPlan, ledger_inputs,
+                                   DeckPlan, batch_members, cadence_dir, cadence_groups,
+                                   ledger_inputs,
                                    ledger_binary_columns, max_travel, plan)
 from granchain.lammps import field
 from granchain.lammps.parts import Parts
@@ -90,7 +93,7 @@ from granchain.units import MICRO_EXPONENT, lmp_float as _r, to_micro
 from granchain.stoprule import ARRIVAL_FRACTION, arrival_speed
 
 __all__ = ["MICRO_EXPONENT", "to_micro", "template_path", "chain_positions", "write_deck",
-           "plan", "DeckPlan", "DECK_NAME", "DATA_NAME", "DUMP_NAME", "ENERGY_NAME",
+           "write_decks", "plan", "DeckPlan", "cadence_dir", "cadence_groups", "DECK_NAME", "DATA_NAME", "DUMP_NAME", "ENERGY_NAME",
            "LEDGER_NAME", "DUMP_COLUMNS", "WORK_COLUMNS", "LEDGER_INPUTS", "OUTPUTS",
            "BINARY_NAME", "LEDGER_BINARY_NAME", "BINARY_COLUMNS", "max_travel",
            "ledger_binary_columns", "WALL_FORCE_COLUMN", "field", "LOG_NAME", "SCREEN_NAME",
@@ -580,3 +583,38 @@ def write_deck(scene: Scene, outdir: Path, *, gaps=None, v_striker=None, radii=N
         else:
             t.write_text(text)
     return targets[0]
+
+
+def write_decks(scene: Scene, outdir: Path, *, force: bool = False, plugin: str | None = None,
+                output: str = "dump", run_plan: RunPlan | None = None) -> list[Path]:
+    """Write the decks the LAMMPS engine runs for every member of ``scene``, one per
+    sample cadence (:func:`cadence_groups`; each chain sampled on its own grid, as the
+    reference engine samples it): ``outdir/deck.lmp`` when the members share one,
+    else ``outdir/cadence-<every>/deck.lmp`` (:func:`cadence_dir`), one per cadence, in
+    order of their first member. Returns the paths of deck.lmp; every file is checked
+    before any is written (:func:`write_deck`'s rules)."""
+    outdir = Path(outdir)
+    run_plan = plan_run(scene) if run_plan is None else run_plan
+    gaps, vs, radii = batch_members(scene, None, None)
+    groups = cadence_groups(scene, vs, run_plan)
+    if len(groups) <= 1:
+        return [write_deck(scene, outdir, force=force, plugin=plugin, output=output,
+                           run_plan=run_plan)]
+    if outdir.exists() and not outdir.is_dir():
+        raise GranchainError(f"deck: {str(outdir)!r} is a file, not a directory; give a "
+                             "directory for the decks (it is created if missing)")
+    dirs = [outdir / cadence_dir(every) for every, _ in groups]
+    for d in dirs:
+        if d.exists() and not d.is_dir():
+            raise GranchainError(f"deck: {str(d)!r} is a file, not a directory; remove it or "
+                                 "choose another directory for the decks")
+        if d.is_dir():
+            for t in (d / DECK_NAME, d / DATA_NAME):
+                check_output_path(t, force, "deck", probe=False, kind=DECK_FILES, inside=True)
+    if plugin is None and needs_plugin(scene):
+        from granchain.lammps.plugin import build_plugin
+        plugin = str(build_plugin())
+    return [write_deck(scene, d, gaps=gaps[idx], v_striker=vs[idx],
+                       radii=None if radii is None else radii[idx], force=force,
+                       plugin=plugin, output=output, run_plan=run_plan)
+            for (_, idx), d in zip(groups, dirs)]

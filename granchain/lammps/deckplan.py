@@ -131,6 +131,27 @@ def _check_radii(scene: Scene, radii, B: int):
     return np.array(r)
 
 
+def cadence_dir(every: int) -> str:
+    """The directory of one deck of a batch of several sample cadences (the engine's kept
+    workdir, ``granchain deck``), named by its steps between samples: ``cadence-20``."""
+    return f"cadence-{int(every)}"
+
+
+def cadence_groups(scene: Scene, v_striker,
+                   run_plan: RunPlan | None = None) -> list[tuple[int, np.ndarray]]:
+    """The chains of a batch (striker speeds ``v_striker``, (B,) m/s) grouped by sample
+    cadence: (steps between samples, the indices of its chains) for each grid on which
+    the reference engine samples some of them (each chain's own ``SpeedPlan.sample_dt``
+    on the scene's step, ``runplan.step_grid``), in order of their first chain. A deck
+    samples all its chains on one grid, so the LAMMPS engine runs each group as a deck
+    of its own."""
+    run_plan = plan_run(scene) if run_plan is None else run_plan
+    vs = np.atleast_1d(np.asarray(v_striker, dtype=float)).tolist()
+    every = {v: step_grid(run_plan.speed(v).sample_dt, scene.dt)[0] for v in set(vs)}
+    keys = np.array([every[v] for v in vs], dtype=np.int64)
+    return [(int(k), np.flatnonzero(keys == k)) for k in dict.fromkeys(keys.tolist())]
+
+
 def max_travel(scene: Scene, v_max: float, t: float) -> float:
     """A bound (m) on how far any sphere of a chain can move in a run of length t (s)
     whose fastest striker starts at v_max (m/s): v_max t, unless an effect can speed

@@ -78,11 +78,10 @@ def run_members(scene, engine: str, realisations=None, threads: int | None = Non
                 ) -> list[ChainResult]:
     """``run_scene`` of a scene's members (``realisations``: all if None) on ``engine``.
 
-    A LAMMPS run samples all its chains on the grid of its fastest one, the reference
-    engine each chain on its own; so LAMMPS runs each striker speed of the scene apart
-    (one run per speed, its realisations side by side) and every chain is sampled on its
-    own grid by either engine. Results come in ``run_scene``'s order (speed, then
-    realisation)."""
+    LAMMPS runs each striker speed of the scene apart (one run per speed, its
+    realisations side by side), each freeing its sample records before the next (the
+    engine samples every chain on its own grid, as the reference engine, in any case).
+    Results come in ``run_scene``'s order (speed, then realisation)."""
     opts = engine_options(engine, threads)
     local_mpi(opts.get("nprocs", 1))
     if engine != "lammps" or len(scene.striker_velocities) == 1:

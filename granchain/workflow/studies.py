@@ -250,9 +250,8 @@ def study_scenes(preset: dict, study: str) -> list[StudyScene]:
                 if study != "lammps_check":
                     add(material, v, gaps, reals, g, math.nan, f"gap{_fmt_num(g)}nm", engines)
                     continue
-                # One scene per striker speed: a LAMMPS run samples all its chains on the
-                # grid of its fastest one, so one speed per run keeps both engines on the
-                # same grid (each chain's own) whatever the batching.
+                # One scene per striker speed, each a run of its own on either engine
+                # (both sample each chain on its own grid whatever the batching).
                 for vi in v:
                     add(material, [vi], gaps, reals, g, math.nan,
                         f"gap{_fmt_num(g)}nm-v{_fmt_num(vi)}", engines)

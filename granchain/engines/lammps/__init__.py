@@ -1,10 +1,15 @@
-"""The LAMMPS engine: a batch of chains -> one LAMMPS run -> one Trajectory per chain.
+"""The LAMMPS engine: a batch of chains -> one LAMMPS run per sample cadence -> one
+Trajectory per chain.
 
 ``run(scene, gaps, v_striker)`` writes one deck holding every chain side by side
 (``granchain.lammps.deck.write_deck``), runs it once through
 ``granchain.lammps.runner.run_lammps`` (``nprocs`` MPI ranks), reads its output back and
 yields a :class:`~granchain.trajectory.Trajectory` per chain, in order, like
-``granchain.engines.reference.run``. LAMMPS always integrates with velocity Verlet
+``granchain.engines.reference.run``. A deck samples all its chains on one grid, so a
+batch whose chains the reference engine samples on different grids (striker speeds at
+auto sampling, ``deckplan.cadence_groups``) runs one deck per grid, one after the other:
+each chain is then sampled, and its record cut, on its own grid, as the reference engine
+does (a bound pair that oscillates to the end has the same last sample). LAMMPS always integrates with velocity Verlet
 (``fix nve`` / ``nve/sphere``) at the scene's dt; ``info.method = "lammps-verlet"``.
 
 Two output paths, the same Trajectory objects (tested bit for bit on v):
@@ -120,8 +125,10 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
     workdir: directory for deck, dump and log; default a temporary directory, removed
     afterwards unless ``keep`` (and kept when the run fails, for the error message names
     its deck or dump). A given directory is kept; it must be empty or absent unless
-    ``force``. ``dt`` overrides the scene's time step. ``nprocs``: MPI ranks of the
-    one LAMMPS run. ``velocities``, ``readers``: see
+    ``force``. A batch of several sample cadences runs a deck per cadence, each in a
+    directory of its own (in a given workdir: ``cadence-<every>``,
+    ``deckplan.cadence_dir``). ``dt`` overrides the scene's time step. ``nprocs``: MPI ranks of
+    each LAMMPS run. ``velocities``, ``readers``: see
     :func:`~granchain.engines.lammps.dump.read_dump` (output "dump"
     only). The scene's
     method must not be auto (``simulate`` and ``compare`` resolve it). ``plan``: the
@@ -147,9 +154,7 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
     if B == 0:
         return
     tmp = workdir is None
-    if tmp:
-        wd = Path(tempfile.mkdtemp(prefix="granchain-lammps-"))
-    else:
+    if not tmp:
         wd = Path(workdir)
         if wd.exists() and not wd.is_dir():
             raise GranchainError(f"LAMMPS workdir '{wd}' is not a directory")
@@ -162,10 +167,34 @@ def run(scene: Scene, gaps, v_striker, *, workdir=None, nprocs: int = 1, keep: b
         except OSError as exc:
             raise GranchainError(f"LAMMPS workdir '{wd}' cannot be created "
                                  f"({exc.strerror or exc}); choose another directory") from None
+    plan = plan_run(scene) if plan is None else plan
+    groups = deckmod.cadence_groups(scene, vs, plan)
+    if len(groups) > 1:
+        # one deck per sample cadence, each chain on its own grid as the reference engine
+        # samples it; a kept workdir holds each deck in a directory of its own
+        if not tmp:
+            # an earlier single deck's files (check_workdir recognised them) would be
+            # mistaken for this run's
+            for stale in deckmod.WORKDIR_FILES:
+                (wd / stale).unlink(missing_ok=True)
+        r = None if radii is None else np.asarray(radii, dtype=float)
+        out: list = [None] * B
+        for every, idx in groups:
+            sub = None if tmp else wd / deckmod.cadence_dir(every)
+            part = run(scene, gaps[idx], vs[idx], workdir=sub, nprocs=nprocs, keep=keep,
+                       force=force, progress=progress, timeout=timeout,
+                       velocities=velocities, readers=readers, output=output,
+                       radii=None if r is None else (r[idx] if r.ndim == 2 else r),
+                       plan=plan)
+            for i, traj in zip(idx, part):
+                out[int(i)] = traj
+        yield from out
+        return
+    if tmp:
+        wd = Path(tempfile.mkdtemp(prefix="granchain-lammps-"))
     try:
         from ...lammps.runner import lammps_version, run_lammps
         t0 = time.perf_counter()
-        plan = plan_run(scene) if plan is None else plan
         pl = deckmod.plan(scene, gaps=gaps, v_striker=vs, radii=radii, output=output,
                           run_plan=plan)
         deck = deckmod.write_deck(scene, wd, gaps=gaps, v_striker=vs, radii=pl.radii, force=True,
