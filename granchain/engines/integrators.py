@@ -340,16 +340,16 @@ def dop853_try(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol):
                     DOP_A, DOP_B, DOP_E5, DOP_E3, 1)
 
 
-# compiled once and called (not inlined) by the drivers' samples: every effect's normal law
-# inlined into each of them cost a compile each
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _wall_force_l(y, g, n, LO, P, FL, l):
     """Force (N) of the end wall on lane l of a block (``compose.wall_force_at``: the
     laws that read their history in the state included)."""
     return wall_force_at(y, g, P, FL, LO, n, l)
 
 
-@njit(cache=True, inline="always")
+# compiled once and called by the per-chain drivers (inlined, the wall's laws were compiled
+# at each of their samples' calls)
+@njit(cache=True)
 def _wall_force(y, g, n, LO, P, FL):
     """Force (N) of the end wall on one chain (state y, per-chain array g)."""
     return _wall_force_l(_col(y), _col(g), n, LO, P, FL, 0)

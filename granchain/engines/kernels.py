@@ -182,21 +182,31 @@ def _left(v_last, overlap_last, x_last, vthr, wall):
     return _wall_left(v_last, x_last, vthr) if wall else _detached(v_last, overlap_last, vthr)
 
 
-# compiled once and called (not inlined) by the four drivers that test the stop rule: it
-# runs once per sample, and inlined it compiled every effect's bond law three times over in
-# each of them
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _settled(y, G, P, FL, LO, n, l, vthr, wall):
     """The t_end auto stop rule of the chain in lane l (``granchain.stoprule``): no
     contact that an effect's law holds closed with the energy to part (``contact_bond``
     BOND_UNDECIDED), and the wave has left the chain (:func:`_left`) or, at a free end,
     the last particle, faster than vthr, is held bound to its neighbour (BOND_CAPTURED)
-    and that pair is alone (two spheres, or the contact before it open and not held)."""
+    and that pair is alone (two spheres, or the contact before it open and not held).
+    Inlined: its first test, which ends it at nearly every sample, costs no call; the
+    rest, the effects' bond laws, is :func:`_bonds_settled`."""
     ox = LO[L_DISP]
     v_last = y[LO[L_VEL] + n - 1, l]
-    if not _left(v_last, _overlap_l(y, ox, G, n - 2, l), y[ox + n - 1, l], vthr, wall):
-        if wall or not v_last > vthr:
-            return False
+    left = _left(v_last, _overlap_l(y, ox, G, n - 2, l), y[ox + n - 1, l], vthr, wall)
+    if not left and (wall or not v_last > vthr):
+        return False
+    return _bonds_settled(y, G, P, FL, LO, n, l, wall, left)
+
+
+# compiled once and called (not inlined) by the four drivers that test the stop rule:
+# inlined it compiled every effect's bond law three times over in each of them
+@njit(cache=True)
+def _bonds_settled(y, G, P, FL, LO, n, l, wall, left):
+    """The bond tests of :func:`_settled` once the wave has left the chain (``left``) or
+    the last particle is faster than the arrival speed at a free end."""
+    ox = LO[L_DISP]
+    if not left:
         if contact_bond(y, G, P, FL, LO, n, n - 2, l) != BOND_CAPTURED:
             return False
         if n > 2 and (_overlap_l(y, ox, G, n - 3, l) > 0.0
