@@ -10,7 +10,9 @@ new temporary directory, so that everything compiles), and records numba's compi
 (``numba.core.event``, ``numba:compile``): the seconds between each function's start and
 end, less those of the functions compiled inside it, which is its own share. A function
 inlined by numba (``inline="always"``) is compiled inside its caller and counts there.
-Prints the whole-process seconds, the sum over functions and the ``--top`` largest shares.
+Prints the whole-process seconds, the sum over functions, each run's CPU seconds in turn
+(a run after others compiles only what they left: its marginal cost) and the ``--top``
+largest shares.
 The machines are shared: compare the shares of one run, not seconds across runs.
 """
 from __future__ import annotations
@@ -43,9 +45,13 @@ class Listener(ev.Listener):
             own[stack[-1][0]] -= dt
 ev.register("numba:compile", Listener())
 from granchain.engines.warmup import _warm_up_runs
-runs = [(m, t == "trace") for m, _, t in (r.partition(":") for r in json.loads(sys.argv[1]))]
-_warm_up_runs(runs)
-print(json.dumps(own))
+cpu = []
+for r in json.loads(sys.argv[1]):
+    m, _, t = r.partition(":")
+    c0 = time.process_time()
+    _warm_up_runs([(m, t == "trace")])
+    cpu.append(time.process_time() - c0)
+print(json.dumps([own, cpu]))
 """
 
 
@@ -67,11 +73,13 @@ def main(argv=None) -> None:
         out = subprocess.run([sys.executable, "-c", CHILD, json.dumps(args.runs)], cwd=REPO,
                              env=env, capture_output=True, text=True, check=True)
         wall = time.perf_counter() - t0
-    own = json.loads(out.stdout.strip().splitlines()[-1])
+    own, cpu = json.loads(out.stdout.strip().splitlines()[-1])
     total = sum(own.values())
     print(f"cold compile of {' '.join(args.runs)}: {wall:.1f} s whole process, {total:.1f} s "
           f"in numba's compile events; load average {load:.1f} at the start on "
           f"{os.cpu_count()} cores")
+    print("CPU seconds of each run, in turn: " + ", ".join(
+        f"{r} {c:.1f} s" for r, c in zip(args.runs, cpu)))
     for name, s in sorted(own.items(), key=lambda kv: -kv[1])[:args.top]:
         print(f"{s:8.1f} s {s / total:6.1%}  {name}")
 

@@ -243,11 +243,11 @@ def test_warm_up_again_with_the_module_built(aot_cache):
 
 @pytest.mark.slow
 def test_warm_up_in_two_processes_covers_every_entry_point(tmp_path):
-    """The warm-up's groups, run in two processes at once, reach every entry point between
+    """The warm-up's tasks, taken by two processes at once, reach every entry point between
     them: a numba cache filled only by them holds an entry for each, and this process then
     loads each one from it with a single signature (the ahead-of-time build needs that).
     A cold compile: about 2 minutes on 2 busy cores."""
-    assert sorted(r for g in warmup.GROUPS for r in g) == sorted(warmup.RUNS)
+    assert sorted(r for t in warmup.TASKS for r in t) == sorted(warmup.RUNS)
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
     code = ("from granchain.engines import warmup, backend\n"
             "warmup.warm_jit(2)\n"

@@ -41,7 +41,7 @@ from pathlib import Path
 from ..fileio import cache_dir, source_hash
 
 # The kernels' entry points that the engines call (:func:`kernels`), by module.
-ENTRY_POINTS = {"run_window": "kernels", "run_blocks": "kernels", "energies": "kernels",
+ENTRY_POINTS = {"run_adaptive": "kernels", "run_blocks": "kernels", "energies": "kernels",
                 "run_events": "events", "run_events_lanes": "eventlanes",
                 "finalize": "events"}
 # The modules that define the entry points; every module of the package they import,

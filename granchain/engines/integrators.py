@@ -347,7 +347,9 @@ def _wall_force_l(y, g, n, LO, P, FL, l):
     return wall_force_at(y, g, P, FL, LO, n, l)
 
 
-@njit(cache=True, inline="always")
+# compiled once and called by the per-chain drivers (inlined, the wall's laws were compiled
+# at each of their samples' calls)
+@njit(cache=True)
 def _wall_force(y, g, n, LO, P, FL):
     """Force (N) of the end wall on one chain (state y, per-chain array g)."""
     return _wall_force_l(_col(y), _col(g), n, LO, P, FL, 0)

@@ -5,13 +5,15 @@ chain by the stop rule.
 - ``run_blocks``: rk4 and verlet on blocks of L chains (``integrators.rk4_block``,
   ``verlet_block``; chains in SIMD lanes), recording the samples or measuring the
   observables on the fly (``engines.onthefly``);
-- ``run_window``: one chain per thread, rk4, verlet or the adaptive DOP853.
+- ``run_window``: one chain per thread, rk4, verlet or the adaptive DOP853; the engine
+  runs the adaptive method by ``run_adaptive``, its copy without the fixed-step branches.
 The event method's drivers are in ``engines.events``. The integrators and the physics
 they call: ``engines.integrators``, ``engines.compose``.
 """
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 from numba import njit, prange
@@ -37,6 +39,12 @@ from .onthefly import _finish_lane, _sample_lane  # noqa: E402
 # every numbered slot as an attribute here too (callers index the kernels' arrays by them)
 globals().update(codes.NAMES)
 _detached, _wall_left = compiled(obsrules.detached), compiled(obsrules.wall_left)
+
+
+# run_window compiles its fixed-step branches while this is on; ``run_adaptive``, its copy
+# with it off, compiles the adaptive method alone (numba drops a branch on a constant
+# before it types the code, so neither the RK4 nor the Verlet step is compiled into it)
+_FIXED_STEP = True
 
 
 @njit(cache=True)
@@ -82,7 +90,7 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
         ynew = np.empty(ny)
         ebuf = np.empty(E_LEN)
         if NS[b] == 0:
-            if method == M_VERLET:
+            if _FIXED_STEP and method == M_VERLET:
                 forces(y, g, P, FL, LO, 0.0, ACC[b], f)
             for i in range(n):
                 Vout[b, 0, i] = y[ov + i]
@@ -98,12 +106,12 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
             if NS[b] >= NT[b]:
                 STATUS[b] = S_DONE
                 break
-            if method == M_RK4:
+            if _FIXED_STEP and method == M_RK4:
                 for _ in range(every):
                     rk4_step(y, dt, g, P, FL, LO, k1, k2, k3, k4, tmp, f)
                 STEPS[b] += every
                 T[b] += every * dt
-            elif method == M_VERLET:
+            elif _FIXED_STEP and method == M_VERLET:
                 for _ in range(every):
                     verlet_step(y, ACC[b], dt, g, P, FL, LO, f)
                 STEPS[b] += every
@@ -152,6 +160,21 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
                 STATUS[b] = S_PASSED
 
 
+def _adaptive_only(window):
+    """The dispatcher of a copy of ``window`` (:func:`run_window`) over this module's
+    namespace with ``_FIXED_STEP`` off: the driver the engine runs the adaptive method
+    with (the fixed-step methods run in blocks, :func:`run_blocks`)."""
+    fn = window.py_func
+    ns = dict(globals(), _FIXED_STEP=False)
+    copy = types.FunctionType(fn.__code__, ns, "run_adaptive", fn.__defaults__, fn.__closure__)
+    # numba's cache tells compiled functions apart by their qualified names
+    copy.__qualname__ = "run_adaptive"
+    copy.__doc__ = ("``run_window`` for the adaptive method (``method`` M_DOP853) alone: the "
+                    "fixed-step branches are not compiled.")
+    copy.__module__ = fn.__module__
+    return njit(parallel=True, cache=True)(copy)
+
+
 @njit(cache=True, inline="always")
 def _left(v_last, overlap_last, x_last, vthr, wall):
     """Has the wave left the chain? Free end: ``obsrules.detached``; end wall:
@@ -165,12 +188,25 @@ def _settled(y, G, P, FL, LO, n, l, vthr, wall):
     contact that an effect's law holds closed with the energy to part (``contact_bond``
     BOND_UNDECIDED), and the wave has left the chain (:func:`_left`) or, at a free end,
     the last particle, faster than vthr, is held bound to its neighbour (BOND_CAPTURED)
-    and that pair is alone (two spheres, or the contact before it open and not held)."""
+    and that pair is alone (two spheres, or the contact before it open and not held).
+    Inlined: its first test, which ends it at nearly every sample, costs no call; the
+    rest, the effects' bond laws, is :func:`_bonds_settled`."""
     ox = LO[L_DISP]
     v_last = y[LO[L_VEL] + n - 1, l]
-    if not _left(v_last, _overlap_l(y, ox, G, n - 2, l), y[ox + n - 1, l], vthr, wall):
-        if wall or not v_last > vthr:
-            return False
+    left = _left(v_last, _overlap_l(y, ox, G, n - 2, l), y[ox + n - 1, l], vthr, wall)
+    if not left and (wall or not v_last > vthr):
+        return False
+    return _bonds_settled(y, G, P, FL, LO, n, l, wall, left)
+
+
+# compiled once and called (not inlined) by the four drivers that test the stop rule:
+# inlined it compiled every effect's bond law three times over in each of them
+@njit(cache=True)
+def _bonds_settled(y, G, P, FL, LO, n, l, wall, left):
+    """The bond tests of :func:`_settled` once the wave has left the chain (``left``) or
+    the last particle is faster than the arrival speed at a free end."""
+    ox = LO[L_DISP]
+    if not left:
         if contact_bond(y, G, P, FL, LO, n, n - 2, l) != BOND_CAPTURED:
             return False
         if n > 2 and (_overlap_l(y, ox, G, n - 3, l) > 0.0
@@ -318,3 +354,7 @@ def run_blocks(method, Y, ACC, YF, T, NS, STEPS, STATUS, VTHR, gaps, P, FL, LO, 
             c += 1
         Y[blk] = y
         ACC[blk] = acc
+
+
+# last: the copy's namespace holds every function above
+run_adaptive = _adaptive_only(run_window)

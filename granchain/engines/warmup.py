@@ -15,10 +15,12 @@ from .backend import ENTRY_POINTS, aot_module, jit_entry, aot_available, cache_d
 # a trace the event method's one-chain kernel.
 RUNS = (("rk4", False), ("verlet", False), ("adaptive", False), ("event", True),
         ("event", False))
-# How the runs split over worker processes (the event method in lanes, the longest
-# compile, alone): measured cold, rk4+verlet 22 s, adaptive 20 s, the event trace 28 s,
-# the event lanes 37 s on one core.
-GROUPS = (RUNS[:4], RUNS[4:])
+# The runs as the worker processes take them (:func:`warm_jit`): each worker takes the
+# next task no other has taken as it comes free, the longest compiles first, so that the
+# workers end close together whatever the shares. rk4 and verlet are one task: the block
+# driver compiles both methods at once (verlet after rk4 costs nothing).
+TASKS = ((("event", False),), (("event", True),), (("rk4", False), ("verlet", False)),
+         (("adaptive", False),))
 
 
 def warm_up_scene(method: str):
@@ -58,26 +60,46 @@ def _warm_up_runs(runs=RUNS, done=None) -> None:
             done(1)
 
 
+def _take_tasks(claims: str) -> None:
+    """A warm-up worker: the tasks of :data:`TASKS` in turn that no other worker has taken
+    (a worker takes task k by creating ``claims/k.taken``, which only one can), each
+    marked ``claims/k.done`` once run."""
+    for k, task in enumerate(TASKS):
+        try:
+            os.close(os.open(os.path.join(claims, f"{k}.taken"),
+                             os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+        except FileExistsError:
+            continue
+        _warm_up_runs(task)
+        Path(claims, f"{k}.done").touch()
+
+
 def warm_jit(workers: int = 1, done=None) -> None:
     """Compile the JIT kernels into numba's cache (or load them from it): with workers > 1,
-    the groups of :data:`GROUPS` in that many processes at once (each compiles what its
-    runs reach; numba writes each cache entry atomically), then this process loads them
-    all from the cache. ``done(k)`` as k of :data:`RUNS` are compiled (a progress bar's
-    ``update``), if given."""
+    that many processes at once take the tasks of :data:`TASKS` as they come free (each
+    compiles what its runs reach; numba writes each cache entry atomically), then this
+    process loads them all from the cache. ``done(k)`` as k of :data:`RUNS` are compiled
+    (a progress bar's ``update``), if given."""
     import subprocess
+    import tempfile
     if workers > 1:
-        procs = []
-        for k in range(min(workers, len(GROUPS))):
-            runs = [r for g in GROUPS[k::workers] for r in g]
-            code = ("from granchain.engines.warmup import _warm_up_runs; "
-                    f"_warm_up_runs({runs!r})")
-            procs.append((subprocess.Popen([sys.executable, "-c", code]), len(runs)))
-        bad = []
-        for proc, n in procs:
-            bad.append(proc.wait())
-            if done is not None:
-                done(n)
-        if any(bad):
+        with tempfile.TemporaryDirectory(prefix="granchain-warm-up-") as claims:
+            code = f"from granchain.engines.warmup import _take_tasks; _take_tasks({claims!r})"
+            procs = [subprocess.Popen([sys.executable, "-c", code])
+                     for _ in range(min(workers, len(TASKS)))]
+            counted = set()
+            while True:
+                alive = any(p.poll() is None for p in procs)
+                for k, task in enumerate(TASKS):
+                    if k not in counted and Path(claims, f"{k}.done").exists():
+                        counted.add(k)
+                        if done is not None:
+                            done(len(task))
+                if not alive:
+                    break
+                time.sleep(0.2)
+            bad = [p.returncode for p in procs]
+        if any(bad) or len(counted) < len(TASKS):
             raise RuntimeError(f"a warm-up process failed (exit codes {bad})")
         _warm_up_runs()
     else:
