@@ -29,9 +29,12 @@ spheres' relative motion enough to part it (``BOND_UNDECIDED``; a JKR contact he
 tension at an open overlap is one). A free end also stops when its last particle, having
 seen the wave, is bound to its neighbour (``BOND_CAPTURED``: that energy below the work
 the law takes from it to open the contact) and that pair is alone (two spheres, or the
-contact before it open and not held): a captured pair. A chain that never settles (a
-chain bound as a whole) stops at its cap, status timeout. Laws without the hook (Hertz,
-damping, Thornton's) leave the rule and its stop times as they were.
+contact before it open and not held and no sphere behind it faster than the pair's
+centre of mass, so none closes on it again): a captured pair. A last particle bound to
+its neighbour has not left while their contact is held in tension (at an open overlap).
+A chain that never settles (a chain bound as a whole) stops at its cap, status timeout,
+its unmeasured peaks NaN. Laws without the hook (Hertz, damping, Thornton's) leave the
+rule and its stop times as they were.
 
 The rules are written once, in ``granchain.obsrules`` (with their constants): the
 reference kernels (``engines.kernels``, ``engines.events``), the LAMMPS engine's per-chain
@@ -127,9 +130,11 @@ def settled_sample(terms, v_striker: float, v, overlaps, last_disp=None) -> int 
     when a law in force holds contacts closed (``effects.holds_contacts``), as the
     reference kernels apply it (``engines.kernels._settled``), or None: no contact held
     closed with the energy to part (``effects.bond`` BOND_UNDECIDED), and the wave has
-    left the chain (:func:`last_detached`, :func:`wall_left`) or, at a free end, the last
-    particle, faster than the arrival speed, is held bound to its neighbour (BOND_CAPTURED)
-    and that pair is alone (two spheres, or the contact before it open and not held).
+    left the chain (:func:`last_detached`, :func:`wall_left`; at a free end with the last
+    contact not held bound) or, at a free end, the last particle, faster than the arrival
+    speed, is held bound to its neighbour (BOND_CAPTURED) and that pair is alone (two
+    spheres, or the contact before it open and not held and no sphere behind it faster
+    than the pair's centre of mass).
 
     v: (S, n) velocities (m/s); overlaps: (S, n-1) the sphere contacts' overlaps (m);
     last_disp: with an end wall, the last sphere's displacement (m) from its start."""
@@ -143,16 +148,21 @@ def settled_sample(terms, v_striker: float, v, overlaps, last_disp=None) -> int 
     def state(s, k):
         return bond(terms, k, float(ov[s, k]), float(v[s, k] - v[s, k + 1]), bool(held[s, k]))
 
+    m = np.asarray(terms.chain.masses, dtype=float)
     moving = v[1:, -1] < -vthr if wall else v[1:, -1] > vthr
     for s in np.flatnonzero(moving) + 1:
+        bound = not wall and state(s, n - 2) == BOND_CAPTURED
         if wall:
             left = bool(wall_left(v[s, -1], last_disp[s], v_striker))
         else:
-            left = bool(last_detached(v[s, -1], ov[s, -1], v_striker))
+            left = not bound and bool(last_detached(v[s, -1], ov[s, -1], v_striker))
         if not left:
-            if wall or state(s, n - 2) != BOND_CAPTURED:
+            if not bound:
                 continue
             if n > 2 and (ov[s, n - 3] > 0.0 or held[s, n - 3]):
+                continue
+            vcm = (m[n - 2] * v[s, n - 2] + m[n - 1] * v[s, n - 1]) / (m[n - 2] + m[n - 1])
+            if np.any(v[s, :n - 2] > vcm):
                 continue
         if all(state(s, k) != BOND_UNDECIDED for k in range(n - 1)):
             return int(s)

@@ -603,3 +603,75 @@ def test_event_pair_collision_agrees_with_the_independent_solution(model):
         assert a.collision == b.collision
         if a.collision == "separated":
             assert abs(a.restitution - b.restitution) < RK4_JUMPS, (a.restitution, b.restitution)
+
+
+# ---------------------------------------------------------------------------------------
+# the event method on a chain: 15 440C spheres, Hertz + adhesion, at its default tolerance
+# (1e-6), against velocity Verlet at CHAIN_DT / 2. Verlet's error is first order in dt,
+# from the force's jumps at touch and pull-off (about F_po dt / (m v) per jump), so its
+# error at CHAIN_DT / 2 is about its change from CHAIN_DT, which the test measures: each
+# quantity is asserted within max(CHAIN_FLOOR, CHAIN_MARGIN x that change).
+CHAIN_DT = 1e-10
+CHAIN_CASES = [(model, gamma, gap, v) for model in ("jkr", "dmt") for gamma in (0.1, 1.0)
+               for gap in (0.0, 2e-8) for v in (0.01, 0.1)
+               # the gapped jkr chain at 1 J/m^2 and 0.01 m/s is left out: there the
+               # wave is captured and re-emitted contact by contact and the far probe's
+               # peak is sensitive to errors far below Verlet's at any affordable step
+               # (measured: v_max,2 0.769 v_s at 0.1 ns, 0.693 v_s at 0.05 ns; the event
+               # method 0.7166 at 1e-7, 0.71622 at 1e-9 and 1e-10)
+               if not (model == "jkr" and gamma == 1.0 and gap > 0.0 and v == 0.01)]
+# Measured, the event method at 1e-6 against Verlet at 0.05 ns: v_max <= 2.1e-5, t_peak
+# and v_g <= 1.4e-5 where Verlet's change is below 1e-5; with the jumps left to the error
+# control (the locate hook off) v_max was off by up to 4.4e-4 (e.g. v_max,2 1.3e-4 on the
+# gapped jkr chain at 0.1 J/m^2, 0.1 m/s, where Verlet's halving changes it by 5e-7).
+# A peak the two methods class differently (the event method's continuous-time plateau
+# rule finds a plateau on probe 13's flat top of the gapped dmt chains at 0.01 m/s, the
+# sampled rule does not) has a peak time of another definition (the first crossing of
+# (1 - PEAK_TOL) v_max, 16 ns before the maximum: 4.8e-4 of t_peak): its t_peak and v_g
+# are not compared. Nor are the half-peak front times: Verlet's are linear interpolations
+# between samples (6.5e-5 of t_front off on the packed dmt chain at 1 J/m^2, 0.01 m/s,
+# whatever its step).
+CHAIN_FLOOR = 2e-5
+CHAIN_MARGIN = 3.0
+# Verlet's own change from CHAIN_DT to CHAIN_DT / 2 may be at most this (converged)
+CHAIN_CONVERGED = 3e-4
+
+
+def _chain(model, gamma, gap, v, integrator):
+    """The chain's probe observables (and its probes' peak kinds), run to a fixed end past
+    the far probe's peak."""
+    from granchain.simulate import run_scene
+    (r,) = run_scene(scene_from_dict({
+        "name": "chain", "material": "ss440c", "chain": {"n": 15}, "probes": [2, 13],
+        "effects": ["hertz", "adhesion"],
+        "adhesion": {"model": model, "surface_energy": gamma},
+        "striker": {"velocity": [v]}, "integrator": integrator,
+        "t_end": 5e-5 if v < 0.05 else 2e-5,
+        "gaps": ({"distribution": "uniform", "mean": gap, "seed": 3} if gap > 0.0
+                 else {"distribution": "none"})}))
+    assert r.status == "done" and r.wave_arrived, (r.status, integrator)
+    return ({"v_max_1": r.v_max_1, "v_max_2": r.v_max_2, "t_peak_1": r.t_peak[1],
+             "t_peak_2": r.t_peak[12], "v_g": r.v_g}, (r.plateau[1], r.plateau[12]))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("model, gamma, gap, v", CHAIN_CASES)
+def test_event_chain_agrees_with_converged_verlet(model, gamma, gap, v):
+    """The event method at its default tolerance on an adhesive 15-sphere chain: v_max at
+    both probes, their peak times and v_g agree with velocity Verlet at CHAIN_DT / 2 within max(CHAIN_FLOOR, CHAIN_MARGIN x Verlet's change from CHAIN_DT),
+    that change below CHAIN_CONVERGED (peak times and v_g where both methods class the
+    probes' peaks alike). The force's jumps at touch and pull-off are crossed in steps of
+    their own (``adhesion.locate``); left to the error control, v_max is off by up to
+    4.4e-4."""
+    ev, ev_kind = _chain(model, gamma, gap, v, {"method": "event"})
+    coarse, _ = _chain(model, gamma, gap, v, {"method": "verlet", "dt": CHAIN_DT})
+    ref, ref_kind = _chain(model, gamma, gap, v, {"method": "verlet", "dt": CHAIN_DT / 2})
+    alike = [a == b for a, b in zip(ev_kind, ref_kind)]
+    skip = {q for q, ok in (("t_peak_1", alike[0]), ("t_peak_2", alike[1]),
+                            ("v_g", all(alike))) if not ok}
+    for q in ref:
+        change = abs(coarse[q] / ref[q] - 1.0)
+        assert change < CHAIN_CONVERGED, (q, coarse[q], ref[q])
+        if q not in skip:
+            assert abs(ev[q] / ref[q] - 1.0) < max(CHAIN_FLOOR, CHAIN_MARGIN * change), \
+                (q, ev[q], ref[q], change)

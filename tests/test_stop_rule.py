@@ -149,3 +149,53 @@ def test_lammps_stops_where_the_reference_stops_with_the_probe_on_the_last_parti
     rows = cmp.rows
     assert (rows[rows.quantity == "samples"]["diff"] == 0).all()
     assert rows[rows.quantity == "v_max[6]"]["reference"].notna().all()
+
+
+# ---------------------------------------------------------------------------------------
+# a chain bound as a whole never settles: t_end auto stops it at its cap, unfinished
+# Four 440C spheres with jkr contacts (gamma = 1 J/m^2) and viscoelastic damping, struck at
+# 2 mm/s: the snap-in at each contact and the damping leave all four bound, oscillating
+# about their common motion (v_s / 4) long after 3e-4 s (a fixed t_end shows it). Early on
+# the last two spheres are bound and the contact before them open, but sphere 2 still
+# closes on them: that pair is not alone.
+BOUND_CHAIN = {"name": "bound", "material": "ss440c", "chain": {"n": 4}, "probes": [2, 4],
+               "effects": ["hertz", "adhesion", "contact_damping"],
+               "adhesion": {"model": "jkr", "surface_energy": 1.0},
+               "damping": {"model": "viscoelastic", "eta": 5.0e10},
+               "striker": {"velocity": 0.002}, "t_end": "auto",
+               "integrator": {"method": "verlet", "dt": 1e-9}}
+BOUND_CAP = 3e-5
+
+
+def _check_unfinished(res):
+    """Stopped by its cap, not passed; the last sphere's peak (probe 2) unmeasured, so
+    v_max_2, the delays and v_g are NaN, and the wave did not arrive."""
+    assert res.status == "timeout", (res.status, res.t_end)
+    assert res.t_end == pytest.approx(BOUND_CAP, rel=1e-3)
+    assert not res.wave_arrived and 4 in res.not_final and not res.final[3]
+    for x in (res.v_max[3], res.v_max_2, res.dt_peak, res.dt_front, res.v_g, res.v_g_front):
+        assert math.isnan(x)
+
+
+@pytest.mark.parametrize("method", ["verlet", "event"])
+def test_a_chain_bound_as_a_whole_runs_to_its_cap_unfinished(monkeypatch, method):
+    """t_end auto on a chain bound as a whole: no sample at which the last two spheres,
+    bound to each other, are alone (every sphere behind them no faster than their centre
+    of mass), nor one at which the last sphere has left (its contact open, not held), so
+    the run reaches its cap: status timeout, the unmeasured peaks NaN. (Stopping on the
+    bound last pair while sphere 2 still closes on it ended the run passed at 9.2 us.)"""
+    import granchain.runplan as runplan
+    monkeypatch.setattr(runplan, "auto_t_max", lambda scene, gaps, v: BOUND_CAP)
+    integrator = ({"method": "event"} if method == "event" else BOUND_CHAIN["integrator"])
+    (res,) = run_scene(scene_from_dict({**BOUND_CHAIN, "integrator": integrator}))
+    _check_unfinished(res)
+
+
+@pytest.mark.lammps
+def test_a_chain_bound_as_a_whole_runs_to_its_cap_unfinished_on_lammps(monkeypatch, tmp_path):
+    """The same chain on LAMMPS, whose records the engine cuts by the sampled stop rule
+    (``stoprule.settled_sample``): it reaches its cap, timeout, the same NaN."""
+    import granchain.runplan as runplan
+    monkeypatch.setattr(runplan, "auto_t_max", lambda scene, gaps, v: BOUND_CAP)
+    (res,) = run_scene(scene_from_dict(BOUND_CHAIN), engine="lammps", workdir=tmp_path)
+    _check_unfinished(res)

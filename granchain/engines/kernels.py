@@ -26,8 +26,8 @@ from .. import obsrules  # noqa: E402
 # the kernels' numbering of parameters, flags, layout blocks, methods, energy columns,
 # statuses, and the DOP853 tableau (numba-free, shared with the engines' Python side)
 from . import codes  # noqa: E402
-from .codes import (E_LEN, F_END_WALL, L_DISP, L_VEL, M_RK4, M_VERLET, NST,  # noqa: E402
-                    P_N_SPHERES, S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL)
+from .codes import (E_LEN, F_END_WALL, G_MASS, L_DISP, L_VEL, M_RK4, M_VERLET,  # noqa: E402
+                    NST, P_N_SPHERES, S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL)
 from ..effects.spec import BOND_CAPTURED, BOND_NONE, BOND_UNDECIDED  # noqa: E402
 from .compose import compiled, contact_bond, overlap as _overlap_l  # noqa: E402
 # the integrators (and their per-chain entry points, which the tests call through here)
@@ -186,32 +186,45 @@ def _left(v_last, overlap_last, x_last, vthr, wall):
 def _settled(y, G, P, FL, LO, n, l, vthr, wall):
     """The t_end auto stop rule of the chain in lane l (``granchain.stoprule``): no
     contact that an effect's law holds closed with the energy to part (``contact_bond``
-    BOND_UNDECIDED), and the wave has left the chain (:func:`_left`) or, at a free end,
-    the last particle, faster than vthr, is held bound to its neighbour (BOND_CAPTURED)
-    and that pair is alone (two spheres, or the contact before it open and not held).
-    Inlined: its first test, which ends it at nearly every sample, costs no call; the
-    rest, the effects' bond laws, is :func:`_bonds_settled`."""
+    BOND_UNDECIDED), and the wave has left the chain (:func:`_left`, at a free end with
+    the last contact not held bound) or, at a free end, the last particle, faster than
+    vthr, is held bound to its neighbour (BOND_CAPTURED) and that pair is alone (two
+    spheres, or the contact before it open and not held and no sphere behind it faster
+    than the pair's centre of mass). Inlined: its first test, which ends it at nearly
+    every sample, costs no call; the rest, the effects' bond laws, is
+    :func:`_bonds_settled`."""
     ox = LO[L_DISP]
     v_last = y[LO[L_VEL] + n - 1, l]
     left = _left(v_last, _overlap_l(y, ox, G, n - 2, l), y[ox + n - 1, l], vthr, wall)
     if not left and (wall or not v_last > vthr):
         return False
-    return _bonds_settled(y, G, P, FL, LO, n, l, wall, left)
+    return _bonds_settled(y, G, P, FL, LO, n, l, vthr, wall, left)
 
 
 # compiled once and called (not inlined) by the four drivers that test the stop rule:
 # inlined it compiled every effect's bond law three times over in each of them
 @njit(cache=True)
-def _bonds_settled(y, G, P, FL, LO, n, l, wall, left):
+def _bonds_settled(y, G, P, FL, LO, n, l, vthr, wall, left):
     """The bond tests of :func:`_settled` once the wave has left the chain (``left``) or
     the last particle is faster than the arrival speed at a free end."""
     ox = LO[L_DISP]
-    if not left:
-        if contact_bond(y, G, P, FL, LO, n, n - 2, l) != BOND_CAPTURED:
+    ov = LO[L_VEL]
+    v_last = y[ov + n - 1, l]
+    bound = (not wall) and contact_bond(y, G, P, FL, LO, n, n - 2, l) == BOND_CAPTURED
+    if bound or not left:
+        if wall or not v_last > vthr:
+            return False
+        if not bound:
             return False
         if n > 2 and (_overlap_l(y, ox, G, n - 3, l) > 0.0
                       or contact_bond(y, G, P, FL, LO, n, n - 3, l) != BOND_NONE):
             return False
+        ma = G[G_MASS * n + n - 2, l]
+        mb = G[G_MASS * n + n - 1, l]
+        vcm = (ma * y[ov + n - 2, l] + mb * v_last) / (ma + mb)
+        for i in range(n - 2):
+            if y[ov + i, l] > vcm:
+                return False
     for k in range(n if wall else n - 1):
         if contact_bond(y, G, P, FL, LO, n, k, l) == BOND_UNDECIDED:
             return False
