@@ -892,6 +892,9 @@ def tiny_lammps_run(tmp_path_factory):
     return wd, vv
 
 
+CAPPED_V_FINAL_TOL = 1e-6      # v_s; see the final velocities' check below
+
+
 def test_tiny_on_lammps_agrees_with_reference_verlet(tiny_lammps_run):
     """Every ensemble study's rows through LAMMPS agree, member by member, with the
     reference engine's velocity Verlet rows within granchain.compare's tolerances (same
@@ -943,10 +946,17 @@ def test_tiny_on_lammps_agrees_with_reference_verlet(tiny_lammps_run):
         rel_v = ((lmp[v] - ref[v]).abs() / ref[v].abs()).max().max()
         rel_t = ((lmp["dt_peak_s"] - ref["dt_peak_s"]).abs() / ref["dt_peak_s"]).max()
         rel_t = 0.0 if ref["dt_peak_s"].isna().all() else rel_t
-        # final velocities (some near rest) against the striker's speed
+        # final velocities (some near rest) against the striker's speed. A chain still
+        # bound and sloshing at its cap (status timeout: adhesion's chains bound as a
+        # whole) ran ~4e5 steps, over which the jkr law's touch and pull-off thresholds
+        # amplify rounding: measured 7.5e-8 v_s apart after 393820 steps (their peaks
+        # 1.7e-8), far below the 5.8e-3 v_s of a record cut at another sample
         vf = [c for c in lmp.columns if c.startswith("vfinal_p")]
-        rel_f = (lmp[vf] - ref[vf]).abs().div(ref.index.get_level_values("v_striker_m_s"), axis=0).max().max()
-        assert rel_f < cmp.V_TOL, (study, rel_f)
+        dev = (lmp[vf] - ref[vf]).abs().div(
+            ref.index.get_level_values("v_striker_m_s"), axis=0).max(axis=1).to_numpy()
+        capped = (ref["status"] == "timeout").to_numpy()
+        assert np.max(dev[~capped], initial=0.0) < cmp.V_TOL, (study, dev)
+        assert np.max(dev[capped], initial=0.0) < CAPPED_V_FINAL_TOL, (study, dev)
         # the works LAMMPS outputs itself; particle (+ rolling) friction and the balance
         # error are the residual of its ledger (granchain.compare checks them no tighter)
         e0 = ref["energy_initial_J"]
