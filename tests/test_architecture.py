@@ -1,5 +1,6 @@
 """The package's imports point one way: no import cycle anywhere, lazy imports (inside
-functions) included, and the data layer loads no engine."""
+functions) included, and the data layer loads no engine; and no module of the package is
+longer than a reader can walk (:data:`MAX_MODULE_LINES`)."""
 from __future__ import annotations
 
 import ast
@@ -8,6 +9,8 @@ import sys
 from pathlib import Path
 
 PKG = Path(__file__).resolve().parents[1] / "granchain"
+# the longest a module of the package may be, in lines (a longer one mixes jobs: split it)
+MAX_MODULE_LINES = 650
 
 
 def _module_name(path: Path) -> str:
@@ -79,6 +82,28 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
             if found:
                 return found
     return None
+
+
+def long_modules(root: Path = PKG, limit: int = MAX_MODULE_LINES) -> dict[str, int]:
+    """The Python modules below root longer than limit lines, with their lengths."""
+    out = {}
+    for p in sorted(root.rglob("*.py")):
+        n = len(p.read_text().splitlines())
+        if n > limit:
+            out[str(p.relative_to(root.parent))] = n
+    return out
+
+
+def test_no_module_is_over_the_line_limit():
+    assert long_modules() == {}
+
+
+def test_the_line_limit_finds_a_long_module(tmp_path):
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "short.py").write_text("x = 1\n" * MAX_MODULE_LINES)
+    (pkg / "sub" / "long.py").write_text("x = 1\n" * (MAX_MODULE_LINES + 1))
+    assert long_modules(pkg) == {"pkg/sub/long.py": MAX_MODULE_LINES + 1}
 
 
 def test_no_import_cycle_in_the_package():
