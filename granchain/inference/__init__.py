@@ -135,7 +135,9 @@ PEAK_SIGMAS of its stated error is refused (a unit or column mix-up, not noise).
 - Posterior: the gap-only prior on g (``PRIOR``) and a uniform prior on e in [e_min, 1],
   on 241 x 161 points (g quadratic, e uniform); when the points within exp(-20) of the peak
   span less than half the range, the posterior is evaluated again on 241 x 161 points over
-  that box (a narrow posterior gets the same resolution as a wide one). Report: each
+  that box (a narrow posterior gets the same resolution as a wide one). The box is found
+  on every 4th of those points (61 x 41, the box one of them wider on each side); when it
+  spans half the range or more, on all of them (``FIRST_STRIDE``). Report: each
   parameter's marginal median and central 95 % interval, the posterior correlation of (g,
   e), and a posterior predictive check (how many measured values lie outside the 95 %
   range of 400 posterior draws x R realisations with the stated noise added). Weight at the

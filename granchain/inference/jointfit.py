@@ -29,6 +29,7 @@ from .setting import choose_setting
 
 FINE_G, FINE_E = 241, 161         # posterior evaluation points (mean gap, fitted key)
 ZOOM_DROP = 20.0                  # the second pass covers log posterior >= peak - this
+FIRST_STRIDE = 4                  # the first pass's points: every 4th of FINE_G x FINE_E
 PREDICTIVE_DRAWS = 400            # posterior draws of the predictive check and the figure
 PREDICTIVE_SEED = 20250
 
@@ -234,9 +235,15 @@ def infer_joint(base: Scene, meas: Measurements, *, gap_max: float = GAP_MAX,
         return (joint_log_likelihood(grid, meas, fg, fk.value(fu), errs)
                 + log_prior(fg, prior)[:, None])
 
-    logpost = log_post(fg, fu)
+    # the first pass on every FIRST_STRIDE-th point finds the box of a narrow posterior
+    # (one point wider on each side: FIRST_STRIDE points of the full lattice); a wide one
+    # is evaluated on every point, as the box is then found again on those
+    box = zoom_box(fg[::FIRST_STRIDE], fu[::FIRST_STRIDE],
+                   log_post(fg[::FIRST_STRIDE], fu[::FIRST_STRIDE]))
+    if box is None:
+        logpost = log_post(fg, fu)
+        box = zoom_box(fg, fu, logpost)
     ends = (True, True, True)     # (g's top, the key's bottom, its top) at the grid's ends
-    box = zoom_box(fg, fu, logpost)
     if box is not None:           # the posterior again, on a grid over its own mass
         (g0, g1), (u0, u1) = box
         ends = (g1 >= fg[-1], u0 <= fu[0], u1 >= fu[-1])
