@@ -19,6 +19,9 @@ delta (m):
   (the other methods). The end wall's recorded force is the law's, tensile (< 0) while
   the wall holds the sphere closed at delta <= 0 (:func:`history_normal`; LAMMPS's fix
   wall/gran reports the same); the wall's peak force stays the largest compressive one.
+  With contact damping the LAMMPS engine evaluates the wall's law at each sample's x and
+  v (the damping of the JKR radius included) in the closed state fix wall/gran reports
+  there (its per-atom contact flag, ``EffectSpec.lammps_wall_state``).
 
 With ``t_end: auto`` the run waits until each contact's outcome is decided
 (:func:`bond`, the ``bond`` hook): a contact held closed (at d > 0, or a jkr contact in
@@ -77,6 +80,7 @@ from .spec import (BOND_CAPTURED, BOND_NONE, BOND_UNDECIDED, DeckPart, EffectSpe
                    hermite_root)
 
 SPEC = EffectSpec("adhesion", state=(("L_ADHESION_TOUCH", "particle"),),
+                  lammps_wall_state="L_ADHESION_TOUCH",
                   work="work_adhesion", work_slot="L_WORK_ADHESION",
                   table_column="work_adhesion_J",
                   work_note="the adhesive part of the normal force (the dmt or jkr law less "
@@ -151,10 +155,9 @@ def not_with(model: str) -> tuple[str, ...]:
 
 
 def check(scene) -> None:
-    """What LAMMPS refuses beside a cohesive normal law, and what the engines do not both
-    follow: damping other than ``viscoelastic`` or with ``limit_damping``; ``jkr`` with
-    contact damping at an end wall (the LAMMPS engine records a damped wall's force from
-    the dumped overlap alone, which misses the wall holding the sphere in tension)."""
+    """What LAMMPS refuses beside a cohesive normal law: damping other than
+    ``viscoelastic`` or with ``limit_damping``; and adhesion to the groove without the
+    groove friction."""
     st = scene.setting(SPEC.name)
     if st.groove and not scene.has("groove_friction"):
         raise SceneError("adhesion.groove", "has no groove friction to load (groove_friction "
@@ -173,10 +176,6 @@ def check(scene) -> None:
     if other:
         raise SceneError("adhesion.model", f"{st.model} with {', '.join(other)} is not "
                          "implemented", f"use model dmt, or drop {', '.join(other)}")
-    if st.model == "jkr" and scene.has("contact_damping") and scene.wall is not None:
-        raise SceneError("adhesion.model", "jkr with contact_damping at an end wall is not "
-                         "implemented (the wall's recorded force in tension)",
-                         "use model dmt, drop contact_damping, or drop walls.end")
 
 
 # ---------------------------------------------------------------------------------------
