@@ -12,6 +12,8 @@ constants.
 """
 from __future__ import annotations
 
+import math
+
 from .effects.spec import compiled
 
 ARRIVAL_FRACTION = 1e-3    # a particle has seen the wave once v > ARRIVAL_FRACTION * v_s
@@ -64,6 +66,20 @@ def plateau(run):
     PLATEAU_SAMPLES)? A plateau's maximum is ill-defined: its peak time is the start of
     the run."""
     return run > PLATEAU_SAMPLES
+
+
+@compiled
+def grid_samples(t_in, t_out, dt):
+    """How many instants k dt (k = 0, 1, ...) of a sample grid of interval dt lie in
+    [t_in, t_out] (0 if none, or if a time is NaN): the samples a record on that grid
+    holds of a run of the velocity from t_in to t_out. A run known in continuous time
+    (the event method's near-peak run) is a :func:`plateau` by this count, as a sampled
+    record's run is by the count of its samples; its length alone (more than
+    PLATEAU_SAMPLES intervals) classes a run of 5 to 6 intervals, which holds 5 or 6
+    samples by where the grid falls, apart from the sampled rule."""
+    if not t_out >= t_in:
+        return 0
+    return int(math.floor(t_out / dt)) - int(math.ceil(t_in / dt)) + 1
 
 
 @compiled

@@ -63,6 +63,25 @@ SS440C = (200e9, 0.28, 7800.0)
 SS316 = (193e9, 0.30, 8000.0)
 
 
+def _touch_or_overlap(d, n: int, a, loaded: bool = False) -> np.ndarray:
+    """The peak events' function of n particles with contact overlaps d (contact i between
+    particles i and i+1; a last entry n-1 is the end wall's) and accelerations a: a[i]
+    while particle i touches (or, ``loaded``, particle 2 carries the load), else the
+    largest overlap of its contacts (< 0). Both vanish where its last contact opens (the
+    contact force is 0 at zero overlap, damped or not), so the function is continuous
+    there: solve_ivp's root finding (brentq) failed to converge on the jump to a
+    constant that stood here before, at an opening behind a particle still accelerating
+    (a few gapped chains in a hundred)."""
+    near = np.full(len(d) + 1, -np.inf)
+    near[:-1] = d
+    near[1:] = np.maximum(near[1:], d)
+    near = near[:n]
+    touching = near > 0.0
+    if loaded:
+        touching[1] = True
+    return np.where(touching, a, near)
+
+
 def hertz_scales(E: float, nu: float, rho: float, R: float, v_s: float):
     """(delta0 [m], t0 [s]) of the scaled equations."""
     m = rho * 4.0 / 3.0 * math.pi * R ** 3
@@ -156,15 +175,14 @@ def _solve(E, nu, rho, R, n, v_s, gaps, probes, t_end, rtol):
     memo = {"t": None, "y": None, "g": None}
 
     def peak_values(t, y):
-        """Per particle: its acceleration while it touches a neighbour, else -1 (its
-        contact just opened); computed once per state for all the probes' events."""
+        """Per particle: its acceleration while it touches a neighbour, else the largest
+        overlap of its contacts (< 0): continuous where its last contact opens (the
+        Hertz force and the overlap vanish together there), so an opening behind it
+        (acceleration falling to 0 from above) is a root of the event like a peak
+        inside a contact; computed once per state for all the probes' events."""
         if memo["t"] != t or memo["y"] is not y:    # the probes' events share one state
             d = overlaps(y[:n])
-            on = d > 0.0
-            touching = np.zeros(n, dtype=bool)
-            touching[:-1] |= on
-            touching[1:] |= on
-            memo.update(t=t, y=y, g=np.where(touching, accel(y[:n]), -1.0))
+            memo.update(t=t, y=y, g=_touch_or_overlap(d, n, accel(y[:n])))
         return memo["g"]
 
     def peak_event(i):
@@ -782,19 +800,13 @@ def _solve_general(radii, mats, v_s, t_end, gaps, wall, F0, rtol, damping=None):
 
     def peak_values(t, y):
         """Per particle: its acceleration while it touches a neighbour or the wall (or
-        carries the load), else -1 (its last contact just opened); computed once per
+        carries the load), else the largest overlap of its contacts (< 0), continuous
+        where its last contact opens (:func:`_touch_or_overlap`); computed once per
         state for all the particles' events."""
         if memo["t"] != t or memo["y"] is not y:
             u = y[:n]
-            on = C.ds + C.x(u) > 0.0
-            touching = np.zeros(n + int(has_wall), dtype=bool)
-            touching[:-1] |= on
-            touching[1:] |= on
-            touching = touching[:n]
-            if loaded:
-                touching[1] = True
             a = accel(y) if damped else C.net(u) / mu
-            memo.update(t=t, y=y, g=np.where(touching, a, -1.0))
+            memo.update(t=t, y=y, g=_touch_or_overlap(C.ds + C.x(u), n, a, loaded))
         return memo["g"]
 
     def peak_event(i):

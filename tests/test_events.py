@@ -190,3 +190,33 @@ def test_a_chain_longer_than_the_record_buffer_keeps_its_observables():
     assert np.all(np.abs(np.array(r.v_max)[ok] / vm[ok] - 1) < 1e-5)
     assert np.all(np.abs(np.array(r.t_front)[ok] - tf[ok]) < 0.01 * sdt)
     assert np.all(np.abs(np.array(r.t_peak)[ok] - tp[ok]) < sdt)
+
+
+def test_plateau_rule_counts_the_grid_samples_of_a_continuous_run():
+    """One plateau rule for sampled records and continuous runs (``obsrules``): a flat top
+    of 5 to 6.2 sample intervals, sampled at many phases of the grid, is a plateau to the
+    sampled rule (``observables.peak``: more than PLATEAU_SAMPLES samples near the top)
+    exactly when its continuous near-peak run holds more than PLATEAU_SAMPLES grid
+    instants (``obsrules.grid_samples``, the event method's rule). Its length alone
+    (> PLATEAU_SAMPLES intervals, the event method's earlier rule) classes some of these
+    runs as plateaus that the sampled rule does not."""
+    from granchain import obsrules
+    from granchain.observables import peak
+    dt = 1e-8
+    t = np.arange(200) * dt
+    by_length = 0
+    for span in (5.05, 5.3, 5.5, 5.8, 5.95, 6.2):
+        for phase in np.linspace(0.0, 1.0, 17)[:-1]:
+            t_in = (50.0 + phase) * dt
+            t_out = t_in + span * dt
+            # rises to 1 over 20 intervals, flat on [t_in, t_out], falls over 20
+            v = np.interp(t, [0.0, t_in - 20 * dt, t_in, t_out, t_out + 20 * dt, t[-1]],
+                          [0.0, 0.0, 1.0, 1.0, 0.0, 0.0])
+            # the exact run above the near level (the slopes are 1 / (20 dt))
+            lo = obsrules.near_level(1.0)
+            a = t_in - (1.0 - lo) * 20 * dt
+            b = t_out + (1.0 - lo) * 20 * dt
+            sampled = peak(t, v)[3]
+            assert sampled == obsrules.plateau(obsrules.grid_samples(a, b, dt)), (span, phase)
+            by_length += sampled != ((b - a) > obsrules.PLATEAU_SAMPLES * dt)
+    assert by_length > 0

@@ -19,6 +19,9 @@ delta (m):
   (the other methods). The end wall's recorded force is the law's, tensile (< 0) while
   the wall holds the sphere closed at delta <= 0 (:func:`history_normal`; LAMMPS's fix
   wall/gran reports the same); the wall's peak force stays the largest compressive one.
+  With contact damping the LAMMPS engine evaluates the wall's law at each sample's x and
+  v (the damping of the JKR radius included) in the closed state fix wall/gran reports
+  there (its per-atom contact flag, ``EffectSpec.lammps_wall_state``).
 
 With ``t_end: auto`` the run waits until each contact's outcome is decided
 (:func:`bond`, the ``bond`` hook): a contact held closed (at d > 0, or a jkr contact in
@@ -77,6 +80,7 @@ from .spec import (BOND_CAPTURED, BOND_NONE, BOND_UNDECIDED, DeckPart, EffectSpe
                    hermite_root)
 
 SPEC = EffectSpec("adhesion", state=(("L_ADHESION_TOUCH", "particle"),),
+                  lammps_wall_state="L_ADHESION_TOUCH",
                   work="work_adhesion", work_slot="L_WORK_ADHESION",
                   table_column="work_adhesion_J",
                   work_note="the adhesive part of the normal force (the dmt or jkr law less "
@@ -151,10 +155,9 @@ def not_with(model: str) -> tuple[str, ...]:
 
 
 def check(scene) -> None:
-    """What LAMMPS refuses beside a cohesive normal law, and what the engines do not both
-    follow: damping other than ``viscoelastic`` or with ``limit_damping``; ``jkr`` with
-    contact damping at an end wall (the LAMMPS engine records a damped wall's force from
-    the dumped overlap alone, which misses the wall holding the sphere in tension)."""
+    """What LAMMPS refuses beside a cohesive normal law: damping other than
+    ``viscoelastic`` or with ``limit_damping``; and adhesion to the groove without the
+    groove friction."""
     st = scene.setting(SPEC.name)
     if st.groove and not scene.has("groove_friction"):
         raise SceneError("adhesion.groove", "has no groove friction to load (groove_friction "
@@ -173,10 +176,6 @@ def check(scene) -> None:
     if other:
         raise SceneError("adhesion.model", f"{st.model} with {', '.join(other)} is not "
                          "implemented", f"use model dmt, or drop {', '.join(other)}")
-    if st.model == "jkr" and scene.has("contact_damping") and scene.wall is not None:
-        raise SceneError("adhesion.model", "jkr with contact_damping at an end wall is not "
-                         "implemented (the wall's recorded force in tension)",
-                         "use model dmt, drop contact_damping, or drop walls.end")
 
 
 # ---------------------------------------------------------------------------------------
@@ -445,8 +444,9 @@ def locate(y, ynew, K0, K1, G, P, FL, LO, n, h, rtol, act, tau):
     -delta_po). A step that jumps is not one the Runge-Kutta pair integrates to its
     order (its stages on either side of the jump disagree), so a jump is crossed in a
     step of its own: a trial step that crosses one from further than the band before it
-    is cut to end half a band before it, and one that starts within the band before it,
-    to end half a band past it (a step of about a band over the closing speed). The band
+    is cut to end half a band before it, and one that starts within the band before it
+    and ends more than a band past it, to end half a band past it (a step of about a band
+    over the closing speed; one that ends within the band past it stands). The band
     is rtol times the contact's pull-off distance delta_po, the length of either law
     (DMT's overlap where its force vanishes is 3.1 times it).
 
@@ -499,15 +499,22 @@ def _switch_time(y, ynew, G, n, m, h, rtol, ox, ov, ot, jkr, g, l):
         band = rtol * po
         held = jkr and y[ot + k, l] != 0.0
         t = -1.0
+        up = True
+        s = po                  # the overlap of the jump crossed (none: po)
         if not held and d0 <= 0.0 and (d1 > 0.0 or (w0 > 0.0 and w1 < 0.0)):
-            lev = -0.5 * band if d0 < -band else 0.5 * band
-            t = hermite_root(d0, w0, d1, w1, h, lev, True)
+            s = 0.0             # touch
         elif not jkr and d0 > 0.0 and d1 <= 0.0:
-            lev = 0.5 * band if d0 > band else -0.5 * band
-            t = hermite_root(d0, w0, d1, w1, h, lev, False)
+            s, up = 0.0, False  # dmt's opening
         elif held and d0 > -po and d1 <= -po:
-            lev = -po + (0.5 * band if d0 > band - po else -0.5 * band)
-            t = hermite_root(d0, w0, d1, w1, h, lev, False)
+            s, up = -po, False  # jkr's pull-off
+        sg = 1.0 if up else -1.0
+        if s < po and sg * (s - d0) > band:
+            t = hermite_root(d0, w0, d1, w1, h, s - 0.5 * sg * band, up)
+        elif s < po and hermite_root(d0, w0, d1, w1, h, s + sg * band, up) > 0.0:
+            # from within the band: past the jump unless the step ends within a band
+            # past it (a step cut to end half a band past it may end a rounding beyond;
+            # cut again, its length would not change)
+            t = hermite_root(d0, w0, d1, w1, h, s + 0.5 * sg * band, up)
         if t > 0.0 and t < best:
             best = t
     return best if best < 1.0 else -1.0

@@ -41,6 +41,12 @@ class EffectSpec:
         law at each sample's x and v (fix wall/gran's own output takes the half-step
         velocity); otherwise it records fix wall/gran's own output, which holds a contact
         the law keeps closed in tension (JKR) as the law's tensile force.
+    lammps_wall_state: the effect's state block (its slot name) whose end-wall entry is
+        fix wall/gran's per-atom contact flag (its ``contacts`` output column 1: 1 while
+        the fix's touch test holds the sphere, a contact held closed in tension included),
+        or None. Where the LAMMPS engine evaluates the wall's law itself (``normal_speed``),
+        it dumps that flag and evaluates the law in the state it gives (the
+        ``history_normal`` laws included), as the reference engine records the force.
     params, flags: the slots of the kernels' parameter vector P and flag vector FL that
         the effect's ``kernel(term)`` fills (``P_*``, ``F_*``).
     rows: the per-sphere or per-contact rows of the kernels' per-chain array G that the
@@ -66,6 +72,7 @@ class EffectSpec:
     lammps_potential: str | None = None
     lammps_wall_force: str | None = None
     normal_speed: bool = False
+    lammps_wall_state: str | None = None
     params: tuple[str, ...] = ()
     flags: tuple[str, ...] = ()
     rows: tuple[str, ...] = ()

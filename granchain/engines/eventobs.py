@@ -21,8 +21,9 @@ from .codes import L_DISP, L_VEL, RB_C, RB_H, RB_MAX, RB_T0  # noqa: E402
 from .compose import compiled  # noqa: E402
 from .hermite import first_cross, poly_dv, poly_v, turn, v_bound, vcoef  # noqa: E402
 
-_near_level, _pass_level, _front_level = (
-    compiled(r) for r in (obsrules.near_level, obsrules.pass_level, obsrules.front_level))
+_near_level, _pass_level, _front_level, _grid_samples, _plateau = (
+    compiled(r) for r in (obsrules.near_level, obsrules.pass_level, obsrules.front_level,
+                          obsrules.grid_samples, obsrules.plateau))
 
 
 @njit(cache=True, error_model="numpy", boundscheck=False)
@@ -189,10 +190,13 @@ def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, l, VMAX, TPK, PASSED, RUNEND, RB
 
 
 @njit(cache=True)
-def finalize(VMAX, TPK, RUNEND, RB, RBN, DROP, VINIT, t_last, plateau_span):
+def finalize(VMAX, TPK, RUNEND, RB, RBN, DROP, VINIT, t_last, sample_dt):
     """Per particle (v_max, t_peak, t_front, plateau) of one chain from its running
     observables (module docstring); v_max 0 and NaN times for a particle that never moved
-    forward."""
+    forward. A plateau: the near-peak run, from the first crossing of the near level to
+    the end of the run (or t_last), holds more than PLATEAU_SAMPLES instants of the sample
+    grid of interval sample_dt (``obsrules.grid_samples``, ``obsrules.plateau``): the
+    sampled records' rule, applied to the run in continuous time."""
     n = VMAX.shape[0]
     vmax = np.zeros(n)
     tpk = np.full(n, np.nan)
@@ -206,7 +210,7 @@ def finalize(VMAX, TPK, RUNEND, RB, RBN, DROP, VINIT, t_last, plateau_span):
         t_near = _level_time(RB[i], RBN[i], DROP[i], VINIT[i], _near_level(top))
         t_half = _level_time(RB[i], RBN[i], DROP[i], VINIT[i], _front_level(top))
         end = RUNEND[i] if RUNEND[i] >= 0.0 else t_last
-        plat[i] = (end - t_near) > plateau_span
+        plat[i] = _plateau(_grid_samples(t_near, end, sample_dt))
         tpk[i] = t_near if plat[i] else TPK[i]
         tfr[i] = t_half
     return vmax, tpk, tfr, plat

@@ -36,9 +36,10 @@ below PASS_FRACTION of the running maximum after it (the wave has passed:
 near-peak run). At the end, ``finalize`` gives per particle: v_max; the front time
 t_front, the first crossing of v_max / 2 (found in the first record step whose maximum
 reaches it: before that step the velocity never exceeded it); the plateau flag, set when
-the velocity stays within PEAK_TOL of v_max from the first crossing of (1 - PEAK_TOL)
-v_max until the end of the near-peak run for longer than PLATEAU_SAMPLES sample
-intervals (the sampled rule of ``granchain.observables`` in continuous time); t_peak, the
+the run within PEAK_TOL of v_max, from the first crossing of (1 - PEAK_TOL) v_max until
+the end of the near-peak run, holds more than PLATEAU_SAMPLES instants of the sample
+grid (``obsrules.grid_samples``: the sampled rule of ``granchain.observables``, which
+counts the near-peak samples, applied to the continuous run); t_peak, the
 time of the maximum, or for a plateau the first crossing of (1 - PEAK_TOL) v_max. The
 energy balance error is the largest |balance| / E0 over all step ends.
 

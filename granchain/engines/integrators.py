@@ -33,7 +33,7 @@ use_jit_cache()   # before the first @njit(cache=True): a cache keyed by every s
 
 from .codes import (DOP_A, DOP_B, DOP_E3, DOP_E5, E_KIN_TRANS, E_LEN,  # noqa: E402
                     E_WORK_LOAD, F_DEAD_LOAD, F_END_WALL, F_HETEROGENEOUS, G_MASS, KICKED,
-                    L_DISP, L_VEL, P_DEAD_LOAD, P_N_SPHERES, WORK_SLOTS)
+                    L_DISP, L_STATE_SIZE, L_VEL, P_DEAD_LOAD, P_N_SPHERES, WORK_SLOTS)
 # the physics: the effects' laws, composed from the registry
 from .compose import (effect_energies, effect_forces, normal_forces,  # noqa: E402
                       project_histories, wall_force, wall_force_at)
@@ -366,3 +366,23 @@ def wall_forces(d, w, G, P, FL, n, out):
             g[r, 0] = G[b, r]
         for s in range(d.shape[0]):
             out[s, b] = wall_force(d[s, b], w[s, b], g, P, FL, n, 0)
+
+
+@njit(cache=True)
+def wall_forces_at(d, w, s, G, P, FL, LO, blocks, n, out):
+    """out[i, b]: the end wall's force (N) on chain b (rows G[b]) in the state a sample
+    reports: overlap d[i, b] (m), closing speed w[i, b] (m/s) and, for each state block
+    offset blocks[j], the wall's entry s[i, b, j]; by ``compose.wall_force_at`` (the laws
+    that read their history in the state included). The LAMMPS engine's ledger evaluates
+    it where LAMMPS reports the wall's state (``EffectSpec.lammps_wall_state``)."""
+    g = np.empty((G.shape[1], 1))
+    y = np.zeros((LO[L_STATE_SIZE], 1))
+    for b in range(d.shape[1]):
+        for r in range(G.shape[1]):
+            g[r, 0] = G[b, r]
+        for i in range(d.shape[0]):
+            y[LO[L_DISP] + n - 1, 0] = d[i, b] + g[n - 1, 0]
+            y[LO[L_VEL] + n - 1, 0] = w[i, b]
+            for j in range(blocks.shape[0]):
+                y[blocks[j] + n - 1, 0] = s[i, b, j]
+            out[i, b] = wall_force_at(y, g, P, FL, LO, n, 0)

@@ -31,9 +31,6 @@ from . import obscodes
 M_EVENT = 3
 METHOD_CODES = {"rk4": codes.M_RK4, "verlet": codes.M_VERLET, "adaptive": codes.M_DOP853,
                 "event": M_EVENT}
-# plateau rule of granchain.observables (PLATEAU_SAMPLES sample intervals), for the
-# event method's on-the-fly peaks
-PLATEAU_SAMPLES = 5
 STATUS_NAMES = {codes.S_DONE: "done", codes.S_PASSED: "passed", codes.S_TIMEOUT: "timeout",
                 codes.S_NONFINITE: "nonfinite", codes.S_STEPFAIL: "stepfail",
                 codes.S_RUNNING: "timeout"}
@@ -433,7 +430,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan]
             v = np.stack([y0[ov:ov + n], y_end[ov:ov + n]])
             e = np.stack([ebuf.copy(), e_end])
         vmax, tpk, tfr, plat = kern.finalize(VMAX[b], TPK[b], RUNEND[b], RB[b], RBN[b], DROP[b],
-                                           VINIT[b], float(T[b]), PLATEAU_SAMPLES * sample_dt)
+                                           VINIT[b], float(T[b]), sample_dt)
         final = np.zeros(n, dtype=bool)
         seen = vmax > arrival_speed(vs[b])
         final[:n - 1] = seen[:n - 1] & (PASSED[b, :n - 1] != 0)

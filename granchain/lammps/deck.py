@@ -84,6 +84,7 @@ from granchain.lammps.deckplan import (BINARY_COLUMNS, BINARY_NAME, DATA_NAME, D
                                    LEDGER_INPUTS, LEDGER_NAME, LOG_NAME, OUTPUTS, SCREEN_NAME,
                                    WALL_FORCE_COLUMN, WORKDIR_FILES,
                                    WORK_COLUMNS, POTENTIAL_EXTRA_COLUMN, WALL_EXTRA_COLUMN,
+                                   WALL_STATE_COLUMN,
                                    DeckPlan, batch_members, cadence_dir, cadence_groups,
                                    ledger_inputs,
                                    ledger_binary_columns, max_travel, plan)
@@ -151,6 +152,9 @@ def _ledger_block(scene: Scene, pl: DeckPlan, parts: Parts) -> str:
             notes[c] = f"the contacts' elastic energy beyond the pair style's ({q})"
         elif c == WALL_EXTRA_COLUMN:
             notes[c] = f"x force the plugin adds on the last sphere at the end wall ({q}, 1e-9 N)"
+        elif c == WALL_STATE_COLUMN:
+            notes[c] = (f"the end wall's contact flag on the last sphere ({q}: 1 while fix "
+                        "wall/gran's touch test holds it, 0 else)")
     inputs = [q for _, q in columns]
     units = "1e-15 J" if WALL_FORCE_COLUMN not in pl.ledger_columns else "1e-15 J unless noted"
     k = len(inputs)

@@ -64,18 +64,26 @@ WALL_FORCE_COLUMN = "wall_force"
 # wall force)
 POTENTIAL_EXTRA_COLUMN = "potential_extra"
 WALL_EXTRA_COLUMN = "wall_force_extra"
+# the per-chain ledger's column of the end wall's contact flag (fix wall/gran's per-atom
+# 'contacts' column 1), when an effect on keeps its wall state there
+# (``EffectSpec.lammps_wall_state``) and the engine evaluates the wall's law itself (an
+# effect on declares ``normal_speed``)
+WALL_STATE_COLUMN = "wall_state"
 
 
 def ledger_inputs(scene: Scene) -> tuple[tuple[str, str], ...]:
     """(column, the per-atom LAMMPS quantity summed per chain) of the per-chain ledger, in
     its order: the works and the rotational energy (``LEDGER_INPUTS``), the effects'
-    elastic energies beyond Hertz's, then with an end wall its force (fix wall/gran's)
-    and the effects' parts of it."""
+    elastic energies beyond Hertz's, then with an end wall its force (fix wall/gran's),
+    its contact flag (where the engine evaluates the wall's law in the state LAMMPS
+    reports: ``WALL_STATE_COLUMN``) and the effects' parts of it."""
     on = [s for name, s in SPECS.items() if scene.has(name)]
     out = [LEDGER_INPUTS[s.name] for s in on if s.name in LEDGER_INPUTS]
     out += [(POTENTIAL_EXTRA_COLUMN, s.lammps_potential) for s in on if s.lammps_potential]
     if scene.wall is not None:
         out.append((WALL_FORCE_COLUMN, field.WALL_FORCE_INPUT))
+        if any(s.normal_speed for s in on) and any(s.lammps_wall_state for s in on):
+            out.append((WALL_STATE_COLUMN, field.WALL_STATE_INPUT))
         out += [(WALL_EXTRA_COLUMN, s.lammps_wall_force) for s in on if s.lammps_wall_force]
     return tuple(out)
 

@@ -51,6 +51,8 @@ from granchain.materials import effective_modulus
 
 WALL_FIX = "wall"                    # fix ID of the end wall
 WALL_FORCE_INPUT = f"f_{WALL_FIX}[2]"   # its per-atom x force on the sphere (contacts col. 2)
+WALL_STATE_INPUT = f"f_{WALL_FIX}[1]"   # its per-atom contact flag (contacts col. 1: 1 while
+#                                        the fix's touch test holds the sphere)
 WALL_X = 0.0                         # um: the wall plane of a chain with an end wall
 
 

@@ -60,7 +60,8 @@ ledger; N, > 0 in compression, < 0 while a JKR contact is held closed in tension
 ``wall_static`` its static part K_w w_0^(3/2) as the
 reference engine states it. With contact damping it is the force at the sample's state,
 F_el + eta w of the dumped x and vx (``ledger.sampled_wall_force``: the reference
-kernels' own law, evaluated), as the reference engine
+kernels' own law, evaluated; a JKR wall in the closed state fix wall/gran's contact flag
+reports, ``EffectSpec.lammps_wall_state``), as the reference engine
 records it: fix wall/gran's output is the force of the step, taken with the half-step
 velocity. Spheres of different radii: ``Trajectory.radii``.
 

@@ -16,7 +16,7 @@ from ...lammps import deck as deckmod
 from ...scene import Scene
 from .binary import read_binary_dump
 from .ledger import (UM, _fill_ledger, _fill_mechanical, _fill_residual, _kinetic,
-                     _new_energies, _potential, _zeros, geometry, sampled_wall_force)
+                     _new_energies, _potential, _zeros, geometry)
 
 DUMP_READ = ("x", "vx")   # the dump columns read as MDAnalysis additional (float64) columns
 
@@ -70,9 +70,10 @@ def read_dump(path: Path, scene: Scene, pl: "deckmod.DeckPlan", *, velocities: s
     E = _new_energies(*EH.shape)
     _fill_mechanical(E, KE, EH, WL)
     walled = deckmod.WALL_FORCE_COLUMN in pl.ledger_columns
-    sampled = parts[0][8] is not None     # the wall force from x and v (geometry.wall_law)
-    WF = (np.concatenate([p[8] for p in parts]) if sampled else np.empty(EH.shape)) \
-        if walled else None
+    # the wall force from x and v (geometry.wall_law): the last sphere's x (um) and vx
+    sampled = (np.concatenate([p[8][0] for p in parts]), np.concatenate([p[8][1] for p in parts]),
+               job["geometry"]) if walled and parts[0][8] is not None else None
+    WF = np.empty(EH.shape) if walled else None
     XL = np.concatenate([p[7] for p in parts]) if walled else None
     if ledger is not None:
         _fill_ledger(E, WF, pl, ledger, sampled)
@@ -101,6 +102,7 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
                              f"(output {pl.output!r}, columns {' '.join(pl.dump_columns)})")
     geo = geometry(scene, pl)
     walled = deckmod.WALL_FORCE_COLUMN in pl.ledger_columns
+    sampled = walled and geo.wall_law is not None     # the wall force from x and v
     every = holds_contacts(physics_terms(scene))     # every contact's overlap (stop rule)
     out = {}
 
@@ -112,6 +114,8 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
             out.update(V=_zeros((B, frames, n)), E=_new_energies(frames, B),
                        OL=np.empty((frames, B)), WF=np.empty((frames, B)) if walled else None,
                        XL=np.empty((frames, B)) if walled else None,
+                       WX=np.empty((frames, B)) if sampled else None,
+                       WV=np.empty((frames, B)) if sampled else None,
                        OV=np.empty((frames, B, n - 1)) if every else None)
         hi = lo + len(block["x"])
         x = block["x"].reshape(-1, B, n)
@@ -122,8 +126,9 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
         if walled:
             out["XL"][lo:hi] = (x[..., -1] - geo.x_last0) * UM
         v = block["vx"].reshape(-1, B, n)
-        if walled and geo.wall_law is not None:
-            out["WF"][lo:hi] = sampled_wall_force(x[..., -1], v[..., -1], geo)
+        if sampled:
+            out["WX"][lo:hi] = x[..., -1]
+            out["WV"][lo:hi] = v[..., -1]
         _fill_mechanical(out["E"][lo:hi], _kinetic(v, geo), EH, WL)
         out["V"][:, lo:hi] = v.transpose(1, 0, 2)
 
@@ -138,7 +143,6 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
         lpath = path.with_name(deckmod.LEDGER_BINARY_NAME)
         lwhat = f"LAMMPS ledger {lpath}"
         lcols = deckmod.ledger_binary_columns(pl)
-        sampled = geo.wall_law is not None     # the wall force is from x and v, above
 
         def ledger(lo, block, frames):
             hi = lo + len(block[lcols[0]])
@@ -146,7 +150,8 @@ def read_binary(path: Path, scene: Scene, pl: "deckmod.DeckPlan"):
                 raise GranchainError(f"{lwhat} does not match the trajectory: more than {S} "
                                      f"samples; {path.name} has {S}")
             _fill_ledger(E[lo:hi], None if WF is None else WF[lo:hi], pl,
-                         np.stack([block[c] for c in lcols], axis=2), sampled)
+                         np.stack([block[c] for c in lcols], axis=2),
+                         (out["WX"][lo:hi], out["WV"][lo:hi], geo) if sampled else None)
 
         lstep, _ = read_binary_dump(lpath, lcols, B, pl.nsamples, lwhat, consume=ledger)
         if not np.array_equal(lstep, step):
@@ -231,8 +236,9 @@ def _halted(log: Path) -> bool:
 def _read_part(job: dict, part: int, nparts: int):
     """Frames [part*S/nparts, (part+1)*S/nparts) of a dump: (S, step, V, E_potential,
     overlap of the last contact in m, kinetic energy, work of the dead load (None
-    without), displacement of the last sphere in m (NaN without an end wall), the wall
-    force at the samples' state in N (None unless ``geometry.wall_law``), every contact's
+    without), displacement of the last sphere in m (NaN without an end wall), the last
+    sphere's x (um) and vx at the samples (None unless ``geometry.wall_law``: the wall
+    force is the law at those), every contact's
     overlap in m (None unless ``job["overlaps"]``)), per chain."""
     import MDAnalysis as mda
 
@@ -255,7 +261,8 @@ def _read_part(job: dict, part: int, nparts: int):
             KE = np.empty((hi - lo, B))
             WL = np.zeros((hi - lo, B))
             XL = np.empty((hi - lo, B))
-            WD = np.empty((hi - lo, B)) if geo.wall_law is not None else None
+            WD = (np.empty((hi - lo, B)), np.empty((hi - lo, B))) \
+                if geo.wall_law is not None else None
             OV = np.empty((hi - lo, B, n - 1)) if job["overlaps"] else None
             for s, ts in enumerate(traj[lo:hi]):
                 data = ts.data
@@ -272,7 +279,7 @@ def _read_part(job: dict, part: int, nparts: int):
                     OV[s] = ov
                 XL[s] = (x[:, -1] - geo.x_last0) * UM
                 if WD is not None:
-                    WD[s] = sampled_wall_force(x[:, -1], v[:, -1], geo)
+                    WD[0][s], WD[1][s] = x[:, -1], v[:, -1]
                 if wl is not None:
                     WL[s] = wl
     except GranchainError:

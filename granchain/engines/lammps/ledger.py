@@ -10,10 +10,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...effects import SPECS, physics_terms, residual_work
+from ...effects import MODULES, SPECS, physics_terms, residual_work
+from ...errors import GranchainError
 from ...lammps import deck as deckmod
 from ...scene import Scene
 from ...trajectory import ENERGY_COLUMNS
+from .. import codes
 from ..codes import E_KIN_ROT, E_KIN_TRANS, E_POT, E_WORK_LOAD
 
 # the ledger columns of the works LAMMPS outputs (per-atom cumulative works), registry order
@@ -48,6 +50,10 @@ class Geometry:
     # the recorded force is fix wall/gran's own): the reference kernels' (P, FL, G (B, G_LEN * n)) of the deck's chains; the
     # wall force is then that law at each sample's state (:func:`sampled_wall_force`)
     wall_law: tuple | None = None
+    # with wall_law, where LAMMPS reports the wall's state (an effect on declares
+    # EffectSpec.lammps_wall_state; the ledger's WALL_STATE_COLUMN): the kernels' state
+    # layout LO and the offsets of those state blocks; None: the law of x and v alone
+    wall_state: tuple | None = None
 
 
 def chain_terms(scene: Scene, pl: "deckmod.DeckPlan") -> list:
@@ -73,7 +79,8 @@ def geometry(scene: Scene, pl: "deckmod.DeckPlan", members=None) -> Geometry:
     return Geometry(rsum=R[:-1] + R[1:], K=np.asarray(ch.K, dtype=float), masses=masses,
                     R_last=float(R[-1]), K_wall=ch.K_wall, load=float(ch.load), x2_0=x2,
                     x_last0=float(x0[0][-1]) if ch.wall and x0 else math.nan,
-                    wall_law=_wall_law(terms, [terms] * pl.n_chains))
+                    wall_law=_wall_law(terms, [terms] * pl.n_chains),
+                    wall_state=_wall_state(terms))
 
 
 def _member_geometry(scene: Scene, pl: "deckmod.DeckPlan", members) -> Geometry:
@@ -94,7 +101,7 @@ def _member_geometry(scene: Scene, pl: "deckmod.DeckPlan", members) -> Geometry:
                     load=float(ch0.load),
                     x2_0=np.array([x[1] for x in x0]) if loaded else np.zeros(pl.n_chains),
                     x_last0=np.array([x[-1] for x in x0]) if walled else math.nan,
-                    wall_law=_wall_law(members[0], members))
+                    wall_law=_wall_law(members[0], members), wall_state=_wall_state(members[0]))
 
 
 def _wall_law(terms, members) -> tuple | None:
@@ -110,24 +117,56 @@ def _wall_law(terms, members) -> tuple | None:
     return (*pack(terms), G)
 
 
-def sampled_wall_force(x_last, v_last, geo: Geometry) -> np.ndarray:
+def _wall_state(terms) -> tuple | None:
+    """:attr:`Geometry.wall_state` of a deck whose first chain has these terms."""
+    on = [m for m in MODULES if terms.has(m.SPEC.name)]
+    if terms.chain.K_wall is None or not any(m.SPEC.normal_speed for m in on):
+        return None
+    blocks = [m.SPEC.lammps_wall_state for m in on if m.SPEC.lammps_wall_state]
+    if not blocks:
+        return None
+    unknown = [m.SPEC.name for m in on
+               if hasattr(m, "history_normal") and not m.SPEC.lammps_wall_state]
+    if unknown:
+        raise GranchainError(f"LAMMPS engine: the end wall's law of {', '.join(unknown)} "
+                             "reads a history LAMMPS does not report beside "
+                             f"{', '.join(m.SPEC.name for m in on if m.SPEC.lammps_wall_state)}")
+    from ..reference import Layout
+    LO = Layout.of(terms).LO
+    return LO, np.array([LO[getattr(codes, b)] for b in blocks], dtype=np.int64)
+
+
+def sampled_wall_force(x_last, v_last, geo: Geometry, state=None) -> np.ndarray:
     """The end wall's force (N, > 0 in compression) at the samples' state, with the
     reference engine's own law (``engines.compose.wall_force``: the effects' normal laws,
     e.g. F_el + eta w with contact damping, held >= 0 under limit_damping) of the overlap
     of the dumped x and of the last sphere's dumped vx (its closing speed); 0 off the wall.
-    That is the force at the sample, as the reference engine records it; fix wall/gran's
-    own output is the force of the step that ends there, which LAMMPS evaluates with the
-    half-step velocity (it differs by eta (v_k - v_k-1/2): 6e-5 to 1.5e-4 of the peak at
-    1 ns). x_last, v_last: (..., B)."""
-    from ..integrators import wall_forces
-    d = np.maximum((x_last + geo.R_last - deckmod.field.WALL_X) * UM, 0.0)
+    With ``geo.wall_state``, ``state`` (..., B) is the wall's state entry LAMMPS reported
+    at each sample (fix wall/gran's contact flag, the ledger's WALL_STATE_COLUMN) and the
+    law is ``engines.compose.wall_force_at`` in that state (a JKR wall holding the sphere
+    closed in tension at d <= 0: the law's tensile force and its damping). That is the
+    force at the sample, as the reference engine records it; fix wall/gran's own output
+    is the force of the step that ends there, which LAMMPS evaluates with the half-step
+    velocity (it differs by eta (v_k - v_k-1/2): 6e-5 to 1.5e-4 of the peak at 1 ns).
+    x_last, v_last: (..., B)."""
+    from ..integrators import wall_forces, wall_forces_at
+    d = (x_last + geo.R_last - deckmod.field.WALL_X) * UM
     P, FL, G = geo.wall_law
     shape = np.shape(d)
-    d2 = np.ascontiguousarray(np.reshape(d, (-1, shape[-1])), dtype=np.float64)
     w2 = np.ascontiguousarray(np.reshape(np.broadcast_to(v_last, shape), (-1, shape[-1])),
                               dtype=np.float64)
+    if geo.wall_state is None:
+        d2 = np.ascontiguousarray(np.reshape(np.maximum(d, 0.0), (-1, shape[-1])),
+                                  dtype=np.float64)
+        out = np.empty_like(d2)
+        wall_forces(d2, w2, G, P, FL, int(P[0]), out)
+        return out.reshape(shape)
+    LO, blocks = geo.wall_state
+    d2 = np.ascontiguousarray(np.reshape(d, (-1, shape[-1])), dtype=np.float64)
+    s2 = np.ascontiguousarray(np.repeat(np.reshape(state, d2.shape)[..., None], len(blocks),
+                                        axis=2), dtype=np.float64)
     out = np.empty_like(d2)
-    wall_forces(d2, w2, G, P, FL, int(P[0]), out)
+    wall_forces_at(d2, w2, s2, G, P, FL, LO, blocks, int(P[0]), out)
     return out.reshape(shape)
 
 
@@ -181,16 +220,24 @@ def _fill_mechanical(E, KE, EH, WL) -> None:
         E[:, :, E_WORK_LOAD] = WL
 
 
-def _fill_ledger(E, WF, pl: "deckmod.DeckPlan", ledger, sampled: bool = False) -> None:
+def _fill_ledger(E, WF, pl: "deckmod.DeckPlan", ledger, sampled=None) -> None:
     """The per-chain LAMMPS ledger (samples, B, k) into E's columns (1e-15 J; an effect's
     elastic energy beyond Hertz's added to the potential column) and the end wall's
     force on the last sphere into WF (samples, B) in N, as a compression (> 0), the
-    effects' parts of it added; WF None: not wanted. ``sampled``: WF already holds fix
-    wall/gran's law at the samples' state (:func:`sampled_wall_force`, a velocity-
-    dependent wall law), which replaces its own column."""
-    for j, name in enumerate(pl.ledger_columns):
+    effects' parts of it added; WF None: not wanted. ``sampled``: (x_last, v_last, geo)
+    of the samples when the recorded force is fix wall/gran's law at the samples' state
+    (:func:`sampled_wall_force`, a velocity-dependent wall law, in the wall's state the
+    ledger reports), which replaces its own column."""
+    cols = pl.ledger_columns
+    if WF is not None and sampled is not None:
+        state = (ledger[:, :, cols.index(deckmod.WALL_STATE_COLUMN)]
+                 if deckmod.WALL_STATE_COLUMN in cols else None)
+        WF[:] = sampled_wall_force(*sampled, state)
+    for j, name in enumerate(cols):
+        if name == deckmod.WALL_STATE_COLUMN:
+            continue
         if name == deckmod.WALL_FORCE_COLUMN:
-            if WF is not None and not sampled:
+            if WF is not None and sampled is None:
                 WF[:] = -ledger[:, :, j] * FORCE
         elif name == deckmod.WALL_EXTRA_COLUMN:
             if WF is not None:
