@@ -235,20 +235,24 @@ def verlet_block(y, acc, h, gaps, P, FL, LO, f):
 
 
 # Per-chain entry points (1D state of one chain): the block routines on a block of one
-# lane. The adaptive method and the tests use these.
+# lane. The adaptive method and the tests use these. ``forces``, ``project`` and
+# ``dop853_try`` are inlined by numba where they are called (a one-line wrapper compiled
+# on its own is one more library that links, optimises and emits every effect's law
+# again: the drivers above it emit them all the same); called from Python they compile
+# on their own.
 @njit(cache=True, inline="always")
 def _col(a):
     return a.reshape((a.shape[0], 1))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def forces(y, gaps, P, FL, LO, hist_dt, dy, f):
     """Time derivative dy of one chain's state y; f receives the Hertz force of every
     contact (``forces_block`` on one lane)."""
     forces_block(_col(y), _col(gaps), P, FL, LO, hist_dt, _col(dy), _col(f))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def project(y, gaps, P, FL, LO, f):
     """Return mapping of one chain's friction histories (``project_block`` on one lane)."""
     project_block(_col(y), _col(gaps), P, FL, LO, _col(f))
@@ -331,7 +335,7 @@ def error_norm(e5, e3, h, ny, dopnorm):
     return abs(h) * math.sqrt(e5 / ny)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def dop853_try(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol):
     """One DOP853 trial step from y (evaluates K[0] = f(y) first); returns the scaled
     error norm (accept if <= 1)."""
