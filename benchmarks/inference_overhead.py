@@ -16,17 +16,9 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
-import resource
 import statistics
-import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _cpu() -> float:
-    r = resource.getrusage(resource.RUSAGE_SELF)
-    return r.ru_utime + r.ru_stime
+from inference_setting import _cpu, example_setting  # noqa: E402  (this folder)
 
 
 def main(argv=None):
@@ -35,20 +27,14 @@ def main(argv=None):
     ap.add_argument("--realisations", type=int, default=256)
     ap.add_argument("--repeats", type=int, default=3)
     a = ap.parse_args(argv)
-    sys.path.insert(0, str(ROOT))
+    base, chosen = example_setting()
     from granchain.collision import terms_of
     from granchain.gapdesign import EMPHASIS, design
     from granchain.gaps import members
-    from granchain.inference.grid import complete_base, joint_scene
-    from granchain.inference.measurements import read_measurements
-    from granchain.inference.setting import choose_setting
+    from granchain.inference.grid import joint_scene
     from granchain.observables import bounded, summarize
     from granchain.runplan import plan_run
-    from granchain.scene import load_scene
     from granchain.simulate import run_scene, trajectories
-    meas = read_measurements(ROOT / "measurements/example_restitution.csv", peaks=True)
-    base, _ = complete_base(load_scene(ROOT / "measurements/example_restitution.yaml"), meas)
-    base, chosen = choose_setting(base, meas, peaks=True)
     g, R = a.gap_nm * 1e-9, a.realisations
     scene = plan_run(joint_scene(base, g, 0.92, R), per_speed=False).scene
     gaps = design(base, R, EMPHASIS).gaps(g)

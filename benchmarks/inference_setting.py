@@ -27,8 +27,23 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _cpu() -> float:
+    """This process's CPU seconds (user + system)."""
     r = resource.getrusage(resource.RUSAGE_SELF)
     return r.ru_utime + r.ru_stime
+
+
+def example_setting():
+    """The shipped joint example's completed base scene with the integrator its stated
+    errors ask for, and that choice (``setting.choose_setting``)."""
+    sys.path.insert(0, str(ROOT))
+    from granchain.inference.grid import complete_base
+    from granchain.inference.measurements import read_measurements
+    from granchain.inference.setting import choose_setting
+    from granchain.scene import load_scene
+    meas = read_measurements(ROOT / "measurements/example_restitution.csv", peaks=True)
+    base, _ = complete_base(load_scene(ROOT / "measurements/example_restitution.yaml"), meas)
+    base, chosen = choose_setting(base, meas, peaks=True)
+    return base, chosen
 
 
 def main(argv=None):
@@ -37,17 +52,11 @@ def main(argv=None):
     ap.add_argument("--gaps-nm", default="0,20,80,245,500")
     ap.add_argument("--event", default="", help="event tolerances, comma-separated")
     a = ap.parse_args(argv)
-    sys.path.insert(0, str(ROOT))
+    base, chosen = example_setting()
     from granchain.gapdesign import EMPHASIS, design
-    from granchain.inference.grid import complete_base, joint_scene
-    from granchain.inference.measurements import read_measurements
-    from granchain.inference.setting import choose_setting
+    from granchain.inference.grid import joint_scene
     from granchain.runplan import plan_run
-    from granchain.scene import load_scene
     from granchain.simulate import run_scene
-    meas = read_measurements(ROOT / "measurements/example_restitution.csv", peaks=True)
-    base, _ = complete_base(load_scene(ROOT / "measurements/example_restitution.yaml"), meas)
-    base, chosen = choose_setting(base, meas, peaks=True)
     dt, R = chosen["dt_s"], a.realisations
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; chosen: "
           f"{chosen['reason']}", flush=True)
