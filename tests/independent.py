@@ -18,7 +18,8 @@ they say, and a packed chain's v_max / v_s is the same for any material, radius 
 A peak is where the probe's acceleration falls through zero while it touches a
 neighbour, or where its last contact opens (a sphere that then flies freely across a
 gap: the peak is a plateau, and its time is the moment the contact opened). Both are
-found by solve_ivp's event root finding; a velocity still rising at ``t_end`` counts too.
+found by root finding on the dense output after the integration (solve_ivp's rule with a
+larger iteration cap, :func:`_locate`); a velocity still rising at ``t_end`` counts too.
 
 ``hertz_chain_general`` (below) solves the chains of the notes' "Beyond the chapter"
 section the same way: spheres of their own radius and material (1/E* summed over the
@@ -80,6 +81,42 @@ def _touch_or_overlap(d, n: int, a, loaded: bool = False) -> np.ndarray:
     if loaded:
         touching[1] = True
     return np.where(touching, a, near)
+
+
+# solve_ivp locates an event by brentq with at most 100 iterations, which ends in "Failed
+# to converge" where the event's function is flat on one side of its root: a particle
+# leaving its last contact (its acceleration vanishes like delta^(3/2), its overlap
+# linearly, and both dither in rounding within 1e-22 of the root) took 102 on a gapped
+# 316 chain. The events are located after the integration instead (:func:`_locate`),
+# over the same steps and by the same rule, with this cap.
+EVENT_MAXITER = 1000
+
+
+def _locate(events, sol, ts):
+    """Per event (a function of (t, y), with solve_ivp's ``direction``): the times inside
+    the steps ts of the dense output sol where it changes sign in its direction (solve_ivp's
+    rule: a step whose ends' values have the sign change, a zero included), found by brentq
+    as solve_ivp finds them but with EVENT_MAXITER iterations; and the states there. The
+    functions are evaluated at each step end with one state array for all of them."""
+    eps = np.finfo(float).eps
+    Y = sol(ts)
+    G = np.empty((len(ts), len(events)))
+    for j in range(len(ts)):
+        y = Y[:, j]
+        for k, ev in enumerate(events):
+            G[j, k] = ev(ts[j], y)
+    t_events, y_events = [], []
+    for k, ev in enumerate(events):
+        g0, g1 = G[:-1, k], G[1:, k]
+        d = getattr(ev, "direction", 0.0)
+        up, down = (g0 <= 0.0) & (g1 >= 0.0), (g0 >= 0.0) & (g1 <= 0.0)
+        hit = (up & (d > 0)) | (down & (d < 0)) | ((up | down) & (d == 0))
+        roots = np.array([brentq(lambda t: ev(t, sol(t)), ts[j], ts[j + 1], xtol=4 * eps,
+                                 rtol=4 * eps, maxiter=EVENT_MAXITER)
+                          for j in np.flatnonzero(hit)])
+        t_events.append(roots)
+        y_events.append(sol(roots).T if len(roots) else np.zeros((0, Y.shape[0])))
+    return t_events, y_events
 
 
 def hertz_scales(E: float, nu: float, rho: float, R: float, v_s: float):
@@ -194,9 +231,10 @@ def _solve(E, nu, rho, R, n, v_s, gaps, probes, t_end, rtol):
     y0 = np.zeros(2 * n)
     y0[n] = 1.0
     sol = solve_ivp(rhs, (0.0, T), y0, method="DOP853", rtol=rtol, atol=1e-4 * rtol,
-                    dense_output=True, events=[peak_event(p - 1) for p in probes])
+                    dense_output=True)
     if sol.status != 0:
         raise RuntimeError(f"solve_ivp failed: {sol.message}")
+    sol.t_events, sol.y_events = _locate([peak_event(p - 1) for p in probes], sol.sol, sol.t)
     vmax, tpk = [], []
     for k, p in enumerate(probes):
         cands = [(y[n + p - 1], t) for t, y in zip(sol.t_events[k], sol.y_events[k])]
@@ -561,28 +599,23 @@ def _integrate_by_contact(rhs, C, n, fixed, y0, T, rtol, extra_switches=None):
     energy 2e-9. So each switch ends a segment: a terminal event (hysteresis SWITCH_EPS)
     locates it, the step that crossed it is done again from its start up to the switch
     (no stage past it), and the next segment starts there. ``fixed``: the other
-    (non-terminal) events. Returns a namespace like solve_ivp's result: t, y, t_events,
-    y_events (over all segments, per ``fixed`` event), sol (dense output over [0, T]),
+    (non-terminal) events, located on the whole dense output once it is integrated
+    (:func:`_locate`). Returns a namespace like solve_ivp's result: t, y, t_events,
+    y_events (per ``fixed`` event), sol (dense output over [0, T]),
     segments (their count). ``extra_switches``: None, or a function of the state at a
     segment's start giving more terminal events that end a segment (limit_damping's
     clamp). The state may carry more than the 2 n positions and velocities."""
     nc = len(C.kap)
     free = [c for c in range(nc) if not C.ds[c] > 0.0]     # preloaded contacts stay closed
     ts, ys, interps = [np.array([0.0])], [y0[:, None]], []     # step points, dense output
-    t_ev = [[] for _ in fixed]
-    y_ev = [[] for _ in fixed]
 
     def keep(sol, upto=None):
-        """Append sol's steps (all, or those ending at or before ``upto``), its events."""
+        """Append sol's steps (all, or those ending at or before ``upto``)."""
         knots = sol.sol.ts
         m = len(knots) - 1 if upto is None else int(np.searchsorted(knots, upto, "right")) - 1
         ts.append(knots[1:m + 1])
         ys.append(sol.sol(knots[1:m + 1]) if m else np.zeros((len(y0), 0)))
         interps.extend(sol.sol.interpolants[:m])
-        for k in range(len(fixed)):
-            sel = [j for j, t in enumerate(sol.t_events[k]) if upto is None or t <= upto]
-            t_ev[k].extend(sol.t_events[k][sel])
-            y_ev[k].extend(sol.y_events[k][sel])
 
     t_cur, y_cur, segments = 0.0, y0, 0
     while True:
@@ -600,7 +633,7 @@ def _integrate_by_contact(rhs, C, n, fixed, y0, T, rtol, extra_switches=None):
 
         extra = [] if extra_switches is None else extra_switches(y_cur)
         sol = solve_ivp(rhs, (t_cur, T), y_cur, method="DOP853", rtol=rtol, atol=1e-4 * rtol,
-                        dense_output=True, events=fixed + [switch(c) for c in free] + extra)
+                        dense_output=True, events=[switch(c) for c in free] + extra)
         if sol.status == -1:
             raise RuntimeError(f"solve_ivp failed: {sol.message}")
         segments += 1
@@ -612,7 +645,7 @@ def _integrate_by_contact(rhs, C, n, fixed, y0, T, rtol, extra_switches=None):
         keep(sol, upto=t_prev)
         if t_e > t_prev:
             redo = solve_ivp(rhs, (t_prev, t_e), sol.sol(t_prev), method="DOP853", rtol=rtol,
-                             atol=1e-4 * rtol, dense_output=True, events=fixed)
+                             atol=1e-4 * rtol, dense_output=True)
             if redo.status != 0:
                 raise RuntimeError(f"solve_ivp failed: {redo.message}")
             keep(redo)
@@ -622,11 +655,11 @@ def _integrate_by_contact(rhs, C, n, fixed, y0, T, rtol, extra_switches=None):
         if not t_e > t_cur:
             raise RuntimeError(f"no progress at t = {t_cur} (scaled)")
         t_cur, y_cur = t_e, y_e.copy()
-    return SimpleNamespace(
-        t=np.concatenate(ts), y=np.concatenate(ys, axis=1),
-        t_events=[np.array(x) for x in t_ev],
-        y_events=[np.array(x).reshape(-1, len(y0)) for x in y_ev],
-        sol=OdeSolution(np.concatenate(ts), interps), segments=segments)
+    t_all = np.concatenate(ts)
+    dense = OdeSolution(t_all, interps)
+    t_events, y_events = _locate(fixed, dense, t_all)
+    return SimpleNamespace(t=t_all, y=np.concatenate(ys, axis=1), t_events=t_events,
+                           y_events=y_events, sol=dense, segments=segments)
 
 
 # ---------------------------------------------------------------------------------------
