@@ -652,36 +652,58 @@ CHAIN_CASES = [(model, gamma, gap, v) for model in ("jkr", "dmt") for gamma in (
 # control (the locate hook off) v_max was off by up to 4.4e-4 (e.g. v_max,2 1.3e-4 on the
 # gapped jkr chain at 0.1 J/m^2, 0.1 m/s, where Verlet's halving changes it by 5e-7).
 # A peak the two methods class differently has a peak time of another definition (the
-# first crossing of (1 - PEAK_TOL) v_max): its t_peak and v_g are not compared. Probe 13
-# of the gapped dmt chains at 0.01 m/s has two maxima 0.86 us apart within PEAK_TOL of
-# each other (measured at 0.1 J/m^2: the event method's highest 0.0100905 m/s at 34.97 us;
-# Verlet's 0.0100905 at 34.10 us, a sharp peak); the event method's near-peak run starts at the
-# first crossing of the near level (at the first maximum, 34.09 us) and ends after the
-# second, across the dip between them, so it finds a plateau the samples, which take the
-# contiguous run around the maximum, do not. Nor are the half-peak front times compared:
-# Verlet's are linear interpolations between samples (6.5e-5 of t_front off on the packed
-# dmt chain at 1 J/m^2, 0.01 m/s, whatever its step).
+# first crossing of (1 - PEAK_TOL) v_max): its t_peak and v_g are not compared. Both class
+# a peak by the near-peak run that holds its maximum. Probe 13 of the gapped dmt chains at
+# 0.01 m/s has two maxima 0.86 us apart within PEAK_TOL of each other, with a dip below
+# the near level between them (measured at 0.1 J/m^2: the event method's highest 0.0100905
+# m/s at 34.97 us; Verlet's 0.0100905 at 34.10 us): which of the two is higher lies below
+# either method's error, so there a peak time agrees if it is that of one of the maxima of
+# the reference's separate near-peak runs (:func:`_near_maxima`). Nor are the half-peak
+# front times compared: Verlet's are linear interpolations between samples (6.5e-5 of
+# t_front off on the packed dmt chain at 1 J/m^2, 0.01 m/s, whatever its step).
 CHAIN_FLOOR = 2e-5
 CHAIN_MARGIN = 3.0
 # Verlet's own change from CHAIN_DT to CHAIN_DT / 2 may be at most this (converged)
 CHAIN_CONVERGED = 3e-4
 
 
-def _chain(model, gamma, gap, v, integrator):
-    """The chain's probe observables (and its probes' peak kinds), run to a fixed end past
-    the far probe's peak."""
-    from granchain.simulate import run_scene
-    (r,) = run_scene(scene_from_dict({
+def _chain_scene(model, gamma, gap, v, integrator):
+    """The 15-sphere adhesive chain, run to a fixed end past the far probe's peak."""
+    return scene_from_dict({
         "name": "chain", "material": "ss440c", "chain": {"n": 15}, "probes": [2, 13],
         "effects": ["hertz", "adhesion"],
         "adhesion": {"model": model, "surface_energy": gamma},
         "striker": {"velocity": [v]}, "integrator": integrator,
         "t_end": 5e-5 if v < 0.05 else 2e-5,
         "gaps": ({"distribution": "uniform", "mean": gap, "seed": 3} if gap > 0.0
-                 else {"distribution": "none"})}))
+                 else {"distribution": "none"})})
+
+
+def _chain(model, gamma, gap, v, integrator):
+    """The chain's probe observables (and its probes' peak kinds), run to a fixed end past
+    the far probe's peak."""
+    from granchain.simulate import run_scene
+    (r,) = run_scene(_chain_scene(model, gamma, gap, v, integrator))
     assert r.status == "done" and r.wave_arrived, (r.status, integrator)
     return ({"v_max_1": r.v_max_1, "v_max_2": r.v_max_2, "t_peak_1": r.t_peak[1],
              "t_peak_2": r.t_peak[12], "v_g": r.v_g}, (r.plateau[1], r.plateau[12]))
+
+
+def _near_maxima(model, gamma, gap, v, integrator, probe):
+    """The times of the maxima of each separate run of probe's sampled velocity at or
+    above the near level of its highest sample (one time: a single near-peak run), and
+    the sample interval."""
+    from granchain import obsrules
+    from granchain.simulate import trajectories
+    sc = _chain_scene(model, gamma, gap, v, integrator)
+    (_, traj), = list(trajectories(sc, members(sc), trace=True))
+    y = traj.v[:, probe - 1]
+    near = obsrules.near(y, float(y.max()))
+    edges = np.flatnonzero(np.diff(near.astype(np.int8)))
+    starts = [0] * bool(near[0]) + [e + 1 for e in edges if not near[e]]
+    ends = [e + 1 for e in edges if near[e]] + [len(y)] * bool(near[-1])
+    return ([float(traj.t[a + int(np.argmax(y[a:b]))]) for a, b in zip(starts, ends)],
+            float(traj.t[1] - traj.t[0]))
 
 
 @pytest.mark.slow
@@ -702,9 +724,20 @@ def test_event_chain_agrees_with_converged_verlet(model, gamma, gap, v):
     for q in ref:
         change = abs(coarse[q] / ref[q] - 1.0)
         assert change < CHAIN_CONVERGED, (q, coarse[q], ref[q])
-        if q not in skip:
-            assert abs(ev[q] / ref[q] - 1.0) < max(CHAIN_FLOOR, CHAIN_MARGIN * change), \
-                (q, ev[q], ref[q], change)
+        if q in skip:
+            continue
+        bound = max(CHAIN_FLOOR, CHAIN_MARGIN * change)
+        if abs(ev[q] / ref[q] - 1.0) < bound:
+            continue
+        # twin maxima within PEAK_TOL: the peak time of one of the reference's runs (and
+        # v_g, from the peak times, not compared)
+        assert q in ("t_peak_1", "t_peak_2"), (q, ev[q], ref[q], change)
+        probe = 2 if q == "t_peak_1" else 13
+        times, sdt = _near_maxima(model, gamma, gap, v,
+                                  {"method": "verlet", "dt": CHAIN_DT / 2}, probe)
+        assert len(times) > 1 and min(abs(ev[q] - t) for t in times) < bound * ev[q] + sdt, \
+            (q, ev[q], ref[q], times)
+        skip.add("v_g")
 
 
 @pytest.mark.slow

@@ -220,3 +220,67 @@ def test_plateau_rule_counts_the_grid_samples_of_a_continuous_run():
             assert sampled == obsrules.plateau(obsrules.grid_samples(a, b, dt)), (span, phase)
             by_length += sampled != ((b - a) > obsrules.PLATEAU_SAMPLES * dt)
     assert by_length > 0
+
+
+def _event_observables(v, x, a, t_end, h, sample_dt):
+    """The event method's on-the-fly observables (``eventobs._observe``, then
+    ``finalize``) of one particle whose velocity is v(t) (displacement x(t), acceleration
+    a(t)), fed in steps of h as the engine feeds its accepted steps."""
+    from granchain.engines import codes, eventobs
+    LO = np.full(codes.L_LEN, -1, dtype=np.int64)
+    LO[codes.L_DISP], LO[codes.L_VEL] = 0, 1
+    VMAX, TPK, VINIT = np.full((1, 1), v(0.0)), np.zeros((1, 1)), np.full((1, 1), v(0.0))
+    PASSED = np.zeros((1, 1), dtype=np.int64)
+    RUNEND = np.full((1, 1), -1.0)
+    CLIMB = np.full((1, 1, 2, codes.RB_LEN), -1.0)
+    RB = np.zeros((1, 1, codes.RB_SIZE, codes.RB_LEN))
+    RBN = np.zeros((1, 1), dtype=np.int64)
+    DROP = np.full((1, 1), -np.inf)
+    c = np.empty(5)
+    y0, y1, k0, k1 = (np.zeros((2, 1)) for _ in range(4))
+    steps = int(round(t_end / h))
+    for k in range(steps):
+        t0, t1 = k * h, (k + 1) * h
+        y0[:, 0], y1[:, 0] = (x(t0), v(t0)), (x(t1), v(t1))
+        k0[:, 0], k1[:, 0] = (v(t0), a(t0)), (v(t1), a(t1))
+        eventobs._observe(t0, h, y0, y1, k0, k1, LO, 1, 0, 0, VMAX, TPK, PASSED, RUNEND,
+                          CLIMB, RB, RBN, DROP, c)
+    vmax, tpk, _, plat = eventobs.finalize(VMAX[0], TPK[0], RUNEND[0], CLIMB[0], RB[0], RBN[0],
+                                           DROP[0], VINIT[0], steps * h, sample_dt)
+    return float(vmax[0]), float(tpk[0]), bool(plat[0])
+
+
+@pytest.mark.parametrize("first, w2, plateau", [
+    (1.0 - 0.3e-4, 1.5e-6, False),   # first maximum near the second's: runs apart
+    (1.0 - 0.3e-4, 1.2e-5, True),    # ... and the second's own run long
+    (1.0 - 2.0e-4, 1.5e-6, False),   # first maximum below the near level
+])
+def test_event_plateau_is_the_near_run_that_holds_the_maximum(first, w2, plateau):
+    """Two maxima within PEAK_TOL of each other with a dip below the near level between
+    them: the event method classes the peak by the near-peak run that holds the maximum,
+    as the sampled rule (``observables.peak``) does: a short run at the second maximum is
+    no plateau, however long the first maximum's run was. The climb back through the near
+    level after the dip lies in steps that set no record (the velocity still below the
+    first maximum), which the method keeps for this. A plateau's t_peak is the first
+    crossing of the near level in both rules."""
+    import math as m
+    from granchain.observables import peak
+    w1, sdt = 1.2e-5, 1e-8
+    t1, t2 = 4 * w1, 9 * w1
+    g = [(first, t1, w1), (1.0, t2, w2)]
+    v = lambda t: sum(A * m.exp(-((t - tc) / w) ** 2) for A, tc, w in g)  # noqa: E731
+    a = lambda t: sum(-2 * (t - tc) / w ** 2 * A * m.exp(-((t - tc) / w) ** 2)  # noqa: E731
+                      for A, tc, w in g)
+    x = lambda t: sum(A * w * m.sqrt(m.pi) / 2 * (m.erf((t - tc) / w) + m.erf(tc / w))  # noqa: E731
+                      for A, tc, w in g)
+    t_end = t2 + 4 * w2
+    ts = np.arange(int(round(t_end / sdt)) + 1) * sdt
+    vs, ts_peak, _, sampled = peak(ts, np.array([v(t) for t in ts]))
+    assert sampled == plateau
+    ev_max, ev_peak, ev_plateau = _event_observables(v, x, a, t_end, sdt / 3, sdt)
+    assert ev_plateau == plateau
+    assert abs(ev_max / vs - 1.0) < 1e-9
+    if plateau:
+        assert abs(ev_peak - ts_peak) < 0.01 * sdt
+    else:
+        assert abs(ev_peak - t2) < 1e-3 * sdt and abs(ts_peak - t2) < 0.05 * sdt

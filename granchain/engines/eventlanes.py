@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from . import kernels
+from .codes import RB_T0
 from .compose import locate
 from .eventobs import _observe, _peak_inside
 from .events import MAX_TRIES, PI_BETA, _predict, _straddle
@@ -130,7 +131,7 @@ def _rk_trial_lanes(y, hl, g, P, FL, LO, Kb, ynew, tmp, f, acc, scale_abs, rel, 
 @njit(parallel=True, cache=True, error_model="numpy")
 def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, VTHR, gaps, P,
                      FL, LO, scale_abs, rel, rtol, band, land, A, Bw, E5, E3, qexp, dopnorm,
-                     t_stop, auto_stop, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, VINIT,
+                     t_stop, auto_stop, VMAX, TPK, PASSED, RUNEND, CLIMB, RB, RBN, DROP, VINIT,
                      E0, BAL):
     """The event method without a trace, in lanes: advance every chain until it stops.
 
@@ -235,6 +236,7 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                             VMAX[b, i] = y[ov + i, l]
                             TPK[b, i] = 0.0
                             RUNEND[b, i] = -1.0
+                            CLIMB[b, i, :, RB_T0] = -1.0
                         if t_stop[b] <= 0.0:
                             fin[l] = kernels.S_DONE
                 again = False
@@ -347,7 +349,7 @@ def run_events_lanes(Y, QUEUE, QLEN, L, T, H, ERROLD, STEPS, REJ, NEV, STATUS, V
                     if not clipped[l]:
                         Hl[l] = h * fac
                     _observe(t_old[l], h, y, ynew, Kb[0], Kb[S], LOb, n, b, l, VMAX, TPK,
-                             PASSED, RUNEND, RB, RBN, DROP, c)
+                             PASSED, RUNEND, CLIMB, RB, RBN, DROP, c)
                 elif phase[l] == _PH_TRIAL and tries[l] >= MAX_TRIES:
                     fin[l] = kernels.S_STEPFAIL
                     phase[l] = _PH_BEGIN

@@ -1,9 +1,21 @@
 """The event method's on-the-fly observables (``engines.events``): per particle the running
 maximum of its velocity and its time, the record-setting steps' velocity interpolants
-(``engines.hermite``), when its near-peak run ended and whether the wave has passed it;
-``finalize`` turns them into v_max, t_peak, t_front and the plateau flag. The levels are
-``granchain.obsrules``' (the sampled rules of ``granchain.observables`` in continuous
-time; see ``engines.events`` for the method).
+(``engines.hermite``), when its near-peak run ended, the step in which the velocity rose
+back to the near level after a dip below it (the climb to a later maximum) and whether
+the wave has passed it; ``finalize`` turns them into v_max, t_peak, t_front and the
+plateau flag. The levels are ``granchain.obsrules``' (the sampled rules of
+``granchain.observables`` in continuous time; see ``engines.events`` for the method).
+
+The plateau is the sampled rule's: the run within PEAK_TOL of the maximum that holds the
+maximum. A velocity with two maxima within PEAK_TOL of each other and a dip below the
+near level between them has that run start after the dip, where the velocity climbs
+back through the near level; that crossing may lie in a step that set no record (the
+velocity still below the first maximum), so the step of the climb is kept
+(``CLIMB``: slot 0 the climb to the running maximum, slot 1 the latest climb since the
+run of the running maximum ended, both in the record buffer's layout ``RB_*``, t0 -1
+where none). Not followed: a dip that does not reach below the near level of the running
+maximum of its time but does below that of the final one (a band of PEAK_TOL times their
+difference), and a dip and a new record inside one step.
 """
 from __future__ import annotations
 
@@ -113,8 +125,19 @@ def _merge_oldest(rb, m, DROP, i):
 
 
 @njit(cache=True)
-def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, l, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP,
-             c):
+def _keep_step(slot, t0, h, vmx, c):
+    """Store a step (start t0, length h, its largest velocity vmx, coefficients c of its
+    velocity) in a row of the record buffer's layout."""
+    slot[RB_T0] = t0
+    slot[RB_H] = h
+    slot[RB_MAX] = vmx
+    for q in range(5):
+        slot[RB_C + q] = c[q]
+
+
+@njit(cache=True)
+def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, l, VMAX, TPK, PASSED, RUNEND, CLIMB, RB, RBN,
+             DROP, c):
     """Update the running per-particle observables of chain bc (row bc of VMAX ... DROP)
     with one accepted step, lane l of the block (y, ynew, K0, K1: (ny, L))."""
     ox = LO[L_DISP]
@@ -143,10 +166,20 @@ def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, l, VMAX, TPK, PASSED, RUNEND, RB
                     vmx = vp
                     tmx = tau
         tafter = 0.0
-        if vmx > VMAX[bc, i]:
+        record = vmx > VMAX[bc, i]
+        if record:
             if not built:
                 vcoef(y[ox + i, l], v0, a0, ynew[ox + i, l], v1, a1, h, c)
                 built = True
+            if RUNEND[bc, i] >= 0.0:
+                # the velocity fell below the near level of the last maximum since it: this
+                # maximum's run starts at the climb back through it, in this step if it
+                # starts below the level, else in the latest climb step
+                if v0 < _near_level(VMAX[bc, i]) or CLIMB[bc, i, 1, RB_T0] < 0.0:
+                    _keep_step(CLIMB[bc, i, 0], t0, h, vmx, c)
+                else:
+                    CLIMB[bc, i, 0, :] = CLIMB[bc, i, 1, :]
+            CLIMB[bc, i, 1, RB_T0] = -1.0
             VMAX[bc, i] = vmx
             TPK[bc, i] = t0 + tmx * h
             PASSED[bc, i] = 0
@@ -187,16 +220,32 @@ def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, l, VMAX, TPK, PASSED, RUNEND, RB
                     tau = first_cross(c, lo_pass, tafter, False)
                     if tau >= 0.0:
                         PASSED[bc, i] = 1
+        # after a dip below the near level: the latest step that climbs back through it
+        if not record and RUNEND[bc, i] >= 0.0 and v1 >= _near_level(VMAX[bc, i]):
+            lev = _near_level(VMAX[bc, i])
+            climbs = v0 < lev or RUNEND[bc, i] >= t0
+            if not climbs and a0 < 0.0 and a1 > 0.0:
+                if not built:
+                    vcoef(y[ox + i, l], v0, a0, ynew[ox + i, l], v1, a1, h, c)
+                    built = True
+                climbs = poly_v(c, turn(c, 0.0, 1.0)) < lev
+            if climbs:
+                if not built:
+                    vcoef(y[ox + i, l], v0, a0, ynew[ox + i, l], v1, a1, h, c)
+                    built = True
+                _keep_step(CLIMB[bc, i, 1], t0, h, vmx, c)
 
 
 @njit(cache=True)
-def finalize(VMAX, TPK, RUNEND, RB, RBN, DROP, VINIT, t_last, sample_dt):
+def finalize(VMAX, TPK, RUNEND, CLIMB, RB, RBN, DROP, VINIT, t_last, sample_dt):
     """Per particle (v_max, t_peak, t_front, plateau) of one chain from its running
     observables (module docstring); v_max 0 and NaN times for a particle that never moved
-    forward. A plateau: the near-peak run, from the first crossing of the near level to
-    the end of the run (or t_last), holds more than PLATEAU_SAMPLES instants of the sample
-    grid of interval sample_dt (``obsrules.grid_samples``, ``obsrules.plateau``): the
-    sampled records' rule, applied to the run in continuous time."""
+    forward. A plateau: the near-peak run that holds the maximum, from its start
+    (:func:`_run_start`) to its end (or t_last), holds more than PLATEAU_SAMPLES instants
+    of the sample grid of interval sample_dt (``obsrules.grid_samples``,
+    ``obsrules.plateau``): the sampled records' rule, applied to the run in continuous
+    time. A plateau's t_peak is the first crossing of the near level, as the sampled
+    rule's (``observables.peak``)."""
     n = VMAX.shape[0]
     vmax = np.zeros(n)
     tpk = np.full(n, np.nan)
@@ -210,7 +259,8 @@ def finalize(VMAX, TPK, RUNEND, RB, RBN, DROP, VINIT, t_last, sample_dt):
         t_near = _level_time(RB[i], RBN[i], DROP[i], VINIT[i], _near_level(top))
         t_half = _level_time(RB[i], RBN[i], DROP[i], VINIT[i], _front_level(top))
         end = RUNEND[i] if RUNEND[i] >= 0.0 else t_last
-        plat[i] = _plateau(_grid_samples(t_near, end, sample_dt))
+        start = _run_start(CLIMB[i, 0], RB[i], RBN[i], _near_level(top), t_near)
+        plat[i] = _plateau(_grid_samples(start, end, sample_dt))
         tpk[i] = t_near if plat[i] else TPK[i]
         tfr[i] = t_half
     return vmax, tpk, tfr, plat
@@ -230,3 +280,46 @@ def _level_time(rb, m, drop, vinit, level):
                 return np.nan
             return rb[q, RB_T0] + tau * rb[q, RB_H]
     return np.nan
+
+
+@njit(cache=True)
+def _last_up(c, level):
+    """The last tau in [0, 1] where v crosses ``level`` upwards, v(1) at or above it; -1 if
+    v is at or above it on the whole 32-point scan."""
+    M = 32
+    b = 1.0
+    for k in range(M - 1, -1, -1):
+        a = k / M
+        if poly_v(c, a) < level:
+            for _ in range(60):
+                mid = 0.5 * (a + b)
+                if poly_v(c, mid) < level:
+                    a = mid
+                else:
+                    b = mid
+            return 0.5 * (a + b)
+        b = a
+    return -1.0
+
+
+@njit(cache=True)
+def _run_start(climb, rb, m, level, t_near):
+    """Start of the run at or above ``level`` that holds the maximum: t_near (the first
+    crossing) without a dip before the maximum; else its climb back through the level after
+    the last dip: in the climb step if it ends at or above the level, else in the first
+    record step after it (its start, if that step begins above the level: the crossing
+    then lies in a step between them, not kept)."""
+    if climb[RB_T0] < 0.0:
+        return t_near
+    cc = climb[RB_C:RB_C + 5]
+    if poly_v(cc, 1.0) >= level:
+        tau = _last_up(cc, level)
+        return climb[RB_T0] + (tau if tau > 0.0 else 0.0) * climb[RB_H]
+    t_end = climb[RB_T0] + climb[RB_H]
+    for q in range(m):
+        if rb[q, RB_T0] + 0.5 * rb[q, RB_H] > t_end and rb[q, RB_MAX] >= level:
+            tau = first_cross(rb[q, RB_C:RB_C + 5], level, 0.0, True)
+            if tau < 0.0:
+                return t_near
+            return rb[q, RB_T0] + tau * rb[q, RB_H]
+    return t_near

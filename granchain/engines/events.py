@@ -36,9 +36,10 @@ below PASS_FRACTION of the running maximum after it (the wave has passed:
 near-peak run). At the end, ``finalize`` gives per particle: v_max; the front time
 t_front, the first crossing of v_max / 2 (found in the first record step whose maximum
 reaches it: before that step the velocity never exceeded it); the plateau flag, set when
-the run within PEAK_TOL of v_max, from the first crossing of (1 - PEAK_TOL) v_max until
-the end of the near-peak run, holds more than PLATEAU_SAMPLES instants of the sample
-grid (``obsrules.grid_samples``: the sampled rule of ``granchain.observables``, which
+the run within PEAK_TOL of v_max that holds the maximum (from the first crossing of
+(1 - PEAK_TOL) v_max, or from the velocity's climb back through it after a dip below it
+before the maximum, ``eventobs``) until the end of the near-peak run, holds more than
+PLATEAU_SAMPLES instants of the sample grid (``obsrules.grid_samples``: the sampled rule of ``granchain.observables``, which
 counts the near-peak samples, applied to the continuous run); t_peak, the
 time of the maximum, or for a plateau the first crossing of (1 - PEAK_TOL) v_max. The
 energy balance error is the largest |balance| / E0 over all step ends.
@@ -187,7 +188,7 @@ def _flush(b, y, k1, g, P, FL, LO, n, sdt, NT, NS, YP, KP, TP, T, Vout, Eout, co
 @njit(parallel=True, cache=True)
 def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, gaps, P, FL, LO,
                scale_abs, rel, rtol, band, land, A, Bw, E5, E3, qexp, dopnorm,
-               t_stop, auto_stop, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, VINIT,
+               t_stop, auto_stop, VMAX, TPK, PASSED, RUNEND, CLIMB, RB, RBN, DROP, VINIT,
                E0, BAL, trace, sdt, NT, NS, YP, KP, TP, Vout, Eout, counts):
     """Advance every running chain until it stops (without trace), or until its window
     of Vout.shape[1] trace samples is full.
@@ -238,6 +239,7 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                 VMAX[b, i] = y[ov + i]
                 TPK[b, i] = 0.0
                 RUNEND[b, i] = -1.0
+                CLIMB[b, i, :, RB_T0] = -1.0
             if trace:
                 for i in range(n):
                     Vout[b, 0, i] = y[ov + i]
@@ -340,8 +342,8 @@ def run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, g
                 if FIN[b] == kernels.S_RUNNING:
                     FIN[b] = kernels.S_STEPFAIL
                 continue
-            _observe(t, h, yc, ync, K0c, KSc, LO, n, b, 0, VMAX, TPK, PASSED, RUNEND, RB,
-                     RBN, DROP, c)
+            _observe(t, h, yc, ync, K0c, KSc, LO, n, b, 0, VMAX, TPK, PASSED, RUNEND, CLIMB,
+                     RB, RBN, DROP, c)
             if trace:
                 for j in range(ny):
                     YP[b, j] = y[j]

@@ -205,7 +205,7 @@ def _chunks(group, scene, terms, sample_dt, method, observe=False, plan=None, sa
     if method == "event" and not samples:
         n = terms.n
         per_chain = 8 * ((codes.NST + 4) * Layout.of(terms).ny + codes.G_LEN * n
-                         + n * (codes.RB_SIZE * codes.RB_LEN + 8))
+                         + n * ((codes.RB_SIZE + 2) * codes.RB_LEN + 8))
     elif blocked and observe:
         n = terms.n
         per_chain = 8 * (n * (3 * RECORD_RING + obscodes.OBS_F + obscodes.OBS_I + obscodes.OBS_R
@@ -361,6 +361,7 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan]
     TPK = np.zeros((B, n))
     PASSED = np.zeros((B, n), dtype=np.int64)
     RUNEND = np.full((B, n), -1.0)
+    CLIMB = np.full((B, n, 2, codes.RB_LEN), -1.0)
     RB = np.zeros((B, n, codes.RB_SIZE, codes.RB_LEN))
     RBN = np.zeros((B, n), dtype=np.int64)
     DROP = np.full((B, n), -np.inf)
@@ -393,12 +394,12 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan]
             QLEN[k % nq] += 1
         kern.run_events_lanes(Y, QUEUE, QLEN, width, T, H, ERROLD, STEPS, REJ, NEV, STATUS,
                               VTHR, G, P, FL, LO, scale_abs, rel, rtol, band, land, A, Bw, E5,
-                              E3, qexp, dopnorm, t_stop, auto, VMAX, TPK, PASSED, RUNEND, RB,
-                              RBN, DROP, VINIT, E0, BAL)
+                              E3, qexp, dopnorm, t_stop, auto, VMAX, TPK, PASSED, RUNEND,
+                              CLIMB, RB, RBN, DROP, VINIT, E0, BAL)
     while not in_lanes and np.any(STATUS == codes.S_RUNNING):
         kern.run_events(Y, KST, T, H, ERROLD, STEPS, REJ, NEV, STATUS, FIN, INIT, VTHR, G, P, FL, LO,
                       scale_abs, rel, rtol, band, land, A, Bw, E5, E3, qexp, dopnorm,
-                      t_stop, auto, VMAX, TPK, PASSED, RUNEND, RB, RBN, DROP, VINIT,
+                      t_stop, auto, VMAX, TPK, PASSED, RUNEND, CLIMB, RB, RBN, DROP, VINIT,
                       E0, BAL, trace, sample_dt, NT, NS, YP, KP, TP, Vbuf, Ebuf, counts)
         for b in range(B):
             c = counts[b]
@@ -429,8 +430,9 @@ def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan]
             t = np.array([0.0, float(T[b])])
             v = np.stack([y0[ov:ov + n], y_end[ov:ov + n]])
             e = np.stack([ebuf.copy(), e_end])
-        vmax, tpk, tfr, plat = kern.finalize(VMAX[b], TPK[b], RUNEND[b], RB[b], RBN[b], DROP[b],
-                                           VINIT[b], float(T[b]), sample_dt)
+        vmax, tpk, tfr, plat = kern.finalize(VMAX[b], TPK[b], RUNEND[b], CLIMB[b], RB[b],
+                                             RBN[b], DROP[b], VINIT[b], float(T[b]),
+                                             sample_dt)
         final = np.zeros(n, dtype=bool)
         seen = vmax > arrival_speed(vs[b])
         final[:n - 1] = seen[:n - 1] & (PASSED[b, :n - 1] != 0)
