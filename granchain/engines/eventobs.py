@@ -31,7 +31,8 @@ use_jit_cache()   # before the first @njit(cache=True)
 from .. import obsrules  # noqa: E402
 from .codes import L_DISP, L_VEL, RB_C, RB_H, RB_MAX, RB_T0  # noqa: E402
 from .compose import compiled  # noqa: E402
-from .hermite import first_cross, poly_dv, poly_v, turn, v_bound, vcoef  # noqa: E402
+from .hermite import (first_cross, last_cross_up, poly_dv, poly_v, turn, v_bound,  # noqa: E402
+                      vcoef)
 
 _near_level, _pass_level, _front_level, _grid_samples, _plateau = (
     compiled(r) for r in (obsrules.near_level, obsrules.pass_level, obsrules.front_level,
@@ -283,26 +284,6 @@ def _level_time(rb, m, drop, vinit, level):
 
 
 @njit(cache=True)
-def _last_up(c, level):
-    """The last tau in [0, 1] where v crosses ``level`` upwards, v(1) at or above it; -1 if
-    v is at or above it on the whole 32-point scan."""
-    M = 32
-    b = 1.0
-    for k in range(M - 1, -1, -1):
-        a = k / M
-        if poly_v(c, a) < level:
-            for _ in range(60):
-                mid = 0.5 * (a + b)
-                if poly_v(c, mid) < level:
-                    a = mid
-                else:
-                    b = mid
-            return 0.5 * (a + b)
-        b = a
-    return -1.0
-
-
-@njit(cache=True)
 def _run_start(climb, rb, m, level, t_near):
     """Start of the run at or above ``level`` that holds the maximum: t_near (the first
     crossing) without a dip before the maximum; else its climb back through the level after
@@ -313,7 +294,7 @@ def _run_start(climb, rb, m, level, t_near):
         return t_near
     cc = climb[RB_C:RB_C + 5]
     if poly_v(cc, 1.0) >= level:
-        tau = _last_up(cc, level)
+        tau = last_cross_up(cc, level)
         return climb[RB_T0] + (tau if tau > 0.0 else 0.0) * climb[RB_H]
     t_end = climb[RB_T0] + climb[RB_H]
     for q in range(m):

@@ -119,6 +119,19 @@ def turn(c, lo, hi):
 
 
 @njit(cache=True)
+def _bisect(c, level, sgn, a, b):
+    """The crossing of ``level`` by v between a, where sgn (v - level) < 0, and b, where it
+    is >= 0 (60 halvings)."""
+    for _ in range(60):
+        mid = 0.5 * (a + b)
+        if sgn * (poly_v(c, mid) - level) >= 0.0:
+            b = mid
+        else:
+            a = mid
+    return 0.5 * (a + b)
+
+
+@njit(cache=True)
 def first_cross(c, level, lo, up):
     """First tau in [lo, 1] where v crosses ``level`` (upwards if up, else downwards);
     -1 if none is found on a 32-point scan."""
@@ -132,14 +145,22 @@ def first_cross(c, level, lo, up):
         b = lo + (1.0 - lo) * k / M
         fb = sgn * (poly_v(c, b) - level)
         if fb >= 0.0:
-            for _ in range(60):
-                mid = 0.5 * (a + b)
-                if sgn * (poly_v(c, mid) - level) >= 0.0:
-                    b = mid
-                else:
-                    a = mid
-            return 0.5 * (a + b)
+            return _bisect(c, level, sgn, a, b)
         a = b
+    return -1.0
+
+
+@njit(cache=True)
+def last_cross_up(c, level):
+    """The last tau in [0, 1] where v crosses ``level`` upwards, v(1) at or above it; -1
+    if v is at or above it on the whole 32-point scan."""
+    M = 32
+    b = 1.0
+    for k in range(M - 1, -1, -1):
+        a = k / M
+        if poly_v(c, a) < level:
+            return _bisect(c, level, 1.0, a, b)
+        b = a
     return -1.0
 
 
