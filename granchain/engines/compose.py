@@ -43,13 +43,16 @@ few functions that call them in turn:
   trial step of length h[l], -1 if none.
 
 An effect is called only while its switch flag is on (``EffectSpec.switch``). The
-per-lane laws are inlined where they are called (numba ``inline="always"``) and the block
-hooks compiled once each (:data:`BLOCK_HOOKS`), which the kernels that call these
-functions (``engines.kernels``, ``engines.events``) call: their lane loops vectorise as
-one hand-written routine's would (the same vector instructions in the machine code).
-Each inlined composed function binds its array arguments again; the block routines that
-inline them (``engines.integrators``) allocate nothing and are compiled without numba's
-reference counting, so those bindings count no references.
+per-lane laws are inlined where they are called by LLVM (numba's ``forceinline``: LLVM's
+``alwaysinline``, so that numba types and lowers each law once, where its own
+``inline="always"`` inlined the law's typed IR again at every call and compiled it there)
+and the block hooks compiled once each (:data:`BLOCK_HOOKS`), which the kernels that call
+these functions (``engines.kernels``, ``engines.events``) call: their lane loops vectorise
+as one hand-written routine's would. The per-lane laws and the block routines that inline
+them (``engines.integrators``) allocate nothing and are compiled without numba's reference
+counting (``_nrt=False``), so the bindings of their array arguments count no references.
+The composed functions the drivers call per lane and sample (:data:`CALLED`) are compiled
+once each and called.
 
 The generated source (:func:`source`) is a file in the JIT cache folder
 (``backend.jit_cache_dir``, named by the hash of every source the kernels are made of, the
@@ -104,12 +107,17 @@ BLOCK_HOOKS = ("normal", "forces", "project", "energies")
 # branch), and the friction laws' loops are the kernels' longest.
 PLAIN = "plain"
 
+# how a per-lane law is compiled: inlined by LLVM where it is called, without numba's
+# reference counting (a law allocates nothing; an allocation fails to compile)
+_INLINED = {"forceinline": True, "_nrt": False}
+
 
 def _jit(fn, variant: str = ""):
     """The numba dispatcher of a marked function: a copy of it over its module's
     namespace, in which every marked function is its dispatcher (compiled lazily, at the
     first call that reaches it). A block hook (:data:`BLOCK_HOOKS`) is compiled on its
-    own, every other marked function inlined where it is called."""
+    own, every other marked function inlined where it is called (by LLVM, without
+    reference counting)."""
     if (fn, variant) not in _DISPATCHERS:
         module = sys.modules[fn.__module__]
         ns = _namespace(module, variant)
@@ -120,7 +128,7 @@ def _jit(fn, variant: str = ""):
         if any(getattr(module, h, None) is fn for h in BLOCK_HOOKS):
             opts = {"error_model": "numpy", "boundscheck": False}
         else:
-            opts = {"inline": "always"}
+            opts = _INLINED
         _DISPATCHERS[fn, variant] = njit(cache=True, **opts)(copy)
     return _DISPATCHERS[fn, variant]
 
@@ -353,6 +361,10 @@ def source() -> str:
     return "\n".join(out)
 
 
+# the composed functions compiled once each and called (not inlined): the drivers call
+# them per lane at a sample or a stop test, not in the lane loops of a step
+CALLED = ("wall_force", "wall_force_at", "contact_bond", "locate")
+
 # the composed contact laws the PLAIN hooks call in their plain form
 PLAIN_LAWS = ("normal_crit", "normal_cap", "touching", "radius_depth")
 COMPOSED = ("normal_forces", "effect_forces", "project_histories", "effect_energies",
@@ -381,7 +393,11 @@ def _compose() -> dict:
     for m in (lanes,) + tuple(MODULES):
         _bind(m)
     text = source()
-    ns = {"__name__": "granchain_composed", "__builtins__": __builtins__, "np": np}
+    # a module numba's cache imports by name to rebuild a called function's environment
+    mod = types.ModuleType("granchain_composed")
+    sys.modules[mod.__name__] = mod
+    ns = mod.__dict__
+    ns.update({"__builtins__": __builtins__, "np": np})
     for m in MODULES:
         if _composes(m):
             _bind(m, PLAIN)
@@ -394,7 +410,7 @@ def _compose() -> dict:
     for name in COMPOSED + tuple(f"{c}__{PLAIN}" for c in PLAIN_LAWS if f"{c}__{PLAIN}" in ns):
         fn = ns[name]
         fn.__module__ = "granchain_composed"
-        out[name] = njit(cache=True, inline="always")(fn)
+        out[name] = njit(cache=True, **({} if name in CALLED else _INLINED))(fn)
     # the composed functions call each other (wall_force_at calls wall_force, normal_cap
     # normal_crit) compiled
     ns.update(out)

@@ -222,19 +222,17 @@ def _observe(t0, h, y, ynew, K0, K1, LO, n, bc, l, VMAX, TPK, PASSED, RUNEND, CL
                     if tau >= 0.0:
                         PASSED[bc, i] = 1
         # after a dip below the near level: the latest step that climbs back through it
-        if not record and RUNEND[bc, i] >= 0.0 and v1 >= _near_level(VMAX[bc, i]):
+        if not record and RUNEND[bc, i] >= 0.0:
             lev = _near_level(VMAX[bc, i])
-            climbs = v0 < lev or RUNEND[bc, i] >= t0
-            if not climbs and a0 < 0.0 and a1 > 0.0:
-                if not built:
+            if v1 >= lev:
+                climbs = v0 < lev or RUNEND[bc, i] >= t0
+                dips = not climbs and a0 < 0.0 and a1 > 0.0    # a minimum inside
+                if (climbs or dips) and not built:
                     vcoef(y[ox + i, l], v0, a0, ynew[ox + i, l], v1, a1, h, c)
-                    built = True
-                climbs = poly_v(c, turn(c, 0.0, 1.0)) < lev
-            if climbs:
-                if not built:
-                    vcoef(y[ox + i, l], v0, a0, ynew[ox + i, l], v1, a1, h, c)
-                    built = True
-                _keep_step(CLIMB[bc, i, 1], t0, h, vmx, c)
+                if dips:
+                    climbs = poly_v(c, turn(c, 0.0, 1.0)) < lev
+                if climbs:
+                    _keep_step(CLIMB[bc, i, 1], t0, h, vmx, c)
 
 
 @njit(cache=True)

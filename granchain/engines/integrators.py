@@ -344,7 +344,7 @@ def dop853_try(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol):
                     DOP_A, DOP_B, DOP_E5, DOP_E3, 1)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _wall_force_l(y, g, n, LO, P, FL, l):
     """Force (N) of the end wall on lane l of a block (``compose.wall_force_at``: the
     laws that read their history in the state included)."""

@@ -196,7 +196,7 @@ def _obs_wall_finish(S, wf, wi, sdt, wout):
     wout[2] = 1.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _obs_balance(k, ebuf, l, bal):
     """Sample k of the energy balance of lane l: |E_mech - E_mech(0) - sum of works|, its
     running maximum (NaN once NaN, as np.max), summed in ``observables.energy_ledger``'s
