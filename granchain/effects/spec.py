@@ -169,7 +169,9 @@ def pair_words(pair: dict, E: float, nu: float) -> list[str]:
 
 def compiled(fn):
     """Mark a function of an effect module as compiled by the engines (numba, inlined
-    into the kernels that call it). It stays a plain Python function here: the effects
+    into the kernels that call it, without reference counting: a marked function other
+    than a block hook, ``normal``, ``forces``, ``project`` or ``energies``, allocates no
+    array, or it fails to compile). It stays a plain Python function here: the effects
     load no compiler. In compiled code a marked function may call the other marked
     functions of its module and of ``lanes``, the numbered slots (``slots``) and the
     composed contact laws below."""
