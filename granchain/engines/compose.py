@@ -51,8 +51,8 @@ these functions (``engines.kernels``, ``engines.events``) call: their lane loops
 as one hand-written routine's would. The per-lane laws and the block routines that inline
 them (``engines.integrators``) allocate nothing and are compiled without numba's reference
 counting (``_nrt=False``), so the bindings of their array arguments count no references.
-The composed functions the drivers call per lane and sample (:data:`CALLED`) are compiled
-once each and called.
+The composed functions the drivers call per lane at a sample or stop test, and ``locate``
+once per trial step (:data:`CALLED`), are compiled once each and called.
 
 The generated source (:func:`source`) is a file in the JIT cache folder
 (``backend.jit_cache_dir``, named by the hash of every source the kernels are made of, the
@@ -362,7 +362,8 @@ def source() -> str:
 
 
 # the composed functions compiled once each and called (not inlined): the drivers call
-# them per lane at a sample or a stop test, not in the lane loops of a step
+# them per lane at a sample or a stop test, and locate once per trial step (its lane
+# loops inside), never inside a step's lane loops
 CALLED = ("wall_force", "wall_force_at", "contact_bond", "locate")
 
 # the composed contact laws the PLAIN hooks call in their plain form
