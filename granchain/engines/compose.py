@@ -109,7 +109,7 @@ PLAIN = "plain"
 
 # how a per-lane law is compiled: inlined by LLVM where it is called, without numba's
 # reference counting (a law allocates nothing; an allocation fails to compile)
-_INLINED = {"forceinline": True, "_nrt": False}
+INLINED = {"forceinline": True, "_nrt": False}
 
 
 def _jit(fn, variant: str = ""):
@@ -128,7 +128,7 @@ def _jit(fn, variant: str = ""):
         if any(getattr(module, h, None) is fn for h in BLOCK_HOOKS):
             opts = {"error_model": "numpy", "boundscheck": False}
         else:
-            opts = _INLINED
+            opts = INLINED
         _DISPATCHERS[fn, variant] = njit(cache=True, **opts)(copy)
     return _DISPATCHERS[fn, variant]
 
@@ -411,7 +411,7 @@ def _compose() -> dict:
     for name in COMPOSED + tuple(f"{c}__{PLAIN}" for c in PLAIN_LAWS if f"{c}__{PLAIN}" in ns):
         fn = ns[name]
         fn.__module__ = "granchain_composed"
-        out[name] = njit(cache=True, **({} if name in CALLED else _INLINED))(fn)
+        out[name] = njit(cache=True, **({} if name in CALLED else INLINED))(fn)
     # the composed functions call each other (wall_force_at calls wall_force, normal_cap
     # normal_crit) compiled
     ns.update(out)

@@ -29,7 +29,7 @@ from . import codes  # noqa: E402
 from .codes import (E_LEN, F_END_WALL, G_MASS, L_DISP, L_VEL, M_RK4, M_VERLET,  # noqa: E402
                     NST, P_N_SPHERES, S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL)
 from ..effects.spec import BOND_CAPTURED, BOND_NONE, BOND_UNDECIDED  # noqa: E402
-from .compose import compiled, contact_bond, overlap as _overlap_l  # noqa: E402
+from .compose import INLINED, compiled, contact_bond, overlap as _overlap_l  # noqa: E402
 # the integrators (and their per-chain entry points, which the tests call through here)
 from .integrators import (_col, _wall_force, dop853_try, energies, energies_block,  # noqa: E402,F401
                           error_norm, forces, forces_block, project, project_block, rk4_block,
@@ -175,14 +175,14 @@ def _adaptive_only(window):
     return njit(parallel=True, cache=True)(copy)
 
 
-@njit(cache=True, forceinline=True, _nrt=False)
+@njit(cache=True, **INLINED)
 def _left(v_last, overlap_last, x_last, vthr, wall):
     """Has the wave left the chain? Free end: ``obsrules.detached``; end wall:
     ``obsrules.wall_left`` (x_last: the last sphere's displacement from its start)."""
     return _wall_left(v_last, x_last, vthr) if wall else _detached(v_last, overlap_last, vthr)
 
 
-@njit(cache=True, forceinline=True, _nrt=False)
+@njit(cache=True, **INLINED)
 def _settled(y, G, P, FL, LO, n, l, vthr, wall):
     """The t_end auto stop rule of the chain in lane l (``granchain.stoprule``): no
     contact that an effect's law holds closed with the energy to part (``contact_bond``
