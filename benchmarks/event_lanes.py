@@ -97,7 +97,10 @@ def _compare(ref: str, chains: int, repeats: int) -> None:
         trees = {"new": root, "old": old}
 
         def run(tree, case):
-            env = dict(os.environ, PYTHONPATH=str(trees[tree]))
+            # a cache directory with no ahead-of-time module: both trees run numba's JIT
+            # kernels (on one thread a tree with the module built would run it instead)
+            env = dict(os.environ, PYTHONPATH=str(trees[tree]),
+                       GRANCHAIN_CACHE_DIR=str(Path(tmp) / f"cache-{tree}"))
             got = subprocess.run([sys.executable, __file__, "--worker", str(case),
                                   "--chains", str(chains)], env=env, check=True,
                                  capture_output=True, text=True).stdout

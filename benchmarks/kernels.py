@@ -1,7 +1,7 @@
 """Fixed-step reference kernels against the previous kernels and LAMMPS, side by side in one run.
 
     python benchmarks/kernels.py [--chains 1000] [--old-ref 41e9852] [--np 2] [--skip-lammps]
-                                 [--repeats 3] [--cold-compile] [--threads 1]
+                                 [--repeats 3] [--cold-compile] [--threads 1] [--no-hetero]
 
 The ensemble: gaps-20nm-440c (440C, v_s = 0.1 m/s, uniform gaps of mean 20 nm), t_end auto,
 ``--chains`` realisations, in three settings: Hertz-only Verlet, every effect Verlet
@@ -85,7 +85,10 @@ print(json.dumps({"wall": wall, "cpu": cpu, "ps": int(sum(t.steps for t in tr)) 
 
 
 def child(tree: Path, sets, out: Path, threads: int | None = None):
-    env = dict(os.environ, PYTHONPATH=str(tree))
+    # a cache directory with no ahead-of-time module: both trees run numba's JIT kernels
+    # (on one thread a tree with the module built would run it instead)
+    env = dict(os.environ, PYTHONPATH=str(tree),
+               GRANCHAIN_CACHE_DIR=str(out.parent / f"cache-{tree.name}"))
     if threads:
         env["NUMBA_NUM_THREADS"] = str(threads)
     r = subprocess.run([sys.executable, "-c", CHILD, json.dumps(sets), str(out)], cwd=tree,
@@ -111,13 +114,26 @@ def cold_compile(tree: Path, scratch: Path) -> dict:
 def alternate(run_a, run_b, repeats: int, key: str = "wall"):
     """The fastest of ``repeats`` runs of each by ``key`` (their wall or CPU seconds), a
     and b taking turns, so that a change in the machine's load falls on both (shared
-    machines)."""
+    machines). Each result also holds ``turns``: the ratios b / a of every turn's pair,
+    sorted (a slow drift of the machine's speed falls on both runs of a turn, so their
+    spread says how far the fastest runs' ratio can be trusted)."""
     best_a = best_b = None
+    turns = []
     for _ in range(repeats):
         a, b = run_a(), run_b()
+        turns.append(b[key] / a[key])
         best_a = a if best_a is None or a[key] < best_a[key] else best_a
         best_b = b if best_b is None or b[key] < best_b[key] else best_b
-    return best_a, best_b
+    turns.sort()
+    return dict(best_a, turns=turns), dict(best_b, turns=turns)
+
+
+def spread(turns) -> str:
+    """The turns' ratios: their median, and the range of the middle half and of all."""
+    import numpy as np
+    q = np.quantile(turns, [0.0, 0.25, 0.5, 0.75, 1.0])
+    return (f"per-turn ratios median x{q[2]:.3f}, middle half x{q[1]:.3f}-x{q[3]:.3f}, "
+            f"all x{q[0]:.3f}-x{q[4]:.3f} ({len(turns)} turns)")
 
 
 def same(a: Path, b: Path) -> bool:
@@ -197,6 +213,9 @@ def main(argv=None):
                     help="runs of each tree, taking turns; the fastest counts (default 3)")
     ap.add_argument("--threads", type=int, default=None,
                     help="numba threads of the runs; measure their CPU time, not wall time")
+    ap.add_argument("--no-hetero", action="store_true",
+                    help="skip the heterogeneous chains (this tree against the previous "
+                         "kernels' uniform chain)")
     args = ap.parse_args(argv)
     tmp = Path(tempfile.mkdtemp(prefix="granchain-kernels-"))
     try:
@@ -237,8 +256,11 @@ def main(argv=None):
                   f"particle-steps/s), previous {prev[key]:.2f} s "
                   f"({prev['ps'] / prev[key] / 1e6:.0f} M/s): x{prev[key] / new[key]:.2f}; "
                   f"bit-identical {ident}; all-lanes div/sqrt peak {peak / 1e6:.0f} M/s, "
-                  f"reached {new['ps'] / new[key] / peak:.0%}", flush=True)
+                  f"reached {new['ps'] / new[key] / peak:.0%}; {spread(new['turns'])}",
+                  flush=True)
         for name, (base, sets) in HETERO_SETTINGS.items():
+            if args.no_hetero:
+                break
             sets = [f"ensemble.realisations={args.chains}"] + sets
             base_sets = [f"ensemble.realisations={args.chains}"] + SETTINGS[base]
             het, prev = alternate(lambda: child(REPO, sets, tmp / f"{name}-new.npz", args.threads),
