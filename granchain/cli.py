@@ -129,7 +129,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=run_command.cmd_deck)
 
     sp = sub.add_parser("warm-up", help="compile the reference engine's kernels for this machine "
-                                        "(numba's JIT cache and the ahead-of-time module)")
+                                        "(the ahead-of-time module, then numba's JIT cache "
+                                        "where numba runs more than one thread)")
     _no_progress(sp)
     sp.set_defaults(func=run_command.cmd_warm_up)
 

@@ -1,6 +1,7 @@
 """The ahead-of-time kernels (engines.backend): built for this machine, used for one-chain
 runs without importing numba, and bit-identical to numba's JIT kernels."""
 import importlib.util
+import json
 import os
 import shutil
 import subprocess
@@ -230,6 +231,55 @@ def test_every_warm_up_scene_is_valid_with_every_effect_it_can_hold(method):
     assert scene.method == method and len(apart) < len(MODULES) // 2
 
 
+_ONE_THREAD_RUN = r"""
+import json, pickle, sys
+import numpy as np
+from granchain.engines import reference
+from granchain.scene import load_scene
+inp = np.load(sys.argv[1])
+out = []
+for integ in json.loads(sys.argv[4]):
+    scene = load_scene(sys.argv[2]).derive(integrator=integ, effects=json.loads(sys.argv[5]),
+                                           rolling={"k_roll": 1e3})
+    out.append([(t.status, t.steps, t.v, t.energy) for t in
+                reference.run(scene, inp["gaps"], inp["vs"], progress=False, trace=False)])
+pickle.dump((out, "numba" in sys.modules), open(sys.argv[3], "wb"))
+"""
+
+
+@pytest.mark.slow
+def test_a_run_on_one_thread_takes_the_module_bit_identical_to_jit_threads(aot_cache, tmp_path,
+                                                                          monkeypatch):
+    """Six chains of every method on one thread (NUMBA_NUM_THREADS=1) run the ahead-of-time
+    module (numba never imported) and give numba's parallel JIT kernels' results in this
+    process bit for bit."""
+    import pickle
+    scene_file = f"{SCENES}/gaps-20nm-440c.yaml"
+    effects = ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
+               "rolling_friction"]
+    base = load_scene(scene_file)
+    gaps = np.random.default_rng(9).uniform(0, 40e-9, (6, base.n - 1))
+    vs = np.linspace(0.05, 0.3, 6)
+    np.savez(tmp_path / "in.npz", gaps=gaps, vs=vs)
+    env = dict(os.environ, GRANCHAIN_CACHE_DIR=str(aot_cache), NUMBA_NUM_THREADS="1")
+    subprocess.run([sys.executable, "-c", _ONE_THREAD_RUN, str(tmp_path / "in.npz"), scene_file,
+                    str(tmp_path / "out.pkl"), json.dumps(METHODS), json.dumps(effects)],
+                   env=env, check=True)
+    got, numba_loaded = pickle.loads((tmp_path / "out.pkl").read_bytes())
+    assert not numba_loaded
+    real = backend.kernels
+    monkeypatch.setattr(backend, "kernels", lambda serial: real(False))     # the JIT's threads
+    from granchain.engines import forked
+    monkeypatch.setattr(forked, "usable", lambda *a: False)
+    for integ, a in zip(METHODS, got):
+        scene = base.derive(integrator=integ, effects=effects, rolling={"k_roll": 1e3})
+        b = list(reference.run(scene, gaps, vs, progress=False, trace=False))
+        assert len(a) == len(b) == 6
+        for x, y in zip(a, b):
+            assert x[0] == y.status and x[1] == y.steps, integ
+            assert np.array_equal(x[2], y.v) and np.array_equal(x[3], y.energy), integ
+
+
 @pytest.mark.slow
 def test_warm_up_again_with_the_module_built(aot_cache):
     # a second warm-up (another workflow run, a new process) finds the module built: its
@@ -245,17 +295,23 @@ def test_warm_up_again_with_the_module_built(aot_cache):
 def test_warm_up_in_two_processes_covers_every_entry_point(tmp_path):
     """The warm-up's tasks, taken by two processes at once, reach every entry point between
     them: a numba cache filled only by them holds an entry for each, and this process then
-    loads each one from it with a single signature (the ahead-of-time build needs that).
+    loads each one from it with a single signature, the argument types
+    ``warmup.record_signatures`` finds without compiling (the ahead-of-time build's).
     A cold compile: about 2 minutes on 2 busy cores."""
     assert sorted(r for t in warmup.TASKS for r in t) == sorted(warmup.RUNS)
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
     code = ("from granchain.engines import warmup, backend\n"
             "warmup.warm_jit(2)\n"
             "print(sorted(e for e in backend.ENTRY_POINTS\n"
-            "             if len(backend.jit_entry(e).nopython_signatures) != 1))")
+            "             if len(backend.jit_entry(e).nopython_signatures) != 1))\n"
+            "rec = warmup.record_signatures()\n"
+            "print(sorted(e for e in backend.ENTRY_POINTS\n"
+            "             if rec[e] != backend.jit_entry(e).nopython_signatures[0].args))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "[]"
+    # one signature of each, and the types recorded without compiling (what the
+    # ahead-of-time module is built from) are those numba compiled
+    assert out.stdout.split("\n")[:2] == ["[]", "[]"]
     cached = {p.name.split(".")[1].split("-")[0] for p in tmp_path.rglob("*.nbi")}
     assert set(backend.ENTRY_POINTS) <= cached, set(backend.ENTRY_POINTS) - cached
 
@@ -373,3 +429,17 @@ def test_many_chain_run_on_two_cores_imports_no_numba(aot_cache):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
                          check=True).stdout.split()
     assert out == ["0", "False"]
+
+
+def test_a_one_thread_job_runs_one_thread_without_importing_numba():
+    """A workflow job's ``threads: 1`` (``workflow.set_threads``) reaches the engine as one
+    thread before numba is loaded, so its calls take the ahead-of-time module."""
+    code = ("import sys\n"
+            "from granchain.workflow.run import set_threads\n"
+            "from granchain.engines import backend\n"
+            "set_threads(1)\n"
+            "print(backend.num_threads(), 'numba' in sys.modules)\n")
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_NUM_THREADS"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         check=True).stdout.split()
+    assert out == ["1", "False"]

@@ -19,6 +19,7 @@ import io
 import json
 import math
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -399,6 +400,30 @@ def test_dry_run(tmp_path, preset):
                if b.engine == "reference")
     assert f"run_batch {runs}" in " ".join(text.split()), text
     assert not (tmp_path / "results").exists()
+
+
+@pytest.mark.workflow
+def test_jobs_wait_only_for_the_kernels_their_threads_run(tmp_path):
+    """A batch on one thread (the tiny preset's) needs the ahead-of-time module alone, not
+    numba's JIT kernels; the accuracy job, on two threads, needs the JIT kernels (built
+    after the module, whose laws they load)."""
+    plan = _plan("tiny")
+    assert int(plan.preset["batch"]["threads"]) == 1
+    batch = next(b for s in plan.studies if s != "packed_trace" for b in plan.batches[s]
+                 if b.engine == "reference")
+    study = next(s for s in plan.studies if batch in plan.batches[s])
+    wd = _workdir(tmp_path)
+    jobs = {}
+    for target in (f"results/tiny/work/{study}/{batch.name}.csv",
+                   "results/tiny/tables/accuracy_cost.csv"):
+        proc = snakemake(wd, target, "-n", "--quiet", "rules", "--config", "preset=tiny",
+                         timeout=300)
+        text = proc.stdout + proc.stderr
+        jobs[target] = {r: int(c) for r, c in re.findall(r"^(\w+)\s+(\d+)$", text, re.M)}
+    one, two = jobs.values()
+    assert one.get("aot_kernels") == 1 and one.get("run_batch") == 1, one
+    assert "jit_cache" not in one, one
+    assert two.get("jit_cache") == 1 and two.get("aot_kernels") == 1, two
 
 
 def _one_error(proc, *needles):

@@ -226,6 +226,13 @@ def _chunks(group, scene, terms, sample_dt, method, observe=False, plan=None, sa
     yield from chunks.split(group, per_chain, blocked, observe)
 
 
+def _kernels(chains: int):
+    """The compiled kernels of a call over ``chains`` chains: the ahead-of-time module,
+    if built, when the call runs no chains in parallel (one chain, or numba on one
+    thread), numba's JIT kernels otherwise (``engines.backend``)."""
+    return backend.kernels(serial=chains == 1 or backend.num_threads() == 1)
+
+
 def _run_chunk(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], method, dt, rtol,
                sample_dt, radii=None, trace=True):
     """The fixed-step and adaptive methods on a chunk of chains. The fixed-step methods
@@ -234,7 +241,7 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], metho
     a chain whose record samples overflowed the kernel's ring is run again with its trace
     (the same chain alone gives the same samples), and its observables are then the
     summariser's on that trace. ``sps``: each chain's speed plan (its sample count)."""
-    kern = backend.kernels(serial=gaps.shape[0] == 1)
+    kern = _kernels(gaps.shape[0])
     layout = Layout.of(terms)
     P, FL = pack(terms)
     B, n, ny = gaps.shape[0], terms.n, layout.ny
@@ -327,9 +334,9 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], metho
 
 def _run_chunk_events(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], dt, rtol,
                       sample_dt, trace, pair, radii=None, lanes=True):
-    kern = backend.kernels(serial=gaps.shape[0] == 1)
     """The event method (``engines.events``) on a chunk of chains (``sps``: each one's
     speed plan)."""
+    kern = _kernels(gaps.shape[0])
     layout = Layout.of(terms)
     P, FL = pack(terms)
     LO = layout.LO
@@ -526,12 +533,12 @@ def _wall_static(terms: Terms) -> float:
 
 def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V_parts,
                 E_parts, observe=False, sample_dt=0.0, wall_static=0.0):
-    kern = backend.kernels(serial=gaps.shape[0] == 1)
     """Fixed-step methods: the chains in blocks of ``chunks.LANES`` (consecutive chains
     share a block, the last block padded with lanes at rest that record nothing), stepped
     in lockstep by ``kernels.run_blocks``. Returns each chain's final state, time, steps
     and status, and the ``_Observed`` arrays (with ``observe``: the on-the-fly observables
     and NS, each chain's sample count; otherwise the records go to V_parts, E_parts)."""
+    kern = _kernels(gaps.shape[0])
     B, ny = Y0.shape
     ng = gaps.shape[1]
     n = int(P[codes.P_N_SPHERES])

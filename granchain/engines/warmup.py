@@ -60,6 +60,74 @@ def _warm_up_runs(runs=RUNS, done=None) -> None:
             done(1)
 
 
+class _Recorded(Exception):
+    """Raised by :class:`_Recorder` once a warm-up run has reached its last entry point."""
+
+
+# The entry points after which a recording run goes on to the others it calls (the event
+# method in lanes, then energies and finalize per chain); any other call ends it.
+_GO_ON = ("run_events_lanes", "energies")
+
+
+class _Recorder:
+    """Stands in for ``backend.kernels(...)`` during :func:`record_signatures`: each call of
+    an entry point records the numba types of its arguments and runs nothing. A driver of
+    :data:`_GO_ON` finds its chains stopped (its ``STATUS`` argument set to done), so the
+    run goes on to the entry points it calls next; any other call ends the run."""
+
+    def __init__(self, seen: dict):
+        self._seen = seen
+
+    def __getattr__(self, name: str):
+        from .backend import ENTRY_POINTS, jit_entry
+        if name not in ENTRY_POINTS:
+            raise AttributeError(name)
+        import inspect
+
+        from numba import typeof
+
+        from . import codes
+        params = list(inspect.signature(jit_entry(name).py_func).parameters)
+
+        def call(*args):
+            self._seen.setdefault(name, set()).add(tuple(typeof(a) for a in args))
+            if name not in _GO_ON:
+                raise _Recorded(name)
+            if "STATUS" in params:
+                args[params.index("STATUS")][...] = codes.S_DONE
+        return call
+
+
+def record_signatures(runs=RUNS) -> dict:
+    """The argument types each entry point of ``backend.ENTRY_POINTS`` is called with by
+    the warm-up runs, found without compiling any of them: the runs go through the engine
+    with :class:`_Recorder` in place of the kernels. Returns {entry point: argument types};
+    refuses (RuntimeError) an entry point called with two sets of types or never called
+    (the ahead-of-time module exports one signature of each)."""
+    import numpy as np
+
+    from . import backend, reference
+    seen: dict = {}
+    real = backend.kernels
+    backend.kernels = lambda serial: _Recorder(seen)
+    try:
+        for method, trace in runs:
+            scene = warm_up_scene(method)
+            gaps = np.full((2, scene.n - 1), 5e-9)
+            try:
+                list(reference.run(scene, gaps, np.array([0.1, 0.1]), progress=False,
+                                   trace=trace))
+            except _Recorded:
+                pass
+    finally:
+        backend.kernels = real
+    bad = {e: len(seen.get(e, ())) for e in backend.ENTRY_POINTS if len(seen.get(e, ())) != 1}
+    if bad:
+        raise RuntimeError(f"the warm-up runs called the entry points {bad} times with "
+                           "different types; the engine must call each with one set of types")
+    return {e: next(iter(seen[e])) for e in backend.ENTRY_POINTS}
+
+
 def _take_tasks(claims: str) -> None:
     """A warm-up worker: the tasks of :data:`TASKS` in turn that no other worker has taken
     (a worker takes task k by creating ``claims/k.taken``, which only one can), each
@@ -106,50 +174,69 @@ def warm_jit(workers: int = 1, done=None) -> None:
         _warm_up_runs(done=done)
 
 
-def build(log=print, workers: int = 1, aot: bool = True,
-          progress: bool | None = None) -> Path | None:
-    """Warm numba's JIT cache (in ``workers`` processes at once, :func:`warm_jit`) and,
-    with ``aot``, compile the ahead-of-time module for this machine. Returns the module's
-    path (None if numba.pycc is not available or ``aot`` is off). ``progress``: a bar on
-    stderr counting the warm-up runs and the ahead-of-time module (``granchain.progress``;
-    None: when stderr is a terminal); ``log``'s lines are written around it."""
-    from ..progress import bar
-    with bar(len(RUNS) + (1 if aot else 0), "granchain warm-up", unit="step",
-             enabled=progress) as shown:
-        def say(msg):
-            with shown.external_write_mode(file=sys.stderr):
-                log(msg)
-        return _build(say, workers, aot, shown.update)
-
-
-def _build(log, workers: int, aot: bool, done) -> Path | None:
-    """:func:`build`, with ``done(k)`` as k of its steps finish."""
-    t0 = time.perf_counter()
-    warm_jit(workers, done)
-    log(f"granchain warm-up: JIT kernels compiled or loaded from numba's cache in "
-        f"{time.perf_counter() - t0:.1f} s ({workers} process{'es' if workers > 1 else ''})")
-    if not aot:
-        return None
+def _pycc():
+    """numba.pycc's CC, or None where numba no longer has it."""
     try:
         import warnings
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             from numba.pycc import CC
     except ImportError:
+        return None
+    return CC
+
+
+def build(log=print, workers: int = 1, aot: bool = True, progress: bool | None = None,
+          jit: bool | None = None) -> Path | None:
+    """With ``aot``, compile the ahead-of-time module for this machine; with ``jit``, warm
+    numba's JIT cache (in ``workers`` processes at once, :func:`warm_jit`). Returns the
+    module's path (None if numba.pycc is not available or ``aot`` is off).
+
+    The ahead-of-time module runs every call that does not run chains in parallel (one
+    chain, or one thread: ``backend.kernels``), so only a process that runs on more threads
+    needs the JIT kernels: ``jit`` None warms them when ``workers`` > 1, or when there is
+    no numba.pycc. The module is built first, from the types the warm-up runs call the
+    entry points with (:func:`record_signatures`, nothing compiled for them): it compiles
+    each law once into numba's cache, where the JIT kernels then find them.
+
+    ``progress``: a bar on stderr counting the warm-up runs and the ahead-of-time module
+    (``granchain.progress``; None: when stderr is a terminal); ``log``'s lines are written
+    around it."""
+    from ..progress import bar
+    cc = _pycc() if aot else None
+    if jit is None:
+        jit = workers > 1 or cc is None
+    with bar((len(RUNS) if jit else 0) + (1 if aot else 0), "granchain warm-up", unit="step",
+             enabled=progress) as shown:
+        def say(msg):
+            with shown.external_write_mode(file=sys.stderr):
+                log(msg)
+        path = None
+        if aot:
+            path = _build_aot(say, cc, shown.update)
+        if jit:
+            t0 = time.perf_counter()
+            warm_jit(workers, shown.update)
+            say(f"granchain warm-up: JIT kernels compiled or loaded from numba's cache in "
+                f"{time.perf_counter() - t0:.1f} s "
+                f"({workers} process{'es' if workers > 1 else ''})")
+        return path
+
+
+def _build_aot(log, CC, done) -> Path | None:
+    """The ahead-of-time module of :func:`build` (``CC``: numba.pycc's, or None), with
+    ``done(1)`` once it is built or found."""
+    if CC is None:
         log("granchain warm-up: numba.pycc is not available; runs use the JIT kernels only")
         done(1)
         return None
-    # the signatures the warm-up compiled (argument and return types, as the engine calls them)
-    sigs = {e: jit_entry(e).nopython_signatures for e in ENTRY_POINTS}
-    bad = [e for e, s in sigs.items() if len(s) != 1]
-    if bad:
-        raise RuntimeError(f"warm-up compiled {[len(sigs[e]) for e in bad]} signatures of {bad}; "
-                           "the engine must call each entry point with one set of types")
     if aot_available():
         done(1)
         log(f"granchain warm-up: ahead-of-time kernels already built for this machine "
             f"({cache_dir() / 'aot'}, {module_name()})")
         return next(p for p in (cache_dir() / "aot").iterdir() if p.name.startswith(module_name()))
+    # the argument types the engine calls each entry point with (the return types follow)
+    sigs = record_signatures()
     out = cache_dir() / "aot"
     out.mkdir(parents=True, exist_ok=True)
     name = module_name()
@@ -161,7 +248,7 @@ def _build(log, workers: int, aot: bool, done) -> Path | None:
     cc.target_cpu = "host"
     cc.verbose = False
     for e in ENTRY_POINTS:
-        cc.export(e, sigs[e][0])(jit_entry(e).py_func)
+        cc.export(e, sigs[e])(jit_entry(e).py_func)
     cc.compile()
     built = next(tmp.iterdir())
     final = out / built.name

@@ -24,8 +24,14 @@ from .studies import StudyScene, packed_scene, study_scenes, trace_scene
 
 
 def set_threads(threads: int | None) -> None:
-    """Threads for the numba kernels of this process (a job's ``threads``)."""
+    """Threads for the numba kernels of this process (a job's ``threads``). Before numba is
+    imported, by its environment variable: a job on one thread then runs the ahead-of-time
+    kernels (``engines.backend``) without importing numba at all."""
     if not threads:
+        return
+    if "numba" not in sys.modules:
+        from ..engines.backend import num_threads
+        os.environ["NUMBA_NUM_THREADS"] = str(max(1, min(int(threads), num_threads())))
         return
     import numba
     numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))

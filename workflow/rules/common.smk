@@ -138,5 +138,5 @@ def all_targets():
         f"{FIG_DIR}/accuracy_cost.pdf",
         *vibrometer_targets(),      # vibrometer.smk (none without the study)
         *inference_targets(include_examples=False),   # inference.smk: real measurements only
-        f"{RESULTS}/work/aot_kernels.done",           # ensembles.smk: one-chain runs' kernels
+        f"{RESULTS}/work/aot_kernels.done",           # ensembles.smk: serial calls' kernels
     ]

@@ -3,32 +3,18 @@
 # batches of studies on the LAMMPS engine go through run_lammps_batch (lammps.smk).
 # packed_trace runs each material's packed chain, on its study's engine, and saves its v(t)
 # trace (a LAMMPS packed_trace takes the batch threads as MPI ranks).
-# jit_cache compiles the reference engine's JIT kernels once (numba's cache,
-# granchain.engines.backend; its runs in the rule's threads as processes at once) before
-# any job needs them, so that jobs starting together do not each pay the cold compile;
-# aot_kernels then builds the ahead-of-time module (one-chain runs), which no job waits for. The cache is per machine (under
-# $GRANCHAIN_CACHE_DIR or ~/.cache/granchain, and numba's beside the package); on a cluster
-# whose nodes differ in CPU, a job on another CPU type compiles for it once.
-
-
-rule jit_cache:
-    output:
-        f"{RESULTS}/work/jit_cache.done",
-    log:
-        f"{RESULTS}/logs/jit_cache.log",
-    threads: 2
-    resources:
-        mem_mb=2000,
-        runtime=15,
-    conda:
-        "../envs/granchain.yaml"
-    script:
-        "../scripts/jit_cache.py"
+# aot_kernels compiles the reference engine's ahead-of-time module for this machine
+# (granchain.engines.warmup; each law once, into numba's cache): every call of a job on
+# one thread runs it (granchain.engines.backend), so such a job waits for it alone
+# (kernels_for). jit_cache then compiles numba's JIT kernels, which only the jobs on more
+# threads run (in the rule's threads as processes at once, the laws loaded from the cache),
+# so that jobs starting together do not each pay the cold compile. The cache is per
+# machine (under $GRANCHAIN_CACHE_DIR or ~/.cache/granchain, and numba's beside the
+# package); on a cluster whose nodes differ in CPU, a job on another CPU type compiles for
+# it once.
 
 
 rule aot_kernels:
-    input:
-        rules.jit_cache.output,
     output:
         f"{RESULTS}/work/aot_kernels.done",
     log:
@@ -43,9 +29,32 @@ rule aot_kernels:
         "../scripts/aot_kernels.py"
 
 
+rule jit_cache:
+    input:
+        rules.aot_kernels.output,
+    output:
+        f"{RESULTS}/work/jit_cache.done",
+    log:
+        f"{RESULTS}/logs/jit_cache.log",
+    threads: 2
+    resources:
+        mem_mb=2000,
+        runtime=15,
+    conda:
+        "../envs/granchain.yaml"
+    script:
+        "../scripts/jit_cache.py"
+
+
+def kernels_for(threads):
+    """What a job of the reference engine on ``threads`` threads waits for: the
+    ahead-of-time module on one thread, numba's JIT kernels on more."""
+    return rules.aot_kernels.output if int(threads) == 1 else rules.jit_cache.output
+
+
 rule run_batch:
     input:
-        rules.jit_cache.output,
+        kernels_for(BATCH_THREADS),
     output:
         table=f"{RESULTS}/work/{{study}}/reference_{{index}}.csv",
         timing=f"{RESULTS}/work/{{study}}/reference_{{index}}.timing.csv",
@@ -69,7 +78,7 @@ rule run_batch:
 
 rule packed_trace:
     input:
-        rules.jit_cache.output,
+        kernels_for(BATCH_THREADS if PLAN.engines("packed_trace") == ["lammps"] else 1),
     output:
         table=f"{RESULTS}/work/packed_trace/trace.csv",
         timing=f"{RESULTS}/work/packed_trace/trace.timing.csv",

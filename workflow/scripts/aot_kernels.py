@@ -1,5 +1,6 @@
-# Compile the reference engine's ahead-of-time module for this machine (what a one-chain
-# run loads instead of numba's JIT), from the signatures the JIT kernels were compiled with.
+# Compile the reference engine's ahead-of-time module for this machine (what every call
+# that runs no chains in parallel loads instead of numba's JIT), from the types the warm-up
+# runs call the entry points with; without numba.pycc, numba's JIT kernels in one process.
 import time
 
 from granchain import workflow as gw
