@@ -293,15 +293,17 @@ def test_warm_up_again_with_the_module_built(aot_cache):
 
 @pytest.mark.slow
 def test_warm_up_in_two_processes_covers_every_entry_point(tmp_path):
-    """The warm-up's tasks, taken by two processes at once, reach every entry point between
-    them: a numba cache filled only by them holds an entry for each, and this process then
-    loads each one from it with a single signature, the argument types
-    ``warmup.record_signatures`` finds without compiling (the ahead-of-time build's).
+    """The warm-up's tasks, taken by two processes at once, build the ahead-of-time module
+    and reach every entry point between them: a numba cache filled only by them holds an
+    entry for each, and this process then loads each one from it with a single signature,
+    the argument types ``warmup.record_signatures`` finds without compiling (the
+    ahead-of-time build's).
     A cold compile: about 2 minutes on 2 busy cores."""
     assert sorted(r for t in warmup.TASKS for r in t) == sorted(warmup.RUNS)
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"),
+               GRANCHAIN_CACHE_DIR=str(tmp_path / "granchain"), NUMBA_NUM_THREADS="2")
     code = ("from granchain.engines import warmup, backend\n"
-            "warmup.warm_jit(2)\n"
+            "print(warmup.warm_jit(2, aot=True) is not None, backend.aot_available())\n"
             "print(sorted(e for e in backend.ENTRY_POINTS\n"
             "             if len(backend.jit_entry(e).nopython_signatures) != 1))\n"
             "rec = warmup.record_signatures()\n"
@@ -311,8 +313,8 @@ def test_warm_up_in_two_processes_covers_every_entry_point(tmp_path):
     assert out.returncode == 0, out.stderr
     # one signature of each, and the types recorded without compiling (what the
     # ahead-of-time module is built from) are those numba compiled
-    assert out.stdout.split("\n")[:2] == ["[]", "[]"]
-    cached = {p.name.split(".")[1].split("-")[0] for p in tmp_path.rglob("*.nbi")}
+    assert out.stdout.split("\n")[:3] == ["True True", "[]", "[]"]
+    cached = {p.name.split(".")[1].split("-")[0] for p in (tmp_path / "numba").rglob("*.nbi")}
     assert set(backend.ENTRY_POINTS) <= cached, set(backend.ENTRY_POINTS) - cached
 
 

@@ -128,50 +128,71 @@ def record_signatures(runs=RUNS) -> dict:
     return {e: next(iter(seen[e])) for e in backend.ENTRY_POINTS}
 
 
-def _take_tasks(claims: str) -> None:
-    """A warm-up worker: the tasks of :data:`TASKS` in turn that no other worker has taken
+# The task of building the ahead-of-time module, the first the workers take when they build
+# it beside the JIT kernels (:func:`warm_jit` with ``aot``).
+AOT = "aot"
+
+
+def _tasks(aot: bool) -> tuple:
+    """The workers' tasks: :data:`TASKS`, after :data:`AOT` with ``aot``."""
+    return (AOT,) + TASKS if aot else TASKS
+
+
+def _take_tasks(claims: str, aot: bool = False) -> None:
+    """A warm-up worker: the tasks of :func:`_tasks` in turn that no other worker has taken
     (a worker takes task k by creating ``claims/k.taken``, which only one can), each
-    marked ``claims/k.done`` once run."""
-    for k, task in enumerate(TASKS):
+    marked ``claims/k.done`` once run (the :data:`AOT` task's log line in
+    ``claims/aot.log``)."""
+    for k, task in enumerate(_tasks(aot)):
         try:
             os.close(os.open(os.path.join(claims, f"{k}.taken"),
                              os.O_CREAT | os.O_EXCL | os.O_WRONLY))
         except FileExistsError:
             continue
-        _warm_up_runs(task)
+        if task == AOT:
+            _build_aot(Path(claims, "aot.log").write_text, _pycc(), lambda k: None)
+        else:
+            _warm_up_runs(task)
         Path(claims, f"{k}.done").touch()
 
 
-def warm_jit(workers: int = 1, done=None) -> None:
+def warm_jit(workers: int = 1, done=None, aot: bool = False) -> str | None:
     """Compile the JIT kernels into numba's cache (or load them from it): with workers > 1,
-    that many processes at once take the tasks of :data:`TASKS` as they come free (each
+    that many processes at once take the tasks of :func:`_tasks` as they come free (each
     compiles what its runs reach; numba writes each cache entry atomically), then this
-    process loads them all from the cache. ``done(k)`` as k of :data:`RUNS` are compiled
-    (a progress bar's ``update``), if given."""
+    process loads them all from the cache. With ``aot`` (and workers > 1) the first task
+    builds the ahead-of-time module (:func:`_build_aot`), whose log line is returned.
+    ``done(k)`` as k of :data:`RUNS` are compiled, and 1 for the module (a progress bar's
+    ``update``), if given."""
     import subprocess
     import tempfile
-    if workers > 1:
-        with tempfile.TemporaryDirectory(prefix="granchain-warm-up-") as claims:
-            code = f"from granchain.engines.warmup import _take_tasks; _take_tasks({claims!r})"
-            procs = [subprocess.Popen([sys.executable, "-c", code])
-                     for _ in range(min(workers, len(TASKS)))]
-            counted = set()
-            while True:
-                alive = any(p.poll() is None for p in procs)
-                for k, task in enumerate(TASKS):
-                    if k not in counted and Path(claims, f"{k}.done").exists():
-                        counted.add(k)
-                        if done is not None:
-                            done(len(task))
-                if not alive:
-                    break
-                time.sleep(0.2)
-            bad = [p.returncode for p in procs]
-        if any(bad) or len(counted) < len(TASKS):
-            raise RuntimeError(f"a warm-up process failed (exit codes {bad})")
-        _warm_up_runs()
-    else:
+    if workers <= 1:
         _warm_up_runs(done=done)
+        return None
+    tasks = _tasks(aot)
+    with tempfile.TemporaryDirectory(prefix="granchain-warm-up-") as claims:
+        code = (f"from granchain.engines.warmup import _take_tasks; "
+                f"_take_tasks({claims!r}, {bool(aot)!r})")
+        procs = [subprocess.Popen([sys.executable, "-c", code])
+                 for _ in range(min(workers, len(tasks)))]
+        counted = set()
+        while True:
+            alive = any(p.poll() is None for p in procs)
+            for k, task in enumerate(tasks):
+                if k not in counted and Path(claims, f"{k}.done").exists():
+                    counted.add(k)
+                    if done is not None:
+                        done(1 if task == AOT else len(task))
+            if not alive:
+                break
+            time.sleep(0.2)
+        bad = [p.returncode for p in procs]
+        logged = Path(claims, "aot.log").read_text() if aot and not any(bad) else None
+    if any(bad) or len(counted) < len(tasks):
+        raise RuntimeError(f"a warm-up process failed (exit codes {bad})")
+    aot_module.cache_clear()
+    _warm_up_runs()
+    return logged
 
 
 def _pycc():
@@ -195,9 +216,10 @@ def build(log=print, workers: int = 1, aot: bool = True, progress: bool | None =
     The ahead-of-time module runs every call that does not run chains in parallel (one
     chain, or one thread: ``backend.kernels``), so only a process that runs on more threads
     needs the JIT kernels: ``jit`` None warms them when ``workers`` > 1, or when there is
-    no numba.pycc. The module is built first, from the types the warm-up runs call the
-    entry points with (:func:`record_signatures`, nothing compiled for them): it compiles
-    each law once into numba's cache, where the JIT kernels then find them.
+    no numba.pycc. The module is built from the types the warm-up runs call the entry
+    points with (:func:`record_signatures`, nothing compiled for them). Without the JIT
+    kernels it is all the warm-up compiles; with them on ``workers`` > 1 it is the first
+    task the worker processes take (:func:`warm_jit`), the JIT kernels the others.
 
     ``progress``: a bar on stderr counting the warm-up runs and the ahead-of-time module
     (``granchain.progress``; None: when stderr is a terminal); ``log``'s lines are written
@@ -212,6 +234,13 @@ def build(log=print, workers: int = 1, aot: bool = True, progress: bool | None =
             with shown.external_write_mode(file=sys.stderr):
                 log(msg)
         path = None
+        if aot and jit and workers > 1 and cc is not None and not aot_available():
+            # the module beside the JIT kernels: the first task the workers take
+            t0 = time.perf_counter()
+            say(warm_jit(workers, shown.update, aot=True))
+            say(f"granchain warm-up: the ahead-of-time module and the JIT kernels in "
+                f"{time.perf_counter() - t0:.1f} s ({workers} processes)")
+            return _aot_path()
         if aot:
             path = _build_aot(say, cc, shown.update)
         if jit:
@@ -221,6 +250,11 @@ def build(log=print, workers: int = 1, aot: bool = True, progress: bool | None =
                 f"{time.perf_counter() - t0:.1f} s "
                 f"({workers} process{'es' if workers > 1 else ''})")
         return path
+
+
+def _aot_path() -> Path:
+    """The ahead-of-time module's file (built for the current sources and machine)."""
+    return next(p for p in (cache_dir() / "aot").iterdir() if p.name.startswith(module_name()))
 
 
 def _build_aot(log, CC, done) -> Path | None:
@@ -234,7 +268,7 @@ def _build_aot(log, CC, done) -> Path | None:
         done(1)
         log(f"granchain warm-up: ahead-of-time kernels already built for this machine "
             f"({cache_dir() / 'aot'}, {module_name()})")
-        return next(p for p in (cache_dir() / "aot").iterdir() if p.name.startswith(module_name()))
+        return _aot_path()
     # the argument types the engine calls each entry point with (the return types follow)
     sigs = record_signatures()
     out = cache_dir() / "aot"
