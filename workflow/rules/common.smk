@@ -58,6 +58,12 @@ def trace_materials():
     return PLAN.materials("packed_trace")
 
 
+def kernels_for(threads):
+    """What a job of the reference engine on ``threads`` threads waits for (ensembles.smk):
+    the ahead-of-time module on one thread, numba's JIT kernels on more."""
+    return f"{RESULTS}/work/{'aot_kernels' if int(threads) == 1 else 'jit_cache'}.done"
+
+
 def batch_of(study, engine, index):
     try:
         return PLAN.batch(study, f"{engine}_{index}")

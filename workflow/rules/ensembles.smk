@@ -46,12 +46,6 @@ rule jit_cache:
         "../scripts/jit_cache.py"
 
 
-def kernels_for(threads):
-    """What a job of the reference engine on ``threads`` threads waits for: the
-    ahead-of-time module on one thread, numba's JIT kernels on more."""
-    return rules.aot_kernels.output if int(threads) == 1 else rules.jit_cache.output
-
-
 rule run_batch:
     input:
         kernels_for(BATCH_THREADS),
