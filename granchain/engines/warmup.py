@@ -44,18 +44,22 @@ def warm_up_scene(method: str):
     return scene_from_dict({**raw, "integrator": integ})
 
 
-def _warm_up_runs(runs=RUNS, done=None) -> None:
-    """Small chains through the reference engine's methods (:func:`warm_up_scene`);
-    ``done(1)`` after each run, if given."""
+def _warm_up_run(method: str, trace: bool) -> None:
+    """Two small chains of :func:`warm_up_scene` through the reference engine."""
     import numpy as np
 
     from . import reference
+    scene = warm_up_scene(method)
+    # two chains: a call over one chain (or on one thread) runs the ahead-of-time module
+    # if it is built, and the JIT kernels would stay uncompiled
+    gaps = np.full((2, scene.n - 1), 5e-9)
+    list(reference.run(scene, gaps, np.array([0.1, 0.1]), progress=False, trace=trace))
+
+
+def _warm_up_runs(runs=RUNS, done=None) -> None:
+    """The warm-up runs (:func:`_warm_up_run`); ``done(1)`` after each, if given."""
     for method, trace in runs:
-        scene = warm_up_scene(method)
-        # two chains: a chunk of one would run the ahead-of-time module if it is built,
-        # and the JIT kernels would stay uncompiled
-        gaps = np.full((2, scene.n - 1), 5e-9)
-        list(reference.run(scene, gaps, np.array([0.1, 0.1]), progress=False, trace=trace))
+        _warm_up_run(method, trace)
         if done is not None:
             done(1)
 
@@ -104,19 +108,14 @@ def record_signatures(runs=RUNS) -> dict:
     with :class:`_Recorder` in place of the kernels. Returns {entry point: argument types};
     refuses (RuntimeError) an entry point called with two sets of types or never called
     (the ahead-of-time module exports one signature of each)."""
-    import numpy as np
-
-    from . import backend, reference
+    from . import backend
     seen: dict = {}
     real = backend.kernels
     backend.kernels = lambda serial: _Recorder(seen)
     try:
         for method, trace in runs:
-            scene = warm_up_scene(method)
-            gaps = np.full((2, scene.n - 1), 5e-9)
             try:
-                list(reference.run(scene, gaps, np.array([0.1, 0.1]), progress=False,
-                                   trace=trace))
+                _warm_up_run(method, trace)
             except _Recorded:
                 pass
     finally:
