@@ -8,7 +8,7 @@
    kernels from its warm cache (an empty ``GRANCHAIN_CACHE_DIR``). Prints the medians and
    their ratio.
 2. A cold job: the same run with an empty numba cache and no ahead-of-time module (what
-   every job of a workflow would pay without the ``jit_cache`` rule), and the warm-up itself
+   every job of a workflow would pay without the ``aot_kernels`` rule), and the warm-up itself
    (``granchain warm-up`` into empty caches: JIT compile plus ahead-of-time compile).
 3. Integrating ``--chains`` chains (20 nm gaps, every effect, Verlet at 1 ns) against
    summarising their trajectories into observables, in one process, both ways: with the

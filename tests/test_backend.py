@@ -282,28 +282,51 @@ def test_a_run_on_one_thread_takes_the_module_bit_identical_to_jit_threads(aot_c
 
 @pytest.mark.slow
 def test_warm_up_again_with_the_module_built(aot_cache):
-    # a second warm-up (another workflow run, a new process) finds the module built: its
-    # small runs must still compile the JIT kernels for ensembles, and it must succeed
+    # a second warm-up (another workflow run, a new process) finds the module built and
+    # succeeds without compiling anything: the module runs ensembles too (forked)
     env = dict(os.environ, GRANCHAIN_CACHE_DIR=str(aot_cache))
     out = subprocess.run([sys.executable, "-m", "granchain.cli", "warm-up"], capture_output=True,
                          text=True, env=env)
     assert out.returncode == 0, out.stderr
-    assert "already built" in out.stderr
+    assert "already built" in out.stderr and "JIT" not in out.stderr, out.stderr
+
+
+@pytest.mark.slow
+def test_warm_up_in_two_processes_builds_the_module_in_parts(tmp_path):
+    """On two threads the warm-up builds the module's parts in two processes at once; the
+    engine loads them as one module and a run takes it without importing numba."""
+    env = dict(os.environ, GRANCHAIN_CACHE_DIR=str(tmp_path), NUMBA_NUM_THREADS="2")
+    out = subprocess.run([sys.executable, "-m", "granchain.cli", "warm-up"], capture_output=True,
+                         text=True, env=env)
+    assert out.returncode == 0, out.stderr
+    assert "(2 processes)" in out.stderr and "JIT" not in out.stderr, out.stderr
+    built = sorted(p.name.split(".")[0].rsplit("_", 1)[1] for p in (tmp_path / "aot").iterdir()
+                   if p.suffix == ".so")
+    assert built == [f"p{k}" for k in range(len(backend.AOT_PARTS))], built
+    code = ("import sys\n"
+            "from granchain.engines import backend\n"
+            "m = backend.aot_module()\n"
+            "print(sorted(e for e in backend.ENTRY_POINTS if callable(getattr(m, e, None))) =="
+            " sorted(backend.ENTRY_POINTS), 'numba' in sys.modules)\n")
+    got = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         check=True).stdout.split()
+    assert got == ["True", "False"]
 
 
 @pytest.mark.slow
 def test_warm_up_in_two_processes_covers_every_entry_point(tmp_path):
-    """The warm-up's tasks, taken by two processes at once, build the ahead-of-time module
-    and reach every entry point between them: a numba cache filled only by them holds an
-    entry for each, and this process then loads each one from it with a single signature,
-    the argument types ``warmup.record_signatures`` finds without compiling (the
-    ahead-of-time build's).
-    A cold compile: about 2 minutes on 2 busy cores."""
+    """The JIT warm-up's tasks (where no ahead-of-time module is built), taken by two
+    processes at once, reach every entry point between them: a numba cache filled only by
+    them holds an entry for each, and this process then loads each one from it with a
+    single signature, the argument types ``warmup.record_signatures`` finds without
+    compiling (what the ahead-of-time module is built from).
+    A cold compile: about 3 minutes on 2 busy cores."""
     assert sorted(r for t in warmup.TASKS for r in t) == sorted(warmup.RUNS)
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"),
                GRANCHAIN_CACHE_DIR=str(tmp_path / "granchain"), NUMBA_NUM_THREADS="2")
     code = ("from granchain.engines import warmup, backend\n"
-            "print(warmup.warm_jit(2, aot=True) is not None, backend.aot_available())\n"
+            "warmup.warm_jit(2)\n"
+            "print(backend.aot_available())\n"
             "print(sorted(e for e in backend.ENTRY_POINTS\n"
             "             if len(backend.jit_entry(e).nopython_signatures) != 1))\n"
             "rec = warmup.record_signatures()\n"
@@ -313,110 +336,185 @@ def test_warm_up_in_two_processes_covers_every_entry_point(tmp_path):
     assert out.returncode == 0, out.stderr
     # one signature of each, and the types recorded without compiling (what the
     # ahead-of-time module is built from) are those numba compiled
-    assert out.stdout.split("\n")[:3] == ["True True", "[]", "[]"]
+    assert out.stdout.split("\n")[:3] == ["False", "[]", "[]"]
     cached = {p.name.split(".")[1].split("-")[0] for p in (tmp_path / "numba").rglob("*.nbi")}
     assert set(backend.ENTRY_POINTS) <= cached, set(backend.ENTRY_POINTS) - cached
 
 
-# --- the block kernel in forked workers --------------------------------------------------
-def _fake_args(nblk, lanes):
-    """run_blocks' 32 arguments with the shapes of a call over nblk blocks of lanes chains."""
+# --- the kernels' parallel loops in forked workers ----------------------------------------
+def test_forked_cuts_name_the_kernels_own_arguments():
+    """Each parallel entry point's argument names (what its cut is written in) are the
+    kernel's own, in order; the cut names only them, and never writes what it only
+    reads."""
+    import inspect
+
     from granchain.engines import forked
-    args = [np.zeros(1) for _ in range(32)]
-    for i in forked._PER_BLOCK:
-        args[i] = np.zeros((nblk, 3, lanes))
-    for i in forked._PER_CHAIN:
-        args[i] = np.zeros((nblk * lanes, 2))
-    args[forked._OBSERVE] = True
+    assert set(forked.CUTS) == set(forked.ARGS) == {
+        e for e in backend.ENTRY_POINTS if e.startswith("run_")}
+    for name, names in forked.ARGS.items():
+        assert names == tuple(inspect.signature(backend.jit_entry(name).py_func).parameters)
+        cut = forked.CUTS[name]
+        assert set(cut.items + cut.lanes + cut.written) <= set(names), name
+        assert not {"VTHR", "gaps", "NT", "t_stop", "P", "FL", "LO"} & set(cut.written), name
+
+
+def _fake_args(name, items, lanes=4, chains=None):
+    """``name``'s arguments with the shapes of a call whose parallel loop has ``items``
+    items: item arrays (items, 3, lanes) for the block kernel, else (items, 2); per-lane
+    arrays (items * lanes, 2); the rest (chains, 2) (``run_events_lanes``'s queues name
+    rows of them), or one zero."""
+    from granchain.engines import forked
+    cut = forked.CUTS[name]
+    args = []
+    for a in forked.ARGS[name]:
+        if a == "QUEUE":
+            args.append(np.full((items, chains), -1, dtype=np.int64))
+        elif a == "QLEN":
+            args.append(np.zeros(items, dtype=np.int64))
+        elif a in cut.items:
+            args.append(np.zeros((items, 3, lanes) if cut.lanes else (items, 2)))
+        elif a in cut.lanes:
+            args.append(np.zeros((items * lanes, 2)))
+        elif a in cut.written:
+            args.append(np.zeros((chains or 1, 2)))
+        else:
+            args.append(np.zeros(1))
+    if name == "run_events_lanes":          # chain b in queue b % items
+        at = forked.ARGS[name].index
+        Q, QL = args[at("QUEUE")], args[at("QLEN")]
+        for b in range(chains):
+            Q[b % items, QL[b % items]] = b
+            QL[b % items] += 1
     return tuple(args)
 
 
 class _Marks:
-    """A stand-in module whose run_blocks marks every block and chain it was given with
-    the process that ran it (and fails in the workers when told to)."""
+    """A stand-in module whose entry points mark every item, lane or queued chain they
+    were given with the process that ran them (and fail in the workers when told to)."""
     def __init__(self, fail_in_worker=False):
         self.parent, self.fail = os.getpid(), fail_in_worker
 
-    def run_blocks(self, *a):
+    def __getattr__(self, name):
         from granchain.engines import forked
-        if self.fail and os.getpid() != self.parent:
-            raise RuntimeError("worker failed")
-        for i in forked._WRITTEN:
-            a[i][...] = os.getpid()
+        cut, at = forked.CUTS[name], forked.ARGS[name].index
+
+        def run(*a):
+            if self.fail and os.getpid() != self.parent:
+                raise RuntimeError("worker failed")
+            if name == "run_events_lanes":
+                Q, QL = a[at("QUEUE")], a[at("QLEN")]
+                rows = [int(b) for k in range(Q.shape[0]) for b in Q[k, :QL[k]]]
+            for x in cut.written:
+                if x in cut.items or x in cut.lanes:
+                    a[at(x)][...] = os.getpid()
+                else:
+                    a[at(x)][rows] = os.getpid()
+        return run
 
 
-def test_forked_blocks_cover_every_block_once_in_numbas_schedule():
+@pytest.mark.parametrize("name", ["run_blocks", "run_adaptive", "run_events",
+                                  "run_events_lanes"])
+def test_forked_calls_cover_every_item_once_in_numbas_schedule(name):
     from granchain.engines import forked
-    for nblk, workers in ((2, 2), (5, 2), (16, 2), (7, 3)):
-        args = _fake_args(nblk, 4)
-        assert forked.run_blocks(_Marks(), args, 4, workers)
-        Y = args[1][:, 0, 0]
-        pids = list(dict.fromkeys(Y.tolist()))
-        assert len(pids) == min(workers, nblk) and os.getpid() == pids[0]
-        # contiguous shares, one more block for each of the first nblk % workers
-        sizes = [int((Y == p).sum()) for p in pids]
-        assert sizes == [nblk // workers + (t < nblk % workers) for t in range(workers)]
-        for i in forked._PER_CHAIN:            # each chain written by its block's process
-            if i in forked._WRITTEN:
-                assert np.array_equal(args[i][:, 0], np.repeat(Y, 4))
-        assert not args[forked._PER_CHAIN[6]].any()     # NT is read, not written back
+    cut, at = forked.CUTS[name], forked.ARGS[name].index
+    for items, workers in ((2, 2), (5, 2), (16, 2), (7, 3)):
+        args = _fake_args(name, items, chains=3 * items + 1)
+        assert forked.call(name, _Marks().__getattr__(name), args, workers)
+        if name == "run_events_lanes":
+            Y = args[at("Y")][:, 0]
+            Q = args[at("QUEUE")]
+            owner = [Y[Q[k, 0]] for k in range(items)]
+        else:
+            owner = args[at(cut.items[0])].reshape(items, -1)[:, 0]
+        pids = list(dict.fromkeys(owner))
+        assert len(pids) == min(workers, items) and os.getpid() == pids[0]
+        # contiguous shares, one more item for each of the first items % workers
+        sizes = [int(sum(o == p for o in owner)) for p in pids]
+        assert sizes == [items // workers + (t < items % workers) for t in range(workers)]
+        for x in cut.written:                   # each written by its item's process
+            got = args[at(x)].reshape(args[at(x)].shape[0], -1)[:, 0]
+            if x in cut.items:
+                assert np.array_equal(got, owner), (name, x)
+            elif x in cut.lanes:
+                assert np.array_equal(got, np.repeat(owner, 4)), (name, x)
+            else:
+                assert np.array_equal(got, [owner[b % items] for b in range(len(got))])
+        for x in set(cut.items + cut.lanes) - set(cut.written) - {"QUEUE", "QLEN"}:
+            assert not args[at(x)].any(), (name, x)        # read, not written back
 
 
-def test_a_failed_worker_leaves_the_arrays_untouched():
+@pytest.mark.parametrize("name", ["run_blocks", "run_events_lanes"])
+def test_a_failed_worker_leaves_the_arrays_untouched(name):
     from granchain.engines import forked
-    args = _fake_args(4, 2)
-    assert not forked.run_blocks(_Marks(fail_in_worker=True), args, 2, 2)
-    assert not any(args[i].any() for i in forked._WRITTEN)
+    args = _fake_args(name, 4, chains=9)
+    assert not forked.call(name, _Marks(fail_in_worker=True).__getattr__(name), args, 2)
+    at = forked.ARGS[name].index
+    assert not any(args[at(x)].any() for x in forked.CUTS[name].written)
 
 
 _FORKED_RUN = """
-import sys, pickle
+import json, sys, pickle
 import numpy as np
 from granchain.engines import forked, reference
 from granchain.scene import load_scene
 taken = []
-real = forked.run_blocks
-forked.run_blocks = lambda *a, **k: taken.append(real(*a, **k)) or taken[-1]
+real = forked.call
+def call(name, *a):
+    taken.append((name, real(name, *a)))
+    return taken[-1][1]
+forked.call = call
 d = np.load(sys.argv[1])
-scene = load_scene(sys.argv[2]).derive(
-    integrator={"method": "verlet", "dt": 1e-9},
-    effects=["hertz", "groove_friction", "air_drag", "rotation", "particle_friction"])
-out = [(t.status, t.steps, t.v, t.energy, t.observed.v_max, t.observed.t_peak,
-        t.observed.t_front) for t in reference.run(scene, d["gaps"], d["vs"], progress=False,
-                                                   trace=False)]
+out = []
+for integ, trace in json.loads(sys.argv[4]):
+    scene = load_scene(sys.argv[2]).derive(
+        integrator=integ, rolling={"k_roll": 1e3},
+        effects=["hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
+                 "rolling_friction"])
+    out.append([(t.status, t.steps, t.v, t.energy)
+                + ((t.observed.v_max, t.observed.t_peak, t.observed.t_front)
+                   if t.observed is not None else ())
+                for t in reference.run(scene, d["gaps"], d["vs"], progress=False, trace=trace)])
 pickle.dump((out, taken, "numba" in sys.modules), open(sys.argv[3], "wb"))
 """
 
 
 @pytest.mark.slow
-def test_forked_block_kernels_bit_identical_to_jit_threads(aot_cache, tmp_path, monkeypatch):
-    """Chains of every effect, their observables measured on the fly, in a process that
-    has not loaded numba: the ahead-of-time kernel in two forked workers (the path taken,
-    numba never imported) gives numba's two threads' results in this process bit for
-    bit."""
+def test_forked_kernels_bit_identical_to_jit_threads(aot_cache, tmp_path, monkeypatch):
+    """Chains of every effect by every method, traced and measured on the fly, in a process
+    that has not loaded numba: the ahead-of-time kernels in two forked workers (the path
+    taken, numba never imported) give numba's two threads' results in this process bit
+    for bit."""
     import pickle
     scene_file = f"{SCENES}/gaps-20nm-440c.yaml"
-    scene = load_scene(scene_file).derive(
-        integrator={"method": "verlet", "dt": 1e-9},
-        effects=["hertz", "groove_friction", "air_drag", "rotation", "particle_friction"])
-    gaps = np.random.default_rng(5).uniform(0, 40e-9, (70, scene.n - 1))
-    vs = np.full(70, 0.1)
+    runs = [(m, trace) for m in METHODS for trace in (False, True)]
+    gaps = np.random.default_rng(5).uniform(0, 40e-9, (70, load_scene(scene_file).n - 1))
+    vs = np.where(np.arange(70) < 40, 0.1, 0.2)    # two sample intervals, each > 1 block
     np.savez(tmp_path / "in.npz", gaps=gaps, vs=vs)
     env = dict(os.environ, GRANCHAIN_CACHE_DIR=str(aot_cache), NUMBA_NUM_THREADS="2")
     subprocess.run([sys.executable, "-c", _FORKED_RUN, str(tmp_path / "in.npz"), scene_file,
-                    str(tmp_path / "out.pkl")], env=env, check=True)
-    a, taken, numba_loaded = pickle.loads((tmp_path / "out.pkl").read_bytes())
-    assert taken and all(taken) and not numba_loaded
+                    str(tmp_path / "out.pkl"), json.dumps(runs)], env=env, check=True)
+    got, taken, numba_loaded = pickle.loads((tmp_path / "out.pkl").read_bytes())
+    assert not numba_loaded and all(ok for _, ok in taken)
+    assert {n for n, _ in taken} == {"run_blocks", "run_adaptive", "run_events",
+                                     "run_events_lanes"}
     monkeypatch.setattr(backend, "num_threads", lambda: 2)
     from granchain.engines import forked
     monkeypatch.setattr(forked, "usable", lambda *a: False)     # numba's threads here
-    b = list(reference.run(scene, gaps, vs, progress=False, trace=False))
-    assert len(a) == len(b) == 70
-    for x, y in zip(a, b):
-        assert x[0] == y.status and x[1] == y.steps
-        assert np.array_equal(x[2], y.v) and np.array_equal(x[3], y.energy)
-        for u, f in zip(x[4:], ("v_max", "t_peak", "t_front")):
-            assert np.array_equal(u, getattr(y.observed, f), equal_nan=True)
+    for (integ, trace), a in zip(runs, got):
+        scene = load_scene(scene_file).derive(
+            integrator=integ, rolling={"k_roll": 1e3},
+            effects=["hertz", "groove_friction", "air_drag", "rotation", "particle_friction",
+                     "rolling_friction"])
+        b = list(reference.run(scene, gaps, vs, progress=False, trace=trace))
+        assert len(a) == len(b) == 70
+        for x, y in zip(a, b):
+            assert x[0] == y.status == "passed" and x[1] == y.steps, (integ, trace)
+            assert np.array_equal(x[2], y.v) and np.array_equal(x[3], y.energy), (integ, trace)
+            obs = () if y.observed is None else (y.observed.v_max, y.observed.t_peak,
+                                                 y.observed.t_front)
+            assert len(x[4:]) == len(obs)
+            for u, f in zip(x[4:], obs):
+                assert np.array_equal(u, f, equal_nan=True), (integ, trace)
 
 
 @pytest.mark.slow

@@ -10,14 +10,15 @@ time there. So the same kernel functions are also compiled ahead of time (``numb
 into an extension module for this machine's CPU, which imports in milliseconds and needs no
 numba at run time.
 
-- ``engines.warmup.build`` (``granchain warm-up``, the workflow's ``jit_cache`` rule) runs a few small
-  chains through every entry point, which JIT-compiles them into numba's cache (the cold
-  compile, once per machine), then compiles the same entry points, with the signatures the
-  JIT compiled, ahead of time into ``<cache>/aot/`` with the machine's CPU as target.
-- :func:`kernels` gives the compiled entry points for a call: the ahead-of-time ones for a
-  serial call (one chain, nothing to run in parallel) when it is built for exactly the
-  current kernel sources, numba and CPU; the JIT one (parallel over chains with prange)
-  otherwise. Both are compiled from the same functions without fast-math, so they give
+- ``engines.warmup.build`` (``granchain warm-up``, the workflow's ``aot_kernels`` rule)
+  records the argument types a few small runs call every entry point with (compiling
+  nothing for them), then compiles the entry points with those types ahead of time into
+  ``<cache>/aot/`` with the machine's CPU as target (the cold compile, once per machine).
+- :func:`kernels` gives the compiled entry points: the ahead-of-time ones when built for
+  exactly the current kernel sources, numba and CPU, else numba's JIT ones (parallel over
+  chains with prange). The engine calls the module's directly for a serial call, and cuts
+  a parallel call's loop between forked processes on more threads (``engines.forked``).
+  Both are compiled from the same functions without fast-math, so they give
   bit-identical results (tested).
 
 The cache directory is ``granchain.fileio.cache_dir()``. The module's name carries a hash of everything it was compiled
@@ -210,23 +211,47 @@ def use_jit_cache() -> None:
     config.CACHE_DIR = str(jit_cache_dir())
 
 
-@lru_cache(maxsize=1)
-def aot_module():
-    """The ahead-of-time module for the current sources and machine, or None."""
-    d = cache_dir() / "aot"
-    name = module_name()
-    if not d.is_dir():
-        return None
-    files = [f for f in d.iterdir() if f.name.startswith(name + ".") and f.suffix in (".so", ".pyd")]
-    if not files:
-        return None
-    spec = importlib.util.spec_from_file_location(name, files[0])
+# The ahead-of-time module's parts: where the warm-up has more than one process, each
+# process builds parts of their own (``engines.warmup``), each a module of these entry
+# points named ``<module_name()>_p<k>``; one process builds them all as one module.
+AOT_PARTS = (("run_events", "run_events_lanes", "finalize"),
+             ("run_blocks", "run_adaptive", "energies"))
+
+
+def _load(name: str, path: Path):
+    spec = importlib.util.spec_from_file_location(name, path)
     mod = importlib.util.module_from_spec(spec)
     try:
         spec.loader.exec_module(mod)
     except ImportError:
         return None
-    if not all(hasattr(mod, e) for e in ENTRY_POINTS):
+    return mod
+
+
+@lru_cache(maxsize=1)
+def aot_module():
+    """The ahead-of-time module for the current sources and machine (one module, or a
+    module holding the entry points of all of :data:`AOT_PARTS`), or None."""
+    d = cache_dir() / "aot"
+    name = module_name()
+    if not d.is_dir():
+        return None
+    files = {f.name.split(".")[0]: f for f in d.iterdir()
+             if f.name.startswith(name) and f.suffix in (".so", ".pyd")}
+    if name in files:
+        mod = _load(name, files[name])
+    else:
+        parts = [f"{name}_p{k}" for k in range(len(AOT_PARTS))]
+        if not all(p in files for p in parts):
+            return None
+        loaded = [_load(p, files[p]) for p in parts]
+        if any(m is None for m in loaded):
+            return None
+        mod = type(sys)(name, "the ahead-of-time module's parts")
+        for m, entries in zip(loaded, AOT_PARTS):
+            for e in entries:
+                setattr(mod, e, getattr(m, e, None))
+    if mod is None or not all(getattr(mod, e, None) is not None for e in ENTRY_POINTS):
         return None
     return mod
 

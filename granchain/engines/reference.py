@@ -227,10 +227,17 @@ def _chunks(group, scene, terms, sample_dt, method, observe=False, plan=None, sa
 
 
 def _kernels(chains: int):
-    """The compiled kernels of a call over ``chains`` chains: the ahead-of-time module,
-    if built, when the call runs no chains in parallel (one chain, or numba on one
-    thread), numba's JIT kernels otherwise (``engines.backend``)."""
-    return backend.kernels(serial=chains == 1 or backend.num_threads() == 1)
+    """The compiled kernels of a call over ``chains`` chains (``engines.backend``): the
+    ahead-of-time module, if built, called directly when the call runs no chains in
+    parallel (one chain, or one thread), its parallel loops cut between forked processes
+    on more threads (``engines.forked``); numba's JIT kernels, parallel over chains, where
+    the module is not built."""
+    workers = 1 if chains == 1 else backend.num_threads()
+    kern = backend.kernels(serial=True)
+    if workers == 1:
+        return kern
+    aot = getattr(kern, "_aot", None)
+    return backend.kernels(serial=False) if aot is None else forked.Kernels(aot, workers)
 
 
 def _run_chunk(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], method, dt, rtol,
@@ -572,15 +579,10 @@ def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V
         Vbuf = np.empty((Bp, BLOCK_WINDOW, nv))
         Ebuf = np.empty((Bp, BLOCK_WINDOW, codes.E_LEN))
     counts = np.zeros(Bp, dtype=np.int64)
-    workers = backend.num_threads()
-    aot = backend.aot_module() if observe else None
     while np.any(STATUS[:B] == codes.S_RUNNING):
-        args = (mcode, YB, ACC, YF, T, NS, STEPS, STATUS, VT, GB, P, FL, layout.LO, dt,
-                every, NTp, auto, Vbuf, Ebuf, counts, observe, float(sample_dt),
-                float(wall_static), *obs.args())
-        if not (forked.usable(aot, workers, nblk)
-                and forked.run_blocks(aot, args, Lb, workers)):
-            kern.run_blocks(*args)
+        kern.run_blocks(mcode, YB, ACC, YF, T, NS, STEPS, STATUS, VT, GB, P, FL, layout.LO, dt,
+                        every, NTp, auto, Vbuf, Ebuf, counts, observe, float(sample_dt),
+                        float(wall_static), *obs.args())
         if not observe:
             _collect(counts[:B], Vbuf, Ebuf, V_parts, E_parts)
     obs.NS = NS[:B]

@@ -1,6 +1,7 @@
 """Compile the reference engine's kernels for this machine (``granchain warm-up``; the
-workflow's ``jit_cache`` rule, then its ``aot_kernels`` rule): numba's JIT cache, then the
-ahead-of-time module that ``engines.backend`` loads for serial calls."""
+workflow's ``aot_kernels`` rule): the ahead-of-time module that ``engines.backend`` loads
+for every call (serial, or cut between forked processes: ``engines.forked``), or numba's
+JIT kernels where it cannot be built or a process cannot fork."""
 from __future__ import annotations
 
 import os
@@ -127,51 +128,40 @@ def record_signatures(runs=RUNS) -> dict:
     return {e: next(iter(seen[e])) for e in backend.ENTRY_POINTS}
 
 
-# The task of building the ahead-of-time module, the first the workers take when they build
-# it beside the JIT kernels (:func:`warm_jit` with ``aot``).
-AOT = "aot"
+def _tasks(kind: str) -> tuple:
+    """The tasks the warm-up's worker processes share: ``"jit"``, the runs of
+    :data:`TASKS`; ``"aot"``, the indices of ``backend.AOT_PARTS``."""
+    from .backend import AOT_PARTS
+    return TASKS if kind == "jit" else tuple(range(len(AOT_PARTS)))
 
 
-def _tasks(aot: bool) -> tuple:
-    """The workers' tasks: :data:`TASKS`, after :data:`AOT` with ``aot``."""
-    return (AOT,) + TASKS if aot else TASKS
-
-
-def _take_tasks(claims: str, aot: bool = False) -> None:
-    """A warm-up worker: the tasks of :func:`_tasks` in turn that no other worker has taken
-    (a worker takes task k by creating ``claims/k.taken``, which only one can), each
-    marked ``claims/k.done`` once run (the :data:`AOT` task's log line in
-    ``claims/aot.log``)."""
-    for k, task in enumerate(_tasks(aot)):
+def _take_tasks(claims: str, kind: str) -> None:
+    """A warm-up worker: the tasks of :func:`_tasks` in turn that no other worker has
+    taken (a worker takes task k by creating ``claims/k.taken``, which only one can), each
+    marked ``claims/k.done`` once run (a JIT task's runs, or the ahead-of-time part it
+    names built: :func:`_build_part`)."""
+    for k, task in enumerate(_tasks(kind)):
         try:
             os.close(os.open(os.path.join(claims, f"{k}.taken"),
                              os.O_CREAT | os.O_EXCL | os.O_WRONLY))
         except FileExistsError:
             continue
-        if task == AOT:
-            _build_aot(Path(claims, "aot.log").write_text, _pycc(), lambda k: None)
-        else:
+        if kind == "jit":
             _warm_up_runs(task)
+        else:
+            _build_part(task)
         Path(claims, f"{k}.done").touch()
 
 
-def warm_jit(workers: int = 1, done=None, aot: bool = False) -> str | None:
-    """Compile the JIT kernels into numba's cache (or load them from it): with workers > 1,
-    that many processes at once take the tasks of :func:`_tasks` as they come free (each
-    compiles what its runs reach; numba writes each cache entry atomically), then this
-    process loads them all from the cache. With ``aot`` (and workers > 1) the first task
-    builds the ahead-of-time module (:func:`_build_aot`), whose log line is returned.
-    ``done(k)`` as k of :data:`RUNS` are compiled, and 1 for the module (a progress bar's
-    ``update``), if given."""
+def _in_processes(kind: str, workers: int, done=None) -> None:
+    """The tasks of :func:`_tasks` (``kind``) taken by ``workers`` processes at once as they
+    come free; ``done(k)`` as each ends (k: its runs, for a JIT task; 0 for a part)."""
     import subprocess
     import tempfile
-    if workers <= 1:
-        _warm_up_runs(done=done)
-        return None
-    tasks = _tasks(aot)
+    tasks = _tasks(kind)
     with tempfile.TemporaryDirectory(prefix="granchain-warm-up-") as claims:
         code = (f"from granchain.engines.warmup import _take_tasks; "
-                f"_take_tasks({claims!r}, {bool(aot)!r})")
+                f"_take_tasks({claims!r}, {kind!r})")
         procs = [subprocess.Popen([sys.executable, "-c", code])
                  for _ in range(min(workers, len(tasks)))]
         counted = set()
@@ -181,17 +171,26 @@ def warm_jit(workers: int = 1, done=None, aot: bool = False) -> str | None:
                 if k not in counted and Path(claims, f"{k}.done").exists():
                     counted.add(k)
                     if done is not None:
-                        done(1 if task == AOT else len(task))
+                        done(len(task) if kind == "jit" else 0)
             if not alive:
                 break
             time.sleep(0.2)
         bad = [p.returncode for p in procs]
-        logged = Path(claims, "aot.log").read_text() if aot and not any(bad) else None
     if any(bad) or len(counted) < len(tasks):
         raise RuntimeError(f"a warm-up process failed (exit codes {bad})")
-    aot_module.cache_clear()
-    _warm_up_runs()
-    return logged
+
+
+def warm_jit(workers: int = 1, done=None) -> None:
+    """Compile the JIT kernels into numba's cache (or load them from it): with workers > 1,
+    that many processes at once take the tasks of :data:`TASKS` as they come free (each
+    compiles what its runs reach; numba writes each cache entry atomically), then this
+    process loads them all from the cache. ``done(k)`` as k of :data:`RUNS` are compiled
+    (a progress bar's ``update``), if given. The runs reach the JIT kernels only where
+    the engine runs them: no ahead-of-time module, or no fork (``engines.reference``)."""
+    if workers > 1:
+        _in_processes("jit", workers, done)
+        done = None
+    _warm_up_runs(done=done)
 
 
 def _pycc():
@@ -212,13 +211,12 @@ def build(log=print, workers: int = 1, aot: bool = True, progress: bool | None =
     numba's JIT cache (in ``workers`` processes at once, :func:`warm_jit`). Returns the
     module's path (None if numba.pycc is not available or ``aot`` is off).
 
-    The ahead-of-time module runs every call that does not run chains in parallel (one
-    chain, or one thread: ``backend.kernels``), so only a process that runs on more threads
-    needs the JIT kernels: ``jit`` None warms them when ``workers`` > 1, or when there is
-    no numba.pycc. The module is built from the types the warm-up runs call the entry
-    points with (:func:`record_signatures`, nothing compiled for them). Without the JIT
-    kernels it is all the warm-up compiles; with them on ``workers`` > 1 it is the first
-    task the worker processes take (:func:`warm_jit`), the JIT kernels the others.
+    The ahead-of-time module runs every call: directly where it runs no chains in
+    parallel, its parallel loop cut between forked processes on more threads
+    (``engines.forked``). So the JIT kernels are needed only where the module cannot be
+    built (no numba.pycc) or a process cannot fork: ``jit`` None warms them there alone.
+    The module is built from the types the warm-up runs call the entry points with
+    (:func:`record_signatures`, nothing compiled for them).
 
     ``progress``: a bar on stderr counting the warm-up runs and the ahead-of-time module
     (``granchain.progress``; None: when stderr is a terminal); ``log``'s lines are written
@@ -226,22 +224,13 @@ def build(log=print, workers: int = 1, aot: bool = True, progress: bool | None =
     from ..progress import bar
     cc = _pycc() if aot else None
     if jit is None:
-        jit = workers > 1 or cc is None
+        jit = cc is None or not hasattr(os, "fork")
     with bar((len(RUNS) if jit else 0) + (1 if aot else 0), "granchain warm-up", unit="step",
              enabled=progress) as shown:
         def say(msg):
             with shown.external_write_mode(file=sys.stderr):
                 log(msg)
-        path = None
-        if aot and jit and workers > 1 and cc is not None and not aot_available():
-            # the module beside the JIT kernels: the first task the workers take
-            t0 = time.perf_counter()
-            say(warm_jit(workers, shown.update, aot=True))
-            say(f"granchain warm-up: the ahead-of-time module and the JIT kernels in "
-                f"{time.perf_counter() - t0:.1f} s ({workers} processes)")
-            return _aot_path()
-        if aot:
-            path = _build_aot(say, cc, shown.update)
+        path = _build_aot(say, cc, shown.update, workers) if aot else None
         if jit:
             t0 = time.perf_counter()
             warm_jit(workers, shown.update)
@@ -252,13 +241,44 @@ def build(log=print, workers: int = 1, aot: bool = True, progress: bool | None =
 
 
 def _aot_path() -> Path:
-    """The ahead-of-time module's file (built for the current sources and machine)."""
-    return next(p for p in (cache_dir() / "aot").iterdir() if p.name.startswith(module_name()))
+    """The ahead-of-time module's file, or its first part's (built for the current sources
+    and machine)."""
+    return min(p for p in (cache_dir() / "aot").iterdir() if p.name.startswith(module_name()))
 
 
-def _build_aot(log, CC, done) -> Path | None:
+def _compile(CC, name: str, entries, sigs: dict) -> Path:
+    """numba.pycc's module ``name`` of the entry points ``entries`` (argument types
+    ``sigs``; numba infers the return types) into ``<cache>/aot/``, built in a folder of its
+    own and moved in atomically (a concurrent build or reader sees old or new)."""
+    out = cache_dir() / "aot"
+    out.mkdir(parents=True, exist_ok=True)
+    tmp = out / f".build-{os.getpid()}-{name}"
+    tmp.mkdir(exist_ok=True)
+    cc = CC(name)
+    cc.output_dir = str(tmp)
+    cc.target_cpu = "host"
+    cc.verbose = False
+    for e in entries:
+        cc.export(e, sigs[e])(jit_entry(e).py_func)
+    cc.compile()
+    built = next(tmp.iterdir())
+    final = out / built.name
+    os.replace(built, final)
+    tmp.rmdir()
+    return final
+
+
+def _build_part(k: int) -> Path:
+    """Part k of the ahead-of-time module (``backend.AOT_PARTS``), in a warm-up worker."""
+    from .backend import AOT_PARTS
+    return _compile(_pycc(), f"{module_name()}_p{k}", AOT_PARTS[k], record_signatures())
+
+
+def _build_aot(log, CC, done, workers: int = 1) -> Path | None:
     """The ahead-of-time module of :func:`build` (``CC``: numba.pycc's, or None), with
-    ``done(1)`` once it is built or found."""
+    ``done(1)`` once it is built or found: one module in this process, or with ``workers``
+    > 1 the parts of ``backend.AOT_PARTS`` in that many processes at once (each compiles
+    the laws its part reaches; on 2 cores about x0.77 of one module's wall time)."""
     if CC is None:
         log("granchain warm-up: numba.pycc is not available; runs use the JIT kernels only")
         done(1)
@@ -268,27 +288,17 @@ def _build_aot(log, CC, done) -> Path | None:
         log(f"granchain warm-up: ahead-of-time kernels already built for this machine "
             f"({cache_dir() / 'aot'}, {module_name()})")
         return _aot_path()
-    # the argument types the engine calls each entry point with (the return types follow)
-    sigs = record_signatures()
-    out = cache_dir() / "aot"
-    out.mkdir(parents=True, exist_ok=True)
-    name = module_name()
     t1 = time.perf_counter()
-    tmp = out / f".build-{os.getpid()}"
-    tmp.mkdir(exist_ok=True)
-    cc = CC(name)
-    cc.output_dir = str(tmp)
-    cc.target_cpu = "host"
-    cc.verbose = False
-    for e in ENTRY_POINTS:
-        cc.export(e, sigs[e])(jit_entry(e).py_func)
-    cc.compile()
-    built = next(tmp.iterdir())
-    final = out / built.name
-    os.replace(built, final)            # atomic: a concurrent build or reader sees old or new
-    tmp.rmdir()
+    if workers > 1:
+        _in_processes("aot", workers)
+    else:
+        # the argument types the engine calls each entry point with
+        _compile(CC, module_name(), ENTRY_POINTS, record_signatures())
     aot_module.cache_clear()
+    if not aot_available():
+        raise RuntimeError("the ahead-of-time module was built but does not load")
+    final = _aot_path()
     done(1)
     log(f"granchain warm-up: ahead-of-time kernels compiled in {time.perf_counter() - t1:.1f} s "
-        f"-> {final}")
+        f"({workers if workers > 1 else 1} process{'es' if workers > 1 else ''}) -> {final}")
     return final

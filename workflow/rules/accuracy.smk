@@ -16,7 +16,7 @@ COST_THREADS = int(COST.get("threads", 2))
 
 rule accuracy_cost:
     input:
-        rules.jit_cache.output,
+        rules.aot_kernels.output,
     output:
         table=report(
             f"{RESULTS}/tables/accuracy_cost.csv",

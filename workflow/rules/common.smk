@@ -58,12 +58,6 @@ def trace_materials():
     return PLAN.materials("packed_trace")
 
 
-def kernels_for(threads):
-    """What a job of the reference engine on ``threads`` threads waits for (ensembles.smk):
-    the ahead-of-time module on one thread, numba's JIT kernels on more."""
-    return f"{RESULTS}/work/{'aot_kernels' if int(threads) == 1 else 'jit_cache'}.done"
-
-
 def batch_of(study, engine, index):
     try:
         return PLAN.batch(study, f"{engine}_{index}")
@@ -144,5 +138,5 @@ def all_targets():
         f"{FIG_DIR}/accuracy_cost.pdf",
         *vibrometer_targets(),      # vibrometer.smk (none without the study)
         *inference_targets(include_examples=False),   # inference.smk: real measurements only
-        f"{RESULTS}/work/aot_kernels.done",           # ensembles.smk: serial calls' kernels
+        f"{RESULTS}/work/aot_kernels.done",           # ensembles.smk: the engine's kernels
     ]

@@ -4,14 +4,14 @@
 # packed_trace runs each material's packed chain, on its study's engine, and saves its v(t)
 # trace (a LAMMPS packed_trace takes the batch threads as MPI ranks).
 # aot_kernels compiles the reference engine's ahead-of-time module for this machine
-# (granchain.engines.warmup; each law once, into numba's cache): every call of a job on
-# one thread runs it (granchain.engines.backend), so such a job waits for it alone
-# (kernels_for). jit_cache then compiles numba's JIT kernels, which only the jobs on more
-# threads run (in the rule's threads as processes at once, the laws loaded from the cache),
-# so that jobs starting together do not each pay the cold compile. The cache is per
-# machine (under $GRANCHAIN_CACHE_DIR or ~/.cache/granchain, and numba's beside the
-# package); on a cluster whose nodes differ in CPU, a job on another CPU type compiles for
-# it once.
+# (granchain.engines.warmup; its parts in the rule's threads as processes at once), which
+# every job's calls run (granchain.engines.backend): a job on one thread calls it directly,
+# one on more threads cuts its parallel loops between forked processes
+# (granchain.engines.forked), so no job compiles anything and jobs starting together do
+# not each pay the cold compile. Without numba.pycc the rule warms numba's JIT cache
+# instead. The cache is per machine (under $GRANCHAIN_CACHE_DIR or ~/.cache/granchain, and
+# numba's beside the package); on a cluster whose nodes differ in CPU, a job on another
+# CPU type compiles for it once.
 
 
 rule aot_kernels:
@@ -19,23 +19,6 @@ rule aot_kernels:
         f"{RESULTS}/work/aot_kernels.done",
     log:
         f"{RESULTS}/logs/aot_kernels.log",
-    threads: 1
-    resources:
-        mem_mb=1000,
-        runtime=15,
-    conda:
-        "../envs/granchain.yaml"
-    script:
-        "../scripts/aot_kernels.py"
-
-
-rule jit_cache:
-    input:
-        rules.aot_kernels.output,
-    output:
-        f"{RESULTS}/work/jit_cache.done",
-    log:
-        f"{RESULTS}/logs/jit_cache.log",
     threads: 2
     resources:
         mem_mb=2000,
@@ -43,12 +26,12 @@ rule jit_cache:
     conda:
         "../envs/granchain.yaml"
     script:
-        "../scripts/jit_cache.py"
+        "../scripts/aot_kernels.py"
 
 
 rule run_batch:
     input:
-        kernels_for(BATCH_THREADS),
+        rules.aot_kernels.output,
     output:
         table=f"{RESULTS}/work/{{study}}/reference_{{index}}.csv",
         timing=f"{RESULTS}/work/{{study}}/reference_{{index}}.timing.csv",
@@ -72,7 +55,7 @@ rule run_batch:
 
 rule packed_trace:
     input:
-        kernels_for(BATCH_THREADS if PLAN.engines("packed_trace") == ["lammps"] else 1),
+        rules.aot_kernels.output,
     output:
         table=f"{RESULTS}/work/packed_trace/trace.csv",
         timing=f"{RESULTS}/work/packed_trace/trace.timing.csv",

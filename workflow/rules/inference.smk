@@ -28,7 +28,7 @@ rule infer_gap:
         csv=str(MEAS_DIR / "{measurement}.csv"),
         scene=str(MEAS_DIR / "{measurement}.yaml"),
         code=INFER_CODE,
-        jit=rules.jit_cache.output,
+        kernels=rules.aot_kernels.output,
     output:
         json=f"{RESULTS}/inference/{{measurement}}.json",
         png=report(

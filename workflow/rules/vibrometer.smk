@@ -16,7 +16,7 @@ if VIB:
 
     rule vibrometer:
         input:
-            rules.jit_cache.output,
+            rules.aot_kernels.output,
         output:
             table=report(
                 f"{RESULTS}/tables/vibrometer.csv",
