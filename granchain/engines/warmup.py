@@ -278,7 +278,7 @@ def _build_aot(log, CC, done, workers: int = 1) -> Path | None:
     """The ahead-of-time module of :func:`build` (``CC``: numba.pycc's, or None), with
     ``done(1)`` once it is built or found: one module in this process, or with ``workers``
     > 1 the parts of ``backend.AOT_PARTS`` in that many processes at once (each compiles
-    the laws its part reaches; on 2 cores about x0.77 of one module's wall time)."""
+    the laws its part reaches; the benchmarks page gives the times)."""
     if CC is None:
         log("granchain warm-up: numba.pycc is not available; runs use the JIT kernels only")
         done(1)
