@@ -32,7 +32,7 @@ def _chunks(sc, n_chains, observe, method="verlet"):
 
 def _shares(chunk, threads):
     """The blocks (first chain of each) that numba's static schedule gives each thread."""
-    L = chunks.LANES
+    L = chunks.width(len(chunk), threads)
     firsts = [int(chunk[i]) for i in range(0, len(chunk), L)]
     nblk = len(firsts)
     out, i = [], 0
@@ -51,18 +51,18 @@ def test_chunks_hold_every_chain_once_in_whole_sorted_blocks(monkeypatch, observ
     monkeypatch.setattr(reference.backend, "num_threads", lambda: threads)
     sc = _scene()
     parts = _chunks(sc, n_chains, observe)
-    L = chunks.LANES
     flat = np.concatenate(parts)
     assert sorted(flat.tolist()) == list(range(n_chains))
     for c in parts:
         assert len(c) <= chunks.CHUNK_CHAINS
+        L = chunks.width(len(c), threads)
         blocks = [c[i:i + L] for i in range(0, len(c), L)]
         # each block: consecutive chains of the sorted group; only the last may be partial
         for b in blocks:
             assert np.array_equal(b, np.arange(b[0], b[0] + len(b)))
         assert all(len(b) == L for b in blocks[:-1])
-        if len(c) < n_chains:
-            assert len(c) % L == 0 or c is parts[-1]
+        if len(c) < n_chains and c is not parts[-1]:
+            assert L == chunks.LANES and len(c) % L == 0
         if threads > 1 and len(c) // L > threads:
             # dealt back and forth: every thread's blocks lie within one block per thread
             # of the same mean position
@@ -72,6 +72,24 @@ def test_chunks_hold_every_chain_once_in_whole_sorted_blocks(monkeypatch, observ
     if observe:
         # as few chunks as CHUNK_CHAINS allows (1000: 512 + 488, not 192-chain chunks)
         assert len(parts) == math.ceil(n_chains / chunks.CHUNK_CHAINS)
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3, 4])
+def test_block_width_leaves_no_block_of_empty_lanes(threads):
+    """A block steps all its lanes, padding included: a chunk too small to fill LANES
+    lanes on every thread gets narrower blocks, spread over the threads, padded by less
+    than one lane per block; a large chunk gets LANES."""
+    for chains in range(1, 3 * chunks.LANES * threads + 2):
+        L = chunks.width(chains, threads)
+        nblk = -(-chains // L)
+        assert 1 <= L <= chunks.LANES, (chains, L)
+        assert nblk * L - chains < nblk, (chains, L)          # less than a lane per block
+        # the busiest thread steps at most twice the lanes of an even split
+        assert -(-nblk // threads) * L <= 2 * -(-chains // threads), (chains, L)
+        if chains >= chunks.LANES * threads:
+            assert L == chunks.LANES or nblk == -(-chains // chunks.LANES), (chains, L)
+    assert chunks.width(1, threads) == 1
+    assert chunks.width(1000, threads) == chunks.LANES
 
 
 def test_observed_chunks_are_sized_by_the_ring_not_the_record():

@@ -3,7 +3,8 @@ the threads.
 
 A chunk is what one kernel call holds: as many chains as a memory budget
 (``CHUNK_BYTES``, and at most ``CHUNK_CHAINS``) allows. The fixed-step methods run a
-chunk in blocks of ``LANES`` consecutive chains, and numba hands each thread an equal
+chunk in blocks of consecutive chains (``LANES``, or fewer in a chunk too small to fill
+them on every thread: :func:`width`), and numba hands each thread an equal
 contiguous share of the blocks; the chains come sorted by expected length, so a chunk's
 full blocks are dealt to the threads' shares back and forth (0, 1, .., T-1, T-1, .., 0,
 ..) and every thread gets long and short blocks alike. A chain's result does not depend
@@ -17,7 +18,7 @@ from . import backend
 
 CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
 CHUNK_CHAINS = 512               # at most this many chains in a chunk
-LANES = 32                       # chains per block of the fixed-step kernels
+LANES = 32                       # most chains per block of the fixed-step kernels
 
 
 def split(group, per_chain: float, blocked: bool, observe: bool):
@@ -42,16 +43,28 @@ def split(group, per_chain: float, blocked: bool, observe: bool):
         yield deal_blocks(chunk, threads) if blocked else chunk
 
 
+def width(chains: int, threads: int) -> int:
+    """Lanes per block of a chunk of ``chains`` chains on ``threads`` threads: as few
+    blocks as LANES lanes allow, but at least one per thread while there are chains for
+    it, each as wide as that leaves it, so that no block steps lanes that hold no chain
+    beyond the rounding. A block's step costs about as much as its lanes, padding lanes
+    included (``benchmarks/lanes.py``): one chain in a block of LANES lanes would cost as
+    much as LANES chains. A chunk of LANES chains per thread or more gets LANES."""
+    nblk = max(-(-chains // LANES), min(max(1, chains), max(1, threads)))
+    return max(1, -(-chains // nblk))
+
+
 def deal_blocks(chunk, threads):
-    """``chunk`` with its full blocks of LANES chains reordered so that numba's contiguous
-    split of the blocks over ``threads`` gives each thread blocks dealt back and forth
-    from the sorted order; a partial block stays last (the padding lanes follow it)."""
-    full = len(chunk) // LANES
+    """``chunk`` with its full blocks (of :func:`width` lanes) reordered so that numba's
+    contiguous split of the blocks over ``threads`` gives each thread blocks dealt back and
+    forth from the sorted order; a partial block stays last (the padding lanes follow it)."""
+    lanes = width(len(chunk), threads)
+    full = len(chunk) // lanes
     if threads < 2 or full <= threads:
         return chunk
     # numba's static schedule of range(nblk): equal contiguous shares, one more for each
     # of the first nblk % threads threads
-    nblk = -(-len(chunk) // LANES)
+    nblk = -(-len(chunk) // lanes)
     share = [nblk // threads + (t < nblk % threads) for t in range(threads)]
     share[-1] -= nblk - full                      # the partial block stays last
     shares = [[] for _ in range(threads)]
@@ -65,5 +78,5 @@ def deal_blocks(chunk, threads):
                 break
         shares[t].append(blk)
     order = [b for s in shares for b in s]
-    blocks = chunk[:full * LANES].reshape(full, LANES)[order].reshape(-1)
-    return np.concatenate([blocks, chunk[full * LANES:]])
+    blocks = chunk[:full * lanes].reshape(full, lanes)[order].reshape(-1)
+    return np.concatenate([blocks, chunk[full * lanes:]])

@@ -540,8 +540,8 @@ def _wall_static(terms: Terms) -> float:
 
 def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V_parts,
                 E_parts, observe=False, sample_dt=0.0, wall_static=0.0):
-    """Fixed-step methods: the chains in blocks of ``chunks.LANES`` (consecutive chains
-    share a block, the last block padded with lanes at rest that record nothing), stepped
+    """Fixed-step methods: the chains in blocks of ``chunks.width`` lanes (consecutive
+    chains share a block, the last block padded with lanes at rest that record nothing), stepped
     in lockstep by ``kernels.run_blocks``. Returns each chain's final state, time, steps
     and status, and the ``_Observed`` arrays (with ``observe``: the on-the-fly observables
     and NS, each chain's sample count; otherwise the records go to V_parts, E_parts)."""
@@ -549,7 +549,7 @@ def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V
     B, ny = Y0.shape
     ng = gaps.shape[1]
     n = int(P[codes.P_N_SPHERES])
-    Lb = chunks.LANES
+    Lb = chunks.width(B, backend.num_threads())
     nblk = -(-B // Lb)
     Bp = nblk * Lb
     Yp = np.zeros((Bp, ny))
