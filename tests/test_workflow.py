@@ -405,8 +405,9 @@ def test_dry_run(tmp_path, preset):
 @pytest.mark.workflow
 def test_jobs_on_any_threads_wait_for_the_one_compile_job(tmp_path):
     """A batch on one thread (the tiny preset's) and the accuracy job on two both wait for
-    the ahead-of-time module (their parallel loops run it in forked processes), and the
-    dry run lists it once and no other compile job."""
+    the ahead-of-time module (their parallel loops run it in forked processes), and so do
+    the LAMMPS batches and the engine comparison (the ledger and the reference runs call
+    the kernels); the dry run lists it once and no other compile job."""
     plan = _plan("tiny")
     assert int(plan.preset["batch"]["threads"]) == 1
     batch = next(b for s in plan.studies if s != "packed_trace" for b in plan.batches[s]
@@ -414,15 +415,20 @@ def test_jobs_on_any_threads_wait_for_the_one_compile_job(tmp_path):
     study = next(s for s in plan.studies if batch in plan.batches[s])
     wd = _workdir(tmp_path)
     jobs = {}
+    lmp = next(b for b in plan.batches["lammps_check"] if b.engine == "lammps")
     for target in (f"results/tiny/work/{study}/{batch.name}.csv",
-                   "results/tiny/tables/accuracy_cost.csv"):
+                   "results/tiny/tables/accuracy_cost.csv",
+                   f"results/tiny/work/lammps_check/{lmp.name}.csv",
+                   "results/tiny/tables/lammps_vs_reference.csv"):
         proc = snakemake(wd, target, "-n", "--quiet", "rules", "--config", "preset=tiny",
                          timeout=300)
         text = proc.stdout + proc.stderr
         jobs[target] = {r: int(c) for r, c in re.findall(r"^(\w+)\s+(\d+)$", text, re.M)}
-    one, two = jobs.values()
+    one, two, three, four = jobs.values()
     assert one == {"aot_kernels": 1, "run_batch": 1, "total": 2}, one
     assert two == {"aot_kernels": 1, "accuracy_cost": 1, "total": 2}, two
+    assert three == {"aot_kernels": 1, "run_lammps_batch": 1, "total": 2}, three
+    assert four == {"aot_kernels": 1, "compare_engines": 1, "total": 2}, four
 
 
 def _one_error(proc, *needles):

@@ -6,10 +6,14 @@
 # gather_study (tables.smk) puts a study's rows into tables/<study>.csv. compare_engines
 # runs granchain.compare on every lammps_check scene and on its field chains (`chains`: a
 # dimer, a wall, a preload; compared only): tables/lammps_vs_reference.csv (differences
-# and tolerances).
+# and tolerances). Both wait for aot_kernels (ensembles.smk): the LAMMPS engine's energy
+# ledger and the comparison's reference runs call the reference engine's compiled kernels,
+# which a job started before the module would compile for itself (minutes of numba's JIT).
 
 
 rule run_lammps_batch:
+    input:
+        rules.aot_kernels.output,
     output:
         table=f"{RESULTS}/work/{{study}}/lammps_{{index}}.csv",
         timing=f"{RESULTS}/work/{{study}}/lammps_{{index}}.timing.csv",
@@ -32,6 +36,8 @@ rule run_lammps_batch:
 
 
 rule compare_engines:
+    input:
+        rules.aot_kernels.output,
     output:
         table=report(
             f"{RESULTS}/tables/lammps_vs_reference.csv",
