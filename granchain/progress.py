@@ -17,9 +17,28 @@ def shown(enabled: bool | None = None) -> bool:
     return bool(enabled)
 
 
+class _Silent:
+    """What :func:`bar` returns when no bar is shown: the calls a bar takes, doing nothing
+    (so a run without a terminal does not import tqdm)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def update(self, n: int = 1) -> None:
+        pass
+
+    def external_write_mode(self, file=None):
+        return self
+
+
 def bar(total: int, desc: str, unit: str = "chain", enabled: bool | None = None):
     """A tqdm bar on stderr counting ``total`` ``unit``s (``update(n)`` as they finish),
-    cleared when it closes; a bar that writes nothing unless :func:`shown`."""
+    cleared when it closes, when :func:`shown`; else a silent stand-in."""
+    if not shown(enabled):
+        return _Silent()
     from tqdm import tqdm
     return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, leave=False,
-                disable=not shown(enabled), dynamic_ncols=True)
+                dynamic_ncols=True)

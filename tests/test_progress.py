@@ -124,3 +124,17 @@ def test_warm_up_command_passes_no_progress(monkeypatch):
     assert main(["warm-up", "--no-progress"]) == 0
     assert main(["warm-up"]) == 0
     assert seen == [False, None]
+
+
+def test_a_run_off_a_terminal_does_not_load_tqdm():
+    """Off a terminal the bar is a silent stand-in that takes a bar's calls: the process
+    never imports tqdm and writes nothing."""
+    import subprocess
+    code = ("import sys\nfrom granchain.progress import bar\n"
+            "with bar(3, 'x') as b:\n    b.update(2)\n"
+            "    with b.external_write_mode(file=sys.stderr):\n        pass\n"
+            "print('tqdm' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "False", out
+    assert out.stderr == ""
