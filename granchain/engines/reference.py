@@ -201,7 +201,7 @@ def _chunks(group, scene, terms, sample_dt, method, observe=False, plan=None, sa
     ``samples``: it records none) its state, stages, rows and on-the-fly observables.
     ``plan``: the run plan of ``scene`` (planned here if None), whose expected durations
     size a chain's record."""
-    blocked = method in ("rk4", "verlet")          # blocks of LANES chains in lockstep
+    blocked = method in ("rk4", "verlet")          # blocks of chains in lockstep
     if method == "event" and not samples:
         n = terms.n
         per_chain = 8 * ((codes.NST + 4) * Layout.of(terms).ny + codes.G_LEN * n
