@@ -2,11 +2,14 @@
 
     python benchmarks/kernels.py [--chains 1000] [--old-ref 41e9852] [--np 2] [--skip-lammps]
                                  [--repeats 3] [--cold-compile] [--threads 1] [--no-hetero]
+                                 [--settings hertz-verlet all-verlet all-rk4 jkr-verlet]
 
 The ensemble: gaps-20nm-440c (440C, v_s = 0.1 m/s, uniform gaps of mean 20 nm), t_end auto,
 ``--chains`` realisations, in three settings: Hertz-only Verlet, every effect Verlet
 (hertz, groove, drag, rotation, particle friction, rolling friction with k_roll = 1e3 N/m),
-every effect RK4 (the chapter's setting), all at dt = 1 ns. Then the same ensemble as a
+every effect RK4 (the chapter's setting), all at dt = 1 ns (``--settings`` picks among
+them and ``jkr-verlet``, every effect with JKR adhesion at 1 J/m^2, which trees before
+the adhesion effect cannot run). Then the same ensemble as a
 heterogeneous chain (``HETERO``: dimer radii 150/120 um, alternating 440C and 52100 steel,
 a tungsten-carbide striker, an 440C end wall), Hertz-only and every effect, Verlet, on this
 tree alone: its particle-step rate against the previous kernels' rate on the uniform
@@ -54,6 +57,15 @@ SETTINGS = {
 # Hertz 1 sqrt; RK4: four force calls without the maps, then project_block with the
 # three maps and 3 sqrt)
 OPS = {"hertz-verlet": (1, 1), "all-verlet": (11, 3), "all-rk4": (4 * 8 + 3, 4 * 2 + 3)}
+# settings run only when asked for (``--settings``): trees before adhesion lack them.
+# jkr-verlet: every effect with JKR adhesion at 1 J/m^2 (each contact's law: a cube root
+# and three square roots besides the every-effect Verlet's operations, not counted in OPS)
+EXTRA_SETTINGS = {
+    "jkr-verlet": [f"effects={ALL[:-1]}, adhesion]", "rolling.k_roll=1000.0",
+                   "adhesion.model=jkr", "adhesion.surface_energy=1.0",
+                   "integrator.method=verlet"],
+}
+OPS["jkr-verlet"] = OPS["all-verlet"]
 _R = ", ".join(["1.5e-4", "1.2e-4"] * 7 + ["1.5e-4"])
 # the striker tungsten carbide, then 52100 and 440C in turn (the list gives every sphere's)
 _M = ", ".join(["tungsten_carbide"] + ["chrome_steel_52100", "ss440c"] * 7)
@@ -213,6 +225,9 @@ def main(argv=None):
                     help="runs of each tree, taking turns; the fastest counts (default 3)")
     ap.add_argument("--threads", type=int, default=None,
                     help="numba threads of the runs; measure their CPU time, not wall time")
+    ap.add_argument("--settings", nargs="+", choices=[*SETTINGS, *EXTRA_SETTINGS],
+                    default=list(SETTINGS),
+                    help=f"the settings to run (default: {' '.join(SETTINGS)})")
     ap.add_argument("--no-hetero", action="store_true",
                     help="skip the heterogeneous chains (this tree against the previous "
                          "kernels' uniform chain)")
@@ -243,8 +258,9 @@ def main(argv=None):
             print(f"{args.threads} numba thread(s); times are each run's process CPU seconds",
                   flush=True)
         rows = {}
-        for name, sets in SETTINGS.items():
-            sets = [f"ensemble.realisations={args.chains}"] + sets
+        for name in args.settings:
+            sets = [f"ensemble.realisations={args.chains}"] + {**SETTINGS,
+                                                               **EXTRA_SETTINGS}[name]
             new, prev = alternate(lambda: child(REPO, sets, tmp / f"{name}-new.npz", args.threads),
                                   lambda: child(old, sets, tmp / f"{name}-old.npz", args.threads),
                                   args.repeats, key)
@@ -271,7 +287,7 @@ def main(argv=None):
             print(f"{name:16s}: {het['wall']:.2f} s ({rate / 1e6:.0f} M particle-steps/s) against "
                   f"the previous kernels' uniform {base} ({rate0 / 1e6:.0f} M/s): "
                   f"{rate / rate0:.0%} of their throughput", flush=True)
-        if not args.skip_lammps:
+        if not args.skip_lammps and "all-verlet" in rows:
             loop, wall, steps = lammps(args.chains, args.np, tmp / "lammps")
             new = rows["all-verlet"][0]
             print(f"LAMMPS -np {args.np}, every effect Verlet, no output: loop {loop:.2f} s "

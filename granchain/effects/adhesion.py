@@ -269,20 +269,24 @@ def normal(y, G, P, FL, LO, dy, f, shut):
                 Rs = G[oR + k, l]
                 E = G[oE + k, l]
                 on = closed(d, y[ot + k, l] != 0.0, Rs, E, g, True)
-                held += 1 if on else 0
+                if not on:
+                    # an open contact: f and the work rates as they were (its law, a cube
+                    # root and three square roots, is not evaluated)
+                    continue
+                held += 1
                 F = f[k, l]
                 H = hertz_force(G[oK + k, l], d)
                 a = jkr_radius(Rs, E, g, d)
                 Fne = jkr_force_at(Rs, E, g, a)
                 Fd = radius_damping(a, w, G, P, n, k, l) if damped else 0.0
-                f[k, l] = Fne + Fd if on else F
-                Fa = Fne - H if on else 0.0
+                f[k, l] = Fne + Fd
+                Fa = Fne - H
                 c = dy[owa, l]
                 dy[owa, l] = c - Fa * w
                 if damped:
                     # the damping before (of Hertz's radius, d > 0) becomes Fd
                     c = dy[owc, l]
-                    dy[owc, l] = c - (Fd - (F - H)) * w if on else c
+                    dy[owc, l] = c - (Fd - (F - H)) * w
         else:
             for l in range(L):
                 d = contact_overlap(y, ox, G, n, k, l)
