@@ -269,9 +269,7 @@ def normal(y, G, P, FL, LO, dy, f, shut):
                 Rs = G[oR + k, l]
                 E = G[oE + k, l]
                 on = closed(d, y[ot + k, l] != 0.0, Rs, E, g, True)
-                if not on:
-                    # an open contact: f and the work rates as they were (its law, a cube
-                    # root and three square roots, is not evaluated)
+                if not on:          # open: f and the work rates stay, the law unevaluated
                     continue
                 held += 1
                 F = f[k, l]
