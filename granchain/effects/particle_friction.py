@@ -128,8 +128,11 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
             for l in range(L):
                 fn = f[k, l]
                 d = overlap(y, ox, G, k, l)
+                held = touching(d, y, LO, G, P, FL, on, n, k, l)
                 ktc = G[oKt + k, l]
-                kt = ktc * math.sqrt(radius_depth(d, G, P, FL, on, n, k, l)) if mindlin else ktc
+                # the stiffness of an open contact is not used (its history becomes 0)
+                kt = ktc * math.sqrt(radius_depth(d, G, P, FL, on, n, k, l)) \
+                    if mindlin and held else ktc
                 Ra = G[oR + k, l]
                 Rb = G[oR + k + 1, l]
                 wk = y[ow + k, l]
@@ -137,13 +140,15 @@ def forces(y, G, P, FL, LO, hist_dt, dy, f, shut):
                 w = Ra * (wk + wk1) if Ra == Rb else Ra * wk + Rb * wk1
                 # the Coulomb cap on Fncrit (LAMMPS's; |F| unless a law says otherwise)
                 xi = contact_map(y[ot + k, l] + w * hist_dt, kt, mu * normal_crit(fn, d, G, P, FL, on, n, k, l))
-                y[ot + k, l] = xi if touching(d, y, LO, G, P, FL, on, n, k, l) else 0.0
+                y[ot + k, l] = xi if held else 0.0
         for l in range(L):
             fn = f[k, l]
             d = overlap(y, ox, G, k, l)
             loaded = touching(d, y, LO, G, P, FL, on, n, k, l)
             ktc = G[oKt + k, l]
-            kt = ktc * math.sqrt(radius_depth(d, G, P, FL, on, n, k, l)) if mindlin else ktc
+            # an open contact's T is not used
+            kt = ktc * math.sqrt(radius_depth(d, G, P, FL, on, n, k, l)) \
+                if mindlin and loaded else ktc
             Ra = G[oR + k, l]
             Rb = G[oR + k + 1, l]
             wk = y[ow + k, l]
@@ -187,10 +192,12 @@ def project(y, G, P, FL, LO):
             continue
         for l in range(L):
             d = overlap(y, ox, G, k, l)
+            held = touching(d, y, LO, G, P, FL, on, n, k, l)
             ktc = G[oKt + k, l]
-            kt = ktc * math.sqrt(radius_depth(d, G, P, FL, on, n, k, l)) if mindlin else ktc
+            kt = ktc * math.sqrt(radius_depth(d, G, P, FL, on, n, k, l)) \
+                if mindlin and held else ktc
             xi = contact_map(y[ot + k, l], kt, normal_cap(mu, y, G, P, FL, on, ov, n, k, l, d))
-            y[ot + k, l] = xi if touching(d, y, LO, G, P, FL, on, n, k, l) else 0.0
+            y[ot + k, l] = xi if held else 0.0
 
 
 @dataclass(frozen=True)
