@@ -32,7 +32,7 @@ import numpy as np
 from .errors import GranchainError
 from .scenekeys import TOLERANCE_METHODS
 from .guards import require_resolved
-from .effects import ENERGY_COLUMNS, slots
+from .effects import ENERGY_COLUMNS, SPECS, slots
 from .stoprule import expected_duration, sample_interval
 
 # default cost limits (per chain), raised with granchain run --max-steps / --max-memory-gb
@@ -369,7 +369,14 @@ def member_seconds(scene, v: float, engine: str = "reference", model: CostModel 
     else:
         n_tc = scene.contact_time(max(scene.striker_velocities)) / scene.dt
         wall = model.setting_seconds(m, cls, steps_per_contact=n_tc)
-    return wall * speed_work(scene, m, v, duration) / model.work(cls)[m]
+    return wall * speed_work(scene, m, v, duration) / model.work(cls)[m] * step_cost(scene)
+
+
+def step_cost(scene) -> float:
+    """A particle-step's cost for the scene's laws over the cost model's chain's: the
+    largest ``EffectSpec.step_cost`` of the effects on (JKR's contact radius and
+    Thornton's history cost more than the laws the model measured)."""
+    return max((SPECS[e].step_cost for e in scene.effects if e in SPECS), default=1.0)
 
 
 # ---------------------------------------------------------------------------------------

@@ -404,3 +404,51 @@ def test_batches_are_balanced_by_the_plans_cost(method):
             sum(costs[si] * len(reals) for si, reals in b.units), rel=1e-12)
     mean = sum(b.est_seconds for b in jobs) / len(jobs)
     assert max(abs(b.est_seconds - mean) for b in jobs) <= max(costs.values()) * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("study", ["adhesion", "plasticity", "dissipation", "gap_sweep"])
+def test_a_law_that_can_hold_the_wave_gives_its_jobs_time_to_the_cap(study):
+    """A chain whose law acts on the normal force after Hertz's (adhesion, yielding,
+    damping) can stall or stay bound and run to its cap (``benchmarks/estimates.py``: up
+    to 265x the estimate), so its job's runtime limit allows each such chain its cap:
+    each speed's estimate times its cap over its expected duration. An elastic chain's
+    limit is its estimate (the gap sweep's, and each study's chain without the law)."""
+    from granchain.effects import may_hold_wave
+    cfg = gw.read_config(Path(granchain.__file__).parents[1] / "config" / "config.yaml",
+                         "tiny")
+    _, preset = gw.select_preset(cfg)
+    scenes = gw.study_scenes(preset, study)
+    held_any = False
+    for b in gw.batches(preset, study, scenes=scenes):
+        want = 0.0
+        for si, reals in b.units:
+            ss = scenes[si]
+            held = may_hold_wave(ss.scene.effects)
+            held_any |= held
+            gaps = np.full(ss.scene.n - 1, ss.gap_mean_nm * 1e-9)
+            for sp in ss.plan.speeds:
+                ratio = sp.run_length(gaps) / sp.duration_s if held else 1.0
+                assert ratio > 5.0 or not held          # the cap: many passages
+                want += sp.seconds[0] * ratio * len(reals)
+        assert b.limit_seconds == pytest.approx(want, rel=1e-9)
+    assert held_any == (study != "gap_sweep")
+
+
+def test_a_laws_step_cost_scales_its_estimate():
+    """The estimate of a chain with a law costlier per step than the cost model's chain
+    (JKR's contact radius, Thornton's history: ``EffectSpec.step_cost``) is the same
+    chain's without it times that cost."""
+    from granchain.effects import SPECS
+    base = {"name": "c", "material": "ss316", "chain": {"n": 15},
+            "striker": {"velocity": 0.1}, "gaps": {"distribution": "uniform", "mean": 2e-8},
+            "integrator": {"method": "verlet", "dt": 1e-9}, "probes": [2, 13]}
+    for law, effects, section in (
+            ("adhesion", ["hertz", "groove_friction", "air_drag", "rotation",
+                          "particle_friction"], {"adhesion": {"model": "jkr",
+                                                              "surface_energy": 0.1}}),
+            ("plastic_contact", ["hertz", "groove_friction", "air_drag", "rotation"], {})):
+        assert SPECS[law].step_cost > 1.0
+        plain = scene_from_dict({**base, "effects": effects})
+        with_law = scene_from_dict({**base, "effects": effects + [law], **section})
+        assert costmodel.member_seconds(with_law, 0.1) == pytest.approx(
+            SPECS[law].step_cost * costmodel.member_seconds(plain, 0.1), rel=1e-12)

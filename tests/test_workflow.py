@@ -431,6 +431,22 @@ def test_jobs_on_any_threads_wait_for_the_one_compile_job(tmp_path):
     assert four == {"aot_kernels": 1, "compare_engines": 1, "total": 2}, four
 
 
+@pytest.mark.workflow
+def test_a_batch_that_can_run_to_its_caps_asks_slurm_for_that_time(tmp_path):
+    """The full preset's first adhesion batch (JKR chains, which can stay bound until
+    their cap) asks for the runtime of every chain at its cap, far above its estimate."""
+    plan = _plan("full")
+    b = plan.batches["adhesion"][0]
+    threads = int(plan.preset["batch"]["threads"])
+    want = gw.runtime_minutes(b.limit_seconds, threads)
+    assert want > 3 * gw.runtime_minutes(b.est_seconds, threads)
+    proc = snakemake(_workdir(tmp_path), f"results/full/work/adhesion/{b.name}.csv", "-n",
+                     "--config", "preset=full", timeout=300)
+    text = proc.stdout + proc.stderr
+    asked = [int(m) for m in re.findall(r"runtime=(\d+)", text.split("rule run_batch:")[-1])]
+    assert asked[:1] == [want], text[-3000:]
+
+
 def _one_error(proc, *needles):
     text = proc.stdout + proc.stderr
     assert proc.returncode != 0

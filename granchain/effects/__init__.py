@@ -71,6 +71,15 @@ def acts_on_normal(effects) -> bool:
     return any(m.SPEC.name in effects for m in laws[1:])
 
 
+def may_hold_wave(effects) -> bool:
+    """Can one of these effects (names) keep a chain running to its cap? An effect with a
+    ``normal`` hook after the elastic law's (damping, yielding, adhesion) takes the wave's
+    energy or holds contacts closed: the wave may stall before the chain's end, or the
+    chain stay bound as a whole."""
+    laws = [m for m in MODULES if hasattr(m, "normal")]
+    return any(m.SPEC.name in effects for m in laws[1:])
+
+
 def residual_work(effects) -> tuple[str, ...]:
     """Work columns LAMMPS cannot report for these effects (the balance residual there)."""
     return tuple(SPECS[e].work for e in SPECS if e in effects and SPECS[e].work

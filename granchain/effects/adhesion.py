@@ -86,7 +86,7 @@ SPEC = EffectSpec("adhesion", state=(("L_ADHESION_TOUCH", "particle"),),
                   work_note="the adhesive part of the normal force (the dmt or jkr law less "
                             "Hertz's)", lammps_reports_work=False,
                   params=("P_ADHESION_GAMMA",), flags=("F_ADHESION", "F_ADHESION_JKR"),
-                  rows=("G_ADHESION_RSTAR", "G_ADHESION_EMIX"))
+                  rows=("G_ADHESION_RSTAR", "G_ADHESION_EMIX"), step_cost=8.1)  # JKR's
 
 MODELS = ("dmt", "jkr")
 SECTION = "adhesion"

@@ -82,7 +82,8 @@ SPEC = EffectSpec("plastic_contact", state=(("L_PLASTIC_DMAX", "particle"),),
                             "energy their yielding dissipated",
                   lammps_ledger="f_thornton[2]", lammps_potential="f_thornton[3]",
                   lammps_wall_force="f_thornton[4]", flags=("F_PLASTIC_CONTACT",),
-                  rows=("G_PLASTIC_EMIX", "G_PLASTIC_RSTAR", "G_PLASTIC_DY", "G_PLASTIC_SLOPE"))
+                  rows=("G_PLASTIC_EMIX", "G_PLASTIC_RSTAR", "G_PLASTIC_DY", "G_PLASTIC_SLOPE"),
+                  step_cost=1.7)      # benchmarks/contacts.py --every: 1.70x
 
 # left out of the warm-up's every-effect scene (engines.warmup): it refuses the contact
 # friction and adhesion

@@ -57,6 +57,11 @@ class EffectSpec:
     always: why every scene must have the effect (a scene without it is refused), or None.
     requires: (effect, why) of each effect it cannot act without (the scene refuses it
         while that one is off).
+    step_cost: what a particle-step of a chain with the effect on costs the reference
+        engine over one of the packaged cost model's chain (every effect of Eq. 5.1),
+        measured (``benchmarks/contacts.py --every``); the estimates
+        (``costmodel.member_seconds``) take the largest of the effects on. 1 for the
+        effects of that chain.
     ``granchain.effects.slots`` numbers every slot, row, state block and ledger column
     from these declarations, in registry order.
     """
@@ -79,6 +84,7 @@ class EffectSpec:
     order: int = 0
     always: str | None = None
     requires: tuple[tuple[str, str], ...] = ()
+    step_cost: float = 1.0
 
     @property
     def work_code(self) -> str | None:

@@ -7,16 +7,21 @@ The cost of a realisation is its scene's run plan's (``StudyScene.plan``,
 :meth:`granchain.runplan.RunPlan.member_seconds`): the one per-member estimate of
 ``costmodel.member_seconds``, from the packaged cost model and ``stoprule``'s expected
 duration, that auto ranks its settings by and the cost guard reports. The estimates
-balance jobs and set their runtime limits; they never enter a result.
+balance jobs; a job's runtime limit also allows for chains held to their cap
+(:func:`realisation_limit`). They never enter a result.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..costmodel import DEFAULT_MAX_TOTAL_STEPS, add_estimates
+from ..effects import may_hold_wave
 from ..errors import GranchainError
-from ..guards import check_run
+from ..guards import check_run, gap_total
+from ..runplan import ENGINES
 from .config import ConfigError
 from .studies import ENGINE_ORDER, StudyScene, study_scenes
 
@@ -29,6 +34,23 @@ def realisation_cost(ss: StudyScene, engine: str) -> float:
     return ss.plan.member_seconds(engine)
 
 
+def realisation_limit(ss: StudyScene, engine: str) -> float:
+    """Seconds of one realisation if each striker speed's chain ran to its cap (t_end
+    auto: ``SpeedPlan.run_length`` at the expected gaps), for a scene with a law on the
+    contacts' normal force after Hertz's (``effects.may_hold_wave``: damping, yielding,
+    adhesion), which can stall the wave or hold the chain together until the cap
+    (``benchmarks/estimates.py`` measured such scenes at up to 265x their estimate);
+    :func:`realisation_cost` otherwise, or with a fixed t_end. Each speed's estimate
+    scaled by its cap over its expected duration."""
+    sc = ss.scene
+    if sc.t_end is not None or not may_hold_wave(sc.effects):
+        return realisation_cost(ss, engine)
+    k = ENGINES.index(engine)
+    gaps = np.full(sc.n - 1, gap_total(sc, sc.n - 1) / max(1, sc.n - 1))
+    return sum(sp.seconds[k] * max(1.0, sp.run_length(gaps) / sp.duration_s)
+               if sp.duration_s > 0 else sp.seconds[k] for sp in ss.plan.speeds)
+
+
 @dataclass(frozen=True)
 class Batch:
     """One job: consecutive realisations of one or more scenes of a study, one engine."""
@@ -39,6 +61,7 @@ class Batch:
     members: int
     est_seconds: float
     hashes: tuple[str, ...] = ()                      # scene hash of each unit
+    limit_seconds: float = 0.0                        # every chain at its cap
 
     @property
     def name(self) -> str:
@@ -71,10 +94,12 @@ def batches(preset: dict, study: str, engine: str | None = None,
     out: list[Batch] = []
     for eng in engs:
         units = []          # (scene index, realisation, members, cost)
+        limit = {}          # scene index -> realisation_limit
         for ss in scenes:
             if eng not in ss.engines:
                 continue
             c = realisation_cost(ss, eng)
+            limit[ss.index] = realisation_limit(ss, eng)
             nv = len(ss.scene.striker_velocities)
             units += [(ss.index, r, nv, c) for r in range(ss.scene.realisations)]
         total_members = sum(u[2] for u in units)
@@ -97,7 +122,8 @@ def batches(preset: dict, study: str, engine: str | None = None,
             out.append(Batch(study, eng, index,
                              tuple((si, tuple(rs)) for si, rs in grouped.items()),
                              sum(u[2] for u in b), sum(u[3] for u in b),
-                             tuple(scenes[si].scene.hash for si in grouped)))
+                             tuple(scenes[si].scene.hash for si in grouped),
+                             sum(limit[u[0]] for u in b)))
             index += 1
     return out
 

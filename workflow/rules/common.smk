@@ -73,8 +73,11 @@ def batch_outputs(study, suffix=".csv"):
 
 
 def batch_runtime(study, engine, index):
-    """SLURM wall-clock limit (minutes) of a batch, from its estimated cost."""
-    return gw.runtime_minutes(batch_of(study, engine, index).est_seconds, BATCH_THREADS)
+    """SLURM wall-clock limit (minutes) of a batch, from its estimated cost, or from its
+    cost with every chain at its cap where its laws can hold a chain there
+    (``Batch.limit_seconds``)."""
+    b = batch_of(study, engine, index)
+    return gw.runtime_minutes(max(b.est_seconds, b.limit_seconds), BATCH_THREADS)
 
 
 # The vibrometer study (optional, vibrometer.smk): its scenes and outputs.
