@@ -349,8 +349,9 @@ def member_seconds(scene, v: float, engine: str = "reference", model: CostModel 
     the cost guard's time. Reference engine: the cost model's wall time per chain at the
     scene's setting (:meth:`CostModel.setting_seconds`; a fixed step dt is
     t_c(fastest striker) / dt steps per contact) times the member's work over the
-    model's scenes' (:func:`speed_work`, the per-speed share of :func:`work_ratio`): at
-    a setting auto picked, exactly the cost auto ranked it by. LAMMPS:
+    model's scenes' (:func:`speed_work`, the per-speed share of :func:`work_ratio`), times
+    the scene's laws' :func:`step_cost`: at a setting auto picked, the cost auto ranked it
+    by times that factor, which is the same for every setting. LAMMPS:
     ``LAMMPS_STEP_SECONDS`` per integration step (``steps``: the
     ``costmodel.cost_estimate`` steps). ``duration``: ``stoprule.expected_duration``, if
     already known."""
