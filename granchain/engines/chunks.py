@@ -45,9 +45,10 @@ def split(group, per_chain: float, blocked: bool, observe: bool):
 
 def width(chains: int, threads: int) -> int:
     """Lanes per block of a chunk of ``chains`` chains on ``threads`` threads: as few
-    blocks as LANES lanes allow, but at least one per thread while there are chains for
-    it, each as wide as that leaves it, so that no block steps lanes that hold no chain
-    beyond the rounding. A block's step costs about as much as its lanes, padding lanes
+    blocks as LANES lanes allow, but one per thread while there are chains for it, each
+    ceil(chains / blocks) wide, so that no block steps lanes that hold no chain beyond the
+    rounding (which can leave a thread without a block: 4 chains on 3 threads make 2
+    blocks of 2). A block's step costs about as much as its lanes, padding lanes
     included (``benchmarks/lanes.py``): one chain in a block of LANES lanes would cost as
     much as LANES chains. A chunk of LANES chains per thread or more gets LANES."""
     nblk = max(-(-chains // LANES), min(max(1, chains), max(1, threads)))
