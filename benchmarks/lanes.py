@@ -2,6 +2,7 @@
 against ``chunks.width``, side by side.
 
     python benchmarks/lanes.py [--repeats 3] [--effects every|adhesion]
+                               [--wide [--chains 1000] [--lanes 32 64]]
 
 The fixed-step methods step their chains in blocks of lanes, padding lanes included
 (``engines.chunks``). On one thread, velocity Verlet at 1 ns on the packed 440C chain
@@ -14,12 +15,20 @@ The fixed-step methods step their chains in blocks of lanes, padding lanes inclu
    lanes at rest) against blocks of ``chunks.width(B, 1)`` lanes, the two taking turns in
    this process: the ratio full / width (above 1: the narrow blocks are faster). Both
    give the same trajectories bit for bit (checked).
+
+With ``--wide``, instead: the widest block (``chunks.LANES``) on a large ensemble, the
+ensemble of ``benchmarks/kernels.py`` (``--chains`` chains of gaps-20nm-440c, every
+effect and rolling friction, t_end auto), velocity Verlet and RK4 at 1 ns, with each
+value of ``--lanes`` in turn (the blocks then as ``chunks.width`` cuts them): the
+thread's CPU seconds of the run, fastest of ``--repeats`` and the per-turn ratios
+against the first value; the trajectories compared bit for bit.
 """
 from __future__ import annotations
 
 import argparse
 import os
 import time
+from pathlib import Path
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
@@ -49,11 +58,50 @@ def _run(scene, chains: int):
     return time.perf_counter() - t0, out
 
 
+def wide(chains: int, lanes: list[int], repeats: int) -> None:
+    from granchain.scene import load_scene
+    from granchain.simulate import member_gaps, members
+    every = "[" + ", ".join(EVERY + ["rolling_friction"]) + "]"
+    print(f"{chains} chains of gaps-20nm-440c, every effect, 1 ns, one thread; blocks of "
+          f"at most LANES lanes, LANES = {', '.join(map(str, lanes))} in turn")
+    for method in ("verlet", "rk4"):
+        sc = load_scene(Path(__file__).resolve().parents[1] / "granchain/scenes/gaps-20nm-440c.yaml",
+                        [f"ensemble.realisations={chains}", f"effects={every}",
+                         "rolling.k_roll=1000.0", f"integrator.method={method}"])
+        mem = members(sc)
+        gaps, vs = member_gaps(sc, mem), np.array([m.v_striker for m in mem])
+        times = {w: [] for w in lanes}
+        outs = {}
+        for turn in range(repeats + 1):               # the first turn loads the kernels
+            for w in lanes:
+                chunks.LANES = w
+                t0 = time.thread_time()
+                outs[w] = list(reference.run(sc, gaps, vs, progress=False, trace=False))
+                if turn:
+                    times[w].append(time.thread_time() - t0)
+        base = lanes[0]
+        for w in lanes:
+            same = all(np.array_equal(x.v, y.v) and x.steps == y.steps
+                       for x, y in zip(outs[base], outs[w]))
+            turns = sorted(a / b for a, b in zip(times[base], times[w]))
+            print(f"   {method:6s} LANES = {w:3d}: {min(times[w]):6.2f} s; against LANES = "
+                  f"{base}: fastest x{min(times[base]) / min(times[w]):.3f}, per-turn median "
+                  f"x{float(np.median(turns)):.3f} (x{turns[0]:.3f}-x{turns[-1]:.3f}); "
+                  f"bit-identical {same}")
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--effects", choices=["every", "adhesion"], default="every")
+    ap.add_argument("--wide", action="store_true",
+                    help="the widest block's value on a large ensemble (--chains, --lanes)")
+    ap.add_argument("--chains", type=int, default=1000)
+    ap.add_argument("--lanes", type=int, nargs="+", default=[32, 64])
     a = ap.parse_args(argv)
+    if a.wide:
+        wide(a.chains, a.lanes, a.repeats)
+        return
     scene = _scene(a.effects)
     full, narrow = chunks.width, chunks.width
     _run(scene, 1)                                     # load the kernels
