@@ -98,8 +98,8 @@ def test_blocks_agree_with_the_per_chain_window(method):
     V1 = np.full((B, samples, n), np.nan)
     E1 = np.full((B, samples, kernels.E_LEN), np.nan)
     kernels.run_window(code, Y, np.zeros((B, ny)), np.zeros(B), np.full(B, sc.dt), NS, STEPS, REJ,
-                       STATUS, np.full(B, 1e-4), G, P, FL, lay.LO, np.ones(ny),
-                       np.ones(ny, dtype=np.int64), 1e-8, sc.dt, every, every * sc.dt,
+                       np.zeros(B, dtype=np.int64), STATUS, np.full(B, 1e-4), G, P, FL, lay.LO,
+                       np.ones(ny), np.ones(ny, dtype=np.int64), 1e-8, sc.dt, every, every * sc.dt,
                        np.full(B, samples, dtype=np.int64), False, V1, E1, counts)
     # blocks of 4 lanes
     L = 4

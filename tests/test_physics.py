@@ -260,7 +260,7 @@ def _window(sc, P, FL, lay, method, dt=2e-9, samples=64, every=10):
     Vout = np.full((1, samples, n), np.nan)
     Eout = np.full((1, samples, kernels.E_LEN), np.nan)
     kernels.run_window(reference.METHOD_CODES[method], Y, np.zeros((1, ny)), np.zeros(1),
-                       np.full(1, dt), NS, STEPS, REJ, STATUS, np.full(1, 1e-4),
+                       np.full(1, dt), NS, STEPS, REJ, zi(), STATUS, np.full(1, 1e-4),
                        chain_rows(physics_terms(sc), np.zeros((1, n - 1))), P, FL, lay.LO, scale,
                        np.ones(ny, dtype=np.int64),
                        1e-8, dt, every, every * dt, np.full(1, samples, dtype=np.int64), False,

@@ -61,6 +61,12 @@ DOP_B = np.ascontiguousarray(_dc.B)
 DOP_C = np.ascontiguousarray(_dc.C[:NST])
 DOP_E3 = np.ascontiguousarray(_dc.E3)
 DOP_E5 = np.ascontiguousarray(_dc.E5)
+# DOP853's 7th-order dense output: three more stages after f(ynew) (rows NST + 1 ... of
+# the extended tableau) and the interpolant's coefficients over all NST_DENSE stages
+NST_DENSE = _dc.N_STAGES_EXTENDED
+DOP_A_DENSE = np.ascontiguousarray(_dc.A[NST + 1:NST_DENSE, :NST_DENSE])
+DOP_D = np.ascontiguousarray(_dc.D)
+DENSE_POWER = _dc.INTERPOLATOR_POWER
 
 
 # Dormand-Prince 5(4) (as in scipy's RK45), FSAL: 6 force evaluations per step

@@ -40,8 +40,8 @@ ARGS = {
                    "P", "FL", "LO", "dt", "every", "NT", "auto_stop", "Vout", "Eout",
                    "counts", "observe", "sample_dt", "wall_static", "OF", "OI", "RK", "RV",
                    "WF", "WI", "BAL", "OUT", "WOUT"),
-    "run_adaptive": ("method", "Y", "ACC", "T", "H", "NS", "STEPS", "REJ", "STATUS", "VTHR",
-                     "gaps", "P", "FL", "LO", "scale_abs", "rel", "rtol", "dt", "every",
+    "run_adaptive": ("method", "Y", "ACC", "T", "H", "NS", "STEPS", "REJ", "NEV", "STATUS",
+                     "VTHR", "gaps", "P", "FL", "LO", "scale_abs", "rel", "rtol", "dt", "every",
                      "sample_dt", "NT", "auto_stop", "Vout", "Eout", "counts"),
     "run_events": ("Y", "KST", "T", "H", "ERROLD", "STEPS", "REJ", "NEV", "STATUS", "FIN",
                    "INIT", "VTHR", "gaps", "P", "FL", "LO", "scale_abs", "rel", "rtol",
@@ -66,8 +66,8 @@ class Cut:
     lanes: tuple[str, ...] = ()
 
 
-_ADAPTIVE_CHAIN = ("Y", "ACC", "T", "H", "NS", "STEPS", "REJ", "STATUS", "VTHR", "gaps", "NT",
-                   "Vout", "Eout", "counts")
+_ADAPTIVE_CHAIN = ("Y", "ACC", "T", "H", "NS", "STEPS", "REJ", "NEV", "STATUS", "VTHR", "gaps",
+                   "NT", "Vout", "Eout", "counts")
 _EVENT_CHAIN = ("Y", "KST", "T", "H", "ERROLD", "STEPS", "REJ", "NEV", "STATUS", "FIN", "INIT",
                 "VTHR", "gaps", "t_stop", *_EVENT_OBS, "NT", "NS", "YP", "KP", "TP", "Vout",
                 "Eout", "counts")

@@ -31,7 +31,7 @@ from .backend import use_jit_cache
 
 use_jit_cache()   # before the first @njit(cache=True): a cache keyed by every source compiled in
 
-from .codes import (DOP_A, DOP_B, DOP_E3, DOP_E5, E_KIN_TRANS, E_LEN,  # noqa: E402
+from .codes import (DOP_A, DOP_A_DENSE, DOP_B, DOP_D, DOP_E3, DOP_E5, E_KIN_TRANS, E_LEN,  # noqa: E402
                     E_WORK_LOAD, F_DEAD_LOAD, F_END_WALL, F_HETEROGENEOUS, G_MASS, KICKED,
                     L_DISP, L_STATE_SIZE, L_VEL, P_DEAD_LOAD, P_N_SPHERES, WORK_SLOTS)
 # the physics: the effects' laws, composed from the registry
@@ -342,6 +342,50 @@ def dop853_try(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol):
     forces(y, gaps, P, FL, LO, 0.0, K[0], f)
     return rk_trial(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol,
                     DOP_A, DOP_B, DOP_E5, DOP_E3, 1)
+
+
+@njit(cache=True)
+def dop853_dense(y, ynew, h, gaps, P, FL, LO, K, tmp, f, F):
+    """DOP853's 7th-order dense output of an accepted step y -> ynew of length h, as
+    scipy's ``DOP853``: K holds the step's stages and K[NST] = f(ynew)
+    (:func:`dop853_try`); evaluates the three more stages into K[NST + 1:] and leaves the
+    interpolant's coefficients in F (``DENSE_POWER`` rows, :func:`dense_state`)."""
+    ny = y.shape[0]
+    S0 = K.shape[0] - DOP_A_DENSE.shape[0]
+    for r in range(DOP_A_DENSE.shape[0]):
+        s = S0 + r
+        for j in range(ny):
+            acc = 0.0
+            for q in range(s):
+                if DOP_A_DENSE[r, q] != 0.0:
+                    acc += DOP_A_DENSE[r, q] * K[q, j]
+            tmp[j] = y[j] + h * acc
+        forces(tmp, gaps, P, FL, LO, 0.0, K[s], f)
+    for j in range(ny):
+        dy = ynew[j] - y[j]
+        F[0, j] = dy
+        F[1, j] = h * K[0, j] - dy
+        F[2, j] = 2.0 * dy - h * (K[S0 - 1, j] + K[0, j])
+    for i in range(DOP_D.shape[0]):
+        for j in range(ny):
+            acc = 0.0
+            for q in range(DOP_D.shape[1]):
+                if DOP_D[i, q] != 0.0:
+                    acc += DOP_D[i, q] * K[q, j]
+            F[3 + i, j] = h * acc
+
+
+@njit(cache=True)
+def dense_state(y, F, x, out):
+    """The dense output (:func:`dop853_dense`, coefficients F) of the step from y at the
+    fraction x in [0, 1] of its length, into out (scipy's ``Dop853DenseOutput``)."""
+    R = F.shape[0]
+    for j in range(y.shape[0]):
+        acc = 0.0
+        for i in range(R):
+            acc += F[R - 1 - i, j]
+            acc *= x if i % 2 == 0 else 1.0 - x
+        out[j] = y[j] + acc
 
 
 @njit(cache=True)

@@ -26,14 +26,16 @@ from .. import obsrules  # noqa: E402
 # the kernels' numbering of parameters, flags, layout blocks, methods, energy columns,
 # statuses, and the DOP853 tableau (numba-free, shared with the engines' Python side)
 from . import codes  # noqa: E402
-from .codes import (E_LEN, F_END_WALL, G_MASS, L_DISP, L_VEL, M_RK4, M_VERLET,  # noqa: E402
-                    NST, P_N_SPHERES, S_DONE, S_NONFINITE, S_PASSED, S_RUNNING, S_STEPFAIL)
+from .codes import (DENSE_POWER, E_LEN, F_END_WALL, G_MASS, L_DISP, L_VEL,  # noqa: E402
+                    M_RK4, M_VERLET, NST, NST_DENSE, P_N_SPHERES, S_DONE, S_NONFINITE,
+                    S_PASSED, S_RUNNING, S_STEPFAIL)
 from ..effects.spec import BOND_CAPTURED, BOND_NONE, BOND_UNDECIDED  # noqa: E402
 from .compose import INLINED, compiled, contact_bond, overlap as _overlap_l  # noqa: E402
 # the integrators (and their per-chain entry points, which the tests call through here)
-from .integrators import (_col, _wall_force, dop853_try, energies, energies_block,  # noqa: E402,F401
-                          error_norm, forces, forces_block, project, project_block, rk4_block,
-                          rk4_step, rk_trial, verlet_block, verlet_step)
+from .integrators import (_col, _wall_force, dense_state, dop853_dense,  # noqa: E402,F401
+                          dop853_try, energies, energies_block, error_norm, forces,
+                          forces_block, project, project_block, rk4_block, rk4_step, rk_trial,
+                          verlet_block, verlet_step)
 from .onthefly import _finish_lane, _sample_lane  # noqa: E402
 
 # every numbered slot as an attribute here too (callers index the kernels' arrays by them)
@@ -56,18 +58,22 @@ def _finite(y, LO, n):
 
 
 @njit(parallel=True, cache=True)
-def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, LO,
+def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, NEV, STATUS, VTHR, gaps, P, FL, LO,
                scale_abs, rel, rtol, dt, every, sample_dt, NT, auto_stop, Vout, Eout, counts):
     """Advance every running chain by up to Vout.shape[1] samples.
 
     Per chain b: Y[b] state, ACC[b] last derivative (Verlet), T[b] time, H[b] adaptive
-    step, NS[b] samples recorded so far, STEPS/REJ counters, STATUS[b] (S_*), VTHR[b]
-    the arrival speed of chain b (``obsrules.arrival``). A sample is taken every
-    ``every`` fixed steps (rk4, verlet) or exactly every ``sample_dt`` (dop853). A chain
-    stops after NT[b] samples, or (auto_stop) at the first sample at which the stop rule
-    holds (:func:`_settled`: its last particle has taken the wave and left,
+    step, NS[b] samples recorded so far, STEPS/REJ counters, NEV[b] force evaluations,
+    STATUS[b] (S_*), VTHR[b] the arrival speed of chain b (``obsrules.arrival``). A
+    sample is taken every ``every`` fixed steps (rk4, verlet) or every ``sample_dt``
+    (dop853: the method takes the steps its tolerance allows, and a sample inside a step
+    is the step's 7th-order dense output, its histories projected as a step's end is; a
+    step ends no later than the window's last sample, so that no step outlives a call).
+    A chain stops after NT[b] samples, or (auto_stop) at the first sample at which the
+    stop rule holds (:func:`_settled`: its last particle has taken the wave and left,
     ``obsrules.detached``: velocity above VTHR[b], contact with its neighbour open; and
-    no contact is held closed undecided), with status S_PASSED.
+    no contact is held closed undecided), with status S_PASSED; Y[b] and T[b] are then
+    the state and time of its last sample.
     """
     B = Y.shape[0]
     W = Vout.shape[1]
@@ -86,12 +92,20 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
         k3 = np.empty(ny)
         k4 = np.empty(ny)
         tmp = np.empty(ny)
-        Kst = np.empty((NST + 1, ny))
+        Kst = np.empty((NST_DENSE, ny))
         ynew = np.empty(ny)
+        yold = np.empty(ny)
+        ys = np.empty(ny)
+        Fd = np.empty((DENSE_POWER, ny))
+        told = 0.0
+        hd = 0.0
+        dense = False       # Fd holds the dense output of the last step (yold -> y)
+        rejected = False    # the last trial step was rejected
         ebuf = np.empty(E_LEN)
         if NS[b] == 0:
             if _FIXED_STEP and method == M_VERLET:
                 forces(y, g, P, FL, LO, 0.0, ACC[b], f)
+                NEV[b] += 1
             for i in range(n):
                 Vout[b, 0, i] = y[ov + i]
             if Vout.shape[2] > n:
@@ -106,33 +120,50 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
             if NS[b] >= NT[b]:
                 STATUS[b] = S_DONE
                 break
+            at = y           # the state of this sample
+            inside = False   # ys, inside the last step
             if _FIXED_STEP and method == M_RK4:
                 for _ in range(every):
                     rk4_step(y, dt, g, P, FL, LO, k1, k2, k3, k4, tmp, f)
                 STEPS[b] += every
+                NEV[b] += 4 * every
                 T[b] += every * dt
             elif _FIXED_STEP and method == M_VERLET:
                 for _ in range(every):
                     verlet_step(y, ACC[b], dt, g, P, FL, LO, f)
                 STEPS[b] += every
+                NEV[b] += every
                 T[b] += every * dt
             else:
                 t_target = NS[b] * sample_dt
+                # the last sample this call can take: no step goes past it
+                t_last = min(NS[b] + W - counts[b], NT[b]) - 1
+                t_last = t_last * sample_dt
                 while T[b] < t_target * (1.0 - 1e-14):
-                    h = min(H[b], t_target - T[b])
+                    h = min(H[b], t_last - T[b])
                     clipped = h < H[b]
                     err = dop853_try(y, h, g, P, FL, LO, Kst, ynew, tmp, f, scale_abs, rel, rtol)
+                    NEV[b] += NST + 1
                     if err <= 1.0:
                         for j in range(ny):
+                            yold[j] = y[j]
                             y[j] = ynew[j]
                         project(y, g, P, FL, LO, f)
-                        T[b] += h
+                        told = T[b]
+                        hd = h
+                        dense = False
+                        T[b] = t_last if clipped else T[b] + h
                         STEPS[b] += 1
                         fac = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** (-1.0 / 8.0))
+                        if rejected:
+                            # no growth right after a rejection (scipy's, Hairer's rule)
+                            fac = min(fac, 1.0)
+                        rejected = False
                         if not clipped:
                             H[b] = h * fac
                     else:
                         REJ[b] += 1
+                        rejected = True
                         H[b] = h * max(0.2, 0.9 * err ** (-1.0 / 8.0))
                         if H[b] < 1e-22:
                             STATUS[b] = S_STEPFAIL
@@ -140,24 +171,39 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, gaps, P, FL, 
                     if not math.isfinite(err):
                         STATUS[b] = S_NONFINITE
                         break
-                T[b] = t_target
                 if STATUS[b] != S_RUNNING:
                     break
+                if T[b] > t_target * (1.0 + 1e-14):
+                    # inside the last step: its dense output (ynew and Kst are still the
+                    # step's), histories projected as at a step's end
+                    if not dense:
+                        dop853_dense(yold, ynew, hd, g, P, FL, LO, Kst, tmp, f, Fd)
+                        NEV[b] += NST_DENSE - NST - 1
+                        dense = True
+                    dense_state(yold, Fd, (t_target - told) / hd, ys)
+                    project(ys, g, P, FL, LO, f)
+                    at = ys
+                    inside = True
             c = counts[b]
             for i in range(n):
-                Vout[b, c, i] = y[ov + i]
+                Vout[b, c, i] = at[ov + i]
             if Vout.shape[2] > n:
-                Vout[b, c, n] = _wall_force(y, g, n, LO, P, FL)
-            energies(y, g, P, FL, LO, ebuf)
+                Vout[b, c, n] = _wall_force(at, g, n, LO, P, FL)
+            energies(at, g, P, FL, LO, ebuf)
             Eout[b, c, :] = ebuf
             counts[b] = c + 1
             NS[b] += 1
-            if not _finite(y, LO, n):
+            if not _finite(at, LO, n):
                 STATUS[b] = S_NONFINITE
                 break
-            if auto_stop and _settled(_col(y), _col(g), P, FL, LO, n, 0, VTHR[b],
+            if auto_stop and _settled(_col(at), _col(g), P, FL, LO, n, 0, VTHR[b],
                                       FL[F_END_WALL] != 0):
                 STATUS[b] = S_PASSED
+                if inside:
+                    # the chain ends at this sample
+                    for j in range(ny):
+                        y[j] = ys[j]
+                    T[b] = t_target
 
 
 def _adaptive_only(window):

@@ -262,6 +262,7 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], metho
     NS = np.zeros(B, dtype=np.int64)
     STEPS = np.zeros(B, dtype=np.int64)
     REJ = np.zeros(B, dtype=np.int64)
+    NEV = np.zeros(B, dtype=np.int64)
     STATUS = np.zeros(B, dtype=np.int64)
     VTHR = arrival_speed(vs)
     mcode = METHOD_CODES[method]
@@ -279,7 +280,7 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], metho
         Vbuf = np.empty((B, WINDOW, nv))
         Ebuf = np.empty((B, WINDOW, codes.E_LEN))
         while np.any(STATUS == codes.S_RUNNING):
-            kern.run_adaptive(mcode, Y, ACC, T, H, NS, STEPS, REJ, STATUS, VTHR, G, P, FL,
+            kern.run_adaptive(mcode, Y, ACC, T, H, NS, STEPS, REJ, NEV, STATUS, VTHR, G, P, FL,
                               layout.LO, scale_abs, rel, rtol, dt, every, sdt, NT, auto, Vbuf,
                               Ebuf, counts)
             _collect(counts, Vbuf, Ebuf, V_parts, E_parts)
@@ -327,8 +328,9 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], metho
         elif mcode == codes.M_VERLET:
             nev = int(STEPS[b]) + 1                  # + the setup call
         else:
-            # each DOP853 trial evaluates f(y), 11 stages and f(ynew) (kernels.dop853_try)
-            nev = (codes.NST + 1) * int(STEPS[b] + REJ[b])
+            # each DOP853 trial evaluates f(y), 11 stages and f(ynew) (kernels.dop853_try),
+            # a step with a sample inside it 3 more (its dense output)
+            nev = int(NEV[b])
         yield Trajectory(t=t, v=v, energy=e, gaps=gaps[b].copy(), radius=scene.radius,
                          v_striker=float(vs[b]), effects=eff, steps=int(STEPS[b]),
                          rejected=int(REJ[b]), status=STATUS_NAMES[int(status)],
