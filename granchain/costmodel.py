@@ -190,7 +190,8 @@ def cost_estimate(scene, v: float, *, duration: float | None = None,
     sdt = sample_interval(scene, v) if sample_dt is None else sample_dt
     samples = dur / sdt + 1.0 if (v > 0 or scene.t_end is not None) else 1.0
     if scene.method == "adaptive":
-        steps = samples                 # at least one step per sample
+        steps = samples                 # about one step per sample at tight tolerances, fewer
+                                        # at loose ones (its steps follow its tolerance)
     elif scene.method == "event":
         steps = samples                 # bounded by the adaptive method's count
     else:
@@ -214,7 +215,7 @@ def check_cost(scene, max_steps: float = DEFAULT_MAX_STEPS,
            "t_end auto: until the wave has left particle n")
     if worst["steps"] > max_steps:
         step = (f"dt = {scene.dt:g} s" if scene.method not in ("adaptive", "event")
-                else "one adaptive step per sample")
+                else "about one adaptive step per sample")
         raise GranchainError(
             f"--max-steps: scene '{scene.name}' needs an estimated {worst['steps']:.3g} "
             f"integration steps per chain ({worst['duration_s']:.3g} s simulated, {how}; {step}), "
@@ -310,7 +311,7 @@ def chain_work(scene, method: str, durations: dict | None = None) -> float:
     """Relative work of one realisation of ``scene`` (all its striker speeds) under
     ``method``: what carries the model's wall times from its measurement scenes to
     another scene. Fixed steps (t_c / N at the fastest striker) and the adaptive method
-    (its steps held to the sample grid, a fixed fraction of t_c) cost the simulated time
+    (its steps set by its tolerance on the contacts' time scale t_c) cost the simulated time
     (``stoprule.expected_duration``: wave travel plus flight over the gaps) over the
     contact time. The event method's steps follow the contacts and skip the flight:
     within a factor of about 5 the same per contact over 20 nm to 1 um gaps and 0.01 to
