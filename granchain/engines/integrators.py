@@ -275,6 +275,21 @@ def verlet_step(y, acc, h, gaps, P, FL, LO, f):
     """One LAMMPS-order velocity-Verlet step; acc holds the derivative of the last call."""
     verlet_block(_col(y), _col(acc), h, _col(gaps), P, FL, LO, _col(f))
 
+@njit(cache=True, inline="always")
+def _stage(y, h, A, r, s, K, tmp, gaps, P, FL, LO, f):
+    """Stage s of a Runge-Kutta step from y of length h: K[s] = f(y + h sum_q A[r, q] K[q])
+    over q < s. Terms of a zero coefficient are left out: for finite K the sums are the
+    same to the last bit (each starts from +0.0, which a +-0.0 term leaves unchanged), and
+    the lanes (``eventlanes._combine``) leave them out too."""
+    for j in range(y.shape[0]):
+        acc = 0.0
+        for q in range(s):
+            if A[r, q] != 0.0:
+                acc += A[r, q] * K[q, j]
+        tmp[j] = y[j] + h * acc
+    forces(tmp, gaps, P, FL, LO, 0.0, K[s], f)
+
+
 @njit(cache=True)
 def rk_trial(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol,
              A, Bw, E5, E3, dopnorm):
@@ -285,17 +300,8 @@ def rk_trial(y, h, gaps, P, FL, LO, K, ynew, tmp, f, scale_abs, rel, rtol,
     else the RMS of the ``E5`` estimate."""
     ny = y.shape[0]
     S = Bw.shape[0]
-    # terms of a zero coefficient are left out: for finite K the sums are the same to the
-    # last bit (each starts from +0.0, which a +-0.0 term leaves unchanged), and the lanes
-    # (``eventlanes._combine``) leave them out too
     for s in range(1, S):
-        for j in range(ny):
-            acc = 0.0
-            for q in range(s):
-                if A[s, q] != 0.0:
-                    acc += A[s, q] * K[q, j]
-            tmp[j] = y[j] + h * acc
-        forces(tmp, gaps, P, FL, LO, 0.0, K[s], f)
+        _stage(y, h, A, s, s, K, tmp, gaps, P, FL, LO, f)
     for j in range(ny):
         acc = 0.0
         for q in range(S):
@@ -353,14 +359,7 @@ def dop853_dense(y, ynew, h, gaps, P, FL, LO, K, tmp, f, F):
     ny = y.shape[0]
     S0 = K.shape[0] - DOP_A_DENSE.shape[0]
     for r in range(DOP_A_DENSE.shape[0]):
-        s = S0 + r
-        for j in range(ny):
-            acc = 0.0
-            for q in range(s):
-                if DOP_A_DENSE[r, q] != 0.0:
-                    acc += DOP_A_DENSE[r, q] * K[q, j]
-            tmp[j] = y[j] + h * acc
-        forces(tmp, gaps, P, FL, LO, 0.0, K[s], f)
+        _stage(y, h, DOP_A_DENSE, r, S0 + r, K, tmp, gaps, P, FL, LO, f)
     for j in range(ny):
         dy = ynew[j] - y[j]
         F[0, j] = dy
