@@ -31,8 +31,8 @@ from .backend import use_jit_cache
 
 use_jit_cache()   # before the first @njit(cache=True): a cache keyed by every source compiled in
 
-from .codes import (DOP_A, DOP_A_DENSE, DOP_B, DOP_D, DOP_E3, DOP_E5, E_KIN_TRANS, E_LEN,  # noqa: E402
-                    E_WORK_LOAD, F_DEAD_LOAD, F_END_WALL, F_HETEROGENEOUS, G_MASS, KICKED,
+from .codes import (DOP_A, DOP_A_DENSE, DOP_B, DOP_D, DOP_E3, DOP_E5,  # noqa: E402
+                    E_KIN_TRANS, E_LEN, E_WORK_LOAD, F_DEAD_LOAD, F_END_WALL, F_HETEROGENEOUS, G_MASS, KICKED,
                     L_DISP, L_STATE_SIZE, L_VEL, P_DEAD_LOAD, P_N_SPHERES, WORK_SLOTS)
 # the physics: the effects' laws, composed from the registry
 from .compose import (effect_energies, effect_forces, normal_forces,  # noqa: E402
@@ -274,6 +274,7 @@ def rk4_step(y, h, gaps, P, FL, LO, k1, k2, k3, k4, tmp, f):
 def verlet_step(y, acc, h, gaps, P, FL, LO, f):
     """One LAMMPS-order velocity-Verlet step; acc holds the derivative of the last call."""
     verlet_block(_col(y), _col(acc), h, _col(gaps), P, FL, LO, _col(f))
+
 
 @njit(cache=True, inline="always")
 def _stage(y, h, A, r, s, K, tmp, gaps, P, FL, LO, f):

@@ -137,8 +137,7 @@ def run_window(method, Y, ACC, T, H, NS, STEPS, REJ, NEV, STATUS, VTHR, gaps, P,
             else:
                 t_target = NS[b] * sample_dt
                 # the last sample this call can take: no step goes past it
-                t_last = min(NS[b] + W - counts[b], NT[b]) - 1
-                t_last = t_last * sample_dt
+                t_last = (min(NS[b] + W - counts[b], NT[b]) - 1) * sample_dt
                 while T[b] < t_target * (1.0 - 1e-14):
                     h = min(H[b], t_last - T[b])
                     clipped = h < H[b]

@@ -280,9 +280,9 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], metho
         Vbuf = np.empty((B, WINDOW, nv))
         Ebuf = np.empty((B, WINDOW, codes.E_LEN))
         while np.any(STATUS == codes.S_RUNNING):
-            kern.run_adaptive(mcode, Y, ACC, T, H, NS, STEPS, REJ, NEV, STATUS, VTHR, G, P, FL,
-                              layout.LO, scale_abs, rel, rtol, dt, every, sdt, NT, auto, Vbuf,
-                              Ebuf, counts)
+            kern.run_adaptive(mcode, Y, ACC, T, H, NS, STEPS, REJ, NEV, STATUS, VTHR, G, P,
+                              FL, layout.LO, scale_abs, rel, rtol, dt, every, sdt, NT, auto,
+                              Vbuf, Ebuf, counts)
             _collect(counts, Vbuf, Ebuf, V_parts, E_parts)
     else:
         Y, T, STEPS, STATUS, obs = _run_blocks(
