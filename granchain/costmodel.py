@@ -42,7 +42,10 @@ DEFAULT_MAX_MEMORY_GB = 4.0
 RECORD_EXTRA_COLUMNS = len(ENERGY_COLUMNS) + 1
 
 SCENE_METHODS = ("rk4", "verlet", "adaptive", "event")   # what ``method: auto`` may resolve to
-SCENE_CLASSES = ("packed", "gapped")
+# 'damped': an effect on makes the contact force depend on the closing speed
+# (``EffectSpec.normal_speed``); its errors are the worst over every measured scene
+DAMPED = "damped"
+SCENE_CLASSES = ("packed", "gapped", DAMPED)
 MODEL_FILE = "data/cost_model.csv"
 MODEL_PROVENANCE = "data/cost_model.provenance.json"
 MODEL_COLUMNS = ("scene_class", "method", "steps_per_contact", "tolerance", "wall_s_per_chain",
@@ -63,6 +66,11 @@ class CostModel:
 
     def __len__(self) -> int:
         return len(self.columns["method"])
+
+    @property
+    def classes(self) -> frozenset:
+        """The scene classes the model has rows of."""
+        return frozenset(str(c) for c in self.columns["scene_class"])
 
     def envelope(self, observable: str = "v_g", scene_class: str | None = None) -> list[dict]:
         """Per setting over the rows of ``scene_class`` (all rows if None), grouped by
@@ -332,8 +340,15 @@ def work_ratio(scene, model: CostModel, scene_class: str, durations: dict | None
     return {m: chain_work(scene, m, durations) / ref[m] for m in SCENE_METHODS}
 
 
-def scene_class(scene) -> str:
-    """The cost model's class of a scene: 'packed' or 'gapped' (:func:`is_packed`)."""
+def scene_class(scene, model: CostModel | None = None) -> str:
+    """The cost model's class of a scene: 'damped' when an effect on makes its contact
+    force depend on the closing speed (``EffectSpec.normal_speed``: velocity Verlet is
+    then first order, RK4 loses order at each contact's start and end) and the model
+    (default: the packaged one) measured such chains; else 'packed' or 'gapped'
+    (:func:`is_packed`)."""
+    if any(SPECS[e].normal_speed for e in scene.effects if e in SPECS):
+        if DAMPED in (model or load_model()).classes:
+            return DAMPED
     return "packed" if is_packed(scene) else "gapped"
 
 
@@ -364,7 +379,7 @@ def member_seconds(scene, v: float, engine: str = "reference", model: CostModel 
             steps = cost_estimate(scene, v)["steps"]
         return steps * LAMMPS_STEP_SECONDS
     model = model or load_model()
-    cls = scene_class(scene)
+    cls = scene_class(scene, model)
     m = scene.method
     if m in TOLERANCE_METHODS:
         wall = model.setting_seconds(m, cls, tolerance=scene.tolerance)

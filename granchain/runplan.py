@@ -40,7 +40,7 @@ from .guards import physics_warnings
 from .scene import Scene
 from .scenekeys import TOLERANCE_METHODS
 from .stoprule import auto_t_max, expected_duration, sample_interval
-from .costmodel import (DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, SCENE_METHODS, CostModel,
+from .costmodel import (DAMPED, DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_STEPS, SCENE_METHODS, CostModel,
                         check_cost, cost_estimate, fixed_step, load_model, scene_class,
                         work_ratio)
 
@@ -52,8 +52,9 @@ ENGINES = ("reference", "lammps")
 AUTO_SAFETY = 4.0
 # the observable whose error auto bounds, per scene class: the peak-time v_g of a packed
 # chain; the arrival-time v_g (half-peak crossings) of a gapped one, whose probes often
-# peak on a flight plateau where the peak time is set to a few 1e-5 by the sample grid
-AUTO_OBSERVABLE = {"packed": "v_g", "gapped": "v_g_front"}
+# peak on a flight plateau where the peak time is set to a few 1e-5 by the sample grid;
+# on a damped one the arrival-time v_g, as its class holds gapped chains
+AUTO_OBSERVABLE = {"packed": "v_g", "gapped": "v_g_front", DAMPED: "v_g_front"}
 
 
 def step_grid(sample_dt: float, dt: float) -> tuple[int, float]:
@@ -220,7 +221,7 @@ def plan_run(scene: Scene | RunPlan, model: CostModel | None = None, *,
                 for v in dict.fromkeys(vs))
     speeds = tuple(_speed_plan(scene, own.get(v, scene), v, sdt[v], dur[v], model)
                    for v in vs)
-    return RunPlan(scene, auto, scene_class(scene), speeds, model)
+    return RunPlan(scene, auto, scene_class(scene, model), speeds, model)
 
 
 def _speed_plan(scene: Scene, sc: Scene, v: float, sdt: float, dur: float,
@@ -291,7 +292,7 @@ def auto_setting(scene: Scene, model: CostModel | None = None, *,
     model = model or load_model()
     tol = float(scene.tolerance)
     target = tol / AUTO_SAFETY
-    cls = scene_class(scene)
+    cls = scene_class(scene, model)
     obs = AUTO_OBSERVABLE[cls]
     lo = _round_up(AUTO_SAFETY * model.achievable(obs, scene_class=cls))
     if tol < lo:

@@ -15,9 +15,12 @@ import math
 
 import numpy as np
 
-from ..costmodel import MODEL_COLUMNS, SCENE_METHODS
+from ..costmodel import DAMPED, MODEL_COLUMNS, SCENE_METHODS
 from ..scenekeys import TOLERANCE_METHODS
 from ..observables import ChainResult
+
+# a study scene's name in the cost model's class 'damped': this and its undamped twin's
+DAMPED_PREFIX = "damped-"
 
 
 def rel_err(runs: list[ChainResult], ref: list[ChainResult], observable: str) -> float:
@@ -36,8 +39,11 @@ def rel_err(runs: list[ChainResult], ref: list[ChainResult], observable: str) ->
 
 
 def scene_class(name: str) -> str:
-    """'packed' or 'gapped' of a study scene name: the cost model keeps the two apart
-    (gaps cost accuracy)."""
+    """'damped', 'packed' or 'gapped' of a study scene name: the cost model keeps them
+    apart (gaps cost accuracy; a contact force that depends on the closing speed costs
+    the fixed-step methods their order)."""
+    if name.startswith(DAMPED_PREFIX):
+        return DAMPED
     return "packed" if name == "packed" else "gapped"
 
 
@@ -124,10 +130,12 @@ def achievable(table, observable: str = "v_g", *, methods=None, scene_class=None
 
 def cheapest_table(table, tolerances, observables=("v_g", "v_g_front", "v_max_2")):
     """One row per (scenes, observable, tolerance): the cheapest setting (method 'none' if
-    no setting meets it); scenes: all of the table's, the packed chain, the gapped ones."""
+    no setting meets it); scenes: all of the table's, the packed chain, the gapped ones,
+    and the damped ones if the table has any."""
     import pandas as pd
     rows = []
-    for cls, obs, tol in itertools.product((None, "packed", "gapped"), observables, tolerances):
+    classes = (None, "packed", "gapped") + ((DAMPED,) if (_classes(table) == DAMPED).any() else ())
+    for cls, obs, tol in itertools.product(classes, observables, tolerances):
         c = cheapest(table, float(tol), obs, scene_class=cls)
         head = {"scenes": cls or "all", "observable": obs, "tolerance_requested": float(tol)}
         if c is None:
@@ -140,13 +148,20 @@ def cheapest_table(table, tolerances, observables=("v_g", "v_g_front", "v_max_2"
 
 def model_from_table(table):
     """One row per (scene class, setting of the reference engine): the worst error over the
-    class's scenes, their mean wall time per chain; dt as steps per contact time."""
+    class's scenes, their mean wall time per chain; dt as steps per contact time. The
+    damped class's errors are the worst over every scene: a damped chain at restitution
+    1 is an undamped one."""
     t = table[table["method"].isin(SCENE_METHODS)].copy()
     t["scene_class"] = _classes(t)
-    t["_key"] = [(c,) + _setting_key(r) for c, (_, r) in zip(t["scene_class"], t.iterrows())]
-    agg = {c: "max" for c in MODEL_COLUMNS[5:]}
+    t["_setting"] = [_setting_key(r) for _, r in t.iterrows()]
+    t["_key"] = [(c,) + k for c, k in zip(t["scene_class"], t["_setting"])]
+    errs = list(MODEL_COLUMNS[5:])
+    agg = {c: "max" for c in errs}
     agg["wall_s_per_chain"] = "mean"
     g = t.groupby("_key", sort=False).agg(agg).reset_index()
+    worst = t.groupby("_setting", sort=False)[errs].max()
+    for i in np.flatnonzero([k[0] == DAMPED for k in g["_key"]]):
+        g.loc[g.index[i], errs] = worst.loc[[g["_key"].iloc[i][1:]], errs].to_numpy()[0]
     for i, c in enumerate(("scene_class", "method", "steps_per_contact", "tolerance")):
         g[c] = [k[i] for k in g["_key"]]
     return g[list(MODEL_COLUMNS)]

@@ -21,7 +21,7 @@ from ..errors import GranchainError
 from ..observables import ChainResult, status_summary
 from ..scene import scene_from_dict
 from ..scenekeys import MIN_STEPS_PER_CONTACT, TOLERANCE_METHODS
-from .envelope import rel_err
+from .envelope import DAMPED_PREFIX, rel_err
 
 METHODS = ("rk4", "verlet", "adaptive", "event", "lammps")
 OBSERVABLES = ("v_max_2", "v_g", "v_g_front")
@@ -52,7 +52,11 @@ DEFAULT_COST = {
     "reference_tolerance": 1e-13,
     "cheapest_tolerances": [1e-3, 1e-5],
     "timing_spread": 0.05,
+    # each scene again with contact damping (a ``damping`` scene section; null: none):
+    # the cost model's class 'damped'
+    "damping": {"model": "coeff_restitution", "e": 0.9},
 }
+DAMPED_EFFECT = "contact_damping"       # the effect the damped scenes add
 DEFAULT_BASE = {"n": 15, "radius": 150e-6, "seed": 2024,
                 "effects": ["hertz", "groove_friction", "air_drag", "rotation",
                             "particle_friction"]}
@@ -107,7 +111,8 @@ def settings(cost: dict) -> list[Setting]:
 # scenes
 # ---------------------------------------------------------------------------------------
 def scene_dicts(cost: dict, base: dict) -> dict[str, dict]:
-    """Raw scene mappings of the study: 'packed', then 'gaps{g}nm' per mean gap."""
+    """Raw scene mappings of the study: 'packed', then 'gaps{g}nm' per mean gap; with
+    ``cost['damping']`` each again as 'damped-<name>', contact damping on (that section)."""
     n = int(base["n"])
     common = {"material": cost["material"], "chain": {"n": n, "radius": float(base["radius"])},
               "striker": {"velocity": float(cost["v_striker"])},
@@ -121,6 +126,18 @@ def scene_dicts(cost: dict, base: dict) -> dict[str, dict]:
         out[f"gaps{g:g}nm"] = dict(copy.deepcopy(common), name=f"cost-gaps{g:g}nm-{cost['material']}",
                                    gaps={"distribution": base.get("gap_distribution", "uniform"),
                                          "mean": g * 1e-9, "seed": int(base["seed"])})
+    damping = cost.get("damping")
+    if damping is None:
+        return out
+    if not isinstance(damping, dict) or DAMPED_EFFECT in common["effects"]:
+        raise GranchainError("cost.damping: give a scene's damping section as a mapping, e.g. "
+                             "{model: coeff_restitution, e: 0.9}, or null, with a base set "
+                             f"without {DAMPED_EFFECT}")
+    for name in list(out):
+        raw = copy.deepcopy(out[name])
+        out[DAMPED_PREFIX + name] = dict(raw, name=raw["name"].replace("cost-", "cost-damped-", 1),
+                                         effects=raw["effects"] + [DAMPED_EFFECT],
+                                         damping=copy.deepcopy(damping))
     return out
 
 
