@@ -114,7 +114,7 @@ class RunPlan:
     """The plan of one scene's run. ``scene``: the scene that runs (method auto
     resolved, one setting for every striker speed); ``auto``: auto's choice as text
     (:func:`describe_auto`), "" unless the scene asked for auto; ``scene_class``:
-    the cost model's class (packed, gapped); ``speeds``: one :class:`SpeedPlan` per
+    the cost model's class (packed, gapped, damped); ``speeds``: one :class:`SpeedPlan` per
     striker speed, in the scene's order; ``model``: the cost model it was planned with
     (None: the packaged one).
 
@@ -280,8 +280,8 @@ def auto_setting(scene: Scene, model: CostModel | None = None, *,
     at that setting, summed over its striker speeds). The event method is offered only on
     chains no longer than the model measured it on (its step count grows faster than n).
 
-    Pure: reads only the scene and the cost model (rows of the scene's class, packed or
-    gapped). dt = ``costmodel.fixed_step(scene, N)``, as in the measurement, so that the
+    Pure: reads only the scene and the cost model (rows of the scene's class: packed,
+    gapped or damped, ``costmodel.scene_class``). dt = ``costmodel.fixed_step(scene, N)``, as in the measurement, so that the
     samples fall on the reference's. With several sample intervals (a sweep of striker
     speeds at auto sampling) that cannot hold for every member, so when the target is
     below the measured misalignment floor only the tolerance methods are used. They keep

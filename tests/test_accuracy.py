@@ -19,10 +19,11 @@ from granchain.scene import load_scene, scene_from_dict
 from granchain.scenekeys import TOLERANCE_METHODS
 from granchain.simulate import run_scene
 
-# A small study: packed and 20 nm gaps, four fixed steps a factor 4 apart, two tolerances.
+# A small study: packed and 20 nm gaps (undamped), four fixed steps a factor 4 apart, two
+# tolerances.
 SMALL = {"batch": 2, "repeats": 1, "gap_mean_nm": [20], "steps_per_contact": [20, 80, 320, 1280],
          "tolerances": [1e-4, 1e-8], "lammps_steps_per_contact": [20, 80], "lammps_batch": 2,
-         "lammps_repeats": 1}
+         "lammps_repeats": 1, "damping": None}
 ALL_EFFECTS = ["hertz", "groove_friction", "air_drag", "rotation", "particle_friction"]
 
 
@@ -314,6 +315,67 @@ def test_study_settings_are_validated():
         accuracy.settings({**full, "methods": ["euler"]})
 
 
+def test_damped_scenes_are_the_undamped_twins_with_contact_damping():
+    full, base = accuracy.full_config({"gap_mean_nm": [20]}, None)
+    raws = accuracy.scene_dicts(full, base)
+    assert list(raws) == ["packed", "gaps20nm", "damped-packed", "damped-gaps20nm"]
+    for name in ("packed", "gaps20nm"):
+        twin = raws["damped-" + name]
+        assert twin["effects"] == raws[name]["effects"] + ["contact_damping"]
+        assert twin["damping"] == full["damping"] == {"model": "coeff_restitution", "e": 0.9}
+        assert {k: v for k, v in twin.items() if k not in ("effects", "damping", "name")} == \
+            {k: v for k, v in raws[name].items() if k not in ("effects", "name")}
+        assert accuracy.scene_class("damped-" + name) == "damped"
+        sc = accuracy.scene_for(twin, accuracy.Setting("verlet", 80))
+        assert "contact_damping" in sc.effects and sc.setting("contact_damping").e == 0.9
+    assert list(accuracy.scene_dicts({**full, "damping": None}, base)) == ["packed", "gaps20nm"]
+    for bad, base_fx in ((0.9, base), ({"e": 0.9}, {**base, "effects": base["effects"] + ["contact_damping"]})):
+        with pytest.raises(GranchainError, match="cost.damping"):
+            accuracy.scene_dicts({**full, "damping": bad}, base_fx)
+
+
+def test_the_damped_class_is_the_worst_over_every_scene():
+    """The model's damped rows: each error the largest over every scene (a damped chain at
+    restitution 1 is an undamped one), the wall time the mean over the damped scenes;
+    the packed and gapped rows keep their own scenes'."""
+    rng = np.random.default_rng(3)
+    rows = []
+    for sc in ("packed", "gaps20nm", "gaps100nm", "damped-packed", "damped-gaps20nm"):
+        for m, n, tol in (("rk4", 80, math.nan), ("verlet", 80, math.nan), ("adaptive", math.nan, 1e-6)):
+            r = {c: float(rng.uniform(1e-8, 1e-3)) for c in accuracy.MODEL_COLUMNS[5:]}
+            rows.append({"scene": sc, "method": m, "steps_per_contact": n, "tolerance": tol,
+                         "wall_s_per_chain": float(rng.uniform(0.01, 1.0)), **r})
+    t = pd.DataFrame(rows)
+    model = accuracy.model_from_table(t)
+    assert sorted(set(model.scene_class)) == ["damped", "gapped", "packed"]
+    for _, row in model.iterrows():
+        same = t[t.method == row.method]
+        of_class = same[same.scene.map(accuracy.scene_class) == row.scene_class]
+        over = same if row.scene_class == "damped" else of_class
+        for c in accuracy.MODEL_COLUMNS[5:]:
+            assert row[c] == over[c].max(), (row.scene_class, row.method, c)
+        assert row.wall_s_per_chain == pytest.approx(of_class.wall_s_per_chain.mean(), rel=1e-14)
+    # a damped-class error above every damped scene's own: one an undamped scene set
+    d = model[(model.scene_class == "damped") & (model.method == "rk4")].iloc[0]
+    own = t[(t.method == "rk4") & t.scene.str.startswith("damped-")].err_v_g.max()
+    assert d.err_v_g >= own
+
+
+def test_a_scene_whose_contact_force_follows_the_closing_speed_is_in_the_damped_class():
+    damped = _scene316(30.0, resolve=False, method="rk4", tol=None,
+                       effects=ALL_EFFECTS + ["contact_damping"],
+                       damping={"model": "coeff_restitution", "e": 0.95})
+    cols = costmodel.load_model().columns
+    has = costmodel.CostModel(cols, costmodel.load_model().provenance)
+    keep = np.array([c != "damped" for c in cols["scene_class"]])
+    without = costmodel.CostModel({k: v[keep] for k, v in cols.items()},
+                                  costmodel.load_model().provenance)
+    assert "damped" not in without.classes
+    assert costmodel.scene_class(damped, without) == "gapped"
+    assert costmodel.scene_class(damped, has) == "damped"
+    assert costmodel.scene_class(_scene316(30.0, resolve=False, method="rk4", tol=None), has) == "gapped"
+
+
 # ---------------------------------------------------------------------------------------
 # method: auto
 # ---------------------------------------------------------------------------------------
@@ -324,12 +386,15 @@ def _model_frame():
 def test_cost_model_is_package_data_with_provenance():
     model, prov = _model_frame(), costmodel.load_model().provenance
     assert list(model.columns) == list(accuracy.MODEL_COLUMNS)
-    assert set(model.scene_class) == {"packed", "gapped"}
+    assert set(model.scene_class) == {"packed", "gapped", "damped"}
     assert set(model.method) == set(accuracy.SCENE_METHODS)
     fixed = model[~model.method.isin(TOLERANCE_METHODS)]
     assert (fixed.steps_per_contact >= 20).all()
     assert prov["scenes"]["packed"]["scene_hash"] and prov["machine"]["cores"]
-    assert set(prov["sampling_floor_v_g"]) == {"packed", "gapped"}
+    assert set(prov["sampling_floor_v_g"]) == {"packed", "gapped", "damped"}
+    assert prov["sampling_floor_v_g"]["damped"] == max(prov["sampling_floor_v_g"].values())
+    assert {k for k, c in prov["scene_class"].items() if c == "damped"} == \
+        {"damped-" + k for k, c in prov["scene_class"].items() if c != "damped"}
     text = json.dumps(prov)
     assert not re.search(r"\d{4}-\d{2}-\d{2}", text)          # date-free
 
@@ -387,9 +452,9 @@ def test_auto_takes_the_event_method_where_flight_dominates():
     assert accuracy.rel_err(fixed_runs, ref, "v_g_front") <= tol
     evals = sum(r.force_evaluations for r in runs)
     assert 3 * evals < sum(r.force_evaluations for r in fixed_runs)
-    # the same scene at the model's own speed keeps a fixed step; chains longer than the
+    # short flights at the model's own speed keep a fixed step; chains longer than the
     # model measured never get the event method
-    assert _scene316(190.0, tol, striker={"velocity": 0.1}).method != "event"
+    assert _scene316(20.0, tol, striker={"velocity": 0.1}).method != "event"
     assert _scene316(190.0, tol, chain={"n": 20}, **slow).method != "event"
 
 
@@ -465,7 +530,7 @@ def test_costmodel_lookup_agrees_with_the_pandas_analysis():
     """costmodel repeats envelope / cheapest / achievable on the model's rows without
     pandas: the same answers as granchain.accuracy.envelope on the same table."""
     model, frame = costmodel.load_model(), _model_frame()
-    for cls in (None, "packed", "gapped"):
+    for cls in (None,) + costmodel.SCENE_CLASSES:
         for obs in ("v_g", "v_g_front", "v_max_2", "balance"):
             env = accuracy.envelope(frame, obs, cls)
             mine = model.envelope(obs, cls)

@@ -25,7 +25,9 @@ def _base(auto: bool):
     base = inference.complete_base(load_scene(REPO / "measurements" /
                                               "example_restitution.yaml"), meas)[0]
     if auto:
-        return base.derive({"integrator": {"method": "auto", "tolerance": 1e-4}})
+        # at 1e-3 auto takes RK4 on the packed nodes and the event method over the
+        # wide gaps, whose flight multiplies a fixed step's work
+        return base.derive({"integrator": {"method": "auto", "tolerance": 1e-3}})
     return inference.choose_setting(base, meas, peaks=True)[0]
 
 
@@ -34,7 +36,7 @@ def test_a_batched_joint_grid_is_a_call_per_node_bit_for_bit(auto):
     base = _base(auto)
     grid = inference.simulate_joint_grid(base, 500e-9, 4, 0.8, 2, R, None, progress=False)
     if auto:
-        assert grid.setting["method"] == "per node"     # packed and gapped nodes differ
+        assert grid.setting["method"] == "per node"     # the nodes' settings differ
     d = design(base, R)
     checked = 0
     for k, g in enumerate(grid.gaps):

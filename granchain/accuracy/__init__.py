@@ -17,7 +17,12 @@ only); it reads the cost model this study writes.
 The study
 ---------
 Scenes: the base set's chain (default: 15 x 440C, every effect of the base set, striker at
-0.1 m/s) packed, and with uniform random gaps of mean 20 nm and 100 nm (``gap_mean_nm``).
+0.1 m/s) packed, and with uniform random gaps of mean 20 nm and 100 nm (``gap_mean_nm``);
+then each again with contact damping (``damping``: its scene section, default
+coeff_restitution at e = 0.9; null for none), named ``damped-<name>``. Damping costs the
+fixed steps their order (Verlet's damping force takes the half-step velocity: first
+order; the prefactor's delta^(1/4) at each contact's start and end: RK4 of order 1.25),
+and the reference's cross-check, RK4 at the finest N, with it.
 Gaps make contacts open and close, so the dynamics are not smooth; at 100 nm (about twice
 the Hertz overlap at 0.1 m/s) probe particles often fly freely and their peak is a plateau,
 whose start (the chapter's peak time, hence v_g) is an ill-conditioned observable.
@@ -67,9 +72,12 @@ and the cheapest settings (which depend on wall times) to ``timing/``.
 The cost model
 --------------
 ``envelope.model_from_table`` reduces a measured table to one row per (scene class,
-setting of the reference engine): class ``packed`` (the packed chain) or ``gapped`` (the
-worst over the gapped scenes); error: the largest over the class's scenes; wall: their
-mean. It is package data, ``granchain/data/cost_model.csv`` with
+setting of the reference engine): class ``packed`` (the packed chain), ``gapped`` (the
+worst over the gapped scenes) or ``damped`` (the worst over every scene: a damped chain
+at e = 1 is an undamped one); error: the largest over those scenes; wall: the mean over
+the class's own. Method auto rates a scene in the damped class when an effect on makes
+its contact force depend on the closing speed (``EffectSpec.normal_speed``,
+``costmodel.scene_class``). It is package data, ``granchain/data/cost_model.csv`` with
 ``cost_model.provenance.json`` (scene hashes, machine, versions; no dates), written from the
 default preset's measurement by
 ``python -m granchain.accuracy model results/default/timing/accuracy_cost.csv --force``.
