@@ -614,10 +614,10 @@ def test_shipped_restitution_example_is_labelled_synthetic():
 
 @pytest.mark.slow
 def test_shipped_restitution_example_runs(tmp_path, capsys):
-    """The README's command from an empty cache: 21 x 7 x 3 x 64 = 28,224 chains (212 s
-    with compiled kernels on the shared 2-core machine at load 4-5); the known truth
-    (47 nm, e = 0.92) lies in both intervals (measured: 45.20 nm [38.81, 55.36], e 0.9172
-    [0.9067, 0.9313])."""
+    """The README's command from an empty cache: 21 x 7 x 3 x 64 = 28,224 chains (71 s
+    with compiled kernels on the 2-core machine at load about 1, the event method at
+    1e-5); the known truth (47 nm, e = 0.92) lies in both intervals (measured: 45.2 nm
+    [38.82, 55.39], e 0.9172 [0.9066, 0.9312])."""
     argv = ["infer", str(EXAMPLE_CSV), "--scene", str(EXAMPLE_SCENE), "--fit",
             "gap_mean,restitution", "--cache-dir", str(tmp_path / "c"), "--json",
             "--plot", str(tmp_path / "f.png")]
