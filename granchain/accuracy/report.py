@@ -112,7 +112,7 @@ def plot(table, png, pdf=None, *, tolerances=(1e-3, 1e-5)) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     floor = 1e-16
-    fig, axes = plt.subplots(1, 3, figsize=(14, 4.6), constrained_layout=True)
+    fig, axes = plt.subplots(1, 3, figsize=(14, 5.8), layout="constrained")
     scenes = list(dict.fromkeys(table["scene"]))
     # a damped scene: its undamped twin's line style, square markers
     twins = [sc for sc in scenes if not sc.startswith(DAMPED_PREFIX)]
@@ -149,7 +149,9 @@ def plot(table, png, pdf=None, *, tolerances=(1e-3, 1e-5)) -> None:
         ax.set_xlabel("wall time per chain (s)")
         ax.set_ylabel(label)
         ax.grid(True, which="major", alpha=0.3)
-    axes[0].legend(fontsize=6, ncol=3)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", fontsize=6,
+               ncol=min(6, max(1, len(scenes))))
     fig.suptitle("What accuracy costs in time: error against wall time per chain "
                  "(grey: the reference's own uncertainty)", fontsize=10)
     Path(png).parent.mkdir(parents=True, exist_ok=True)
