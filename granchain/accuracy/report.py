@@ -12,7 +12,6 @@ import numpy as np
 from .. import costmodel
 from ..errors import GranchainError
 from ..scenekeys import TOLERANCE_METHODS
-from ..costmodel import DAMPED
 from .envelope import DAMPED_PREFIX, cheapest, cheapest_table, model_from_table, scene_class
 from .harness import DETERMINISTIC, METHODS, full_config, to_frame
 
@@ -77,8 +76,8 @@ def write_model(timing_csv, out, *, force: bool = False) -> None:
     for name, sc in src["scenes"].items():
         c = scene_class(name)
         floor[c] = max(floor.get(c, 0.0), sc.get("sampling_floor_v_g") or 0.0)
-    if DAMPED in floor:                 # the damped class is the worst over every scene
-        floor[DAMPED] = max(floor.values())
+    if costmodel.DAMPED in floor:       # the damped class is the worst over every scene
+        floor[costmodel.DAMPED] = max(floor.values())
     prov = {"source": f"python -m granchain.accuracy model {Path(timing_csv).as_posix()}",
             "preset": src.get("preset"),
             "scenes": {k: {kk: v.get(kk) for kk in ("name", "scene_hash", "uncertainty",
@@ -106,8 +105,9 @@ STYLES = ("-", "--", ":", "-.")
 
 def plot(table, png, pdf=None, *, tolerances=(1e-3, 1e-5)) -> None:
     """Error against wall time per chain, log-log: one panel per observable, one curve per
-    method and scene (line style; square markers: a damped scene), in order of refinement; reference uncertainty grey;
-    the cheapest settings for ``tolerances`` on v_g (all scenes) starred."""
+    method and scene (line style; square markers: a damped scene), in order of
+    refinement; reference uncertainty grey; the cheapest settings for ``tolerances`` on
+    v_g (all scenes) starred."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
