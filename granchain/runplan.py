@@ -281,11 +281,12 @@ def auto_setting(scene: Scene, model: CostModel | None = None, *,
     chains no longer than the model measured it on (its step count grows faster than n).
 
     Pure: reads only the scene and the cost model (rows of the scene's class: packed,
-    gapped or damped, ``costmodel.scene_class``). dt = ``costmodel.fixed_step(scene, N)``, as in the measurement, so that the
-    samples fall on the reference's. With several sample intervals (a sweep of striker
-    speeds at auto sampling) that cannot hold for every member, so when the target is
-    below the measured misalignment floor only the tolerance methods are used. They keep
-    the scene's dt as their first step and get the model's tolerance as their rtol.
+    gapped or damped, ``costmodel.scene_class``). dt = ``costmodel.fixed_step(scene,
+    N)``, as in the measurement, so that the samples fall on the reference's. With
+    several sample intervals (a sweep of striker speeds at auto sampling) that cannot
+    hold for every member, so when the target is below the measured misalignment floor
+    only the tolerance methods are used. They keep the scene's dt as their first step
+    and get the model's tolerance as their rtol.
     ``durations`` and ``sample_dts`` (striker speed -> ``stoprule.expected_duration``,
     ``stoprule.sample_interval``): the run plan's, if already computed
     (:func:`plan_run`)."""

@@ -329,7 +329,8 @@ def test_damped_scenes_are_the_undamped_twins_with_contact_damping():
         sc = accuracy.scene_for(twin, accuracy.Setting("verlet", 80))
         assert "contact_damping" in sc.effects and sc.setting("contact_damping").e == 0.9
     assert list(accuracy.scene_dicts({**full, "damping": None}, base)) == ["packed", "gaps20nm"]
-    for bad, base_fx in ((0.9, base), ({"e": 0.9}, {**base, "effects": base["effects"] + ["contact_damping"]})):
+    damped_base = {**base, "effects": base["effects"] + ["contact_damping"]}
+    for bad, base_fx in ((0.9, base), ({"e": 0.9}, damped_base)):
         with pytest.raises(GranchainError, match="cost.damping"):
             accuracy.scene_dicts({**full, "damping": bad}, base_fx)
 
@@ -341,7 +342,8 @@ def test_the_damped_class_is_the_worst_over_every_scene():
     rng = np.random.default_rng(3)
     rows = []
     for sc in ("packed", "gaps20nm", "gaps100nm", "damped-packed", "damped-gaps20nm"):
-        for m, n, tol in (("rk4", 80, math.nan), ("verlet", 80, math.nan), ("adaptive", math.nan, 1e-6)):
+        for m, n, tol in (("rk4", 80, math.nan), ("verlet", 80, math.nan),
+                          ("adaptive", math.nan, 1e-6)):
             r = {c: float(rng.uniform(1e-8, 1e-3)) for c in accuracy.MODEL_COLUMNS[5:]}
             rows.append({"scene": sc, "method": m, "steps_per_contact": n, "tolerance": tol,
                          "wall_s_per_chain": float(rng.uniform(0.01, 1.0)), **r})
@@ -365,15 +367,14 @@ def test_a_scene_whose_contact_force_follows_the_closing_speed_is_in_the_damped_
     damped = _scene316(30.0, resolve=False, method="rk4", tol=None,
                        effects=ALL_EFFECTS + ["contact_damping"],
                        damping={"model": "coeff_restitution", "e": 0.95})
-    cols = costmodel.load_model().columns
-    has = costmodel.CostModel(cols, costmodel.load_model().provenance)
-    keep = np.array([c != "damped" for c in cols["scene_class"]])
-    without = costmodel.CostModel({k: v[keep] for k, v in cols.items()},
-                                  costmodel.load_model().provenance)
+    has = costmodel.load_model()
+    keep = np.array([c != "damped" for c in has.columns["scene_class"]])
+    without = costmodel.CostModel({k: v[keep] for k, v in has.columns.items()}, has.provenance)
     assert "damped" not in without.classes
     assert costmodel.scene_class(damped, without) == "gapped"
     assert costmodel.scene_class(damped, has) == "damped"
-    assert costmodel.scene_class(_scene316(30.0, resolve=False, method="rk4", tol=None), has) == "gapped"
+    undamped = _scene316(30.0, resolve=False, method="rk4", tol=None)
+    assert costmodel.scene_class(undamped, has) == "gapped"
 
 
 # ---------------------------------------------------------------------------------------

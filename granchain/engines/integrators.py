@@ -32,8 +32,9 @@ from .backend import use_jit_cache
 use_jit_cache()   # before the first @njit(cache=True): a cache keyed by every source compiled in
 
 from .codes import (DOP_A, DOP_A_DENSE, DOP_B, DOP_D, DOP_E3, DOP_E5,  # noqa: E402
-                    E_KIN_TRANS, E_LEN, E_WORK_LOAD, F_DEAD_LOAD, F_END_WALL, F_HETEROGENEOUS, G_MASS, KICKED,
-                    L_DISP, L_STATE_SIZE, L_VEL, P_DEAD_LOAD, P_N_SPHERES, WORK_SLOTS)
+                    E_KIN_TRANS, E_LEN, E_WORK_LOAD, F_DEAD_LOAD, F_END_WALL, F_HETEROGENEOUS,
+                    G_MASS, KICKED, L_DISP, L_STATE_SIZE, L_VEL, P_DEAD_LOAD, P_N_SPHERES,
+                    WORK_SLOTS)
 # the physics: the effects' laws, composed from the registry
 from .compose import (effect_energies, effect_forces, normal_forces,  # noqa: E402
                       project_histories, wall_force, wall_force_at)
