@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import re
 import shutil
@@ -126,13 +127,19 @@ def cold_compile(tree: Path, scratch: Path) -> dict:
 def alternate(run_a, run_b, repeats: int, key: str = "wall"):
     """The fastest of ``repeats`` runs of each by ``key`` (their wall or CPU seconds), a
     and b taking turns, so that a change in the machine's load falls on both (shared
-    machines). Each result also holds ``turns``: the ratios b / a of every turn's pair,
-    sorted (a slow drift of the machine's speed falls on both runs of a turn, so their
-    spread says how far the fastest runs' ratio can be trusted)."""
+    machines); which of the two runs first alternates from turn to turn, so that what the
+    first run of a pair leaves the second (or takes from it) falls on each as often. Each
+    result also holds ``turns``: the ratios b / a of every turn's pair, sorted (a slow
+    drift of the machine's speed falls on both runs of a turn, so their spread says how
+    far the fastest runs' ratio can be trusted)."""
     best_a = best_b = None
     turns = []
-    for _ in range(repeats):
-        a, b = run_a(), run_b()
+    for i in range(repeats):
+        if i % 2:
+            b = run_b()
+            a = run_a()
+        else:
+            a, b = run_a(), run_b()
         turns.append(b[key] / a[key])
         best_a = a if best_a is None or a[key] < best_a[key] else best_a
         best_b = b if best_b is None or b[key] < best_b[key] else best_b
@@ -140,11 +147,34 @@ def alternate(run_a, run_b, repeats: int, key: str = "wall"):
     return dict(best_a, turns=turns), dict(best_b, turns=turns)
 
 
+def median_interval(turns, level: float = 0.95):
+    """A distribution-free interval of the median of the turns' ratios: the order
+    statistics x_(k) and x_(n+1-k) (1-based, sorted), k the largest with
+    P(k - 1 or fewer of n fall below the median) <= (1 - level) / 2, which holds the
+    median with probability >= level whatever the ratios' distribution, as long as the
+    turns are independent. None with too few turns (n < 6 at 95 %)."""
+    x = sorted(turns)
+    n = len(x)
+    tail, k = 0.0, 0
+    while True:
+        tail += math.comb(n, k) / 2.0 ** n      # P(exactly k below the median)
+        if tail > (1.0 - level) / 2.0:
+            break
+        k += 1
+    if k == 0:
+        return None
+    return x[k - 1], x[n - k]
+
+
 def spread(turns) -> str:
-    """The turns' ratios: their median, and the range of the middle half and of all."""
+    """The turns' ratios: their median with its 95 % interval (``median_interval``), and
+    the range of the middle half and of all."""
     import numpy as np
     q = np.quantile(turns, [0.0, 0.25, 0.5, 0.75, 1.0])
-    return (f"per-turn ratios median x{q[2]:.3f}, middle half x{q[1]:.3f}-x{q[3]:.3f}, "
+    ci = median_interval(turns)
+    ci = (f" (95 % interval of the median x{ci[0]:.3f}-x{ci[1]:.3f})" if ci else
+          " (too few turns for a 95 % interval of the median: 6 or more)")
+    return (f"per-turn ratios median x{q[2]:.3f}{ci}, middle half x{q[1]:.3f}-x{q[3]:.3f}, "
             f"all x{q[0]:.3f}-x{q[4]:.3f} ({len(turns)} turns)")
 
 
