@@ -2,7 +2,8 @@
 against ``chunks.width``, side by side.
 
     python benchmarks/lanes.py [--repeats 3] [--effects every|adhesion]
-                               [--wide [--chains 1000] [--lanes 32 64]]
+                               [--wide [--chains 1000] [--lanes 32 64] [--spread 1]
+                                       [--methods verlet rk4]]
 
 The fixed-step methods step their chains in blocks of lanes, padding lanes included
 (``engines.chunks``). On one thread, velocity Verlet at 1 ns on the packed 440C chain
@@ -21,7 +22,11 @@ ensemble of ``benchmarks/kernels.py`` (``--chains`` chains of gaps-20nm-440c, ev
 effect and rolling friction, t_end auto), velocity Verlet and RK4 at 1 ns, with each
 value of ``--lanes`` in turn (the blocks then as ``chunks.width`` cuts them): the
 thread's CPU seconds of the run, fastest of ``--repeats`` and the per-turn ratios
-against the first value; the trajectories compared bit for bit.
+against the first value; the trajectories compared bit for bit. A block steps until its
+last chain stops, so a wide block of chains of unlike lengths steps its finished lanes
+longer: ``--spread S`` scales each chain's gaps by its own factor, uniform on [0, S]
+(mean gaps from 0 to S x 20 nm in one chunk, as a gap sweep's or an inference grid's
+chunks hold them; the chains sorted by expected length, as always).
 """
 from __future__ import annotations
 
@@ -58,18 +63,23 @@ def _run(scene, chains: int):
     return time.perf_counter() - t0, out
 
 
-def wide(chains: int, lanes: list[int], repeats: int) -> None:
+def wide(chains: int, lanes: list[int], repeats: int, spread: float = 1.0,
+         methods=("verlet", "rk4")) -> None:
     from granchain.scene import load_scene
     from granchain.simulate import member_gaps, members
     every = "[" + ", ".join(EVERY + ["rolling_friction"]) + "]"
     print(f"{chains} chains of gaps-20nm-440c, every effect, 1 ns, one thread; blocks of "
-          f"at most LANES lanes, LANES = {', '.join(map(str, lanes))} in turn")
-    for method in ("verlet", "rk4"):
+          f"at most LANES lanes, LANES = {', '.join(map(str, lanes))} in turn"
+          + (f"; each chain's gaps scaled by a factor uniform on [0, {spread:g}]"
+             if spread != 1.0 else ""))
+    for method in methods:
         sc = load_scene(Path(__file__).resolve().parents[1] / "granchain/scenes/gaps-20nm-440c.yaml",
                         [f"ensemble.realisations={chains}", f"effects={every}",
                          "rolling.k_roll=1000.0", f"integrator.method={method}"])
         mem = members(sc)
         gaps, vs = member_gaps(sc, mem), np.array([m.v_striker for m in mem])
+        if spread != 1.0:   # chains of unlike lengths, as a gap sweep's chunks hold
+            gaps = gaps * np.random.default_rng(5).uniform(0.0, spread, (chains, 1))
         times = {w: [] for w in lanes}
         outs = {}
         for turn in range(repeats + 1):               # the first turn loads the kernels
@@ -98,9 +108,14 @@ def main(argv=None) -> None:
                     help="the widest block's value on a large ensemble (--chains, --lanes)")
     ap.add_argument("--chains", type=int, default=1000)
     ap.add_argument("--lanes", type=int, nargs="+", default=[32, 64])
+    ap.add_argument("--spread", type=float, default=1.0,
+                    help="--wide: scale each chain's gaps by a factor uniform on [0, SPREAD] "
+                         "(chains of unlike lengths in one chunk; default 1: the scene's gaps)")
+    ap.add_argument("--methods", nargs="+", choices=["verlet", "rk4"], default=["verlet", "rk4"],
+                    help="--wide: the fixed-step methods to time")
     a = ap.parse_args(argv)
     if a.wide:
-        wide(a.chains, a.lanes, a.repeats)
+        wide(a.chains, a.lanes, a.repeats, a.spread, a.methods)
         return
     scene = _scene(a.effects)
     full, narrow = chunks.width, chunks.width
