@@ -84,7 +84,7 @@ def wide(chains: int, lanes: list[int], repeats: int, spread: float = 1.0,
         outs = {}
         for turn in range(repeats + 1):               # the first turn loads the kernels
             for w in lanes:
-                chunks.LANES = w
+                chunks.LANES = chunks.WIDE = w     # every chunk's blocks up to w
                 t0 = time.thread_time()
                 outs[w] = list(reference.run(sc, gaps, vs, progress=False, trace=False))
                 if turn:
@@ -122,7 +122,7 @@ def main(argv=None) -> None:
     _run(scene, 1)                                     # load the kernels
     print(f"1. one block of L chains, {a.effects} effects, one thread")
     for lanes in (1, 2, 4, 8, 16, 32):
-        chunks.width = lambda chains, threads, w=lanes: w
+        chunks.width = lambda chains, threads, cap=None, w=lanes: w
         best = min(_run(scene, lanes)[0] for _ in range(a.repeats))
         steps = 20_000
         print(f"   L = {lanes:2d}: {best / steps * 1e6:7.2f} us per block step, "
@@ -134,7 +134,7 @@ def main(argv=None) -> None:
         for _ in range(a.repeats):
             for name in ("full", "width"):
                 if name == "full":
-                    chunks.width = lambda c, t: min(chunks.LANES, max(c, chunks.LANES))
+                    chunks.width = lambda c, t, cap=None: min(chunks.LANES, max(c, chunks.LANES))
                 else:
                     chunks.width = narrow
                 dt, outs[name] = _run(scene, chains)

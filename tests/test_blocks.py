@@ -49,6 +49,7 @@ def test_member_alone_and_in_any_lane_is_bit_identical(method, monkeypatch):
     sc = _scene(method)
     gaps, vs = _members(11, sc.n)
     monkeypatch.setattr(chunks, "LANES", 4)       # 11 chains: 3 blocks, one padded
+    monkeypatch.setattr(chunks, "WIDE", 4)
     batch = list(reference.run(sc, gaps, vs, progress=False, trace=True))
     statuses = {t.status for t in batch}
     assert "passed" in statuses and "done" in statuses   # stopped and at-rest chains
@@ -57,8 +58,10 @@ def test_member_alone_and_in_any_lane_is_bit_identical(method, monkeypatch):
     rev = list(reference.run(sc, gaps[::-1], vs[::-1], progress=False, trace=True))[::-1]
     # alone: lane 0 of a block padded with chains at rest; and one chain per block
     monkeypatch.setattr(chunks, "LANES", 1)
+    monkeypatch.setattr(chunks, "WIDE", 1)
     one = list(reference.run(sc, gaps, vs, progress=False, trace=True))
     monkeypatch.setattr(chunks, "LANES", 4)
+    monkeypatch.setattr(chunks, "WIDE", 4)
     for i, t in enumerate(batch):
         assert _same(t, rev[i]), i
         assert _same(t, one[i]), i

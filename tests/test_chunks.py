@@ -92,6 +92,84 @@ def test_block_width_leaves_no_block_of_empty_lanes(threads):
     assert chunks.width(1000, threads) == chunks.LANES
 
 
+@pytest.mark.parametrize("threads", [1, 2, 3, 4])
+def test_wide_blocks_are_whole_and_dealt_evenly(threads):
+    """Blocks up to WIDE lanes: never wider, never a block of padding only, a whole number
+    per thread beyond one each, and whole blocks at least LANES wide for a chunk of a
+    whole multiple of LANES on 1, 2 or 4 threads."""
+    W = chunks.WIDE
+    for n in range(1, chunks.CHUNK_CHAINS + 1):
+        L = chunks.width(n, threads, W)
+        nblk = -(-n // L)
+        assert 1 <= L <= W and nblk * L - n < nblk, (n, L)
+        assert -(-nblk // threads) * L <= 2 * -(-n // threads), (n, L)
+        if nblk > threads:
+            assert nblk % threads == 0, (n, L)
+        if n >= W * threads:
+            assert L > W // 2, (n, L)
+        if n % chunks.LANES == 0 and threads in (1, 2, 4):
+            assert n % L == 0 and L >= min(chunks.LANES, n // threads), (n, L)
+        assert L >= chunks.width(n, threads) or n < chunks.LANES * threads, (n, L)
+    assert chunks.width(chunks.CHUNK_CHAINS, 2, W) == W
+
+
+def test_block_cap_keeps_narrow_blocks_for_chains_of_unlike_lengths():
+    """WIDE lanes for chains of like lengths (an ensemble's realisations: lengths within
+    a few per cent), LANES where wide blocks would step finished lanes for more than
+    WASTE of the chunk's chain steps beyond narrow ones (mean gaps spread tenfold), and
+    for a chunk no larger than LANES."""
+    rng = np.random.default_rng(4)
+    like = 15e-6 + 0.4e-6 * rng.standard_normal(512)
+    unlike = 12e-6 + rng.uniform(0.0, 28e-6, 512)
+    assert chunks.block_cap(like) == chunks.WIDE
+    assert chunks.block_cap(unlike) == chunks.LANES
+    assert chunks.block_cap(np.full(512, 2e-5)) == chunks.WIDE        # t_end: all equal
+    assert chunks.block_cap(like[:chunks.LANES]) == chunks.LANES
+    # the order does not matter: split and the kernel call decide alike
+    assert chunks.block_cap(like[::-1]) == chunks.block_cap(like)
+    # the threshold, on lengths spread evenly over [1, 1 + s]: a block of w chains idles
+    # for about w s w / (2 N), all N / w of them for w s / 2, so wide blocks add
+    # (WIDE - LANES) s / 2 against WASTE N (1 + s / 2): s* = WASTE N / ((WIDE - LANES) / 2
+    # - WASTE N / 2)
+    N = 512
+    s_star = chunks.WASTE * N / ((chunks.WIDE - chunks.LANES) / 2 - chunks.WASTE * N / 2)
+    assert chunks.block_cap(np.linspace(1.0, 1.0 + 1.1 * s_star, N)) == chunks.LANES
+    assert chunks.block_cap(np.linspace(1.0, 1.0 + 0.9 * s_star, N)) == chunks.WIDE
+
+
+def test_an_ensemble_runs_in_wide_blocks_and_a_spread_of_gaps_in_narrow_ones(monkeypatch):
+    """A scene's realisations at one speed (like lengths) run in blocks wider than LANES,
+    chains whose mean gaps differ tenfold in blocks of LANES; the results are the same bit
+    for bit as in blocks of LANES."""
+    sc = load_scene(SCENES / "gaps-20nm-440c.yaml", ["integrator.method=verlet",
+                                                      "effects=[hertz]"])
+    monkeypatch.setattr(reference.backend, "num_threads", lambda: 2)
+    widths = []
+    real = chunks.width
+
+    def spy(n, threads, cap=chunks.LANES):
+        widths.append(real(n, threads, cap))
+        return widths[-1]
+
+    monkeypatch.setattr(chunks, "width", spy)
+    rng = np.random.default_rng(8)
+    like = rng.uniform(0.0, 40e-9, (chunks.CHUNK_CHAINS, sc.n - 1))      # one chunk
+    unlike = like * rng.uniform(0.0, 10.0, (chunks.CHUNK_CHAINS, 1))
+    wide = list(reference.run(sc, like, 0.1, progress=False, trace=False))
+    assert max(widths) > chunks.LANES, widths
+    widths.clear()
+    narrow = list(reference.run(sc, unlike, 0.1, progress=False, trace=False))
+    assert widths and max(widths) <= chunks.LANES, widths
+    monkeypatch.setattr(chunks, "WIDE", chunks.LANES)
+    widths.clear()
+    ref = list(reference.run(sc, like, 0.1, progress=False, trace=False))
+    assert max(widths) <= chunks.LANES
+    for a, b in zip(wide, ref):
+        assert a.steps == b.steps and a.status == b.status
+        assert _json(summarize(a, sc.probes)) == _json(summarize(b, sc.probes))
+    assert len(narrow) == chunks.CHUNK_CHAINS
+
+
 def test_observed_chunks_are_sized_by_the_ring_not_the_record():
     """A slow striker's long run: its record would fill a chunk with few chains; the
     on-the-fly observables hold the same per chain whatever the length of the run."""
@@ -164,6 +242,7 @@ def test_a_chains_result_does_not_depend_on_its_chunk_block_or_thread(method, mo
     sc = _scene(method, **{"striker.velocity": "[0.0, 0.07, 0.1]"})
     gaps, vs = _members(15, sc.n)
     monkeypatch.setattr(chunks, "LANES", 3)            # 15 chains: 5 blocks
+    monkeypatch.setattr(chunks, "WIDE", 3)
     monkeypatch.setattr(reference.backend, "num_threads", lambda: 4)
     dealt = list(reference.run(sc, gaps, vs, progress=False, trace=False))
     assert all(t.observed is not None for t in dealt)
@@ -171,6 +250,7 @@ def test_a_chains_result_does_not_depend_on_its_chunk_block_or_thread(method, mo
     monkeypatch.setattr(chunks, "CHUNK_CHAINS", 6)     # chunks of 2 blocks of 3, and 1
     small = list(reference.run(sc, gaps, vs, progress=False, trace=False))
     monkeypatch.setattr(chunks, "LANES", 1)
+    monkeypatch.setattr(chunks, "WIDE", 1)
     monkeypatch.setattr(chunks, "CHUNK_CHAINS", 1)
     monkeypatch.setattr(reference.backend, "num_threads", lambda: 1)
     alone = list(reference.run(sc, gaps, vs, progress=False, trace=True))

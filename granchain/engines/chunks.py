@@ -2,9 +2,10 @@
 the threads.
 
 A chunk is what one kernel call holds: as many chains as a memory budget
-(``CHUNK_BYTES``, and at most ``CHUNK_CHAINS``) allows. The fixed-step methods run a
-chunk in blocks of consecutive chains (``LANES``, or fewer in a chunk too small to fill
-them on every thread: :func:`width`), and numba hands each thread an equal
+(``CHUNK_BYTES``, and at most ``CHUNK_CHAINS``) allows, in whole multiples of ``LANES``.
+The fixed-step methods run a chunk in blocks of consecutive chains (``LANES``, or
+``WIDE`` for a chunk of chains of like lengths: :func:`block_cap`; fewer in a chunk too
+small to fill them on every thread: :func:`width`), and numba hands each thread an equal
 contiguous share of the blocks; the chains come sorted by expected length, so a chunk's
 full blocks are dealt to the threads' shares back and forth (0, 1, .., T-1, T-1, .., 0,
 ..) and every thread gets long and short blocks alike. A chain's result does not depend
@@ -19,15 +20,23 @@ from . import backend
 CHUNK_BYTES = 256 * 2**20        # memory budget of one chunk of chains' samples
 CHUNK_CHAINS = 512               # at most this many chains in a chunk
 LANES = 32                       # most chains per block of the fixed-step kernels
+# A block steps all its lanes until its last chain stops. Wider blocks step each lane for
+# less (128 lanes: 15-20 % less per chain step than 32, one thread, benchmarks/lanes.py
+# --wide), but a block of chains of unlike lengths steps its finished lanes longer. A
+# chunk whose chains' expected lengths would leave WIDE-lane blocks stepping finished
+# lanes for WASTE more of the chunk's chain steps than LANES-lane blocks does keeps LANES.
+WIDE = 128
+WASTE = 0.05
 
 
-def split(group, per_chain: float, blocked: bool, observe: bool):
+def split(group, per_chain: float, blocked: bool, observe: bool, lengths=None):
     """Yield the chunks of ``group`` (chain indices, sorted by expected length) whose
     chains hold ``per_chain`` bytes each. ``blocked``: the fixed-step methods' blocks of
-    LANES chains, whole blocks per chunk, dealt to the threads (:func:`deal_blocks`);
-    with ``observe`` (their on-the-fly observables, the same size whatever a chain's
-    length) as few chunks as the limits allow, as even as whole blocks make them, else
-    as many blocks on every thread."""
+    up to :func:`block_cap` chains (``lengths``: the group's chains' expected run
+    lengths, in its order; None: LANES), whole multiples of LANES chains per chunk, dealt
+    to the threads (:func:`deal_blocks`); with ``observe`` (their on-the-fly observables,
+    the same size whatever a chain's length) as few chunks as the limits allow, as even
+    as multiples of LANES make them, else as many blocks of LANES on every thread."""
     size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, CHUNK_CHAINS)))
     threads = backend.num_threads()
     if blocked and observe and size < len(group):
@@ -40,26 +49,59 @@ def split(group, per_chain: float, blocked: bool, observe: bool):
         size = max(LANES, size // unit * unit)
     for i in range(0, len(group), size):
         chunk = group[i:i + size]
-        yield deal_blocks(chunk, threads) if blocked else chunk
+        if blocked:
+            cap = LANES if lengths is None else block_cap(lengths[i:i + size])
+            chunk = deal_blocks(chunk, threads, cap)
+        yield chunk
 
 
-def width(chains: int, threads: int) -> int:
-    """Lanes per block of a chunk of ``chains`` chains on ``threads`` threads: as few
-    blocks as LANES lanes allow, but one per thread while there are chains for it, each
-    ceil(chains / blocks) wide, so that no block steps lanes that hold no chain beyond the
-    rounding (which can leave a thread without a block: 4 chains on 3 threads make 2
-    blocks of 2). A block's step costs about as much as its lanes, padding lanes
-    included (``benchmarks/lanes.py``): one chain in a block of LANES lanes would cost as
-    much as LANES chains. A chunk of LANES chains per thread or more gets LANES."""
-    nblk = max(-(-chains // LANES), min(max(1, chains), max(1, threads)))
+def block_cap(lengths) -> int:
+    """The most lanes per block for a chunk of chains of expected run lengths ``lengths``
+    (any order): WIDE, unless blocks of WIDE chains of like length (the lengths sorted)
+    would step finished lanes for more than WASTE of the chunk's chain steps beyond what
+    blocks of LANES would (each block steps until its longest chain ends), else LANES."""
+    x = np.sort(np.asarray(lengths, dtype=float))
+    total = float(np.sum(x))
+    if x.size <= LANES or not total > 0.0:
+        return WIDE if x.size > LANES else LANES
+
+    def idle(w):
+        pad = -x.size % w
+        top = np.concatenate([x, np.full(pad, x[-1])]).reshape(-1, w).max(axis=1)
+        return float(np.sum(top) * w - pad * x[-1] - total)
+
+    return WIDE if idle(WIDE) - idle(LANES) <= WASTE * total else LANES
+
+
+def width(chains: int, threads: int, cap: int = LANES) -> int:
+    """Lanes per block of a chunk of ``chains`` chains on ``threads`` threads, blocks of
+    at most ``cap`` lanes (:func:`block_cap`): as few blocks as ``cap`` lanes allow, but
+    one per thread while there are chains for it, each ceil(chains / blocks) wide, so
+    that no block steps lanes that hold no chain beyond the rounding (which can leave a
+    thread without a block: 4 chains on 3 threads make 2 blocks of 2). Beyond LANES,
+    blocks a whole number per thread, and for a chunk of a whole multiple of LANES whole
+    blocks where such a number of them, at least LANES wide, divides it. A block's step
+    costs about as much as its lanes, padding lanes included (``benchmarks/lanes.py``):
+    one chain in a block of LANES lanes would cost as much as LANES chains. A chunk of
+    LANES chains per thread or more gets LANES (or up to ``cap``)."""
+    threads = max(1, threads)
+    nblk = max(-(-chains // cap), min(max(1, chains), threads))
+    if cap > LANES:
+        if nblk > threads:
+            nblk = -(-nblk // threads) * threads
+        if chains % LANES == 0:
+            for k in range(nblk, chains // LANES + 1, threads if nblk >= threads else 1):
+                if chains % k == 0:
+                    nblk = k
+                    break
     return max(1, -(-chains // nblk))
 
 
-def deal_blocks(chunk, threads):
-    """``chunk`` with its full blocks (of :func:`width` lanes) reordered so that numba's
+def deal_blocks(chunk, threads, cap: int = LANES):
+    """``chunk`` with its full blocks (of :func:`width` lanes, at most ``cap``) reordered so that numba's
     contiguous split of the blocks over ``threads`` gives each thread blocks dealt back and
     forth from the sorted order; a partial block stays last (the padding lanes follow it)."""
-    lanes = width(len(chunk), threads)
+    lanes = width(len(chunk), threads, cap)
     full = len(chunk) // lanes
     if threads < 2 or full <= threads:
         return chunk

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..stoprule import arrival_speed, last_detached
 from ..effects import MODULES, SPECS, Terms, chain as chain_mod, physics_terms
-from ..guards import require_resolved, result_limits
+from ..guards import gap_total, require_resolved, result_limits
 from ..runplan import RunPlan, SpeedPlan, plan_run, step_grid
 from ..scene import Scene
 from ..trajectory import OnTheFly, RunInfo, Trajectory
@@ -165,8 +165,9 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         while stop < len(order) and keys[order[stop]] == key:
             stop += 1
         group = order[start:stop]
+        lengths = _expected_lengths(scene, gaps[group], vs[group], [sps[i] for i in group])
         for chunk in _chunks(group, scene, terms, key, method, trace is False, plan,
-                             samples=method != "event" or bool(trace)):
+                             samples=method != "event" or bool(trace), lengths=lengths):
             rc = None if radii is None else np.atleast_2d(radii)[chunk]
             csp = [sps[i] for i in chunk]
             if method == "event":
@@ -192,7 +193,21 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         next_to_yield += 1
 
 
-def _chunks(group, scene, terms, sample_dt, method, observe=False, plan=None, samples=True):
+def _expected_lengths(scene: Scene, gaps, vs, sps: list[SpeedPlan]) -> np.ndarray:
+    """Each chain's expected run length (s), by which the fixed-step methods choose how
+    wide a chunk's blocks may be (``chunks.block_cap``): t_end, or the planned duration
+    at its striker speed (``SpeedPlan.duration_s``: the wave's travel plus the flight over
+    the scene's expected gaps) with the flight over its own gaps instead."""
+    if scene.t_end is not None:
+        return np.full(len(vs), float(scene.t_end))
+    v = np.maximum(np.asarray(vs, dtype=float), 1e-6)
+    planned = np.array([sp.duration_s for sp in sps], dtype=float)
+    travel = np.maximum(planned - gap_total(scene, scene.n - 1) / v, 0.0)
+    return travel + np.asarray(gaps, dtype=float).sum(axis=1) / v
+
+
+def _chunks(group, scene, terms, sample_dt, method, observe=False, plan=None, samples=True,
+            lengths=None):
     """Split chains into chunks whose memory fits in ``chunks.CHUNK_BYTES`` (and
     ``chunks.CHUNK_CHAINS``; ``chunks.split``): the recorded samples of each chain or, for
     the fixed-step methods measuring on the fly (``observe``), their observables' arrays
@@ -200,7 +215,9 @@ def _chunks(group, scene, terms, sample_dt, method, observe=False, plan=None, sa
     per particle, whatever its length), or for the event method without a trace (not
     ``samples``: it records none) its state, stages, rows and on-the-fly observables.
     ``plan``: the run plan of ``scene`` (planned here if None), whose expected durations
-    size a chain's record."""
+    size a chain's record. ``lengths``: the chains' expected run lengths
+    (:func:`_expected_lengths`, in the order of ``group``), from which each chunk's
+    blocks get their width (``chunks.block_cap``); None: ``chunks.LANES``."""
     blocked = method in ("rk4", "verlet")          # blocks of chains in lockstep
     if method == "event" and not samples:
         n = terms.n
@@ -223,7 +240,7 @@ def _chunks(group, scene, terms, sample_dt, method, observe=False, plan=None, sa
             t_est = 4.0 * plan.speed(max(v, 1e-6)).duration_s
         window = BLOCK_WINDOW if blocked else WINDOW
         per_chain = (t_est / sample_dt + window) * (terms.n + codes.E_LEN) * 8
-    yield from chunks.split(group, per_chain, blocked, observe)
+    yield from chunks.split(group, per_chain, blocked, observe, lengths)
 
 
 def _kernels(chains: int):
@@ -285,9 +302,10 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], metho
                               Vbuf, Ebuf, counts)
             _collect(counts, Vbuf, Ebuf, V_parts, E_parts)
     else:
+        cap = chunks.block_cap(_expected_lengths(scene, gaps, vs, sps))
         Y, T, STEPS, STATUS, obs = _run_blocks(
             mcode, Y, G, nv, VTHR, P, FL, layout, dt, every, NT, auto, V_parts, E_parts,
-            observe, sdt, _wall_static(terms))
+            observe, sdt, _wall_static(terms), cap)
         NS = obs.NS if observe else NS
     wall = time.perf_counter() - t0
     eff = tuple(sorted(scene.effects))
@@ -541,8 +559,9 @@ def _wall_static(terms: Terms) -> float:
 
 
 def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V_parts,
-                E_parts, observe=False, sample_dt=0.0, wall_static=0.0):
-    """Fixed-step methods: the chains in blocks of ``chunks.width`` lanes (consecutive
+                E_parts, observe=False, sample_dt=0.0, wall_static=0.0, cap=chunks.LANES):
+    """Fixed-step methods: the chains in blocks of ``chunks.width`` lanes, at most ``cap``
+    (``chunks.block_cap``, as ``chunks.split`` dealt them; consecutive
     chains share a block, the last block padded with lanes at rest that record nothing), stepped
     in lockstep by ``kernels.run_blocks``. Returns each chain's final state, time, steps
     and status, and the ``_Observed`` arrays (with ``observe``: the on-the-fly observables
@@ -551,7 +570,7 @@ def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V
     B, ny = Y0.shape
     ng = gaps.shape[1]
     n = int(P[codes.P_N_SPHERES])
-    Lb = chunks.width(B, backend.num_threads())
+    Lb = chunks.width(B, backend.num_threads(), cap)
     nblk = -(-B // Lb)
     Bp = nblk * Lb
     Yp = np.zeros((Bp, ny))
