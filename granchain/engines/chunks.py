@@ -62,8 +62,10 @@ def block_cap(lengths) -> int:
     blocks of LANES would (each block steps until its longest chain ends), else LANES."""
     x = np.sort(np.asarray(lengths, dtype=float))
     total = float(np.sum(x))
-    if x.size <= LANES or not total > 0.0:
-        return WIDE if x.size > LANES else LANES
+    if x.size <= LANES:
+        return LANES
+    if not total > 0.0:                 # no lengths to tell apart: no lane waits for another
+        return WIDE
 
     def idle(w):
         pad = -x.size % w
@@ -98,9 +100,10 @@ def width(chains: int, threads: int, cap: int = LANES) -> int:
 
 
 def deal_blocks(chunk, threads, cap: int = LANES):
-    """``chunk`` with its full blocks (of :func:`width` lanes, at most ``cap``) reordered so that numba's
-    contiguous split of the blocks over ``threads`` gives each thread blocks dealt back and
-    forth from the sorted order; a partial block stays last (the padding lanes follow it)."""
+    """``chunk`` with its full blocks (of :func:`width` lanes, at most ``cap``) reordered
+    so that numba's contiguous split of the blocks over ``threads`` gives each thread
+    blocks dealt back and forth from the sorted order; a partial block stays last (the
+    padding lanes follow it)."""
     lanes = width(len(chunk), threads, cap)
     full = len(chunk) // lanes
     if threads < 2 or full <= threads:
