@@ -27,7 +27,8 @@ def _scene(method="verlet", **over):
 def _chunks(sc, n_chains, observe, method="verlet"):
     terms = physics_terms(sc)
     key = sample_interval(sc, float(sc.striker_velocities[0]))
-    return list(reference._chunks(np.arange(n_chains), sc, terms, key, method, observe))
+    return [c for c, _ in reference._chunks(np.arange(n_chains), sc, terms, key, method,
+                                            observe)]
 
 
 def _shares(chunk, threads):
@@ -157,6 +158,8 @@ def test_an_ensemble_runs_in_wide_blocks_and_a_spread_of_gaps_in_narrow_ones(mon
     unlike = like * rng.uniform(0.0, 10.0, (chunks.CHUNK_CHAINS, 1))
     wide = list(reference.run(sc, like, 0.1, progress=False, trace=False))
     assert max(widths) > chunks.LANES, widths
+    # dealt and run by the same width (one chunk of whole blocks)
+    assert set(widths) == {chunks.WIDE}, widths
     widths.clear()
     narrow = list(reference.run(sc, unlike, 0.1, progress=False, trace=False))
     assert widths and max(widths) <= chunks.LANES, widths
@@ -180,10 +183,10 @@ def test_observed_chunks_are_sized_by_the_ring_not_the_record():
     assert len(obs) == math.ceil(1000 / chunks.CHUNK_CHAINS)
     # the event and adaptive methods keep their sizing
     for method in ("event", "adaptive"):
-        a = list(reference._chunks(np.arange(1000), slow, physics_terms(slow),
-                                   sample_interval(slow, 0.005), method, False))
-        b = list(reference._chunks(np.arange(1000), slow, physics_terms(slow),
-                                   sample_interval(slow, 0.005), method, True))
+        a = [c for c, _ in reference._chunks(np.arange(1000), slow, physics_terms(slow),
+                                             sample_interval(slow, 0.005), method, False)]
+        b = [c for c, _ in reference._chunks(np.arange(1000), slow, physics_terms(slow),
+                                             sample_interval(slow, 0.005), method, True)]
         assert [x.tolist() for x in a] == [x.tolist() for x in b]
         assert np.array_equal(np.concatenate(a), np.arange(1000))
 

@@ -291,8 +291,8 @@ def test_the_reference_engines_chunks_follow_the_plans_durations():
     sdt = p.speeds[0].sample_dt
 
     def cut(plan):
-        return [len(c) for c in reference._chunks(np.arange(100), sc, physics_terms(sc), sdt,
-                                                  "adaptive", False, plan)]
+        return [len(c) for c, _ in reference._chunks(np.arange(100), sc, physics_terms(sc), sdt,
+                                                        "adaptive", False, plan)]
     assert cut(p) == [100]
     longer = dataclasses.replace(p, speeds=tuple(
         dataclasses.replace(sp, duration_s=1e6 * sp.duration_s) for sp in p.speeds))

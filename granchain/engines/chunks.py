@@ -36,7 +36,9 @@ def split(group, per_chain: float, blocked: bool, observe: bool, lengths=None):
     lengths, in its order; None: LANES), whole multiples of LANES chains per chunk, dealt
     to the threads (:func:`deal_blocks`); with ``observe`` (their on-the-fly observables,
     the same size whatever a chain's length) as few chunks as the limits allow, as even
-    as multiples of LANES make them, else as many blocks of LANES on every thread."""
+    as multiples of LANES make them, else as many blocks of LANES on every thread. Each
+    chunk comes with the most lanes per block it was dealt for (None: not ``blocked``),
+    which the kernel call is to cut its blocks by (:func:`width`)."""
     size = int(max(1, min(len(group), CHUNK_BYTES // per_chain, CHUNK_CHAINS)))
     threads = backend.num_threads()
     if blocked and observe and size < len(group):
@@ -51,8 +53,9 @@ def split(group, per_chain: float, blocked: bool, observe: bool, lengths=None):
         chunk = group[i:i + size]
         if blocked:
             cap = LANES if lengths is None else block_cap(lengths[i:i + size])
-            chunk = deal_blocks(chunk, threads, cap)
-        yield chunk
+            yield deal_blocks(chunk, threads, cap), cap
+        else:
+            yield chunk, None
 
 
 def block_cap(lengths) -> int:

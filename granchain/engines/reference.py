@@ -36,6 +36,7 @@ STATUS_NAMES = {codes.S_DONE: "done", codes.S_PASSED: "passed", codes.S_TIMEOUT:
                 codes.S_RUNNING: "timeout"}
 WINDOW = 2048                    # samples per kernel call (adaptive method)
 BLOCK_WINDOW = 256               # samples per kernel call (fixed-step blocks)
+BLOCKED = ("rk4", "verlet")      # the methods that step chains in blocks, in lockstep
 EVENT_LANES = 16                 # chains per block of the event method (``run_events_lanes``)
 
 
@@ -165,9 +166,10 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
         while stop < len(order) and keys[order[stop]] == key:
             stop += 1
         group = order[start:stop]
-        lengths = _expected_lengths(scene, gaps[group], vs[group], [sps[i] for i in group])
-        for chunk in _chunks(group, scene, terms, key, method, trace is False, plan,
-                             samples=method != "event" or bool(trace), lengths=lengths):
+        lengths = (_expected_lengths(scene, gaps[group], vs[group], [sps[i] for i in group])
+                   if method in BLOCKED else None)
+        for chunk, cap in _chunks(group, scene, terms, key, method, trace is False, plan,
+                                  samples=method != "event" or bool(trace), lengths=lengths):
             rc = None if radii is None else np.atleast_2d(radii)[chunk]
             csp = [sps[i] for i in chunk]
             if method == "event":
@@ -175,7 +177,7 @@ def run(scene: Scene, gaps: np.ndarray, v_striker: np.ndarray, *, method: str | 
                                        key, bool(trace), pair or codes.DEFAULT_PAIR, rc, lanes)
             else:
                 it = _run_chunk(scene, terms, gaps[chunk], vs[chunk], csp, method, dt, rtol,
-                                key, rc, trace is not False)
+                                key, rc, trace is not False, cap)
             for idx, traj in zip(chunk, it):
                 out[int(idx)] = traj
             done_total += len(chunk)
@@ -217,8 +219,9 @@ def _chunks(group, scene, terms, sample_dt, method, observe=False, plan=None, sa
     ``plan``: the run plan of ``scene`` (planned here if None), whose expected durations
     size a chain's record. ``lengths``: the chains' expected run lengths
     (:func:`_expected_lengths`, in the order of ``group``), from which each chunk's
-    blocks get their width (``chunks.block_cap``); None: ``chunks.LANES``."""
-    blocked = method in ("rk4", "verlet")          # blocks of chains in lockstep
+    blocks get their width (``chunks.block_cap``); None: ``chunks.LANES``. Yields each
+    chunk with the most lanes per block it was dealt for (None: not in blocks)."""
+    blocked = method in BLOCKED
     if method == "event" and not samples:
         n = terms.n
         per_chain = 8 * ((codes.NST + 4) * Layout.of(terms).ny + codes.G_LEN * n
@@ -258,13 +261,14 @@ def _kernels(chains: int):
 
 
 def _run_chunk(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], method, dt, rtol,
-               sample_dt, radii=None, trace=True):
+               sample_dt, radii=None, trace=True, cap=None):
     """The fixed-step and adaptive methods on a chunk of chains. The fixed-step methods
     without ``trace`` measure the observables on the fly (``kernels.run_blocks`` with
     observe: ``Trajectory.observed``, t, v and energy of the first and last samples only);
     a chain whose record samples overflowed the kernel's ring is run again with its trace
     (the same chain alone gives the same samples), and its observables are then the
-    summariser's on that trace. ``sps``: each chain's speed plan (its sample count)."""
+    summariser's on that trace. ``sps``: each chain's speed plan (its sample count);
+    ``cap``: the most lanes per block the chunk was dealt for (``_chunks``; None: LANES)."""
     kern = _kernels(gaps.shape[0])
     layout = Layout.of(terms)
     P, FL = pack(terms)
@@ -302,10 +306,9 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], metho
                               Vbuf, Ebuf, counts)
             _collect(counts, Vbuf, Ebuf, V_parts, E_parts)
     else:
-        cap = chunks.block_cap(_expected_lengths(scene, gaps, vs, sps))
         Y, T, STEPS, STATUS, obs = _run_blocks(
             mcode, Y, G, nv, VTHR, P, FL, layout, dt, every, NT, auto, V_parts, E_parts,
-            observe, sdt, _wall_static(terms), cap)
+            observe, sdt, _wall_static(terms), cap or chunks.LANES)
         NS = obs.NS if observe else NS
     wall = time.perf_counter() - t0
     eff = tuple(sorted(scene.effects))
@@ -318,7 +321,7 @@ def _run_chunk(scene: Scene, terms: Terms, gaps, vs, sps: list[SpeedPlan], metho
         rr = None if radii is None else radii[idx]
         redo = dict(zip(idx.tolist(), _run_chunk(scene, terms, gaps[idx], vs[idx],
                                                  [sps[i] for i in idx], method, dt, rtol,
-                                                 sample_dt, rr, trace=True)))
+                                                 sample_dt, rr, trace=True, cap=cap)))
     for b in range(B):
         if b in redo:
             yield redo[b]
@@ -561,8 +564,7 @@ def _wall_static(terms: Terms) -> float:
 def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V_parts,
                 E_parts, observe=False, sample_dt=0.0, wall_static=0.0, cap=chunks.LANES):
     """Fixed-step methods: the chains in blocks of ``chunks.width`` lanes, at most ``cap``
-    (``chunks.block_cap``, as ``chunks.split`` dealt them; consecutive
-    chains share a block, the last block padded with lanes at rest that record nothing), stepped
+    (the cap ``chunks.split`` dealt them for; consecutive chains share a block, the last block padded with lanes at rest that record nothing), stepped
     in lockstep by ``kernels.run_blocks``. Returns each chain's final state, time, steps
     and status, and the ``_Observed`` arrays (with ``observe``: the on-the-fly observables
     and NS, each chain's sample count; otherwise the records go to V_parts, E_parts)."""
