@@ -135,6 +135,14 @@ class CostModel:
                                                    env[k]["method"], k))
         return {k: v for k, v in env[best].items() if k != "ref_uncertainty"}
 
+    def measured_effects(self) -> frozenset:
+        """The effects on in the scenes the model measured: its base's, and contact damping
+        where it has the damped class."""
+        on = set(self.provenance["base"]["effects"])
+        if DAMPED in self.classes:
+            on.add("contact_damping")
+        return frozenset(on)
+
     def work(self, scene_class: str) -> dict:
         """Method -> mean :func:`chain_work` of the measurement's scenes of the class (the
         work behind the model's wall times)."""

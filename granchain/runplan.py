@@ -35,6 +35,7 @@ import math
 from dataclasses import dataclass
 
 from . import costmodel
+from .effects import switching
 from .errors import SceneError
 from .guards import physics_warnings
 from .scene import Scene
@@ -279,6 +280,11 @@ def auto_setting(scene: Scene, model: CostModel | None = None, *,
     times ``costmodel.work_ratio`` (the cost ``costmodel.member_seconds`` gives the scene
     at that setting, summed over its striker speeds). The event method is offered only on
     chains no longer than the model measured it on (its step count grows faster than n).
+    On a scene with a law that switches (``effects.switching``) which the model did not
+    measure (``CostModel.measured_effects``: adhesion, plastic_contact) it is the only
+    method offered: a fixed step loses its order at each switch, while the event method
+    ends a step on each one (no setting there if the event method is not offered:
+    SceneError).
 
     Pure: reads only the scene and the cost model (rows of the scene's class: packed,
     gapped or damped, ``costmodel.scene_class``). dt = ``costmodel.fixed_step(scene,
@@ -308,9 +314,22 @@ def auto_setting(scene: Scene, model: CostModel | None = None, *,
     if (len({sdt[v] for v in vs}) > 1
             and target < float(model.provenance["sampling_floor_v_g"][cls])):
         methods = list(TOLERANCE_METHODS)
-    if scene.n > model.event_max_n() or scene.wall is not None:
+    event_ok = scene.n <= model.event_max_n() and scene.wall is None
+    if not event_ok:
         # not measured on chains this long; an end wall is not an event the method locates
         methods = [m for m in methods if m != "event"]
+    switch = [e for e in switching(scene.effects) if e not in model.measured_effects()]
+    if switch:
+        # the model's errors hold for the switches it measured; only the event method
+        # ends its steps on the others, and keeps its accuracy there
+        if not event_ok:
+            raise SceneError("integrator.method",
+                             f"auto: {switch[0]}'s law switches inside a contact, where "
+                             "only the event method keeps auto's accuracy, and it takes no "
+                             f"end wall or chain over {model.event_max_n()} spheres",
+                             "choose method adaptive with a tolerance, or rk4 or verlet "
+                             "with a dt")
+        methods = ["event"]
     pick = model.cheapest(target, obs, methods=methods, scene_class=cls,
                           work=work_ratio(scene, model, cls, durations))
     if pick is None:

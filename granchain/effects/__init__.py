@@ -80,6 +80,14 @@ def may_hold_wave(effects) -> bool:
     return any(m.SPEC.name in effects for m in laws[1:])
 
 
+def switching(effects) -> tuple[str, ...]:
+    """The effects among these (names) whose law switches (a jump or a kink of a force:
+    the groove's stick and slip, adhesion's touch and pull-off, yielding's onset and
+    unloading), those with a ``locate`` hook, in registry order. A fixed step loses its
+    order at each switch; the event method ends a step on each one."""
+    return tuple(m.SPEC.name for m in MODULES if hasattr(m, "locate") and m.SPEC.name in effects)
+
+
 def residual_work(effects) -> tuple[str, ...]:
     """Work columns LAMMPS cannot report for these effects (the balance residual there)."""
     return tuple(SPECS[e].work for e in SPECS if e in effects and SPECS[e].work
