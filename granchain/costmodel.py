@@ -135,6 +135,12 @@ class CostModel:
                                                    env[k]["method"], k))
         return {k: v for k, v in env[best].items() if k != "ref_uncertainty"}
 
+    @property
+    def threads(self) -> int:
+        """The threads its wall times were measured on (its cost block's, else 1): a
+        chain's seconds on one core are about its wall time times these."""
+        return int(self.provenance.get("cost", {}).get("threads", 1))
+
     def measured_effects(self) -> frozenset:
         """The effects on in the scenes the model measured: its base's, and contact damping
         where it has the damped class."""

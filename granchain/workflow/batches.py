@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..costmodel import DEFAULT_MAX_TOTAL_STEPS, add_estimates
+from ..costmodel import DEFAULT_MAX_TOTAL_STEPS, add_estimates, load_model
 from ..effects import may_hold_wave
 from ..errors import GranchainError
 from ..guards import check_run, gap_total
@@ -28,10 +28,17 @@ from .studies import ENGINE_ORDER, StudyScene, study_scenes
 JOB_OVERHEAD_S = 5.0       # interpreter start, imports, numba cache load
 
 
+def _cores(engine: str) -> int:
+    """The cores behind a run plan's estimate on ``engine``: the reference engine's is the
+    cost model's wall time, measured on ``CostModel.threads`` threads; LAMMPS's, one
+    process's."""
+    return load_model().threads if engine == "reference" else 1
+
+
 def realisation_cost(ss: StudyScene, engine: str) -> float:
-    """Estimated seconds of one realisation (all striker speeds) of a study scene on
-    ``engine``, from its run plan."""
-    return ss.plan.member_seconds(engine)
+    """Estimated seconds on one core of one realisation (all striker speeds) of a study
+    scene on ``engine``, from its run plan."""
+    return ss.plan.member_seconds(engine) * _cores(engine)
 
 
 def realisation_limit(ss: StudyScene, engine: str) -> float:
@@ -47,8 +54,9 @@ def realisation_limit(ss: StudyScene, engine: str) -> float:
         return realisation_cost(ss, engine)
     k = ENGINES.index(engine)
     gaps = np.full(sc.n - 1, gap_total(sc, sc.n - 1) / max(1, sc.n - 1))
-    return sum(sp.seconds[k] * max(1.0, sp.run_length(gaps) / sp.duration_s)
-               if sp.duration_s > 0 else sp.seconds[k] for sp in ss.plan.speeds)
+    return _cores(engine) * sum(sp.seconds[k] * max(1.0, sp.run_length(gaps) / sp.duration_s)
+                                if sp.duration_s > 0 else sp.seconds[k]
+                                for sp in ss.plan.speeds)
 
 
 @dataclass(frozen=True)
