@@ -9,7 +9,9 @@ estimate far below the truth gets a job killed. For each chosen study of the pre
 random sample of ``--scenes`` of its scenes (the most expensive by estimate always
 among them) runs ``--realisations`` realisations at every striker speed, as a batch job
 runs them (``workflow.run.run_members``, reference engine, one thread), each scene in
-turn in this process after a warm-up call. Prints per scene the estimate
+turn in this process after a warm-up call (``--scenes 0``: every scene, and the whole
+study's time projected from them, each scene's measured time per realisation times its
+realisations). Prints per scene the estimate
 (``workflow.batches.realisation_cost`` x realisations), the measured wall time, their
 ratio measured / estimated, the measured time over the job limit's allowance
 (``realisation_limit``: every chain at its cap where a law can hold it there) and the
@@ -41,7 +43,9 @@ def main(argv=None) -> None:
     ap.add_argument("--preset", default="full")
     ap.add_argument("--study", nargs="+", default=None,
                     help="studies to sample (default: every ensemble study of the preset)")
-    ap.add_argument("--scenes", type=int, default=6, help="scenes sampled per study")
+    ap.add_argument("--scenes", type=int, default=6,
+                    help="scenes sampled per study (0: every scene, and the study's time "
+                         "projected from them)")
     ap.add_argument("--realisations", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
     a = ap.parse_args(argv)
@@ -57,8 +61,10 @@ def main(argv=None) -> None:
         est = np.array([realisation_cost(ss, "reference") for ss in scenes])
         pick = {int(np.argmax(est))}
         rest = [i for i in range(len(scenes)) if i not in pick]
-        pick |= set(rng.choice(rest, min(len(rest), a.scenes - 1), replace=False).tolist())
-        ratios, over = [], []
+        every = a.scenes <= 0 or a.scenes >= len(scenes)
+        pick = set(range(len(scenes))) if every else pick | set(
+            rng.choice(rest, a.scenes - 1, replace=False).tolist())
+        ratios, over, whole = [], [], 0.0
         for i in sorted(pick):
             ss = scenes[i]
             reals = list(range(min(a.realisations, ss.scene.realisations)))
@@ -72,6 +78,7 @@ def main(argv=None) -> None:
             cap = realisation_limit(ss, "reference") * len(reals)
             ratios.append(wall / e)
             over.append(wall / cap)
+            whole += wall / len(reals) * ss.scene.realisations
             status = Counter(r.status for r in runs)
             print(f"{study:15s} {ss.scene.name:45s} estimate {e:8.2f} s, measured "
                   f"{wall:8.2f} s, measured / estimate {wall / e:7.2f}, measured / limit "
@@ -81,6 +88,9 @@ def main(argv=None) -> None:
               f"({len(ratios)} scenes; the study's estimate "
               f"{sum(b.est_seconds for b in plan.batches[study]) / 60:.1f} core-min)",
               flush=True)
+        if every:
+            print(f"{study:15s} every scene at its realisations, projected from those run: "
+                  f"{whole / 60:.1f} core-min", flush=True)
 
 
 if __name__ == "__main__":
