@@ -142,11 +142,11 @@ class CostModel:
         return int(self.provenance.get("cost", {}).get("threads", 1))
 
     def measured_effects(self) -> frozenset:
-        """The effects on in the scenes the model measured: its base's, and contact damping
-        where it has the damped class."""
+        """The effects on in the scenes the model measured: its base's, and where it has
+        the damped class the laws that class stands for (``EffectSpec.normal_speed``)."""
         on = set(self.provenance["base"]["effects"])
         if DAMPED in self.classes:
-            on.add("contact_damping")
+            on |= {e for e, spec in SPECS.items() if spec.normal_speed}
         return frozenset(on)
 
     def work(self, scene_class: str) -> dict:
