@@ -198,7 +198,8 @@ KEYS: tuple[Key, ...] = (
     Key("integrator.method", "-", "`rk4` and `verlet`: a fixed step `dt` (the chapter's RK4); "
         "`adaptive` (DOP853) and `event` (event-driven; no end wall): the step follows "
         "`tolerance`; `auto`: the cheapest setting the cost model expects to reach "
-        "`tolerance`, the relative error on v_g.", choices=METHODS),
+        "`tolerance`, the relative error on v_g (the event method alone where a contact "
+        "law switches that the model did not measure).", choices=METHODS),
     Key("integrator.dt", "s", "The step of `rk4` and `verlet` (the chapter's). It must give "
         f"at least {MIN_STEPS_PER_CONTACT} steps per shortest collision at the fastest "
         "striker (and per dashpot time m_eff/eta with contact damping); the error shows the "
