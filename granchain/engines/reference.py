@@ -564,10 +564,10 @@ def _wall_static(terms: Terms) -> float:
 def _run_blocks(mcode, Y0, gaps, nv, VTHR, P, FL, layout, dt, every, NT, auto, V_parts,
                 E_parts, observe=False, sample_dt=0.0, wall_static=0.0, cap=chunks.LANES):
     """Fixed-step methods: the chains in blocks of ``chunks.width`` lanes, at most ``cap``
-    (the cap ``chunks.split`` dealt them for; consecutive chains share a block, the last block padded with lanes at rest that record nothing), stepped
-    in lockstep by ``kernels.run_blocks``. Returns each chain's final state, time, steps
-    and status, and the ``_Observed`` arrays (with ``observe``: the on-the-fly observables
-    and NS, each chain's sample count; otherwise the records go to V_parts, E_parts)."""
+    (as ``chunks.split`` dealt them; consecutive chains share a block, the last padded with
+    lanes at rest that record nothing), stepped in lockstep by ``kernels.run_blocks``. Returns
+    each chain's final state, time, steps, status and the ``_Observed`` arrays (``observe``:
+    on-the-fly observables and NS, the sample counts; else the records go to V_parts, E_parts)."""
     kern = _kernels(gaps.shape[0])
     B, ny = Y0.shape
     ng = gaps.shape[1]
