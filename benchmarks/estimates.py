@@ -1,7 +1,8 @@
 """The workflow's cost estimates against measured run times, per study scene.
 
     python benchmarks/estimates.py [--preset full] [--study adhesion] [--scenes 6]
-                                   [--realisations 2] [--seed 0]
+                                   [--realisations 2] [--seed 0] [--match TEXT]
+                                   [--method event --tolerance 1e-6]
 
 The workflow cuts each study into jobs balanced by estimated cost, and on SLURM a job's
 wall-clock limit is three times its estimate (``workflow.batches.runtime_minutes``): an
@@ -9,13 +10,16 @@ estimate far below the truth gets a job killed. For each chosen study of the pre
 random sample of ``--scenes`` of its scenes (the most expensive by estimate always
 among them) runs ``--realisations`` realisations at every striker speed, as a batch job
 runs them (``workflow.run.run_members``, reference engine, one thread), each scene in
-turn in this process after a warm-up call (``--scenes 0``: every scene, and the whole
-study's time projected from them, each scene's measured time per realisation times its
-realisations). Prints per scene the estimate
-(``workflow.batches.realisation_cost`` x realisations), the measured wall time, their
-ratio measured / estimated, the measured time over the job limit's allowance
-(``realisation_limit``: every chain at its cap where a law can hold it there) and the
-runs' statuses, then per study the median and largest ratios. Every number is measured in this run on this machine; the estimates are the
+turn in this process; a scene whose integrator method (under auto, any speed's) is new
+to the process runs once untimed first, which compiles its kernels. ``--scenes 0``: every
+scene, and the whole study's time projected from them, each scene's measured time per
+realisation times its realisations. ``--method``/``--tolerance`` run the studies with
+another setting than the preset's; ``--match`` keeps the scenes whose name holds the
+text. Prints per scene the estimate (``workflow.batches.realisation_cost`` x
+realisations), the measured wall time, their ratio measured / estimated, the measured
+time over the job limit's allowance (``realisation_limit``: every chain at its cap where
+a law can hold it there) and the runs' statuses, then per study the median and largest
+ratios. Every number is measured in this run on this machine; the estimates are the
 package's as shipped.
 """
 from __future__ import annotations
@@ -48,14 +52,28 @@ def main(argv=None) -> None:
                          "projected from them)")
     ap.add_argument("--realisations", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--method", default=None,
+                    help="run the chosen studies with this integrator method instead of "
+                         "the preset's (with --tolerance for adaptive, event and auto)")
+    ap.add_argument("--tolerance", type=float, default=None)
+    ap.add_argument("--match", default=None,
+                    help="run only the scenes whose name contains this text")
     a = ap.parse_args(argv)
-    plan = Plan.build(read_config(CONFIG, a.preset))
+    config = read_config(CONFIG, a.preset)
+    if a.method is not None:
+        studies = config["presets"][a.preset]["studies"]
+        for study in a.study or list(studies):
+            studies[study]["method"] = a.method
+            if a.tolerance is not None:
+                studies[study]["tolerance"] = a.tolerance
+    plan = Plan.build(config)
     rng = np.random.default_rng(a.seed)
     print(f"preset {a.preset}; load average {os.getloadavg()[0]:.1f}; one thread; "
           f"{a.realisations} realisation(s) per scene, every striker speed", flush=True)
-    warmed = False
+    warmed: set[str] = set()
     for study in a.study or [s for s in plan.studies if s != "packed_trace"]:
-        scenes = [ss for ss in plan.scenes[study] if "reference" in ss.engines]
+        scenes = [ss for ss in plan.scenes[study] if "reference" in ss.engines
+                  and (a.match is None or a.match in ss.scene.name)]
         if not scenes:
             continue
         est = np.array([realisation_cost(ss, "reference") for ss in scenes])
@@ -68,9 +86,10 @@ def main(argv=None) -> None:
         for i in sorted(pick):
             ss = scenes[i]
             reals = list(range(min(a.realisations, ss.scene.realisations)))
-            if not warmed:
+            methods = {sp.scene.method for sp in ss.plan.speeds}
+            if not methods <= warmed:       # a method's first call compiles its kernel
                 run_members(ss.scene, "reference", realisations=reals[:1], threads=1)
-                warmed = True
+                warmed |= methods
             t0 = time.perf_counter()
             runs = run_members(ss.scene, "reference", realisations=reals, threads=1)
             wall = time.perf_counter() - t0

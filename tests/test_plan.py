@@ -15,6 +15,7 @@ import granchain
 from granchain import costmodel, stoprule
 from granchain import runplan as plan_mod
 from granchain import workflow as gw
+from granchain.workflow.batches import realisation_limit
 from granchain.errors import GranchainError
 from granchain.runplan import plan_run
 from granchain.scene import scene_from_dict
@@ -436,6 +437,43 @@ def test_a_law_that_can_hold_the_wave_gives_its_jobs_time_to_the_cap(study):
         assert b.limit_seconds == pytest.approx(want * costmodel.load_model().threads,
                                                 rel=1e-9)
     assert held_any == (study != "gap_sweep")
+
+
+# One realisation (every striker speed, one thread) of full-preset adhesion scenes under
+# the event method at 1e-6, measured by ``benchmarks/estimates.py --study adhesion
+# --match ... --method event --tolerance 1e-6 --realisations 1`` (2026-12-01, 2-core
+# machine, load 0.4-1.1): one or two chains of each stayed bound as a whole to their cap
+MEASURED_BOUND = {"adhesion-ss316-gap190nm-jkr1": 61.47, "adhesion-ss440c-gap47nm-jkr2": 30.01}
+
+
+def test_the_event_method_on_a_chain_that_can_bind_gets_its_cap_in_its_job_limit():
+    """Under the event method, a chain that a law holding contacts closed binds as a
+    whole (adhesion) vibrates in every contact until its cap; the event estimate counts
+    one passage per contact, and scaled to the cap it was 2.9-5.3x below what such
+    scenes measured. The job limit of one realisation allows at least the measured time
+    (the workflow's runtime adds its margin on top), and at least every contact active
+    to the cap (``costmodel.held_seconds``) at every speed; a scene without the law keeps
+    its estimate."""
+    cfg = gw.read_config(Path(granchain.__file__).parents[1] / "config" / "config.yaml",
+                         "full")
+    study = cfg["presets"]["full"]["studies"]["adhesion"]
+    study.update(method="event", tolerance=1e-6)
+    _, preset = gw.select_preset(cfg)
+    scenes = {ss.scene.name: ss for ss in gw.study_scenes(preset, "adhesion")}
+    threads = costmodel.load_model().threads
+    for name, wall in MEASURED_BOUND.items():
+        ss = scenes[name]
+        assert {sp.scene.method for sp in ss.plan.speeds} == {"event"}
+        limit = realisation_limit(ss, "reference")
+        assert limit >= wall, (name, limit, wall)
+        gaps = np.full(ss.scene.n - 1, ss.gap_mean_nm * 1e-9)
+        held = sum(costmodel.held_seconds(sp.scene, sp.v_striker, sp.run_length(gaps))
+                   for sp in ss.plan.speeds)
+        assert limit >= threads * held * (1 - 1e-12)
+    plain = [ss for ss in scenes.values() if "adhesion" not in ss.scene.effects]
+    assert plain
+    for ss in plain:
+        assert realisation_limit(ss, "reference") == gw.realisation_cost(ss, "reference")
 
 
 def test_a_laws_step_cost_scales_its_estimate():

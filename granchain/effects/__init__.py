@@ -88,6 +88,13 @@ def switching(effects) -> tuple[str, ...]:
     return tuple(m.SPEC.name for m in MODULES if hasattr(m, "locate") and m.SPEC.name in effects)
 
 
+def binding(effects) -> tuple[str, ...]:
+    """The effects among these (names) whose law can hold contacts closed (a ``bond``
+    hook: adhesion), in registry order. A chain such a law binds as a whole keeps every
+    contact active until its cap."""
+    return tuple(m.SPEC.name for m in MODULES if hasattr(m, "bond") and m.SPEC.name in effects)
+
+
 def residual_work(effects) -> tuple[str, ...]:
     """Work columns LAMMPS cannot report for these effects (the balance residual there)."""
     return tuple(SPECS[e].work for e in SPECS if e in effects and SPECS[e].work

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..costmodel import DEFAULT_MAX_TOTAL_STEPS, add_estimates, load_model
-from ..effects import may_hold_wave
+from ..costmodel import DEFAULT_MAX_TOTAL_STEPS, add_estimates, held_seconds, load_model
+from ..effects import binding, may_hold_wave
 from ..errors import GranchainError
 from ..guards import check_run, gap_total
 from ..runplan import ENGINES
@@ -48,15 +48,24 @@ def realisation_limit(ss: StudyScene, engine: str) -> float:
     adhesion), which can stall the wave or hold the chain together until the cap
     (``benchmarks/estimates.py`` measured such scenes at up to 265x their estimate);
     :func:`realisation_cost` otherwise, or with a fixed t_end. Each speed's estimate
-    scaled by its cap over its expected duration."""
+    scaled by its cap over its expected duration; under the event method with a law
+    that can bind the chain as a whole (``effects.binding``), at least every contact
+    active to the cap (``costmodel.held_seconds``)."""
     sc = ss.scene
     if sc.t_end is not None or not may_hold_wave(sc.effects):
         return realisation_cost(ss, engine)
     k = ENGINES.index(engine)
     gaps = np.full(sc.n - 1, gap_total(sc, sc.n - 1) / max(1, sc.n - 1))
-    return _cores(engine) * sum(sp.seconds[k] * max(1.0, sp.run_length(gaps) / sp.duration_s)
-                                if sp.duration_s > 0 else sp.seconds[k]
-                                for sp in ss.plan.speeds)
+    bound = engine == "reference" and bool(binding(sc.effects))
+    total = 0.0
+    for sp in ss.plan.speeds:
+        cap = sp.run_length(gaps)
+        s = sp.seconds[k] * max(1.0, cap / sp.duration_s) if sp.duration_s > 0 \
+            else sp.seconds[k]
+        if bound and sp.scene.method == "event" and cap > 0:
+            s = max(s, held_seconds(sp.scene, sp.v_striker, cap))
+        total += s
+    return _cores(engine) * total
 
 
 @dataclass(frozen=True)
