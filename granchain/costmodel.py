@@ -405,19 +405,18 @@ def member_seconds(scene, v: float, engine: str = "reference", model: CostModel 
 
 def held_seconds(scene, v: float, run_length: float, model: CostModel | None = None
                  ) -> float:
-    """Estimated wall time (s) of one chain of a resolved scene at striker speed ``v`` that
-    keeps every contact active for ``run_length`` (s): a chain bound as a whole by a law
-    that holds contacts closed (``effects.binding``) vibrates in all its contacts until
-    its cap. The event method then follows every contact as the adaptive method follows
-    the chain: the adaptive method's time at the scene's tolerance over that time. The
-    event method's own estimate counts one passage per contact (:func:`speed_work`);
-    bound JKR chains ran 2.9-5.3x over it scaled to the cap, and at 0.27-0.46 of this
-    (``benchmarks/estimates.py --method event``, 316 at 190 nm and 1 J/m^2, 440C at 47 nm
-    and 2 J/m^2, 1e-6)."""
+    """Estimated wall time (s) of one chain of a resolved scene under a method with a
+    tolerance (adaptive, event) at striker speed ``v`` that keeps every contact active
+    for ``run_length`` (s): a chain bound as a whole by a law that holds contacts closed
+    (``effects.binding``) vibrates in all its contacts until its cap. The event method
+    then follows every contact as the adaptive method follows the chain: the adaptive
+    method's time at the scene's tolerance over that time. The event method's own
+    estimate counts one passage per contact (:func:`speed_work`); bound JKR chains ran
+    2.9-5.3x over it scaled to the cap, and at 0.27-0.46 of this (``benchmarks/estimates.py
+    --method event``, 316 at 190 nm and 1 J/m^2, 440C at 47 nm and 2 J/m^2, 1e-6)."""
     require_resolved(scene, "held_seconds")
-    tol = scene.tolerance if scene.method in TOLERANCE_METHODS else None
-    if tol is None:
-        return member_seconds(scene, v, model=model, duration=run_length)
+    if scene.method not in TOLERANCE_METHODS:
+        raise GranchainError(f"held_seconds: a method with a tolerance, not {scene.method!r}")
     return member_seconds(dataclasses.replace(scene, method="adaptive"), v, model=model,
                           duration=run_length)
 
