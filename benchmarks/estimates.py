@@ -34,6 +34,7 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
+from granchain.errors import GranchainError  # noqa: E402
 from granchain.workflow.batches import realisation_cost, realisation_limit  # noqa: E402
 from granchain.workflow.config import read_config  # noqa: E402
 from granchain.workflow.presetplan import Plan  # noqa: E402
@@ -66,7 +67,10 @@ def main(argv=None) -> None:
             studies[study]["method"] = a.method
             if a.tolerance is not None:
                 studies[study]["tolerance"] = a.tolerance
-    plan = Plan.build(config)
+    try:
+        plan = Plan.build(config)
+    except GranchainError as e:         # a --method the study does not take, say
+        raise SystemExit(f"estimates.py: {e}") from None
     rng = np.random.default_rng(a.seed)
     print(f"preset {a.preset}; load average {os.getloadavg()[0]:.1f}; one thread; "
           f"{a.realisations} realisation(s) per scene, every striker speed", flush=True)
